@@ -1,0 +1,1 @@
+"""Trajectory optimization (impact-aware DDP, HS-DDP, STO) and the policies built on it."""
