@@ -1,0 +1,349 @@
+"""HS-DDP Algorithm 1: impact-aware iLQR inside an augmented-Lagrangian / relaxed-barrier outer loop.
+
+``solve(problem, ...)`` runs (paper Alg. 1, Sec. IV-B to IV-D):
+
+1. roll out the warm start (controls, optionally with a feedback law around a state trajectory);
+2. DDP to convergence on the current objective: linearize the dynamics along the nominal trajectory
+   (Pinocchio analytical derivatives), differentiate the objective (vectorized over the horizon),
+   run the impact-aware backward pass (:mod:`planners.riccati`), and a backtracking line search on the
+   policy ``u = u_hat + eps k + K (x - x_hat)`` (eq. 8) that accepts a step only if the actual decrease
+   is at least ``armijo`` times the expected one; non-finite rollouts are failed trials;
+3. update the AL multipliers and penalty (eq. 24: ``lam <- lam + sigma g``, then ``sigma <- beta sigma``),
+   shrink the barrier relaxations (``delta <- delta_factor delta``) and grow their weights, until
+   ``sum g^2 <= al_tolerance``.
+
+The workspace (Pinocchio data, per-horizon arrays) is allocated once per problem size and reused.
+Solves are deterministic: the same inputs give bit-identical outputs.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hsddp_gym.conventions import NGRF, NU, NX
+from hsddp_gym.dynamics import Linearization
+from hsddp_gym.validation import check_array
+from planners.callbacks import Callback, InMemoryLogger, VerbosePrinter
+from planners.objective import ConstraintState, CostBreakdown, Objective
+from planners.problem import HybridProblem
+from planners.riccati import backward_pass
+from planners.solution import IterationRecord, Solution, SolverOptions
+
+
+class _Traj:
+    """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4)."""
+
+    def __init__(self, n_knots: int, n_phases: int) -> None:
+        self.X = np.zeros((n_knots + 1, NX))
+        self.X_pre = np.zeros((n_phases, NX))
+        self.U = np.zeros((n_knots, NU))
+        self.GRF = np.zeros((n_knots, NGRF))
+
+
+class Workspace:
+    """Everything a solve allocates, sized for one problem layout (reuse it across solves, e.g. in MPC)."""
+
+    def __init__(self, problem: HybridProblem) -> None:
+        n, m = problem.n_knots, problem.n_phases
+        self.n_knots, self.n_phases = n, m
+        self.nominal = _Traj(n, m)
+        self.candidate = _Traj(n, m)
+        self.lin = Linearization(n)
+        self.l_x = np.zeros((n, NX))
+        self.l_u = np.zeros((n, NU))
+        self.l_xx = np.zeros((n, NX, NX))
+        self.l_uu = np.zeros((n, NU, NU))
+        self.l_ux = np.zeros((n, NU, NX))
+        self.Phi_x = np.zeros((m, NX))
+        self.Phi_xx = np.zeros((m, NX, NX))
+        self.P_x = np.zeros((m, NX, NX))
+        self.k_ff = np.zeros((n, NU))
+        self.K = np.zeros((n, NU, NX))
+        self.V_x = np.zeros((n + 1, NX))
+        self.V_xx = np.zeros((n + 1, NX, NX))
+        self.dx = np.zeros(NX)
+        self.u = np.zeros(NU)
+
+    def fits(self, problem: HybridProblem) -> bool:
+        return self.n_knots == problem.n_knots and self.n_phases == problem.n_phases
+
+
+def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
+                   K: np.ndarray | None = None, k_ff: np.ndarray | None = None, eps: float = 0.0,
+                   scratch: Workspace | None = None) -> bool:
+    """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` through the hybrid system.
+
+    Writes ``out``; returns False (leaving NaNs) as soon as a state becomes non-finite.
+    """
+    dyn = problem.dynamics
+    step = dyn.simulate_step
+    reset = dyn._reset
+    e = problem.restitution
+    X, GRF, U = out.X, out.GRF, out.U
+    X[0] = problem.x0
+    feedback = K is not None
+    ff = k_ff is not None and eps != 0.0
+    dx = np.empty(NX)
+    u = np.empty(NU)
+    ps = problem.phase_start
+    modes = problem.modes
+    for i in range(problem.n_phases):
+        mode = int(problem.schedule.modes[i])
+        for k in range(ps[i], ps[i + 1]):
+            x = X[k]
+            if feedback:
+                np.subtract(x, X_ref[k], out=dx)
+                np.dot(K[k], dx, out=u)
+                u += U_ref[k]
+            else:
+                u[:] = U_ref[k]
+            if ff:
+                u += eps * k_ff[k]
+            U[k] = u
+            step(x, u, mode, X[k + 1], GRF[k])
+        x = X[ps[i + 1]]
+        if not np.isfinite(x).all():
+            X[ps[i + 1]:] = np.nan
+            return False
+        out.X_pre[i] = x
+        if i + 1 < problem.n_phases:
+            X[ps[i + 1]], _ = reset(x, problem.schedule.next_mode(i), e)
+    del modes
+    return True
+
+
+def constraint_metrics(problem: HybridProblem, U: np.ndarray, GRF: np.ndarray) -> tuple[float, float, float]:
+    """``(max torque violation [N m], min stance normal force [N], max friction violation [N])``."""
+    umax = problem.constraints.torque_limit
+    mu = problem.constraints.friction
+    tau = float(max(np.max(np.abs(U)) - umax, 0.0))
+    fz = np.where(problem.stance, GRF[:, 1::2], np.inf)
+    min_fz = float(np.min(fz)) if problem.stance_any.any() else float("nan")
+    fric = np.where(problem.stance, np.abs(GRF[:, 0::2]) - mu * GRF[:, 1::2], -np.inf)
+    max_fric = float(np.max(fric)) if problem.stance_any.any() else float("nan")
+    return tau, min_fz, max_fric
+
+
+class HSDDP:
+    """The HS-DDP solver (Algorithm 1). Reusable: keeps its workspace between solves of equal size.
+
+    Args:
+        options: :class:`SolverOptions`.
+        callbacks: extra callables receiving each :class:`IterationRecord`; the in-memory log always runs
+            and ``verbose=True`` adds a :class:`VerbosePrinter`.
+        verbose: print a table row per iteration.
+    """
+
+    def __init__(self, options: SolverOptions = SolverOptions(), callbacks: list[Callback] | None = None,
+                 verbose: bool = False) -> None:
+        if not isinstance(options, SolverOptions):
+            raise TypeError(f"options must be a SolverOptions, got {type(options).__name__}")
+        self.options = options
+        self.callbacks = list(callbacks or [])
+        if verbose:
+            self.callbacks.append(VerbosePrinter())
+        self._ws: Workspace | None = None
+
+    # ------------------------------------------------------------------ public API
+    def solve(self, problem: HybridProblem, U_init: np.ndarray, X_init: np.ndarray | None = None,
+              K_init: np.ndarray | None = None, multipliers: np.ndarray | None = None, sigma: float | None = None
+              ) -> Solution:
+        """Solve ``problem`` from a warm start.
+
+        Args:
+            problem: the hybrid OCP.
+            U_init: ``(N, 4)`` initial controls (e.g. the heuristic controller's).
+            X_init, K_init: optional ``(N+1, 14)`` states and ``(N, 4, 14)`` gains: the first rollout then
+                uses ``u = U_init + K_init (x - X_init)`` (warm start from a previous solution).
+            multipliers: ``(n,)`` initial AL multipliers (default ``lambda0``). sigma: initial penalty.
+        Returns:
+            A :class:`Solution`.
+        """
+        if not isinstance(problem, HybridProblem):
+            raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
+        opt = self.options
+        N, n = problem.n_knots, problem.n_phases
+        U_init = check_array(U_init, (N, NU), "U_init")
+        if (X_init is None) != (K_init is None):
+            raise ValueError("X_init and K_init go together (a feedback warm start); pass both or neither")
+        if X_init is not None:
+            X_init = check_array(X_init, (N + 1, NX), "X_init")
+            K_init = check_array(K_init, (N, NU, NX), "K_init")
+        lam = np.full(n, opt.lambda0) if multipliers is None else check_array(multipliers, (n,), "multipliers").copy()
+        sigma = opt.sigma0 if sigma is None else float(sigma)
+        if self._ws is None or not self._ws.fits(problem):
+            self._ws = Workspace(problem)
+        ws = self._ws
+        objective = Objective(problem)
+        cs = ConstraintState(sigma=sigma, lam=lam, use_al=opt.use_al, use_reb=opt.use_reb,
+                             delta_torque=opt.delta_torque0, delta_grf=opt.delta_grf0,
+                             eps_torque=opt.eps_torque, eps_grf=opt.eps_grf)
+        logger = InMemoryLogger()
+        callbacks = [logger, *self.callbacks]
+        timings = {"linearize": 0.0, "cost_derivatives": 0.0, "backward": 0.0, "line_search": 0.0,
+                   "reset_jacobians": 0.0, "line_search_trials": 0}
+        t0 = time.perf_counter()
+        ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init)
+        if not ok:
+            raise ValueError("the warm start (U_init, X_init, K_init) produces a non-finite rollout")
+        state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running"}
+
+        def record(event, costs: CostBreakdown, step=0.0, expected=0.0):
+            tr = ws.nominal
+            g = objective.switching_values(tr.X_pre)
+            tau, min_fz, fric = constraint_metrics(problem, tr.U, tr.GRF)
+            r = IterationRecord(al_iteration=state["al"], ddp_iteration=state["ddp"], objective=costs.total,
+                                cost=costs.task, al=costs.al, barrier=costs.barrier,
+                                switching_violation=float(np.sum(g * g)), max_torque_violation=tau,
+                                min_normal_grf=min_fz, max_friction_violation=fric, step=step, mu=state["mu"],
+                                expected=expected, wall_time=time.perf_counter() - t0, event=event)
+            for cb in callbacks:
+                cb(r)
+            return r
+
+        costs = self._evaluate(objective, ws.nominal, cs)
+        record("init", costs)
+        converged = False
+        for al_iter in range(opt.max_al_iterations):
+            state["al"] = al_iter
+            costs = self._evaluate(objective, ws.nominal, cs)
+            if al_iter > 0:
+                record("al_update", costs)
+            costs = self._ddp(problem, objective, cs, costs, state, record, timings, t0)
+            g = objective.switching_values(ws.nominal.X_pre)
+            viol = float(np.sum(g * g))
+            if state["status"] in ("time_limit", "iteration_limit", "diverged"):
+                break
+            if not opt.use_al or viol <= opt.al_tolerance:
+                converged = True
+                break
+            # Algorithm 1, line 9 (eq. 24 uses the penalty before its growth)
+            cs.lam = cs.lam + cs.sigma * g
+            cs.sigma *= opt.beta
+            cs.delta_torque = max(opt.delta_min, cs.delta_torque * opt.delta_factor)
+            cs.delta_grf = max(opt.delta_min, cs.delta_grf * opt.delta_factor)
+            cs.eps_torque *= opt.eps_growth
+            cs.eps_grf *= opt.eps_growth
+        status = "converged" if converged else (state["status"] if state["status"] != "running"
+                                                else "al_iteration_limit")
+        # gains consistent with the final trajectory: one more linearization + backward pass (no step)
+        self._backward_at_nominal(problem, objective, cs, state, timings)
+        tr = ws.nominal
+        final = self._evaluate(objective, tr, cs)
+        g = objective.switching_values(tr.X_pre)
+        solve_time = time.perf_counter() - t0
+        return Solution(X=tr.X.copy(), X_pre=tr.X_pre.copy(), U=tr.U.copy(), GRF=tr.GRF.copy(), K=ws.K.copy(),
+                        k_ff=ws.k_ff.copy(), modes=problem.modes.copy(), phase_start=problem.phase_start.copy(),
+                        schedule=problem.schedule, dt=problem.dt, switching=g, multipliers=cs.lam.copy(),
+                        sigma=cs.sigma, cost=final.task, objective=final.total, status=status, converged=converged,
+                        al_iterations=state["al"] + 1, ddp_iterations=state["ddp"], solve_time=solve_time,
+                        log=logger.records, timings=timings, options=opt, V_x0=ws.V_x[0].copy(),
+                        V_xx0=ws.V_xx[0].copy())
+
+    # ------------------------------------------------------------------ internals
+    @staticmethod
+    def _evaluate(objective: Objective, tr: _Traj, cs: ConstraintState) -> CostBreakdown:
+        return objective.evaluate(tr.X, tr.X_pre, tr.U, tr.GRF, cs)
+
+    def _linearize(self, problem, objective, cs, timings):
+        ws = self._ws
+        tr = ws.nominal
+        t = time.perf_counter()
+        problem.dynamics.linearize(tr.X, tr.U, problem.modes, ws.lin)
+        t2 = time.perf_counter()
+        dyn = problem.dynamics
+        e = problem.restitution
+        for i in range(problem.n_phases - 1):
+            dyn._reset_jacobian(tr.X_pre[i], problem.schedule.next_mode(i), e, ws.P_x[i])
+        t3 = time.perf_counter()
+        objective.derivatives(tr.X, tr.X_pre, tr.U, tr.GRF, ws.lin.grf_x, ws.lin.grf_u, cs, ws.l_x, ws.l_u,
+                              ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx)
+        t4 = time.perf_counter()
+        timings["linearize"] += t2 - t
+        timings["reset_jacobians"] += t3 - t2
+        timings["cost_derivatives"] += t4 - t3
+
+    def _backward(self, problem, mu, timings):
+        ws = self._ws
+        t = time.perf_counter()
+        out = backward_pass(ws.lin.f_x, ws.lin.f_u, ws.l_x, ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx,
+                            ws.P_x, problem.phase_start, mu, ws.k_ff, ws.K, ws.V_x, ws.V_xx)
+        timings["backward"] += time.perf_counter() - t
+        return out
+
+    def _backward_at_nominal(self, problem, objective, cs, state, timings):
+        self._linearize(problem, objective, cs, timings)
+        mu = state["mu"]
+        for _ in range(60):
+            ok, _, _, _ = self._backward(problem, mu, timings)
+            if ok:
+                return
+            mu = max(self.options.mu_min, mu * self.options.mu_growth)
+
+    def _ddp(self, problem, objective, cs, costs, state, record, timings, t0):
+        opt = self.options
+        ws = self._ws
+        for _ in range(opt.max_ddp_iterations):
+            if opt.time_limit is not None and time.perf_counter() - t0 > opt.time_limit:
+                state["status"] = "time_limit"
+                return costs
+            if opt.max_total_ddp_iterations is not None and state["ddp"] >= opt.max_total_ddp_iterations:
+                state["status"] = "iteration_limit"
+                return costs
+            self._linearize(problem, objective, cs, timings)
+            accepted = False
+            while not accepted:
+                ok, _, dV1, dV2 = self._backward(problem, state["mu"], timings)
+                if not ok:
+                    state["mu"] = max(opt.mu_min, state["mu"] * opt.mu_growth)
+                    if state["mu"] > opt.mu_max:
+                        state["status"] = "diverged"
+                        return costs
+                    continue
+                if dV1 > -1e-12:
+                    # no descent direction left: converged for this objective
+                    state["ddp"] += 0
+                    return costs
+                t = time.perf_counter()
+                eps = 1.0
+                new_costs = None
+                while eps >= opt.min_step:
+                    timings["line_search_trials"] += 1
+                    ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps)
+                    if ok:
+                        cand = self._evaluate(objective, ws.candidate, cs)
+                        expected = eps * dV1 + 0.5 * eps * eps * dV2
+                        if np.isfinite(cand.total) and expected < 0 and \
+                                (cand.total - costs.total) <= opt.armijo * expected:
+                            new_costs = cand
+                            break
+                    eps *= opt.step_factor
+                timings["line_search"] += time.perf_counter() - t
+                if new_costs is None:
+                    state["mu"] = max(opt.mu_min, state["mu"] * opt.mu_growth)
+                    if state["mu"] > opt.mu_max:
+                        state["status"] = "diverged"
+                        return costs
+                    continue
+                accepted = True
+            decrease = costs.total - new_costs.total
+            ws.nominal, ws.candidate = ws.candidate, ws.nominal
+            costs = new_costs
+            state["mu"] = state["mu"] / opt.mu_growth
+            if state["mu"] < opt.mu_min:
+                state["mu"] = 0.0
+            state["ddp"] += 1
+            record("ddp", costs, step=eps, expected=float(-(eps * dV1 + 0.5 * eps * eps * dV2)))
+            if decrease < opt.ddp_tolerance:
+                return costs
+        return costs
+
+
+def solve(problem: HybridProblem, U_init: np.ndarray, options: SolverOptions = SolverOptions(),
+          X_init: np.ndarray | None = None, K_init: np.ndarray | None = None,
+          multipliers: np.ndarray | None = None, callbacks: list[Callback] | None = None, verbose: bool = False
+          ) -> Solution:
+    """Solve ``problem`` with HS-DDP Algorithm 1 (see :class:`HSDDP.solve`)."""
+    return HSDDP(options, callbacks, verbose).solve(problem, U_init, X_init, K_init, multipliers)

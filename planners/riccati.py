@@ -1,0 +1,216 @@
+"""The backward pass of impact-aware iLQR (paper eqs. 5, 7 and 22), compiled with numba.
+
+Notation (trajax / Tassa et al. 2012): knots ``k = 0..N-1`` with dynamics Jacobians ``f_x (N, 14, 14)``,
+``f_u (N, 14, 4)``, running-cost derivatives ``l_x (N, 14)``, ``l_u (N, 4)``, ``l_xx (N, 14, 14)``,
+``l_uu (N, 4, 4)``, ``l_ux (N, 4, 14)``; per phase ``i`` the terminal-cost derivatives ``Phi_x (n, 14)``,
+``Phi_xx (n, 14, 14)`` at the pre-switch state ``x_i^-`` and the reset Jacobian ``P_x (n, 14, 14)``
+into phase ``i + 1``. Phase ``i`` owns knots ``phase_start[i] .. phase_start[i+1] - 1``.
+
+At the end of phase ``i`` (paper eq. 22)::
+
+    V_x^-  = Phi_x + P_x^T V_x^+,    V_xx^- = Phi_xx + P_x^T V_xx^+ P_x,    dV^- = dV^+
+
+(the last phase: ``V^- = Phi``). Inside a phase, iLQR (eqs. 5 and 7, without second-order dynamics):
+``Q_x = l_x + f_x^T V_x'`` ... and the gains ``k = -Q_uu^-1 Q_u``, ``K = -Q_uu^-1 Q_ux`` with ``Q_uu``
+regularized by ``mu I``. The value update uses the regularized gains with the exact ``Q`` blocks
+(Tassa et al. 2012, eq. 11), which keeps ``V_xx`` consistent when ``mu > 0``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True, fastmath=False)
+def _cholesky_solve_4(A, B, L, out):
+    """Solve A X = B for SPD A (m x m, m <= small) via Cholesky; returns False if A is not PD."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(i + 1):
+            s = A[i, j]
+            for p in range(j):
+                s -= L[i, p] * L[j, p]
+            if i == j:
+                if s <= 1e-12:
+                    return False
+                L[i, i] = np.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    ncol = B.shape[1]
+    for c in range(ncol):
+        # forward
+        for i in range(m):
+            s = B[i, c]
+            for p in range(i):
+                s -= L[i, p] * out[p, c]
+            out[i, c] = s / L[i, i]
+        # backward
+        for i in range(m - 1, -1, -1):
+            s = out[i, c]
+            for p in range(i + 1, m):
+                s -= L[p, i] * out[p, c]
+            out[i, c] = s / L[i, i]
+    return True
+
+
+@numba.njit(cache=True)
+def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu,
+                  k_ff, K, V_x_out, V_xx_out):
+    """Impact-aware iLQR backward pass.
+
+    Writes the feed-forward terms ``k_ff (N, 4)``, gains ``K (N, 4, 14)``, and the value gradient /
+    Hessian at every knot ``V_x_out (N+1, 14)``, ``V_xx_out (N+1, 14, 14)`` (knot N: the final state).
+
+    Returns:
+        ``(ok, failed_knot, dV1, dV2)``: the expected cost change of a step ``eps`` is
+        ``eps * dV1 + eps^2 / 2 * dV2``. ``ok`` is False (with the knot) when ``Q_uu + mu I`` is not
+        positive definite.
+    """
+    n_phase = phase_start.shape[0] - 1
+    nx = f_x.shape[1]
+    nu = f_u.shape[2]
+    Vx = np.empty(nx)
+    Vxx = np.empty((nx, nx))
+    tmp_xx = np.empty((nx, nx))
+    Qx = np.empty(nx)
+    Qu = np.empty(nu)
+    Qxx = np.empty((nx, nx))
+    Quu = np.empty((nu, nu))
+    Quu_reg = np.empty((nu, nu))
+    Qux = np.empty((nu, nx))
+    VxxFx = np.empty((nx, nx))
+    VxxFu = np.empty((nx, nu))
+    rhs = np.empty((nu, nx + 1))
+    sol = np.empty((nu, nx + 1))
+    L = np.zeros((nu, nu))
+    dV1 = 0.0
+    dV2 = 0.0
+    last = n_phase - 1
+    for a in range(nx):
+        Vx[a] = Phi_x[last, a]
+        for b in range(nx):
+            Vxx[a, b] = Phi_xx[last, a, b]
+    N = f_x.shape[0]
+    V_x_out[N, :] = Vx
+    V_xx_out[N, :, :] = Vxx
+    for i in range(n_phase - 1, -1, -1):
+        if i < n_phase - 1:
+            # impact-aware value update at the end of phase i (eq. 22)
+            P = P_x[i]
+            for a in range(nx):
+                s = Phi_x[i, a]
+                for c in range(nx):
+                    s += P[c, a] * Vx[c]
+                Qx[a] = s
+            for a in range(nx):
+                Vx[a] = Qx[a]
+            for a in range(nx):
+                for b in range(nx):
+                    s = 0.0
+                    for c in range(nx):
+                        s += Vxx[a, c] * P[c, b]
+                    tmp_xx[a, b] = s
+            for a in range(nx):
+                for b in range(nx):
+                    s = Phi_xx[i, a, b]
+                    for c in range(nx):
+                        s += P[c, a] * tmp_xx[c, b]
+                    Qxx[a, b] = s
+            for a in range(nx):
+                for b in range(nx):
+                    Vxx[a, b] = 0.5 * (Qxx[a, b] + Qxx[b, a])
+        for k in range(phase_start[i + 1] - 1, phase_start[i] - 1, -1):
+            A = f_x[k]
+            B = f_u[k]
+            # VxxFx = Vxx A, VxxFu = Vxx B
+            for a in range(nx):
+                for b in range(nx):
+                    s = 0.0
+                    for c in range(nx):
+                        s += Vxx[a, c] * A[c, b]
+                    VxxFx[a, b] = s
+                for b in range(nu):
+                    s = 0.0
+                    for c in range(nx):
+                        s += Vxx[a, c] * B[c, b]
+                    VxxFu[a, b] = s
+            for a in range(nx):
+                s = l_x[k, a]
+                for c in range(nx):
+                    s += A[c, a] * Vx[c]
+                Qx[a] = s
+            for a in range(nu):
+                s = l_u[k, a]
+                for c in range(nx):
+                    s += B[c, a] * Vx[c]
+                Qu[a] = s
+            for a in range(nx):
+                for b in range(a, nx):
+                    s = l_xx[k, a, b]
+                    for c in range(nx):
+                        s += A[c, a] * VxxFx[c, b]
+                    Qxx[a, b] = s
+                    Qxx[b, a] = s
+            for a in range(nu):
+                for b in range(a, nu):
+                    s = l_uu[k, a, b]
+                    for c in range(nx):
+                        s += B[c, a] * VxxFu[c, b]
+                    Quu[a, b] = s
+                    Quu[b, a] = s
+                for b in range(nx):
+                    s = l_ux[k, a, b]
+                    for c in range(nx):
+                        s += B[c, a] * VxxFx[c, b]
+                    Qux[a, b] = s
+            for a in range(nu):
+                for b in range(nu):
+                    Quu_reg[a, b] = Quu[a, b]
+                Quu_reg[a, a] += mu
+                rhs[a, 0] = -Qu[a]
+                for b in range(nx):
+                    rhs[a, b + 1] = -Qux[a, b]
+            if not _cholesky_solve_4(Quu_reg, rhs, L, sol):
+                return False, k, dV1, dV2
+            for a in range(nu):
+                k_ff[k, a] = sol[a, 0]
+                for b in range(nx):
+                    K[k, a, b] = sol[a, b + 1]
+            kf = k_ff[k]
+            Kk = K[k]
+            # expected change
+            for a in range(nu):
+                dV1 += kf[a] * Qu[a]
+                s = 0.0
+                for b in range(nu):
+                    s += Quu[a, b] * kf[b]
+                dV2 += kf[a] * s
+            # V_x = Q_x + K^T Quu k + K^T Q_u + Q_ux^T k
+            for a in range(nx):
+                s = Qx[a]
+                for b in range(nu):
+                    t = Qu[b]
+                    for c in range(nu):
+                        t += Quu[b, c] * kf[c]
+                    s += Kk[b, a] * t + Qux[b, a] * kf[b]
+                Vx[a] = s
+            # V_xx = Q_xx + K^T Quu K + K^T Q_ux + Q_ux^T K
+            for b in range(nu):
+                for a in range(nx):
+                    s = 0.0
+                    for c in range(nu):
+                        s += Quu[b, c] * Kk[c, a]
+                    rhs[b, a] = s  # rhs reused as (Quu K)  [nu x nx]
+            for a in range(nx):
+                for b in range(a, nx):
+                    s = Qxx[a, b]
+                    for c in range(nu):
+                        s += Kk[c, a] * (rhs[c, b] + Qux[c, b]) + Qux[c, a] * Kk[c, b]
+                    Vxx[a, b] = s
+                    Vxx[b, a] = s
+            for a in range(nx):
+                V_x_out[k, a] = Vx[a]
+                for b in range(nx):
+                    V_xx_out[k, a, b] = Vxx[a, b]
+    return True, -1, dV1, dV2
