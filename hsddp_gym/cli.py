@@ -43,7 +43,7 @@ def _plan_outputs(result, out: Path, plots: bool) -> dict:
         from hsddp_gym import plotting
 
         robot = pr.dynamics.robot
-        td = [(float(robot.foot_positions(result.X_pre[i, :7])[f, 0]), float(robot.foot_heights(result.X_pre[i, :7])[f]))
+        td = [tuple(float(c) for c in robot.foot_positions(result.X_pre[i, :7])[f])
               for i, f in enumerate(pr.touchdown) if f >= 0]
         plotting.plot_motion_strips(robot, {result.method: result.X}, out / "motion.png",
                                     touchdowns={result.method: td})
@@ -138,7 +138,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "al: + augmented Lagrangian on them; al-reb: + relaxed barriers on torque, normal force and "
                         "friction (default: %(default)s)")
     p.add_argument("--cycles", type=_positive_int, default=5, help="gait cycles (default: %(default)s)")
-    p.add_argument("--speed", type=_positive_float, default=1.0, help="desired forward speed [m/s] (default: %(default)s)")
+    p.add_argument("--speed", type=_positive_float, default=1.0,
+                   help="desired forward speed [m/s] (default: %(default)s)")
     p.add_argument("--max-al-iterations", type=_positive_int, default=6,
                    help="outer AL iterations at most (default: %(default)s)")
     p.add_argument("--max-ddp-iterations", type=_positive_int, default=10,

@@ -213,7 +213,7 @@ class HybridDynamics:
         return self._integrate(x, packed[:NV]), packed[NV:].copy(), f_x[0], f_u[0], grf_x, l_u
 
     # ------------------------------------------------------------------ horizon (hot path)
-    def linearize(self, X: np.ndarray, U: np.ndarray, modes: np.ndarray, out: "Linearization") -> None:
+    def linearize(self, X: np.ndarray, U: np.ndarray, modes: np.ndarray, out: Linearization) -> None:
         """Derivatives of the discrete steps along a trajectory, written into ``out``.
 
         Knot ``k`` steps ``X[k] -> X[k+1]`` with ``U[k]`` in ``modes[k]``. The per-knot loop only calls
@@ -402,7 +402,7 @@ class Linearization:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots (vectorized)."""
         assemble_step_jacobians(self.a_q[:n], self.a_v[:n], self.a_tau[:n, :, 3:], h, integrator,
                                 self.f_x[:n], self.f_u[:n])
-        self.grf[:n] = 0.0
+        grf_from_lambda(self.lam6[:n], modes[:n], contact_sets, self.grf[:n])
         self.grf_x[:n] = 0.0
         self.grf_u[:n] = 0.0
         modes = np.asarray(modes[:n])
@@ -414,7 +414,22 @@ class Linearization:
             lam_rows = cs.lam_rows
             for j in range(nrow):
                 g, r = cs.grf_rows[j], lam_rows[j]
-                self.grf[idx, g] = self.lam6[idx, r]
                 self.grf_x[idx, g, :NQ] = self.lam6_q[idx, r]
                 self.grf_x[idx, g, NQ:] = self.lam6_v[idx, r]
                 self.grf_u[idx, g] = self.lam6_tau[idx, r, 3:]
+
+
+def grf_from_lambda(lam6: np.ndarray, modes: np.ndarray, contact_sets: dict, out: np.ndarray) -> None:
+    """Convert Pinocchio's stacked contact forces to our ``grf`` layout, vectorized over knots.
+
+    Args:
+        lam6: ``(N, 6)`` Pinocchio ``lambda_c`` per knot (3 rows per contact in the contact set's order,
+            unused rows ignored). modes: ``(N,)``. contact_sets: ``HybridDynamics._contact``.
+        out: ``(N, 4)`` ground forces (zero for feet in the air).
+    """
+    out[:] = 0.0
+    modes = np.asarray(modes)
+    for mode, cs in contact_sets.items():
+        idx = np.flatnonzero(modes == int(mode))
+        if idx.size:
+            out[np.ix_(idx, cs.grf_rows)] = lam6[np.ix_(idx, cs.lam_rows)]

@@ -21,9 +21,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pinocchio as pin
 
 from hsddp_gym.conventions import NGRF, NU, NX
-from hsddp_gym.dynamics import Linearization
+from hsddp_gym.dynamics import Linearization, grf_from_lambda
 from hsddp_gym.validation import check_array
 from planners.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from planners.objective import ConstraintState, CostBreakdown, Objective
@@ -63,8 +64,7 @@ class Workspace:
         self.K = np.zeros((n, NU, NX))
         self.V_x = np.zeros((n + 1, NX))
         self.V_xx = np.zeros((n + 1, NX, NX))
-        self.dx = np.zeros(NX)
-        self.u = np.zeros(NU)
+        self.lam6 = np.zeros((n, 6))
 
     def fits(self, problem: HybridProblem) -> bool:
         return self.n_knots == problem.n_knots and self.n_phases == problem.n_phases
@@ -72,45 +72,69 @@ class Workspace:
 
 def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
                    K: np.ndarray | None = None, k_ff: np.ndarray | None = None, eps: float = 0.0,
-                   scratch: Workspace | None = None) -> bool:
-    """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` through the hybrid system.
+                   lam6: np.ndarray | None = None) -> bool:
+    """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` (eq. 8) through the hybrid system.
 
-    Writes ``out``; returns False (leaving NaNs) as soon as a state becomes non-finite.
+    The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``, so each
+    knot costs one 4x14 product, one Pinocchio call and the Euler update. Writes ``out``; returns False
+    (leaving NaNs) as soon as a phase ends in a non-finite state.
+
+    Args:
+        lam6: optional ``(N, 6)`` scratch for Pinocchio's contact forces.
     """
     dyn = problem.dynamics
-    step = dyn.simulate_step
-    reset = dyn._reset
-    e = problem.restitution
-    X, GRF, U = out.X, out.GRF, out.U
+    model, prox, h = dyn.model, dyn._prox, dyn.dt
+    tau = dyn._tau
+    semi = dyn.integrator == "semi_implicit"
+    N = problem.n_knots
+    X, U = out.X, out.U
+    if K is not None:
+        c = U_ref - np.einsum("nux,nx->nu", K, X_ref[:N])
+        if k_ff is not None and eps != 0.0:
+            c += eps * k_ff
+    else:
+        c = U_ref if (k_ff is None or eps == 0.0) else U_ref + eps * k_ff
+    lam6 = np.zeros((N, 6)) if lam6 is None else lam6
     X[0] = problem.x0
-    feedback = K is not None
-    ff = k_ff is not None and eps != 0.0
-    dx = np.empty(NX)
-    u = np.empty(NU)
     ps = problem.phase_start
-    modes = problem.modes
+    u = np.empty(NU)
+    tmp = np.empty(NX // 2)
+    free = dyn._free
+    e = problem.restitution
     for i in range(problem.n_phases):
         mode = int(problem.schedule.modes[i])
+        if mode:
+            cs = dyn._contact[mode]
+            data, cms, cds, nl = cs.data, cs.models, cs.datas, 3 * len(cs.feet)
         for k in range(ps[i], ps[i + 1]):
             x = X[k]
-            if feedback:
-                np.subtract(x, X_ref[k], out=dx)
-                np.dot(K[k], dx, out=u)
-                u += U_ref[k]
+            if K is not None:
+                np.dot(K[k], x, out=u)
+                u += c[k]
             else:
-                u[:] = U_ref[k]
-            if ff:
-                u += eps * k_ff[k]
+                u[:] = c[k]
             U[k] = u
-            step(x, u, mode, X[k + 1], GRF[k])
+            tau[3:] = u
+            q = x[:7]
+            v = x[7:]
+            if mode:
+                a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+                lam6[k, :nl] = data.lambda_c
+            else:
+                a = pin.aba(model, free, q, v, tau)
+            xn = X[k + 1]
+            np.multiply(a, h, out=tmp)
+            np.add(v, tmp, out=xn[7:])
+            np.multiply(xn[7:] if semi else v, h, out=tmp)
+            np.add(q, tmp, out=xn[:7])
         x = X[ps[i + 1]]
         if not np.isfinite(x).all():
             X[ps[i + 1]:] = np.nan
             return False
         out.X_pre[i] = x
         if i + 1 < problem.n_phases:
-            X[ps[i + 1]], _ = reset(x, problem.schedule.next_mode(i), e)
-    del modes
+            X[ps[i + 1]], _ = dyn._reset(x, problem.schedule.next_mode(i), e)
+    grf_from_lambda(lam6, problem.modes, dyn._contact, out.GRF)
     return True
 
 
@@ -311,7 +335,8 @@ class HSDDP:
                 new_costs = None
                 while eps >= opt.min_step:
                     timings["line_search_trials"] += 1
-                    ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps)
+                    ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
+                                        ws.lam6)
                     if ok:
                         cand = self._evaluate(objective, ws.candidate, cs)
                         expected = eps * dV1 + 0.5 * eps * eps * dV2

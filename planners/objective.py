@@ -55,7 +55,7 @@ class ConstraintState:
     eps_torque: float
     eps_grf: float
 
-    def copy(self) -> "ConstraintState":
+    def copy(self) -> ConstraintState:
         return dataclasses.replace(self, lam=self.lam.copy())
 
 

@@ -176,7 +176,7 @@ class HybridProblem:
     def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None
-                 ) -> "HybridProblem":
+                 ) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B)."""
         from hsddp_gym.references import paper_initial_state
@@ -193,11 +193,11 @@ class HybridProblem:
         x0 = paper_initial_state(params) if x0 is None else x0
         return cls(dynamics, schedule, costs, x0, constraints)
 
-    def with_schedule(self, schedule: ModeSchedule) -> "HybridProblem":
+    def with_schedule(self, schedule: ModeSchedule) -> HybridProblem:
         """The same problem on a schedule with the same modes (e.g. new durations)."""
         if schedule.modes != self.schedule.modes or schedule.final_mode != self.schedule.final_mode:
             raise ValueError("with_schedule needs the same mode sequence")
         return HybridProblem(self.dynamics, schedule, self.costs, self.x0, self.constraints, self.restitution)
 
-    def with_x0(self, x0: np.ndarray) -> "HybridProblem":
+    def with_x0(self, x0: np.ndarray) -> HybridProblem:
         return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution)

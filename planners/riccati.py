@@ -124,17 +124,19 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
             A = f_x[k]
             B = f_u[k]
             # VxxFx = Vxx A, VxxFu = Vxx B
+            # row-major products (inner loops contiguous, SIMD-friendly)
             for a in range(nx):
                 for b in range(nx):
-                    s = 0.0
-                    for c in range(nx):
-                        s += Vxx[a, c] * A[c, b]
-                    VxxFx[a, b] = s
+                    VxxFx[a, b] = 0.0
                 for b in range(nu):
-                    s = 0.0
-                    for c in range(nx):
-                        s += Vxx[a, c] * B[c, b]
-                    VxxFu[a, b] = s
+                    VxxFu[a, b] = 0.0
+                for c in range(nx):
+                    v = Vxx[a, c]
+                    if v != 0.0:
+                        for b in range(nx):
+                            VxxFx[a, b] += v * A[c, b]
+                        for b in range(nu):
+                            VxxFu[a, b] += v * B[c, b]
             for a in range(nx):
                 s = l_x[k, a]
                 for c in range(nx):
@@ -146,12 +148,14 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
                     s += B[c, a] * Vx[c]
                 Qu[a] = s
             for a in range(nx):
-                for b in range(a, nx):
-                    s = l_xx[k, a, b]
-                    for c in range(nx):
-                        s += A[c, a] * VxxFx[c, b]
-                    Qxx[a, b] = s
-                    Qxx[b, a] = s
+                for b in range(nx):
+                    Qxx[a, b] = l_xx[k, a, b]
+            for c in range(nx):
+                for a in range(nx):
+                    v = A[c, a]
+                    if v != 0.0:
+                        for b in range(nx):
+                            Qxx[a, b] += v * VxxFx[c, b]
             for a in range(nu):
                 for b in range(a, nu):
                     s = l_uu[k, a, b]
@@ -160,10 +164,12 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
                     Quu[a, b] = s
                     Quu[b, a] = s
                 for b in range(nx):
-                    s = l_ux[k, a, b]
-                    for c in range(nx):
-                        s += B[c, a] * VxxFx[c, b]
-                    Qux[a, b] = s
+                    Qux[a, b] = l_ux[k, a, b]
+                for c in range(nx):
+                    v = B[c, a]
+                    if v != 0.0:
+                        for b in range(nx):
+                            Qux[a, b] += v * VxxFx[c, b]
             for a in range(nu):
                 for b in range(nu):
                     Quu_reg[a, b] = Quu[a, b]

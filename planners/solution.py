@@ -208,7 +208,7 @@ class Solution:
         write_npz(path, **arrays)
 
     @classmethod
-    def load(cls, path) -> "Solution":
+    def load(cls, path) -> Solution:
         """Load a solution written by :meth:`save` (never unpickles)."""
         d = read_npz(path)
         meta = json.loads(str(d["meta"]))
