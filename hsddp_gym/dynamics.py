@@ -213,7 +213,8 @@ class HybridDynamics:
         return self._integrate(x, packed[:NV]), packed[NV:].copy(), f_x[0], f_u[0], grf_x, l_u
 
     # ------------------------------------------------------------------ horizon (hot path)
-    def linearize(self, X: np.ndarray, U: np.ndarray, modes: np.ndarray, out: Linearization) -> None:
+    def linearize(self, X: np.ndarray, U: np.ndarray, modes: np.ndarray, out: Linearization,
+                  h: np.ndarray | float | None = None) -> None:
         """Derivatives of the discrete steps along a trajectory, written into ``out``.
 
         Knot ``k`` steps ``X[k] -> X[k+1]`` with ``U[k]`` in ``modes[k]``. The per-knot loop only calls
@@ -223,6 +224,8 @@ class HybridDynamics:
         Args:
             X: states ``(N+1, 14)`` (only ``X[:N]`` is read). U: controls ``(N, 4)``.
             modes: contact mode per knot ``(N,)`` (ints). out: a :class:`Linearization` of length ``>= N``.
+            h: step per knot ``(N,)`` or a scalar (default: ``self.dt``); time-scaled problems (switching-time
+                optimization) give each phase its own step.
         """
         n = U.shape[0]
         tau = self._tau
@@ -258,7 +261,7 @@ class HybridDynamics:
             l_v[k, :nc] = lv
             l_t[k, :nc] = lt
             lam[k, :nc] = data.lambda_c
-        out.finish(n, modes, self.dt, self.integrator, self._contact)
+        out.finish(n, modes, self.dt if h is None else h, self.integrator, self._contact)
 
     def simulate_step(self, x: np.ndarray, u: np.ndarray, mode: int, x_next: np.ndarray, grf: np.ndarray) -> None:
         """Unchecked step writing ``x_next (14,)`` and ``grf (4,)`` in place (the rollout hot path)."""
@@ -344,26 +347,29 @@ class HybridDynamics:
         return x_plus, impulse
 
 
-def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h: float, integrator: str,
+def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h, integrator: str,
                             f_x: np.ndarray, f_u: np.ndarray) -> None:
     """Discrete Jacobians for a batch of knots from the continuous ones (vectorized over knots).
 
     Args:
-        a_q, a_v: ``(N, 7, 7)``; a_u: ``(N, 7, 4)``; h: step; integrator: see :data:`INTEGRATORS`.
+        a_q, a_v: ``(N, 7, 7)``; a_u: ``(N, 7, 4)``; h: step, a scalar or ``(N,)``; integrator: see
+            :data:`INTEGRATORS`.
         f_x: output ``(N, 14, 14)``; f_u: output ``(N, 14, 4)``.
     """
     eye = np.eye(NV)
-    f_x[:, NQ:, :NQ] = h * a_q
-    f_x[:, NQ:, NQ:] = eye + h * a_v
-    f_u[:, NQ:, :] = h * a_u
+    h = np.asarray(h, dtype=np.float64)
+    hk = h[:, None, None] if h.ndim == 1 else h
+    f_x[:, NQ:, :NQ] = hk * a_q
+    f_x[:, NQ:, NQ:] = eye + hk * a_v
+    f_u[:, NQ:, :] = hk * a_u
     if integrator == "euler":
         f_x[:, :NQ, :NQ] = eye
-        f_x[:, :NQ, NQ:] = h * eye
+        f_x[:, :NQ, NQ:] = hk * eye
         f_u[:, :NQ, :] = 0.0
     else:
-        f_x[:, :NQ, :NQ] = eye + (h * h) * a_q
-        f_x[:, :NQ, NQ:] = h * eye + (h * h) * a_v
-        f_u[:, :NQ, :] = (h * h) * a_u
+        f_x[:, :NQ, :NQ] = eye + (hk * hk) * a_q
+        f_x[:, :NQ, NQ:] = hk * eye + (hk * hk) * a_v
+        f_u[:, :NQ, :] = (hk * hk) * a_u
 
 
 class Linearization:
@@ -398,9 +404,10 @@ class Linearization:
         self.grf_x = np.zeros((n, NGRF, NX))
         self.grf_u = np.zeros((n, NGRF, NU))
 
-    def finish(self, n: int, modes: np.ndarray, h: float, integrator: str, contact_sets: dict) -> None:
+    def finish(self, n: int, modes: np.ndarray, h, integrator: str, contact_sets: dict) -> None:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots (vectorized)."""
-        assemble_step_jacobians(self.a_q[:n], self.a_v[:n], self.a_tau[:n, :, 3:], h, integrator,
+        h = np.asarray(h, dtype=np.float64)
+        assemble_step_jacobians(self.a_q[:n], self.a_v[:n], self.a_tau[:n, :, 3:], h[:n] if h.ndim else h, integrator,
                                 self.f_x[:n], self.f_u[:n])
         grf_from_lambda(self.lam6[:n], modes[:n], contact_sets, self.grf[:n])
         self.grf_x[:n] = 0.0

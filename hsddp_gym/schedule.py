@@ -49,7 +49,7 @@ class ModeSchedule:
     # --------------------------------------------------------------------------- factories
     @classmethod
     def bounding(cls, cycles: int = 1, durations=PAPER_BOUNDING_DURATIONS, start: Mode = Mode.BACK_STANCE
-                 ) -> "ModeSchedule":
+                 ) -> ModeSchedule:
         """The bounding gait: back stance -> flight -> front stance -> flight, repeated.
 
         Args:
@@ -103,7 +103,7 @@ class ModeSchedule:
             raise ValueError(f"every duration must span at least one step of dt={dt}: {self.durations}")
         return steps
 
-    def with_durations(self, durations) -> "ModeSchedule":
+    def with_durations(self, durations) -> ModeSchedule:
         """The same modes with new durations."""
         return ModeSchedule(self.modes, durations, self.final_mode)
 

@@ -83,7 +83,8 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
         lam6: optional ``(N, 6)`` scratch for Pinocchio's contact forces.
     """
     dyn = problem.dynamics
-    model, prox, h = dyn.model, dyn._prox, dyn.dt
+    model, prox = dyn.model, dyn._prox
+    h_phase = problem.phase_dt
     tau = dyn._tau
     semi = dyn.integrator == "semi_implicit"
     N = problem.n_knots
@@ -103,6 +104,7 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
     e = problem.restitution
     for i in range(problem.n_phases):
         mode = int(problem.schedule.modes[i])
+        h = float(h_phase[i])
         if mode:
             cs = dyn._contact[mode]
             data, cms, cds, nl = cs.data, cs.models, cs.datas, 3 * len(cs.feet)
@@ -275,7 +277,7 @@ class HSDDP:
         ws = self._ws
         tr = ws.nominal
         t = time.perf_counter()
-        problem.dynamics.linearize(tr.X, tr.U, problem.modes, ws.lin)
+        problem.dynamics.linearize(tr.X, tr.U, problem.modes, ws.lin, problem.h)
         t2 = time.perf_counter()
         dyn = problem.dynamics
         e = problem.restitution

@@ -83,7 +83,7 @@ class Objective:
     def __init__(self, problem: HybridProblem) -> None:
         self.problem = problem
         pr = problem
-        self.h = pr.dt
+        self.h = pr.h  # (N,) per-knot steps
         self.A_grf = friction_rows(pr.constraints.friction)
         # (N, 6) mask: friction rows of stance feet only
         self.grf_mask = np.repeat(pr.stance, 3, axis=1).astype(float)
@@ -106,12 +106,7 @@ class Objective:
                  ) -> CostBreakdown:
         """Objective of a trajectory (``X (N+1, 14)``, ``X_pre (n, 14)``, ``U (N, 4)``, ``GRF (N, 4)``)."""
         pr = self.problem
-        h = self.h
-        n = pr.n_knots
-        dx = X[:n] - pr.XR
-        dy = GRF - pr.YR
-        running = h * float(np.einsum("ij,ij->", dx * pr.Qd, dx) + np.einsum("ij,ij->", U * pr.Rd, U)
-                            + np.einsum("ij,ij->", dy * pr.Sd, dy))
+        running = float(self.h @ self.running_rates(X, U, GRF))
         dxf = X_pre - pr.XF
         terminal = 0.5 * float(np.einsum("ij,ij->", dxf * pr.QF, dxf))
         al = 0.0
@@ -122,6 +117,15 @@ class Objective:
         if cs.use_reb:
             barrier = self._barrier_value(U, GRF, cs)
         return CostBreakdown(running, terminal, al, barrier)
+
+    def running_rates(self, X: np.ndarray, U: np.ndarray, GRF: np.ndarray) -> np.ndarray:
+        """``l (N,)``: the running cost rate of eq. 32 at each knot (the running cost is ``h_k l_k``)."""
+        pr = self.problem
+        n = pr.n_knots
+        dx = X[:n] - pr.XR
+        dy = GRF - pr.YR
+        return (np.einsum("ij,ij->i", dx * pr.Qd, dx) + np.einsum("ij,ij->i", U * pr.Rd, U)
+                + np.einsum("ij,ij->i", dy * pr.Sd, dy))
 
     def _torque_constraints(self, U):
         umax = self.problem.constraints.torque_limit
@@ -144,7 +148,7 @@ class Objective:
         pr = self.problem
         h = self.h
         n = pr.n_knots
-        two_h = 2.0 * h
+        two_h = 2.0 * h[:, None]
         # state / control quadratic terms
         np.multiply(X[:n] - pr.XR, two_h * pr.Qd, out=l_x)
         np.multiply(U, two_h * pr.Rd, out=l_u)

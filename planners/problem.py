@@ -23,7 +23,6 @@ from hsddp_gym.conventions import NGRF, NU, NX, Mode, grf_slice
 from hsddp_gym.dynamics import HybridDynamics
 from hsddp_gym.params import RobotParams
 from hsddp_gym.references import end_of_mode_reference
-from hsddp_gym.rollout import knot_layout
 from hsddp_gym.schedule import ModeSchedule
 from hsddp_gym.validation import check_array, check_positive
 
@@ -124,6 +123,8 @@ class HybridProblem:
         x0: initial state (14,).
         constraints: a :class:`ConstraintSpec`.
         restitution: of the touchdown reset maps (paper: 0).
+        knots: steps per phase ``(n,)``; default ``round(T_i / dt)``. Given explicitly (time-scaled problems
+            of the switching-time optimization, eq. 28), phase ``i`` steps with ``h_i = T_i / knots[i]``.
 
     Per-knot arrays (N = total knots): ``modes (N,)``, ``phase_of_knot (N,)``, weights ``Qd (N, 14)``,
     ``Rd (N, 4)``, ``Sd (N, 4)``, references ``XR (N, 14)``, ``YR (N, 4)``; per phase ``QF (n, 14)``,
@@ -131,7 +132,7 @@ class HybridProblem:
     """
 
     def __init__(self, dynamics: HybridDynamics, schedule: ModeSchedule, costs, x0: np.ndarray,
-                 constraints: ConstraintSpec = ConstraintSpec(), restitution: float = 0.0) -> None:
+                 constraints: ConstraintSpec = ConstraintSpec(), restitution: float = 0.0, knots=None) -> None:
         if not isinstance(dynamics, HybridDynamics):
             raise TypeError(f"dynamics must be a HybridDynamics, got {type(dynamics).__name__}")
         if not isinstance(schedule, ModeSchedule):
@@ -148,9 +149,21 @@ class HybridProblem:
         self.constraints = constraints
         self.restitution = float(restitution)
         self.dt = dynamics.dt
-        self.modes, self.phase_of_knot, self.phase_start = knot_layout(schedule, dynamics.dt)
+        if knots is None:
+            knots = schedule.knots(dynamics.dt)
+        knots = np.asarray(knots)
+        if knots.shape != (len(schedule),) or not np.issubdtype(knots.dtype, np.integer) or np.any(knots < 1):
+            raise ValueError(f"knots must be {len(schedule)} positive integers, got {knots!r}")
+        self.knots = knots.astype(np.int64)
+        self.phase_start = np.concatenate([[0], np.cumsum(self.knots)]).astype(np.int64)
+        self.phase_of_knot = np.repeat(np.arange(len(schedule)), self.knots)
+        self.modes = np.array([int(schedule.modes[i]) for i in self.phase_of_knot], dtype=np.int64)
         self.n_knots = int(self.modes.shape[0])
         self.n_phases = len(schedule)
+        self.phase_dt = schedule.durations / self.knots
+        """Step of each phase ``h_i = T_i / N_i`` (n,)."""
+        self.h = self.phase_dt[self.phase_of_knot]
+        """Step of each knot (N,)."""
         p = self.phase_of_knot
         self.Qd = np.stack([c.q for c in costs])[p]
         self.Rd = np.stack([c.r for c in costs])[p]
