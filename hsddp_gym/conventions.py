@@ -102,6 +102,17 @@ class Mode(enum.IntEnum):
 _SHORT = {Mode.FLIGHT: "FL", Mode.FRONT_STANCE: "FS", Mode.BACK_STANCE: "BS", Mode.DOUBLE_STANCE: "DS"}
 
 
+def as_mode(value, name: str = "mode") -> Mode:
+    """``Mode(value)`` with an error that names the argument (bools are refused)."""
+    if isinstance(value, bool):
+        raise TypeError(f"{name} must be a Mode or an int, got a bool")
+    try:
+        return Mode(value)
+    except (ValueError, TypeError):
+        raise ValueError(f"{name} must be one of {[int(m) for m in Mode]} "
+                         f"({', '.join(m.name for m in Mode)}), got {value!r}") from None
+
+
 def mode_from_contacts(front: bool, back: bool) -> Mode:
     """The mode whose feet in contact are exactly ``front`` / ``back``."""
     return Mode((1 if front else 0) | (2 if back else 0))

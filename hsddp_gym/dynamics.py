@@ -25,9 +25,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.conventions import NGRF, NQ, NU, NV, NX, Mode
+from hsddp_gym.conventions import NGRF, NQ, NU, NV, NX, Mode, as_mode
 from hsddp_gym.model import CheetahModel
-from hsddp_gym.validation import check_in_range, check_positive, check_vector
+from hsddp_gym.validation import check_in_range, check_int, check_positive, check_vector
 
 INTEGRATORS = ("euler", "semi_implicit")
 
@@ -53,11 +53,12 @@ class _ContactSet:
         self.grf_rows = np.array([2 * f + r for f in feet for r in (0, 1)], dtype=np.intp)
 
 
-def _proximal() -> pin.ProximalSettings:
+def _proximal(mu: float = 1e-8) -> pin.ProximalSettings:
     # The planar model's y contact row is zero, so the Delassus matrix is singular: a tiny proximal
-    # regularization (mu = 1e-8) converges in a few iterations and matches the exact 2D KKT solution to
-    # ~1e-13 (stack_notes §2). mu = 0 gives NaN.
-    return pin.ProximalSettings(1e-12, 1e-8, 20)
+    # regularization converges in a few iterations (mu = 0 gives NaN). For constraintDynamics mu = 1e-8
+    # matches the exact 2D KKT solution to ~1e-13 (stack_notes §2). impulseDynamics does a single
+    # regularized solve without refinement, so its error is O(mu): it gets mu = 1e-12 (error ~1e-11).
+    return pin.ProximalSettings(1e-12, mu, 20)
 
 
 class HybridDynamics:
@@ -85,17 +86,14 @@ class HybridDynamics:
         self._contact = {m: _ContactSet(self.robot, m.feet) for m in Mode if m != Mode.FLIGHT}
         self._impulse = {m: _ContactSet(self.robot, m.feet) for m in Mode if m != Mode.FLIGHT}
         self._prox = _proximal()
+        self._prox_impulse = _proximal(1e-12)
         self._tau = np.zeros(NV)
         self._zero_u = np.zeros(NU)
 
     # ------------------------------------------------------------------ validation helpers
     @staticmethod
-    def _mode(mode) -> Mode:
-        try:
-            return Mode(mode)
-        except ValueError:
-            raise ValueError(f"mode must be one of {[int(m) for m in Mode]} ({', '.join(m.name for m in Mode)}), "
-                             f"got {mode!r}") from None
+    def _mode(mode, name: str = "mode") -> Mode:
+        return as_mode(mode, name)
 
     # ------------------------------------------------------------------ continuous dynamics
     def accelerations(self, x: np.ndarray, u: np.ndarray, mode: Mode) -> tuple[np.ndarray, np.ndarray]:
@@ -308,7 +306,7 @@ class HybridDynamics:
         """
         x = check_vector(x, NX, "x")
         e = check_in_range(restitution, 0.0, 1.0, "restitution")
-        return self._reset(x, self._mode(mode_after), e)
+        return self._reset(x, self._mode(mode_after, "mode_after"), e)
 
     def _reset(self, x, mode_after, e):
         impulse = np.zeros(NGRF)
@@ -316,7 +314,8 @@ class HybridDynamics:
             return x.copy(), impulse
         cs = self._impulse[mode_after]
         out = x.copy()
-        out[NQ:] = pin.impulseDynamics(self.model, cs.data, x[:NQ], x[NQ:], cs.models, cs.datas, e, self._prox)
+        out[NQ:] = pin.impulseDynamics(self.model, cs.data, x[:NQ], x[NQ:], cs.models, cs.datas, e,
+                                       self._prox_impulse)
         impulse[cs.grf_rows] = cs.data.impulse_c[cs.lam_rows]
         return out, impulse
 
@@ -329,7 +328,7 @@ class HybridDynamics:
         x = check_vector(x, NX, "x")
         e = check_in_range(restitution, 0.0, 1.0, "restitution")
         P = np.empty((NX, NX))
-        x_plus, impulse = self._reset_jacobian(x, self._mode(mode_after), e, P)
+        x_plus, impulse = self._reset_jacobian(x, self._mode(mode_after, "mode_after"), e, P)
         return x_plus, P, impulse
 
     def _reset_jacobian(self, x, mode_after, e, P):
@@ -339,7 +338,10 @@ class HybridDynamics:
             np.fill_diagonal(P, 1.0)
             return x_plus, impulse
         cs = self._impulse[mode_after]
-        pin.computeImpulseDynamicsDerivatives(self.model, cs.data, cs.models, cs.datas, e, self._prox)
+        # Pinocchio 4.1 writes only the contact leg's columns of dvc_dq and then corrects all of them:
+        # without this reset the other columns accumulate across calls (found by tests/test_reset.py).
+        cs.data.dvc_dq[:] = 0.0
+        pin.computeImpulseDynamicsDerivatives(self.model, cs.data, cs.models, cs.datas, e, self._prox_impulse)
         P[:NQ, :NQ] = np.eye(NQ)
         P[NQ:, :NQ] = cs.data.ddq_dq
         P[NQ:, NQ:] = cs.data.ddq_dv  # Pinocchio stores dv+/dv- - I here (stack_notes §2)
@@ -386,9 +388,7 @@ class Linearization:
     """
 
     def __init__(self, capacity: int) -> None:
-        n = int(capacity)
-        if n <= 0:
-            raise ValueError(f"capacity must be a positive integer, got {capacity!r}")
+        n = check_int(capacity, "capacity", minimum=1)
         self.capacity = n
         self.a_q = np.zeros((n, NV, NQ))
         self.a_v = np.zeros((n, NV, NV))

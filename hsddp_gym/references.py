@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from hsddp_gym.conventions import IVX, IVZ, NQ, NX, Mode
+from hsddp_gym.conventions import IVX, IVZ, NQ, NX, Mode, as_mode
 from hsddp_gym.params import DEFAULT_PARAMS, RobotParams
 
 _PI = math.pi
@@ -40,7 +40,7 @@ _END_POSTURES = {
 
 
 def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float = 1.0,
-                          z_velocity: str = "code", params: RobotParams = DEFAULT_PARAMS) -> np.ndarray:
+                          z_velocity: str = "paper", params: RobotParams = DEFAULT_PARAMS) -> np.ndarray:
     """The reference state at the end of a bounding mode (original_code_facts §3.4).
 
     Each reference puts exactly the relevant foot on the ground: the stance foot at the end of a stance
@@ -51,14 +51,15 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         touchdown_foot: for ``FLIGHT``, the foot that touches down at its end (``FRONT`` after back stance,
             ``BACK`` after front stance); ignored for stance modes.
         speed: desired forward speed [m/s] (paper: 1.0).
-        z_velocity: ``"code"`` uses the authors' +1 m/s after stance / -1 m/s before touchdown;
-            ``"paper"`` uses 0 as the paper's text says.
+        z_velocity: ``"paper"`` (default) uses 0, as the paper's text says ("all desired joint velocities and
+            the desired body vertical velocity are set to zero"); ``"code"`` uses the authors' +1 m/s after
+            stance / -1 m/s before touchdown.
     Returns:
         x_ref (14,): zero x position, joint and pitch rates.
     """
     from hsddp_gym.conventions import BACK, FRONT
 
-    mode = Mode(mode)
+    mode = as_mode(mode, "mode")
     if mode == Mode.BACK_STANCE:
         key = "BS"
     elif mode == Mode.FRONT_STANCE:

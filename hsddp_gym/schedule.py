@@ -4,13 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from hsddp_gym.conventions import BACK, FRONT, Mode, touchdown_feet
+from hsddp_gym.conventions import BACK, FRONT, Mode, as_mode, touchdown_feet
 from hsddp_gym.validation import check_int, check_positive
 
 PAPER_BOUNDING_DURATIONS = (0.080, 0.072, 0.072, 0.072)
 """Back stance, flight, front stance, flight durations of the paper's tasks [s] (Sec. V-B)."""
 
 BOUNDING_CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
+
+
+def _durations_array(durations) -> np.ndarray:
+    try:
+        return np.asarray(durations, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"durations must be numbers [s], got {durations!r}") from None
 
 
 class ModeSchedule:
@@ -34,7 +41,7 @@ class ModeSchedule:
             raise ValueError(f"modes must be contact modes {[m.name for m in Mode]}, got {modes!r}") from None
         if not self.modes:
             raise ValueError("modes must hold at least one mode")
-        durations = np.asarray(durations, dtype=np.float64)
+        durations = _durations_array(durations)
         if durations.shape != (len(self.modes),):
             raise ValueError(f"durations must have shape ({len(self.modes)},) to match modes, got {durations.shape}")
         if not np.all(np.isfinite(durations)) or np.any(durations <= 0.0):
@@ -59,12 +66,12 @@ class ModeSchedule:
             start: the mode of the first phase (any mode of the cycle; the order is kept).
         """
         cycles = check_int(cycles, "cycles", minimum=1)
-        durations = np.asarray(durations, dtype=np.float64)
+        durations = _durations_array(durations)
         if durations.shape == (4,):
             durations = np.tile(durations, cycles)
         elif durations.shape != (4 * cycles,):
             raise ValueError(f"durations must have 4 or {4 * cycles} entries, got shape {durations.shape}")
-        start = Mode(start)
+        start = as_mode(start, "start")
         if start not in (Mode.BACK_STANCE, Mode.FRONT_STANCE):
             raise ValueError(f"start must be BACK_STANCE or FRONT_STANCE, got {start!r}")
         cycle = BOUNDING_CYCLE if start == Mode.BACK_STANCE else BOUNDING_CYCLE[2:] + BOUNDING_CYCLE[:2]

@@ -9,10 +9,7 @@ import numpy as np
 
 def check_vector(value, size: int, name: str) -> np.ndarray:
     """Return ``value`` as a finite float64 vector of length ``size`` or raise ``ValueError``/``TypeError``."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of {size} numbers, got {type(value).__name__}") from exc
+    arr = _as_float_array(value, name, f"an array of {size} numbers")
     if arr.shape != (size,):
         raise ValueError(f"{name} must have shape ({size},), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -22,15 +19,22 @@ def check_vector(value, size: int, name: str) -> np.ndarray:
 
 def check_array(value, shape: tuple, name: str) -> np.ndarray:
     """Return ``value`` as a finite float64 array of ``shape`` (``None`` entries match any size)."""
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a numeric array of shape {shape}, got {type(value).__name__}") from exc
+    arr = _as_float_array(value, name, f"a numeric array of shape {shape}")
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite (found NaN or inf)")
     return arr
+
+
+def _as_float_array(value, name: str, what: str) -> np.ndarray:
+    raw = np.asarray(value)
+    if np.iscomplexobj(raw):
+        raise TypeError(f"{name} must be real, got complex values")
+    try:
+        return np.asarray(raw, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}") from exc
 
 
 def check_positive(value, name: str, *, allow_zero: bool = False) -> float:

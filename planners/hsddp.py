@@ -171,11 +171,14 @@ class HSDDP:
         if verbose:
             self.callbacks.append(VerbosePrinter())
         self._ws: Workspace | None = None
+        self.last_constraint_state: ConstraintState | None = None
+        """Outer-loop state at the end of the last solve (warm start for the next one)."""
+        self.last_objective: Objective | None = None
 
     # ------------------------------------------------------------------ public API
     def solve(self, problem: HybridProblem, U_init: np.ndarray, X_init: np.ndarray | None = None,
-              K_init: np.ndarray | None = None, multipliers: np.ndarray | None = None, sigma: float | None = None
-              ) -> Solution:
+              K_init: np.ndarray | None = None, multipliers: np.ndarray | None = None, sigma: float | None = None,
+              constraint_state: ConstraintState | None = None) -> Solution:
         """Solve ``problem`` from a warm start.
 
         Args:
@@ -184,6 +187,8 @@ class HSDDP:
             X_init, K_init: optional ``(N+1, 14)`` states and ``(N, 4, 14)`` gains: the first rollout then
                 uses ``u = U_init + K_init (x - X_init)`` (warm start from a previous solution).
             multipliers: ``(n,)`` initial AL multipliers (default ``lambda0``). sigma: initial penalty.
+            constraint_state: continue from a previous solve's outer-loop state (multipliers, penalty,
+                barrier relaxations and weights: ``HSDDP.last_constraint_state``); overrides the two above.
         Returns:
             A :class:`Solution`.
         """
@@ -206,6 +211,10 @@ class HSDDP:
         cs = ConstraintState(sigma=sigma, lam=lam, use_al=opt.use_al, use_reb=opt.use_reb,
                              delta_torque=opt.delta_torque0, delta_grf=opt.delta_grf0,
                              eps_torque=opt.eps_torque, eps_grf=opt.eps_grf)
+        if constraint_state is not None:
+            if constraint_state.lam.shape != (n,):
+                raise ValueError(f"constraint_state.lam must have shape ({n},), got {constraint_state.lam.shape}")
+            cs = constraint_state.copy()
         logger = InMemoryLogger()
         callbacks = [logger, *self.callbacks]
         timings = {"linearize": 0.0, "cost_derivatives": 0.0, "backward": 0.0, "line_search": 0.0,
@@ -260,6 +269,8 @@ class HSDDP:
         final = self._evaluate(objective, tr, cs)
         g = objective.switching_values(tr.X_pre)
         solve_time = time.perf_counter() - t0
+        self.last_constraint_state = cs.copy()
+        self.last_objective = objective
         return Solution(X=tr.X.copy(), X_pre=tr.X_pre.copy(), U=tr.U.copy(), GRF=tr.GRF.copy(), K=ws.K.copy(),
                         k_ff=ws.k_ff.copy(), modes=problem.modes.copy(), phase_start=problem.phase_start.copy(),
                         schedule=problem.schedule, dt=problem.dt, switching=g, multipliers=cs.lam.copy(),

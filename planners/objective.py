@@ -139,6 +139,16 @@ class Objective:
         b_f = relaxed_barrier(c, cs.delta_grf)[0]
         return float(cs.eps_torque * (b_up.sum() + b_lo.sum()) + cs.eps_grf * np.sum(b_f * self.grf_mask))
 
+    def task_running_gradients(self, X, U, GRF, grf_x, grf_u) -> tuple[np.ndarray, np.ndarray]:
+        """Gradients of the task running cost ``h_k l_k`` (no barrier): ``(L_x (N, 14), L_u (N, 4))``."""
+        pr = self.problem
+        n = pr.n_knots
+        two_h = 2.0 * self.h[:, None]
+        gy = (GRF - pr.YR) * (two_h * pr.Sd)
+        L_x = (X[:n] - pr.XR) * (two_h * pr.Qd) + np.einsum("nyx,ny->nx", grf_x, gy)
+        L_u = U * (two_h * pr.Rd) + np.einsum("nyu,ny->nu", grf_u, gy)
+        return L_x, L_u
+
     # --------------------------------------------------------------- derivatives
     def derivatives(self, X, X_pre, U, GRF, grf_x, grf_u, cs: ConstraintState, l_x, l_u, l_xx, l_uu, l_ux,
                     Phi_x, Phi_xx) -> None:

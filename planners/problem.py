@@ -57,7 +57,8 @@ class PhaseCost:
 
 
 def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
-                        running_reference: str = "terminal", grf_tracking: bool = True) -> PhaseCost:
+                        running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper"
+                        ) -> PhaseCost:
     """The bounding cost of one phase (original_code_facts §3.4-§3.5).
 
     Args:
@@ -67,6 +68,7 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
         running_reference: ``"terminal"`` (paper eq. 32-33: the running cost tracks the mode's reference
             posture) or ``"code"`` (the authors' early code: a neutral posture, z = 0.254 m, legs straight).
         grf_tracking: include the authors' ground-force tracking term (full weight on the stance foot).
+        z_velocity: terminal vertical-velocity reference, ``"code"`` (+-1 m/s) or ``"paper"`` (0).
     """
     params = params if params is not None else RobotParams()
     mode = Mode(mode)
@@ -74,7 +76,7 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
         raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT and FRONT_STANCE, got {mode!r}")
     if running_reference not in ("terminal", "code"):
         raise ValueError(f"running_reference must be 'terminal' or 'code', got {running_reference!r}")
-    x_final = end_of_mode_reference(mode, touchdown_foot, speed, params=params)
+    x_final = end_of_mode_reference(mode, touchdown_foot, speed, z_velocity=z_velocity, params=params)
     if running_reference == "terminal":
         x_ref = x_final.copy()
     else:
@@ -188,8 +190,8 @@ class HybridProblem:
     @classmethod
     def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
-                 running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None
-                 ) -> HybridProblem:
+                 running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
+                 z_velocity: str = "paper") -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B)."""
         from hsddp_gym.references import paper_initial_state
@@ -200,17 +202,18 @@ class HybridProblem:
             schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
         params = dynamics.robot.params
         costs = [bounding_phase_cost(m, schedule.bounding_touchdown_foot(i), speed, params, running_reference,
-                                     grf_tracking) for i, m in enumerate(schedule.modes)]
+                                     grf_tracking, z_velocity) for i, m in enumerate(schedule.modes)]
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0
         return cls(dynamics, schedule, costs, x0, constraints)
 
-    def with_schedule(self, schedule: ModeSchedule) -> HybridProblem:
-        """The same problem on a schedule with the same modes (e.g. new durations)."""
-        if schedule.modes != self.schedule.modes or schedule.final_mode != self.schedule.final_mode:
-            raise ValueError("with_schedule needs the same mode sequence")
-        return HybridProblem(self.dynamics, schedule, self.costs, self.x0, self.constraints, self.restitution)
+    def with_durations(self, durations) -> HybridProblem:
+        """The time-scaled problem (eq. 28): the same knots per phase, new durations ``(n,)`` [s]."""
+        return HybridProblem(self.dynamics, self.schedule.with_durations(durations), self.costs, self.x0,
+                             self.constraints, self.restitution, knots=self.knots)
 
     def with_x0(self, x0: np.ndarray) -> HybridProblem:
-        return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution)
+        """The same problem from another initial state (14,)."""
+        return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution,
+                             knots=self.knots)

@@ -1,0 +1,344 @@
+"""HS-DDP Algorithm 2: switching-time optimization (paper Sec. IV-E, eqs. 28-31), and the open-loop
+baseline of Xu & Antsaklis [24].
+
+Time-scaled problem (eq. 28): phase ``i`` keeps its ``N_i`` knots and steps with ``h_i = T_i / N_i``;
+the durations ``z = [T_1 .. T_n]`` join the state as constants, ``X = [x, z]``. With forward Euler,
+``x+ = x + (T_i / N_i) xdot(x, u)``, so per knot of phase ``i``::
+
+    f_z = xdot / N_i,   f_xz = d(f_x)/dT_i = [[0, I], [a_q, a_v]] / N_i,   f_uz = [[0], [a_u]] / N_i,
+    L = h_i l(x, u)  =>  L_z = l / N_i,  L_xz = L_x / T_i,  L_uz = L_u / T_i,  L_zz = 0, f_zz = 0
+
+(semi-implicit Euler adds the ``h``-terms of its position update). The cross terms ``V_x' f_xz`` and
+``V_x' f_uz`` are exact first-order quantities and are included; like iLQR, the dynamics' state/control
+curvature is not. The backward pass then carries ``V_z (n,)``, ``V_xz (14, n)`` and ``V_zz (n, n)``
+through every knot and every reset (``V_xz^- = P_x^T V_xz^+``, ``V_z``, ``V_zz`` unchanged, since
+resets and terminal costs do not depend on ``z``).
+
+Algorithm 2: after Algorithm 1 converges, ``z <- z - eps_z V_zz^-1 V_z`` (eq. 31) with a backtracking
+search on ``eps_z`` that asks for a decrease of the objective, rolling out the feedback policy
+``u = u_hat + K_x dx + K_z dz`` (HS-DDP) -- or the control sequence held open loop (Xu & Antsaklis,
+whose derivatives are those of the open-loop cost, i.e. the same recursion with ``K = 0``); then
+Algorithm 1 again, warm-started, on the new durations. Durations stay inside ``[min, max]`` bounds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from hsddp_gym.conventions import NQ, NU, NX
+from planners.hsddp import HSDDP, _Traj, rollout_policy
+from planners.problem import HybridProblem
+from planners.solution import Solution, SolverOptions
+
+STO_METHODS = ("hsddp", "open-loop")
+
+
+def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_z, l_xz, l_uz, Phi_x, Phi_xx, P_x,
+                       phase_start, phase_of_knot, n_z, feedback, mu, K_x, K_z, k_ff):
+    """Backward pass of the time-augmented problem (see the module docstring).
+
+    Plain NumPy (it runs once per STO iteration; numba's linear algebra would need SciPy).
+
+    Args:
+        f_z (N, 14), f_xz (N, 14, 14), f_uz (N, 14, 4): derivatives w.r.t. the knot's own phase duration.
+        l_z (N,), l_xz (N, 14), l_uz (N, 4): running-cost derivatives w.r.t. that duration.
+        phase_of_knot (N,): the phase (duration index) of each knot. n_z: number of durations.
+        feedback: True for HS-DDP (gains from Q_uu), False for the open-loop baseline (K = 0, k = 0).
+        mu: regularization added to Q_uu.
+        K_x (N, 4, 14), K_z (N, 4, n_z), k_ff (N, 4): outputs.
+    Returns:
+        ``(ok, V_x0 (14,), V_z0 (n_z,), V_xx0 (14, 14), V_xz0 (14, n_z), V_zz0 (n_z, n_z), dV1, dV2)``.
+    """
+    nx = f_x.shape[1]
+    nu = f_u.shape[2]
+    n_phase = phase_start.shape[0] - 1
+    last = n_phase - 1
+    Vx = Phi_x[last].copy()
+    Vxx = Phi_xx[last].copy()
+    Vz = np.zeros(n_z)
+    Vxz = np.zeros((nx, n_z))
+    Vzz = np.zeros((n_z, n_z))
+    eye_u = np.eye(nu)
+    dV1 = 0.0
+    dV2 = 0.0
+    for i in range(n_phase - 1, -1, -1):
+        if i < n_phase - 1:
+            P = P_x[i]
+            Vx = Phi_x[i] + P.T @ Vx
+            Vxx = Phi_xx[i] + P.T @ Vxx @ P
+            Vxx = 0.5 * (Vxx + Vxx.T)
+            Vxz = P.T @ Vxz
+        for k in range(phase_start[i + 1] - 1, phase_start[i] - 1, -1):
+            A = f_x[k]
+            B = f_u[k]
+            j = phase_of_knot[k]
+            fz = f_z[k]
+            Qx = l_x[k] + A.T @ Vx
+            Qu = l_u[k] + B.T @ Vx
+            Qz = Vz.copy()
+            Qz[j] += l_z[k] + fz @ Vx
+            VxxA = Vxx @ A
+            Qxx = l_xx[k] + A.T @ VxxA
+            Quu = l_uu[k] + B.T @ (Vxx @ B)
+            Qux = l_ux[k] + B.T @ VxxA
+            # (Vxx Fz + Vxz) with Fz = fz e_j^T
+            M = Vxz.copy()
+            Vxx_fz = Vxx @ fz
+            M[:, j] += Vxx_fz
+            Qxz = A.T @ M
+            Qxz[:, j] += f_xz[k].T @ Vx + l_xz[k]
+            Quz = B.T @ M
+            Quz[:, j] += f_uz[k].T @ Vx + l_uz[k]
+            # Qzz = Vzz + Fz^T Vxx Fz + Fz^T Vxz + Vxz^T Fz
+            Qzz = Vzz.copy()
+            fz_Vxz = fz @ Vxz
+            Qzz[j, :] += fz_Vxz
+            Qzz[:, j] += fz_Vxz
+            Qzz[j, j] += fz @ Vxx_fz
+            if feedback:
+                Quu_reg = Quu + mu * eye_u
+                Qi = np.linalg.inv(Quu_reg)
+                Qi = 0.5 * (Qi + Qi.T)
+                kk = -(Qi @ Qu)
+                Kx = -(Qi @ Qux)
+                Kz = -(Qi @ Quz)
+            else:
+                kk = np.zeros(nu)
+                Kx = np.zeros((nu, nx))
+                Kz = np.zeros((nu, n_z))
+            k_ff[k] = kk
+            K_x[k] = Kx
+            K_z[k] = Kz
+            dV1 += kk @ Qu
+            dV2 += kk @ (Quu @ kk)
+            QuuK = Quu @ kk
+            Vx = Qx + Kx.T @ (QuuK + Qu) + Qux.T @ kk
+            Vz = Qz + Kz.T @ (QuuK + Qu) + Quz.T @ kk
+            QuuKx = Quu @ Kx
+            QuuKz = Quu @ Kz
+            Vxx = Qxx + Kx.T @ QuuKx + Kx.T @ Qux + Qux.T @ Kx
+            Vxx = 0.5 * (Vxx + Vxx.T)
+            Vxz = Qxz + Kx.T @ QuuKz + Kx.T @ Quz + Qux.T @ Kz
+            Vzz = Qzz + Kz.T @ QuuKz + Kz.T @ Quz + Quz.T @ Kz
+            Vzz = 0.5 * (Vzz + Vzz.T)
+    return True, Vx, Vz, Vxx, Vxz, Vzz, dV1, dV2
+
+
+@dataclasses.dataclass
+class TimeDerivatives:
+    """Derivatives of the objective w.r.t. the durations at the initial knot, and the time-augmented policy.
+
+    ``V_z (n,)``, ``V_zz (n, n)``, ``V_xz (14, n)``, gains ``K_x (N, 4, 14)``, ``K_z (N, 4, n)``,
+    feed-forward ``k_ff (N, 4)``; ``dV1``, ``dV2`` the control step's expected change coefficients.
+    """
+
+    V_z: np.ndarray
+    V_zz: np.ndarray
+    V_xz: np.ndarray
+    K_x: np.ndarray
+    K_z: np.ndarray
+    k_ff: np.ndarray
+    dV1: float
+    dV2: float
+
+
+def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = True, mu: float = 0.0
+                     ) -> TimeDerivatives:
+    """V_z, V_zz at the solver's current nominal trajectory (linearized at it by the last ``solve``).
+
+    Args:
+        solver: an :class:`HSDDP` that has just solved ``problem`` (its workspace holds the linearization).
+        feedback: HS-DDP (True) or the open-loop baseline (False).
+    """
+    ws = solver._ws
+    if ws is None or not ws.fits(problem) or solver.last_objective is None:
+        raise ValueError("solver has no linearization of this problem; call solver.solve(problem, ...) first")
+    tr = ws.nominal
+    lin = ws.lin
+    N, n = problem.n_knots, problem.n_phases
+    ph = problem.phase_of_knot
+    Ni = problem.knots[ph].astype(float)[:, None]
+    Ti = problem.schedule.durations[ph][:, None]
+    h = problem.h[:, None]
+    semi = problem.dynamics.integrator == "semi_implicit"
+    v = tr.X[:N, NQ:]
+    a = lin.acc[:N]
+    f_z = np.empty((N, NX))
+    f_z[:, NQ:] = a / Ni
+    f_z[:, :NQ] = (v + 2.0 * h * a) / Ni if semi else v / Ni
+    f_xz = np.zeros((N, NX, NX))
+    f_uz = np.zeros((N, NX, NU))
+    hh = h[:, :, None]
+    N3 = Ni[:, :, None]
+    f_xz[:, NQ:, :NQ] = lin.a_q[:N] / N3
+    f_xz[:, NQ:, NQ:] = lin.a_v[:N] / N3
+    f_uz[:, NQ:, :] = lin.a_tau[:N, :, 3:] / N3
+    if semi:
+        f_xz[:, :NQ, :NQ] = 2.0 * hh * lin.a_q[:N] / N3
+        f_xz[:, :NQ, NQ:] = (np.eye(NQ) + 2.0 * hh * lin.a_v[:N]) / N3
+        f_uz[:, :NQ, :] = 2.0 * hh * lin.a_tau[:N, :, 3:] / N3
+    else:
+        f_xz[:, :NQ, NQ:] = np.eye(NQ) / N3
+    obj = solver.last_objective
+    L_x, L_u = obj.task_running_gradients(tr.X, tr.U, tr.GRF, lin.grf_x[:N], lin.grf_u[:N])
+    l_z = obj.running_rates(tr.X, tr.U, tr.GRF) / Ni[:, 0]
+    l_xz = L_x / Ti
+    l_uz = L_u / Ti
+    K_x = np.zeros((N, NU, NX))
+    K_z = np.zeros((N, NU, n))
+    k_ff = np.zeros((N, NU))
+    mu_try = mu
+    for _ in range(40):
+        try:
+            ok, Vx, Vz, Vxx, Vxz, Vzz, dV1, dV2 = backward_pass_time(
+                lin.f_x[:N], lin.f_u[:N], f_z, f_xz, f_uz, ws.l_x, ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, l_z, l_xz,
+                l_uz, ws.Phi_x, ws.Phi_xx, ws.P_x, problem.phase_start, ph, n, feedback, mu_try, K_x, K_z, k_ff)
+            if np.all(np.isfinite(Vzz)):
+                break
+        except np.linalg.LinAlgError:  # Q_uu singular: regularize more
+            pass
+        mu_try = max(1e-6, 4.0 * mu_try)
+    else:
+        raise RuntimeError("time-augmented backward pass failed (Q_uu singular at every regularization)")
+    return TimeDerivatives(V_z=Vz, V_zz=Vzz, V_xz=Vxz, K_x=K_x, K_z=K_z, k_ff=k_ff, dV1=dV1, dV2=dV2)
+
+
+def rollout_time_policy(problem_new: HybridProblem, nominal: _Traj, deriv: TimeDerivatives, dz: np.ndarray,
+                        feedback: bool, out: _Traj, eps: float = 0.0) -> bool:
+    """Roll out on ``problem_new`` (new durations, same knots) with ``u = U + eps k + K_x dx + K_z dz``
+    (``feedback``) or ``u = U`` (open loop)."""
+    if feedback:
+        U_ref = nominal.U + np.einsum("nuz,z->nu", deriv.K_z, dz)
+        return rollout_policy(problem_new, out, U_ref, nominal.X, deriv.K_x, deriv.k_ff, eps)
+    return rollout_policy(problem_new, out, nominal.U)
+
+
+@dataclasses.dataclass(frozen=True)
+class STOOptions:
+    """Options of Algorithm 2.
+
+    Attributes:
+        method: ``"hsddp"`` (feedback policy, the paper) or ``"open-loop"`` (Xu & Antsaklis).
+        iterations: STO iterations (paper: 30). min_duration, max_duration: bounds per phase [s].
+        step_factor, min_step: backtracking on eps_z. armijo: sufficient decrease fraction.
+        tolerance: stop when the accepted duration change is below it [s] (max norm).
+        solver: Algorithm 1's options for the inner re-solves.
+    """
+
+    method: str = "hsddp"
+    iterations: int = 30
+    min_duration: float = 0.02
+    max_duration: float = 0.2
+    step_factor: float = 0.5
+    min_step: float = 1e-3
+    armijo: float = 1e-4
+    tolerance: float = 1e-6
+    solver: SolverOptions = SolverOptions()
+
+    def __post_init__(self) -> None:
+        if self.method not in STO_METHODS:
+            raise ValueError(f"method must be one of {STO_METHODS}, got {self.method!r}")
+        if not (isinstance(self.iterations, int) and self.iterations >= 0):
+            raise ValueError(f"iterations must be an integer >= 0, got {self.iterations!r}")
+        if not (0 < self.min_duration < self.max_duration):
+            raise ValueError(f"need 0 < min_duration < max_duration, got {self.min_duration}, {self.max_duration}")
+
+
+@dataclasses.dataclass
+class STOResult:
+    """Result of Algorithm 2: the final :class:`Solution`, the duration history ``(iters+1, n)``, the
+    objective after each iteration, and per-iteration records."""
+
+    solution: Solution
+    durations: np.ndarray
+    objectives: np.ndarray
+    costs: np.ndarray
+    records: list
+    initial_durations: np.ndarray
+    solve_time: float
+
+    @property
+    def total_time(self) -> float:
+        return float(self.durations[-1].sum())
+
+    @property
+    def reduction(self) -> float:
+        return 1.0 - self.total_time / float(self.initial_durations.sum())
+
+
+def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options: STOOptions = STOOptions(),
+                             callback=None) -> STOResult:
+    """Algorithm 2 (HS-DDP) or the open-loop baseline on ``problem`` (its durations are the start).
+
+    Args:
+        problem: the hybrid OCP; its knots per phase stay fixed, their step scales with the duration.
+        U_init: warm start controls ``(N, 4)``.
+        callback: called with each iteration's record dict.
+    """
+    t0 = time.perf_counter()
+    feedback = options.method == "hsddp"
+    z = problem.schedule.durations.copy()
+    if np.any(z < options.min_duration) or np.any(z > options.max_duration):
+        raise ValueError(f"initial durations {z} outside [{options.min_duration}, {options.max_duration}]")
+    pr = HybridProblem(problem.dynamics, problem.schedule, problem.costs, problem.x0, problem.constraints,
+                       problem.restitution, knots=problem.knots)
+    solver = HSDDP(options.solver)
+    sol = solver.solve(pr, U_init)
+    history = [z.copy()]
+    objectives = [sol.objective]
+    costs = [sol.cost]
+    records = []
+    cand = _Traj(pr.n_knots, pr.n_phases)
+    for it in range(options.iterations):
+        cs = solver.last_constraint_state
+        deriv = time_derivatives(solver, pr, feedback=feedback)
+        Vz, Vzz = deriv.V_z, deriv.V_zz
+        w, Q = np.linalg.eigh(0.5 * (Vzz + Vzz.T))
+        floor = max(1e-8, 1e-6 * float(np.max(np.abs(w))))
+        pd = bool(np.all(w > floor))
+        w_safe = np.maximum(w, floor) if pd else np.maximum(np.abs(w), floor)
+        dz = -(Q @ ((Q.T @ Vz) / w_safe))
+        current = solver._evaluate(solver.last_objective, solver._ws.nominal, cs).total
+        eps = 1.0
+        accepted = None
+        while eps >= options.min_step:
+            z_new = np.clip(z + eps * dz, options.min_duration, options.max_duration)
+            step = z_new - z
+            if np.max(np.abs(step)) < options.tolerance:
+                break
+            pr_new = pr.with_durations(z_new)
+            ok = rollout_time_policy(pr_new, solver._ws.nominal, deriv, step, feedback, cand)
+            if ok:
+                from planners.objective import Objective
+
+                new = Objective(pr_new).evaluate(cand.X, cand.X_pre, cand.U, cand.GRF, cs).total
+                predicted = float(Vz @ step + 0.5 * step @ Vzz @ step)
+                if np.isfinite(new) and new < current + options.armijo * min(predicted, 0.0) and new < current:
+                    accepted = (z_new, pr_new, new, predicted)
+                    break
+            eps *= options.step_factor
+        rec = {"iteration": it + 1, "V_z": Vz.tolist(), "V_zz_pd": pd, "step": eps if accepted else 0.0,
+               "objective_before": current}
+        if accepted is None:
+            rec["status"] = "no_decrease"
+            records.append(rec)
+            if callback:
+                callback(rec)
+            break
+        z, pr, obj_rollout, predicted = accepted
+        sol = solver.solve(pr, cand.U.copy(), constraint_state=cs)
+        history.append(z.copy())
+        objectives.append(sol.objective)
+        costs.append(sol.cost)
+        rec.update(status="accepted", durations=z.tolist(), total_time=float(z.sum()), objective_rollout=obj_rollout,
+                   predicted=predicted, objective_after_resolve=sol.objective, cost=sol.cost,
+                   switching_violation=sol.switching_violation)
+        records.append(rec)
+        if callback:
+            callback(rec)
+    return STOResult(solution=sol, durations=np.array(history), objectives=np.array(objectives),
+                     costs=np.array(costs), records=records, initial_durations=problem.schedule.durations.copy(),
+                     solve_time=time.perf_counter() - t0)

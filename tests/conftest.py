@@ -1,0 +1,88 @@
+"""Shared fixtures for the foundation tests: the robot, the hybrid dynamics, a seeded generator, and
+finite-difference / random-state helpers (the ``tools`` fixture, so test modules never import conftest).
+
+``dynamics`` is function-scoped on purpose: a ``HybridDynamics`` owns Pinocchio ``Data`` scratch space,
+and a fresh one per test keeps tests independent of each other's call history (building one costs ~1 ms).
+"""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+from hsddp_gym.conventions import NQ, NU, NX, Mode
+from hsddp_gym.dynamics import HybridDynamics
+from hsddp_gym.model import CheetahModel
+from hsddp_gym.references import paper_initial_state
+
+SEED = 20200601
+"""Seed of the ``rng`` fixture (every test gets its own generator with this seed)."""
+
+MODES = tuple(Mode)
+CONTACT_MODES = (Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)
+INTEGRATORS = ("euler", "semi_implicit")
+
+FD_EPS = 1e-5
+"""Central-difference step: truncation ~eps^2 and round-off ~1e-16/eps balance near 1e-5 here (measured)."""
+FD_TOL = 1e-5
+"""Max error relative to max(1, |reference|) allowed between an analytical derivative and its FD estimate."""
+
+
+@pytest.fixture(scope="session")
+def robot() -> CheetahModel:
+    return CheetahModel()
+
+
+@pytest.fixture
+def dynamics(robot) -> HybridDynamics:
+    """A fresh paper-default dynamics (dt = 1 ms, forward Euler) for each test."""
+    return HybridDynamics(robot)
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(SEED)
+
+
+def random_state(rng: np.random.Generator, q_scale: float = 0.05, v_scale: float = 0.3) -> np.ndarray:
+    """A physically sensible state: the paper's initial state (mid back stance, knees bent, moving forward)
+    with Gaussian perturbations, so contact KKT systems stay well conditioned."""
+    x = paper_initial_state()
+    x[:NQ] += rng.normal(0.0, q_scale, NQ)
+    x[NQ:] += rng.normal(0.0, v_scale, NX - NQ)
+    return x
+
+
+def random_control(rng: np.random.Generator, scale: float = 15.0) -> np.ndarray:
+    """Joint torques well inside the 33 N m limit."""
+    return rng.uniform(-scale, scale, NU)
+
+
+def fd_jacobian(f, x: np.ndarray, eps: float = FD_EPS) -> np.ndarray:
+    """Central finite-difference Jacobian ``(m, n)`` of ``f: (n,) -> (m,)`` at ``x``."""
+    x = np.asarray(x, dtype=np.float64)
+    f0 = np.atleast_1d(f(x))
+    J = np.empty((f0.size, x.size))
+    for i in range(x.size):
+        dx = np.zeros_like(x)
+        dx[i] = eps
+        J[:, i] = (np.atleast_1d(f(x + dx)) - np.atleast_1d(f(x - dx))) / (2.0 * eps)
+    return J
+
+
+def max_rel_err(value: np.ndarray, reference: np.ndarray) -> float:
+    """``max |value - reference| / max(1, |reference|)`` elementwise."""
+    value = np.asarray(value, dtype=np.float64)
+    reference = np.asarray(reference, dtype=np.float64)
+    assert value.shape == reference.shape, (value.shape, reference.shape)
+    return float(np.max(np.abs(value - reference) / np.maximum(1.0, np.abs(reference))))
+
+
+@pytest.fixture(scope="session")
+def tools() -> types.SimpleNamespace:
+    """The helpers and constants above: ``tools.random_state(rng)``, ``tools.fd_jacobian(f, x)``, ..."""
+    return types.SimpleNamespace(random_state=random_state, random_control=random_control, fd_jacobian=fd_jacobian,
+                                 max_rel_err=max_rel_err, FD_EPS=FD_EPS, FD_TOL=FD_TOL, SEED=SEED, MODES=MODES,
+                                 CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS)
