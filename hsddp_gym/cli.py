@@ -84,6 +84,31 @@ def _print_summary(summary: dict) -> None:
             print(f"  {k:<24} {v:.6g}" if isinstance(v, float) else f"  {k:<24} {v}")
 
 
+# ----------------------------------------------------------------------------------------------- sto
+def cmd_sto(args) -> int:
+    from planners.tasks import run_sto
+
+    out = Path(args.out)
+
+    def progress(rec):
+        if not args.quiet:
+            tt = rec.get("total_time")
+            print(f"  STO iteration {rec['iteration']:>3d}: {rec['status']:<12} "
+                  + (f"total time {tt:.4f} s, cost {rec['cost']:.4g}, sum g^2 {rec['switching_violation']:.2e}"
+                     if tt is not None else ""), flush=True)
+
+    res, summary = run_sto(args.method, iterations=args.iterations, cycles=args.cycles,
+                           second_order=args.second_order, callback=progress)
+    res.solution.save(out / "solution.npz")
+    summary["command"] = " ".join(["hsddp-gym", *sys.argv[1:]]) if sys.argv else ""
+    write_json(out / "summary.json", summary)
+    print(f"{args.method}: total time {summary['initial_total_time']:.4f} s -> {summary['total_time']:.4f} s "
+          f"({100 * summary['reduction']:.1f} % reduction) in {summary['iterations']} iterations; "
+          f"durations [ms] {[round(1e3 * d, 1) for d in summary['mode_durations']]}")
+    print(f"wrote {out / 'summary.json'}")
+    return 0
+
+
 # ----------------------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
     from planners.tasks import plan_bounding
@@ -148,6 +173,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="do not print the solver's iteration table")
     p.set_defaults(func=cmd_plan)
+
+    p = sub.add_parser("sto", help="paper task 2: switching-time optimization (HS-DDP Algorithm 2 or the "
+                                   "open-loop baseline)",
+                       description="Optimize the mode durations of --cycles bounding cycles (start 80/72/72/72 ms, "
+                                   "task-1 costs, AL parameters and warm start). hsddp: Newton steps on the "
+                                   "durations rolled out with the feedback policy (the paper); open-loop: the "
+                                   "control held open loop (Xu & Antsaklis). Writes summary.json and solution.npz.")
+    p.add_argument("--method", choices=("hsddp", "open-loop"), default="hsddp",
+                   help="hsddp: feedback policy in the duration update; open-loop: Xu & Antsaklis baseline "
+                        "(default: %(default)s)")
+    p.add_argument("--iterations", type=_positive_int, default=30, help="STO iterations at most (default: %(default)s)")
+    p.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles (default: %(default)s)")
+    p.add_argument("--second-order", action="store_true",
+                   help="exact V_zz with the dynamics' second-order terms (slower); default: iLQR's, as the paper")
+    p.add_argument("--out", default="runs/sto", help="output directory (default: %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no per-iteration lines")
+    p.set_defaults(func=cmd_sto)
     return parser
 
 

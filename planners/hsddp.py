@@ -203,7 +203,12 @@ class HSDDP:
             X_init = check_array(X_init, (N + 1, NX), "X_init")
             K_init = check_array(K_init, (N, NU, NX), "K_init")
         lam = np.full(n, opt.lambda0) if multipliers is None else check_array(multipliers, (n,), "multipliers").copy()
-        sigma = opt.sigma0 if sigma is None else float(sigma)
+        if sigma is None:
+            sigma = opt.sigma0
+        elif isinstance(sigma, bool) or not isinstance(sigma, (int, float, np.floating)) or not (
+                np.isfinite(sigma) and sigma > 0):
+            raise ValueError(f"sigma must be a finite number > 0, got {sigma!r}")
+        sigma = float(sigma)
         if self._ws is None or not self._ws.fits(problem):
             self._ws = Workspace(problem)
         ws = self._ws
@@ -254,6 +259,8 @@ class HSDDP:
             if not opt.use_al or viol <= opt.al_tolerance:
                 converged = True
                 break
+            if al_iter == opt.max_al_iterations - 1:
+                break  # keep the outer-loop state that was actually solved
             # Algorithm 1, line 9 (eq. 24 uses the penalty before its growth)
             cs.lam = cs.lam + cs.sigma * g
             cs.sigma *= opt.beta
@@ -265,6 +272,8 @@ class HSDDP:
                                                 else "al_iteration_limit")
         # gains consistent with the final trajectory: one more linearization + backward pass (no step)
         self._backward_at_nominal(problem, objective, cs, state, timings)
+        if state["status"] == "gains_failed":
+            status, converged = "gains_failed", False
         tr = ws.nominal
         final = self._evaluate(objective, tr, cs)
         g = objective.switching_values(tr.X_pre)
@@ -318,6 +327,9 @@ class HSDDP:
             if ok:
                 return
             mu = max(self.options.mu_min, mu * self.options.mu_growth)
+        self._ws.K[:] = 0.0
+        self._ws.k_ff[:] = 0.0
+        state["status"] = "gains_failed"
 
     def _ddp(self, problem, objective, cs, costs, state, record, timings, t0):
         opt = self.options
@@ -339,10 +351,8 @@ class HSDDP:
                         state["status"] = "diverged"
                         return costs
                     continue
-                if dV1 > -1e-12:
-                    # no descent direction left: converged for this objective
-                    state["ddp"] += 0
-                    return costs
+                if dV1 > -1e-12 * max(1.0, abs(costs.total)):
+                    return costs  # no descent direction left: converged for this objective
                 t = time.perf_counter()
                 eps = 1.0
                 new_costs = None
@@ -381,7 +391,8 @@ class HSDDP:
 
 def solve(problem: HybridProblem, U_init: np.ndarray, options: SolverOptions = SolverOptions(),
           X_init: np.ndarray | None = None, K_init: np.ndarray | None = None,
-          multipliers: np.ndarray | None = None, callbacks: list[Callback] | None = None, verbose: bool = False
-          ) -> Solution:
+          multipliers: np.ndarray | None = None, callbacks: list[Callback] | None = None, verbose: bool = False,
+          sigma: float | None = None, constraint_state: ConstraintState | None = None) -> Solution:
     """Solve ``problem`` with HS-DDP Algorithm 1 (see :class:`HSDDP.solve`)."""
-    return HSDDP(options, callbacks, verbose).solve(problem, U_init, X_init, K_init, multipliers)
+    return HSDDP(options, callbacks, verbose).solve(problem, U_init, X_init, K_init, multipliers, sigma,
+                                                    constraint_state)

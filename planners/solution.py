@@ -70,8 +70,10 @@ class SolverOptions:
                      "eps_torque", "eps_grf", "min_step", "mu_min", "mu_max"):
             check_positive(getattr(self, name), name)
         check_positive(self.eps_growth, "eps_growth")
-        if not (self.beta > 1.0):
-            raise ValueError(f"beta must be > 1 (penalty growth), got {self.beta!r}")
+        if not (self.beta > 1.0 and np.isfinite(self.beta)):
+            raise ValueError(f"beta must be finite and > 1 (penalty growth), got {self.beta!r}")
+        if self.mu_max <= self.mu_min:
+            raise ValueError(f"mu_max must be > mu_min, got mu_max={self.mu_max!r}, mu_min={self.mu_min!r}")
         check_in_range(self.delta_factor, 1e-6, 1.0, "delta_factor")
         check_in_range(self.armijo, 0.0, 0.5, "armijo")
         check_in_range(self.step_factor, 1e-3, 0.99, "step_factor")

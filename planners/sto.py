@@ -37,7 +37,8 @@ STO_METHODS = ("hsddp", "open-loop")
 
 
 def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_z, l_xz, l_uz, Phi_x, Phi_xx, P_x,
-                       phase_start, phase_of_knot, n_z, feedback, mu, K_x, K_z, k_ff):
+                       phase_start, phase_of_knot, n_z, feedback, mu, K_x, K_z, k_ff, knot_tensor=None,
+                       reset_tensor=None):
     """Backward pass of the time-augmented problem (see the module docstring).
 
     Plain NumPy (it runs once per STO iteration; numba's linear algebra would need SciPy).
@@ -49,6 +50,9 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
         feedback: True for HS-DDP (gains from Q_uu), False for the open-loop baseline (K = 0, k = 0).
         mu: regularization added to Q_uu.
         K_x (N, 4, 14), K_z (N, 4, n_z), k_ff (N, 4): outputs.
+        knot_tensor: optional ``knot_tensor(k, V_x_next) -> (T_xx, T_ux, T_uu)``, the second-order terms
+            of knot k's dynamics and force-dependent cost contracted with the value gradient (full DDP
+            instead of iLQR); reset_tensor: optional ``reset_tensor(i, V_x_plus) -> T_xx`` for reset maps.
     Returns:
         ``(ok, V_x0 (14,), V_z0 (n_z,), V_xx0 (14, 14), V_xz0 (14, n_z), V_zz0 (n_z, n_z), dV1, dV2)``.
     """
@@ -67,8 +71,9 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
     for i in range(n_phase - 1, -1, -1):
         if i < n_phase - 1:
             P = P_x[i]
+            T_reset = reset_tensor(i, Vx) if reset_tensor is not None else 0.0
             Vx = Phi_x[i] + P.T @ Vx
-            Vxx = Phi_xx[i] + P.T @ Vxx @ P
+            Vxx = Phi_xx[i] + P.T @ Vxx @ P + T_reset
             Vxx = 0.5 * (Vxx + Vxx.T)
             Vxz = P.T @ Vxz
         for k in range(phase_start[i + 1] - 1, phase_start[i] - 1, -1):
@@ -84,6 +89,11 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
             Qxx = l_xx[k] + A.T @ VxxA
             Quu = l_uu[k] + B.T @ (Vxx @ B)
             Qux = l_ux[k] + B.T @ VxxA
+            if knot_tensor is not None:
+                T_xx, T_ux, T_uu = knot_tensor(k, Vx)
+                Qxx = Qxx + T_xx
+                Qux = Qux + T_ux
+                Quu = Quu + T_uu
             # (Vxx Fz + Vxz) with Fz = fz e_j^T
             M = Vxz.copy()
             Vxx_fz = Vxx @ fz
@@ -145,13 +155,19 @@ class TimeDerivatives:
     dV2: float
 
 
-def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = True, mu: float = 0.0
-                     ) -> TimeDerivatives:
+def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = True, mu: float = 0.0,
+                     second_order: bool = False, fd_step: float = 1e-6) -> TimeDerivatives:
     """V_z, V_zz at the solver's current nominal trajectory (linearized at it by the last ``solve``).
 
     Args:
         solver: an :class:`HSDDP` that has just solved ``problem`` (its workspace holds the linearization).
         feedback: HS-DDP (True) or the open-loop baseline (False).
+        second_order: add the dynamics' (and ground-force cost's) second-order terms contracted with the
+            value gradient, as full DDP does (paper eq. 5 with the tensor terms); iLQR, the paper's choice,
+            omits them. Pinocchio has no second derivatives of constrained dynamics, so each contraction
+            is a central difference (step ``fd_step``) of the *analytical* first derivatives: 36 extra
+            linearizations per knot. With it, V_zz is the exact Hessian of the objective under the fixed
+            feedback policy; without it, V_zz is iLQR's Gauss-Newton approximation (a few % off).
     """
     ws = solver._ws
     if ws is None or not ws.fits(problem) or solver.last_objective is None:
@@ -190,12 +206,16 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
     K_x = np.zeros((N, NU, NX))
     K_z = np.zeros((N, NU, n))
     k_ff = np.zeros((N, NU))
+    knot_tensor = reset_tensor = None
+    if second_order:
+        knot_tensor, reset_tensor = _tensor_terms(problem, tr, obj._gy, fd_step)
     mu_try = mu
     for _ in range(40):
         try:
             ok, Vx, Vz, Vxx, Vxz, Vzz, dV1, dV2 = backward_pass_time(
                 lin.f_x[:N], lin.f_u[:N], f_z, f_xz, f_uz, ws.l_x, ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, l_z, l_xz,
-                l_uz, ws.Phi_x, ws.Phi_xx, ws.P_x, problem.phase_start, ph, n, feedback, mu_try, K_x, K_z, k_ff)
+                l_uz, ws.Phi_x, ws.Phi_xx, ws.P_x, problem.phase_start, ph, n, feedback, mu_try, K_x, K_z, k_ff,
+                knot_tensor, reset_tensor)
             if np.all(np.isfinite(Vzz)):
                 break
         except np.linalg.LinAlgError:  # Q_uu singular: regularize more
@@ -204,6 +224,66 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
     else:
         raise RuntimeError("time-augmented backward pass failed (Q_uu singular at every regularization)")
     return TimeDerivatives(V_z=Vz, V_zz=Vzz, V_xz=Vxz, K_x=K_x, K_z=K_z, k_ff=k_ff, dV1=dV1, dV2=dV2)
+
+
+def _tensor_terms(problem: HybridProblem, tr: _Traj, g_grf: np.ndarray, step: float):
+    """Second-order contractions by central differences of the analytical first derivatives.
+
+    For knot k: ``psi(x, u) = lam^T f(x, u) + g_grf[k]^T grf(x, u)`` with ``lam`` the next value gradient;
+    its Hessian over ``(x, u)`` is returned split as ``(T_xx, T_ux, T_uu)``. For the reset of phase i:
+    the Hessian of ``lam^T P(x)``.
+    """
+    dyn = problem.dynamics
+    semi = dyn.integrator == "semi_implicit"
+    bufs = [np.empty((NQ, NQ)), np.empty((NQ, NQ)), np.empty((NQ, NU)), np.empty((4, NQ)), np.empty((4, NQ)),
+            np.empty((4, NU))]
+    nz = NX + NU
+
+    def grad(x, u, mode, w_a, g):
+        a_q, a_v, a_u, l_q, l_v, l_u = bufs
+        dyn.raw_derivatives(x, u, mode, a_q, a_v, a_u, l_q, l_v, l_u)
+        out = np.empty(nz)
+        out[:NQ] = a_q.T @ w_a + l_q.T @ g
+        out[NQ:NX] = a_v.T @ w_a + l_v.T @ g
+        out[NX:] = a_u.T @ w_a + l_u.T @ g
+        return out
+
+    def knot_tensor(k, lam):
+        h = problem.h[k]
+        w_a = h * lam[NQ:] + (h * h * lam[:NQ] if semi else 0.0)
+        g = g_grf[k]
+        x0, u0 = tr.X[k], tr.U[k]
+        mode = int(problem.modes[k])
+        H = np.empty((nz, nz))
+        for j in range(nz):
+            xp, up = x0.copy(), u0.copy()
+            xm, um = x0.copy(), u0.copy()
+            if j < NX:
+                xp[j] += step
+                xm[j] -= step
+            else:
+                up[j - NX] += step
+                um[j - NX] -= step
+            H[:, j] = (grad(xp, up, mode, w_a, g) - grad(xm, um, mode, w_a, g)) / (2.0 * step)
+        H = 0.5 * (H + H.T)
+        return H[:NX, :NX], H[NX:, :NX], H[NX:, NX:]
+
+    def reset_tensor(i, lam_plus):
+        x0 = tr.X_pre[i]
+        mode_after = problem.schedule.next_mode(i)
+        H = np.empty((NX, NX))
+        P = np.empty((NX, NX))
+        for j in range(NX):
+            xp, xm = x0.copy(), x0.copy()
+            xp[j] += step
+            xm[j] -= step
+            dyn._reset_jacobian(xp, mode_after, problem.restitution, P)
+            gp = P.T @ lam_plus
+            dyn._reset_jacobian(xm, mode_after, problem.restitution, P)
+            H[:, j] = (gp - P.T @ lam_plus) / (2.0 * step)
+        return 0.5 * (H + H.T)
+
+    return knot_tensor, reset_tensor
 
 
 def rollout_time_policy(problem_new: HybridProblem, nominal: _Traj, deriv: TimeDerivatives, dz: np.ndarray,
@@ -225,6 +305,8 @@ class STOOptions:
         iterations: STO iterations (paper: 30). min_duration, max_duration: bounds per phase [s].
         step_factor, min_step: backtracking on eps_z. armijo: sufficient decrease fraction.
         tolerance: stop when the accepted duration change is below it [s] (max norm).
+        second_order: exact V_zz with the dynamics' second-order terms (see :func:`time_derivatives`);
+            default False: iLQR's Gauss-Newton V_zz, as in the paper.
         solver: Algorithm 1's options for the inner re-solves.
     """
 
@@ -236,6 +318,7 @@ class STOOptions:
     min_step: float = 1e-3
     armijo: float = 1e-4
     tolerance: float = 1e-6
+    second_order: bool = False
     solver: SolverOptions = SolverOptions()
 
     def __post_init__(self) -> None:
@@ -294,7 +377,7 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
     cand = _Traj(pr.n_knots, pr.n_phases)
     for it in range(options.iterations):
         cs = solver.last_constraint_state
-        deriv = time_derivatives(solver, pr, feedback=feedback)
+        deriv = time_derivatives(solver, pr, feedback=feedback, second_order=options.second_order)
         Vz, Vzz = deriv.V_z, deriv.V_zz
         w, Q = np.linalg.eigh(0.5 * (Vzz + Vzz.T))
         floor = max(1e-8, 1e-6 * float(np.max(np.abs(w))))
@@ -342,3 +425,59 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
     return STOResult(solution=sol, durations=np.array(history), objectives=np.array(objectives),
                      costs=np.array(costs), records=records, initial_durations=problem.schedule.durations.copy(),
                      solve_time=time.perf_counter() - t0)
+
+
+def step_size_study(solver: HSDDP, problem: HybridProblem, U_nominal: np.ndarray, steps, feedback: bool = True
+                    ) -> dict:
+    """Paper Fig. 8: actual and predicted objective change against the step size for a control step only
+    (``eps = s, eps_z = 0``), a duration step only (``eps = 0, eps_z = s``) and both (``eps = eps_z = s``),
+    around the open-loop rollout of ``U_nominal`` on ``problem`` (a point where the control is not yet
+    optimal, so both steps act).
+
+    The prediction is DDP's quadratic model at the initial knot:
+    ``eps dV1 + eps^2/2 dV2 + eps_z V_z^T dz + eps_z^2/2 dz^T V_zz dz``.
+
+    Args:
+        solver: an :class:`HSDDP` whose options and outer-loop state (``last_constraint_state``) are used.
+    Returns:
+        ``{"steps": [...], "dz": [...], "<case>": {"actual": [...], "predicted": [...]}}`` for the cases
+        ``"control"``, ``"durations"``, ``"both"``.
+    """
+    from planners.hsddp import Workspace
+    from planners.objective import Objective
+
+    cs = solver.last_constraint_state
+    if cs is None:
+        raise ValueError("solver has no outer-loop state; solve a problem with it first")
+    ws = Workspace(problem)
+    solver._ws = ws
+    solver.last_objective = Objective(problem)
+    if not rollout_policy(problem, ws.nominal, U_nominal):
+        raise ValueError("U_nominal gives a non-finite rollout")
+    timings = {"linearize": 0.0, "reset_jacobians": 0.0, "cost_derivatives": 0.0}
+    solver._linearize(problem, solver.last_objective, cs, timings)
+    d = time_derivatives(solver, problem, feedback=feedback)
+    w, Q = np.linalg.eigh(0.5 * (d.V_zz + d.V_zz.T))
+    dz = -(Q @ ((Q.T @ d.V_z) / np.maximum(np.abs(w), 1e-8 * np.max(np.abs(w)))))
+    J0 = solver._evaluate(solver.last_objective, ws.nominal, cs).total
+    out = {"steps": [float(s) for s in steps], "dz": dz.tolist(), "objective": J0}
+    cand = _Traj(problem.n_knots, problem.n_phases)
+    for case, (use_eps, use_z) in {"control": (True, False), "durations": (False, True), "both": (True, True)}.items():
+        actual, predicted = [], []
+        for s in steps:
+            eps = s if use_eps else 0.0
+            ez = s if use_z else 0.0
+            step = ez * dz
+            z_new = problem.schedule.durations + step
+            if np.any(z_new <= 0):
+                actual.append(float("nan"))
+                predicted.append(float("nan"))
+                continue
+            pr_new = problem.with_durations(z_new)
+            U_ref = ws.nominal.U + np.einsum("nuz,z->nu", d.K_z, step)
+            ok = rollout_policy(pr_new, cand, U_ref, ws.nominal.X, d.K_x, d.k_ff, eps)
+            J = Objective(pr_new).evaluate(cand.X, cand.X_pre, cand.U, cand.GRF, cs).total if ok else float("nan")
+            actual.append(float(J - J0))
+            predicted.append(float(eps * d.dV1 + 0.5 * eps * eps * d.dV2 + d.V_z @ step + 0.5 * step @ d.V_zz @ step))
+        out[case] = {"actual": actual, "predicted": predicted}
+    return out

@@ -1,0 +1,98 @@
+"""The relaxed barrier of order k = 2 (paper eq. 27): C2 at the switch point, the 1/delta^2 curvature of the
+relaxed branch, derivatives consistent with the value, and argument checking."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planners.barrier import relaxed_barrier
+
+DELTAS = (1e-3, 0.05, 0.2, 0.4, 1.0, 3.0)
+
+
+def _rel(a, b) -> float:
+    a, b = float(a), float(b)
+    return abs(a - b) / max(abs(a), abs(b), 1e-300)
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+def test_value_slope_curvature_continuous_at_delta(delta):
+    """Left (relaxed branch, c = delta exactly and just below) and right (log branch, just above) limits agree."""
+    t = 1e-10 * delta
+    c = np.array([delta - t, delta, delta + t])
+    value, slope, curvature = relaxed_barrier(c, delta)
+    # c = delta itself is in the relaxed branch (the log branch is c > delta)
+    assert value[1] == pytest.approx(-np.log(delta), rel=1e-14, abs=1e-14)
+    assert slope[1] == pytest.approx(-1.0 / delta, rel=1e-14)
+    assert curvature[1] == pytest.approx(1.0 / delta ** 2, rel=1e-14)
+    for left in (0, 1):
+        # the value's relative difference uses max(|value|, 1): -log(delta) vanishes at delta = 1
+        assert abs(value[left] - value[2]) <= 1e-6 * max(1.0, abs(value[2]))
+        assert _rel(slope[left], slope[2]) <= 1e-6
+        assert _rel(curvature[left], curvature[2]) <= 1e-6
+    # and the analytic one-sided limits of eq. 27 (k = 2) are -log(delta), -1/delta, 1/delta^2 on both sides
+    assert _rel(-1.0 / (delta + t), slope[2]) <= 1e-14
+    assert _rel(1.0 / (delta + t) ** 2, curvature[2]) <= 1e-14
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+def test_relaxed_branch_matches_eq27_and_has_curvature_one_over_delta_squared(delta, rng):
+    c = np.concatenate([delta * rng.uniform(-20.0, 1.0, 50), [delta, 0.0, -delta, 2.0 * delta - 5.0]])
+    c = c[c <= delta]
+    value, slope, curvature = relaxed_barrier(c, delta)
+    np.testing.assert_allclose(curvature, 1.0 / delta ** 2, rtol=1e-14)
+    expected = 0.5 * (((c - 2.0 * delta) / delta) ** 2 - 1.0) - np.log(delta)
+    np.testing.assert_allclose(value, expected, rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(slope, (c - 2.0 * delta) / delta ** 2, rtol=1e-13, atol=1e-13 / delta)
+    # the relaxed barrier extends -log over the whole real line: finite everywhere, decreasing below delta
+    assert np.all(np.isfinite(value)) and np.all(slope < 0)
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+def test_log_branch_is_minus_log(delta, rng):
+    c = delta * (1.0 + rng.uniform(1e-6, 50.0, 50))
+    value, slope, curvature = relaxed_barrier(c, delta)
+    np.testing.assert_allclose(value, -np.log(c), rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(slope, -1.0 / c, rtol=1e-14)
+    np.testing.assert_allclose(curvature, 1.0 / c ** 2, rtol=1e-14)
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+def test_slope_and_curvature_match_finite_differences(delta, rng):
+    """Random points on both sides of delta (and straddling it): central differences of the value give the
+    slope, central differences of the slope give the curvature."""
+    c = np.concatenate([delta * rng.uniform(-5.0, 1.0, 40), delta * rng.uniform(1.0, 30.0, 40),
+                        delta * (1.0 + rng.uniform(-1e-3, 1e-3, 10))])
+    # a step relative to the local scale: the log branch varies on the scale of c itself
+    h = 1e-5 * np.maximum(np.minimum(np.abs(c), delta), 1e-3 * delta)
+    value, slope, curvature = relaxed_barrier(c, delta)
+    vp, sp, _ = relaxed_barrier(c + h, delta)
+    vm, sm, _ = relaxed_barrier(c - h, delta)
+    fd_slope = (vp - vm) / (2.0 * h)
+    fd_curv = (sp - sm) / (2.0 * h)
+    np.testing.assert_allclose(fd_slope, slope, rtol=1e-6, atol=1e-9 / delta)
+    np.testing.assert_allclose(fd_curv, curvature, rtol=1e-6, atol=1e-9 / delta ** 2)
+
+
+def test_broadcasting_and_per_element_delta(rng):
+    c = rng.uniform(-1.0, 2.0, (3, 5))
+    deltas = rng.uniform(0.1, 0.6, (1, 5))
+    value, slope, curvature = relaxed_barrier(c, deltas)
+    assert value.shape == slope.shape == curvature.shape == c.shape
+    for j in range(5):
+        v, s, k = relaxed_barrier(c[:, j], float(deltas[0, j]))
+        np.testing.assert_array_equal(value[:, j], v)
+        np.testing.assert_array_equal(slope[:, j], s)
+        np.testing.assert_array_equal(curvature[:, j], k)
+    # scalar input gives 0-d outputs
+    v0, s0, k0 = relaxed_barrier(0.5, 0.2)
+    assert np.ndim(v0) == np.ndim(s0) == np.ndim(k0) == 0
+    assert float(v0) == pytest.approx(-np.log(0.5))
+
+
+@pytest.mark.parametrize("delta", [0.0, -0.1, -1.0, np.nan, np.inf, -np.inf, np.array([0.2, 0.0]),
+                                   np.array([0.2, np.nan])])
+def test_bad_delta_raises(delta):
+    with pytest.raises(ValueError, match="delta"):
+        relaxed_barrier(np.array([0.1, 0.5]), delta)

@@ -1,0 +1,335 @@
+"""HS-DDP Algorithm 1 on a one-cycle bounding problem (296 knots, ~0.1-0.5 s per solve): the line search
+never accepts an increase, callbacks see every record, the AL update follows eq. 24, solves are
+bit-for-bit deterministic, solutions round-trip through ``.npz`` without pickle, and options are validated."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+
+import numpy as np
+import pytest
+
+from hsddp_gym.rollout import rollout
+from planners.heuristic import HeuristicBoundingController
+from planners.hsddp import HSDDP, solve
+from planners.objective import ConstraintState, Objective
+from planners.problem import HybridProblem
+from planners.solution import LOG_FIELDS, IterationRecord, Solution, SolverOptions
+
+METHODS = ("ddp", "al", "al-reb")
+
+
+def fresh_problem(**kwargs) -> HybridProblem:
+    """A new problem (and so new Pinocchio ``Data``) for every solve that is compared bit for bit."""
+    return HybridProblem.bounding(cycles=1, **kwargs)
+
+
+@pytest.fixture(scope="module")
+def warm_start() -> np.ndarray:
+    problem = fresh_problem()
+    ctrl = HeuristicBoundingController(problem.dynamics.robot).as_schedule_controller(problem.schedule)
+    U = rollout(problem.dynamics, problem.schedule, problem.x0, controller=ctrl).U
+    assert U.shape == (problem.n_knots, 4) and np.all(np.isfinite(U))
+    U.setflags(write=False)
+    return U
+
+
+def _records_without_time(log):
+    return [dataclasses.replace(r, wall_time=0.0) for r in log]
+
+
+def _records_equal(a: list, b: list) -> bool:
+    """Equal field by field (NaN == NaN), ignoring wall_time."""
+    if len(a) != len(b):
+        return False
+    for ra, rb in zip(_records_without_time(a), _records_without_time(b)):
+        for f in LOG_FIELDS:
+            x, y = getattr(ra, f), getattr(rb, f)
+            if isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y):
+                continue
+            if x != y:
+                return False
+    return True
+
+
+def check_log(sol: Solution, opt: SolverOptions) -> int:
+    """The invariants of the log; returns the number of accepted DDP steps."""
+    log = sol.log
+    assert log and log[0].event == "init" and log[0].al_iteration == 0 and log[0].ddp_iteration == 0
+    n_ddp = 0
+    for prev, r in zip(log, log[1:]):
+        assert r.event in ("ddp", "al_update"), r.event
+        if r.event == "ddp":
+            n_ddp += 1
+            assert r.al_iteration == prev.al_iteration
+            assert r.ddp_iteration == prev.ddp_iteration + 1
+            # the line search never accepts an increase: Armijo on the recorded (positive) expected decrease
+            assert r.objective <= prev.objective, (prev, r)
+            assert r.expected > 0.0
+            assert prev.objective - r.objective >= opt.armijo * r.expected
+            # an accepted step is one of 1, f, f^2, ... >= min_step
+            assert opt.min_step <= r.step <= 1.0
+            j = round(math.log(r.step) / math.log(opt.step_factor))
+            assert r.step == pytest.approx(opt.step_factor ** j, rel=1e-12)
+        else:
+            # a new AL iteration: the objective changes (new multipliers / penalty / barrier parameters)
+            assert r.al_iteration == prev.al_iteration + 1
+            assert r.ddp_iteration == prev.ddp_iteration
+            assert r.step == 0.0
+    assert sol.ddp_iterations == n_ddp
+    assert sol.al_iterations == 1 + sum(r.event == "al_update" for r in log)
+    return n_ddp
+
+
+# ----------------------------------------------------------------------------------------- line search
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_line_search_never_accepts_an_increase(method, warm_start):
+    opt = SolverOptions(method=method, max_ddp_iterations=10, max_al_iterations=3)
+    sol = HSDDP(opt).solve(fresh_problem(), warm_start)
+    assert check_log(sol, opt) >= 3
+    assert sol.status in ("converged", "al_iteration_limit")
+    assert sol.log[-1].objective < sol.log[0].objective
+    assert np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))
+    if method == "ddp":
+        assert "al_update" not in {r.event for r in sol.log} and np.all(sol.multipliers == 0.0)
+    else:
+        assert any(r.event == "al_update" for r in sol.log)
+
+
+def test_line_search_backtracks_and_still_never_accepts_an_increase(warm_start):
+    """A demanding Armijo constant and a fast gait force step rejections: rejected trials leave no trace."""
+    opt = SolverOptions(method="al-reb", armijo=0.5, max_ddp_iterations=15, max_al_iterations=3)
+    sol = HSDDP(opt).solve(fresh_problem(speed=3.0), warm_start)
+    check_log(sol, opt)
+    steps = [r.step for r in sol.log if r.event == "ddp"]
+    assert min(steps) < 1.0, "this problem was chosen to make the line search backtrack"
+    assert sol.timings["line_search_trials"] > len(steps)
+
+
+def test_callbacks_see_every_record(warm_start):
+    seen: list[IterationRecord] = []
+    calls = []
+    opt = SolverOptions(method="al", max_al_iterations=2, max_ddp_iterations=5)
+    sol = HSDDP(opt, callbacks=[seen.append, lambda r: calls.append(r.event)]).solve(fresh_problem(), warm_start)
+    assert len(sol.log) > 3
+    assert len(seen) == len(sol.log) == len(calls)
+    assert all(a is b for a, b in zip(seen, sol.log))
+    assert calls == [r.event for r in sol.log]
+    assert {"init", "ddp", "al_update"} <= set(calls)
+    # the module-level solve passes callbacks too, and the in-memory log is filled without any
+    seen2: list[IterationRecord] = []
+    sol2 = solve(fresh_problem(), warm_start, opt, callbacks=[seen2.append])
+    assert _records_equal(seen2, sol.log) and _records_equal(sol2.log, sol.log)
+    assert _records_equal(HSDDP(opt).solve(fresh_problem(), warm_start).log, sol.log)
+
+
+# ----------------------------------------------------------------------------------------- AL update (eq. 24)
+
+
+def test_al_update_follows_eq24(warm_start):
+    """lam <- lam + sigma g (with the penalty before its growth), then sigma <- beta sigma, between AL
+    iterations that end with sum g^2 > al_tolerance; only touchdown phases carry multipliers."""
+    base = dict(method="al", max_ddp_iterations=10)
+    opt1 = SolverOptions(max_al_iterations=1, **base)
+    opt2 = SolverOptions(max_al_iterations=2, **base)
+    s1 = HSDDP(opt1).solve(fresh_problem(), warm_start)
+    s2 = HSDDP(opt2).solve(fresh_problem(), warm_start)
+    problem = fresh_problem()
+    touchdown = problem.touchdown >= 0
+    assert touchdown.any() and (~touchdown).any()
+
+    g0 = s1.switching  # g after the first AL iteration (same deterministic path in both solves)
+    assert s1.switching_violation > opt1.al_tolerance and s1.status == "al_iteration_limit"
+    np.testing.assert_array_equal(g0[~touchdown], 0.0)
+    n0 = sum(r.al_iteration == 0 for r in s2.log)
+    assert _records_equal(s2.log[:n0], s1.log)
+
+    lam0 = np.full(problem.n_phases, opt1.lambda0)
+    lam1 = lam0 + opt1.sigma0 * g0
+    sigma1 = opt1.sigma0 * opt1.beta
+    # the objective of the second AL iteration, at its start, is eq. 23 with (lam1, sigma1) on the first
+    # iteration's trajectory
+    (upd,) = [r for r in s2.log if r.event == "al_update"]
+    assert upd.switching_violation == pytest.approx(float(np.sum(g0 ** 2)), rel=1e-14)
+    obj = Objective(problem)
+
+    def al_objective(lam, sigma):
+        cs = ConstraintState(sigma=sigma, lam=lam, use_al=True, use_reb=False, delta_torque=opt1.delta_torque0,
+                             delta_grf=opt1.delta_grf0, eps_torque=opt1.eps_torque, eps_grf=opt1.eps_grf)
+        return obj.evaluate(s1.X, s1.X_pre, s1.U, s1.GRF, cs).total
+
+    assert upd.objective == pytest.approx(al_objective(lam1, sigma1), rel=1e-13)
+    # ... and not with the grown penalty in the multiplier update (Algorithm 1, line 9 read literally)
+    alt = al_objective(lam0 + sigma1 * g0, sigma1)
+    assert abs(alt - upd.objective) > 1e3 * 1e-13 * abs(upd.objective)
+
+    # the returned multipliers / penalty are those of the last subproblem actually solved: no update is
+    # applied after the last (unconverged) AL iteration
+    np.testing.assert_array_equal(s1.multipliers, lam0)
+    assert s1.sigma == opt1.sigma0
+    np.testing.assert_allclose(s2.multipliers, lam1, rtol=1e-15, atol=0)
+    assert s2.sigma == sigma1
+    for s in (s1, s2):
+        np.testing.assert_array_equal(s.multipliers[~touchdown], 0.0)
+        assert np.all(s.multipliers[touchdown] != 0.0)
+
+
+def test_converged_solution_objective_matches_the_last_record(warm_start):
+    sol = HSDDP(SolverOptions(method="al", max_al_iterations=6)).solve(fresh_problem(), warm_start)
+    assert sol.converged and sol.status == "converged"
+    assert sol.switching_violation <= sol.options.al_tolerance
+    assert sol.objective == sol.log[-1].objective
+    # after convergence the last backward pass leaves a small feed-forward
+    assert np.max(np.abs(sol.k_ff)) < 0.1
+
+
+def test_iteration_limited_solution_objective_and_gains_belong_to_the_solved_subproblem(warm_start):
+    sol = HSDDP(SolverOptions(method="al", max_al_iterations=2)).solve(fresh_problem(), warm_start)
+    assert sol.status == "al_iteration_limit"
+    assert sol.objective == pytest.approx(sol.log[-1].objective, rel=1e-12)
+    assert np.max(np.abs(sol.k_ff)) < 1.0
+
+
+# ----------------------------------------------------------------------------------------- determinism
+
+
+ARRAYS = ("X", "X_pre", "U", "GRF", "K", "k_ff", "modes", "phase_start", "switching", "multipliers", "V_x0",
+          "V_xx0")
+
+
+def assert_identical(a: Solution, b: Solution):
+    for name in ARRAYS:
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and x.shape == y.shape, name
+        np.testing.assert_array_equal(x, y, err_msg=name, strict=True)
+    for name in ("sigma", "cost", "objective", "status", "converged", "al_iterations", "ddp_iterations", "dt"):
+        assert getattr(a, name) == getattr(b, name), name
+    assert _records_equal(a.log, b.log)
+    assert a.timings["line_search_trials"] == b.timings["line_search_trials"]
+
+
+@pytest.mark.parametrize("method", ["al", "al-reb"])
+def test_identical_solves_are_bit_identical(method, warm_start):
+    opt = SolverOptions(method=method, max_al_iterations=3, max_ddp_iterations=8)
+    # fresh solver objects on fresh problems
+    a = HSDDP(opt).solve(fresh_problem(), warm_start)
+    b = HSDDP(opt).solve(fresh_problem(), warm_start)
+    assert_identical(a, b)
+    # fresh solver objects on one problem (its Pinocchio Data keeps the history of earlier solves)
+    problem = fresh_problem()
+    assert_identical(HSDDP(opt).solve(problem, warm_start), a)
+    assert_identical(HSDDP(opt).solve(problem, warm_start), a)
+    # one solver reused (its workspace keeps the previous solve's arrays)
+    solver = HSDDP(opt)
+    assert_identical(solver.solve(problem, warm_start), a)
+    assert_identical(solver.solve(fresh_problem(), warm_start), a)
+
+
+# ----------------------------------------------------------------------------------------- persistence
+
+
+@pytest.fixture(scope="module")
+def al_solution(warm_start) -> Solution:
+    return HSDDP(SolverOptions(method="al-reb", max_al_iterations=2, max_ddp_iterations=5)).solve(
+        fresh_problem(), warm_start)
+
+
+def test_save_load_round_trip_is_exact(al_solution, tmp_path):
+    sol = al_solution
+    path = tmp_path / "solution.npz"
+    sol.save(path)
+    loaded = Solution.load(path)
+    for name in ARRAYS:
+        x, y = getattr(sol, name), getattr(loaded, name)
+        np.testing.assert_array_equal(y, x, err_msg=name, strict=True)
+    for name in ("dt", "sigma", "cost", "objective", "status", "converged", "al_iterations", "ddp_iterations",
+                 "solve_time", "timings", "options"):
+        assert getattr(loaded, name) == getattr(sol, name), name
+    assert loaded.schedule == sol.schedule
+    assert _records_equal(loaded.log, sol.log)
+    assert [r.wall_time for r in loaded.log] == [r.wall_time for r in sol.log]
+    assert all(type(r.al_iteration) is int and type(r.ddp_iteration) is int for r in loaded.log)
+    # the policy and log accessors of the loaded solution agree
+    x = sol.X[7] + 1e-3
+    np.testing.assert_array_equal(loaded.control(7, x), sol.control(7, x))
+    np.testing.assert_array_equal(loaded.log_array("objective"), sol.log_array("objective"))
+
+
+def test_saved_file_needs_no_pickle_and_is_written_atomically(al_solution, tmp_path, monkeypatch):
+    path = tmp_path / "out" / "sol.npz"  # the parent directory is created
+    al_solution.save(path)
+    al_solution.save(path)  # overwriting goes through a temporary file too
+    assert sorted(os.listdir(path.parent)) == ["sol.npz"], "a temporary file was left behind"
+    with np.load(path, allow_pickle=False) as data:
+        names = set(data.files)
+        for name in data.files:
+            assert data[name].dtype != object, name
+    assert set(ARRAYS) <= names and {"log", "log_events", "meta"} <= names
+    before = path.read_bytes()
+    # an object array is refused before anything is written
+    bad = dataclasses.replace(al_solution, X=np.array([object()], dtype=object))
+    with pytest.raises(TypeError):
+        bad.save(tmp_path / "out" / "bad.npz")
+    assert sorted(os.listdir(path.parent)) == ["sol.npz"]
+
+    # a write that fails half-way leaves the previous file intact and no temporary file behind
+    def half_write(fh, **arrays):
+        fh.write(b"PK\x03\x04 partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez_compressed", half_write)
+    with pytest.raises(OSError, match="disk full"):
+        al_solution.save(path)
+    monkeypatch.undo()
+    assert sorted(os.listdir(path.parent)) == ["sol.npz"]
+    assert path.read_bytes() == before
+    np.testing.assert_array_equal(Solution.load(path).X, al_solution.X)
+
+
+# ----------------------------------------------------------------------------------------- validation
+
+
+@pytest.mark.parametrize("field,value", [
+    ("method", "foo"), ("method", "AL"), ("beta", 1.0), ("beta", 0.5), ("beta", float("nan")),
+    ("al_tolerance", -1e-4), ("al_tolerance", 0.0), ("ddp_tolerance", -1e-3), ("min_step", -0.1),
+    ("mu_min", -1e-6), ("mu_max", 0.0), ("sigma0", -5.0), ("delta_torque0", -0.2), ("delta_grf0", 0.0),
+    ("delta_min", -1e-3), ("eps_torque", -1e-5), ("eps_grf", float("nan")), ("eps_growth", 0.0),
+    ("delta_factor", 0.0), ("delta_factor", 1.5), ("armijo", -0.1), ("armijo", 0.9), ("step_factor", 1.0),
+    ("mu_growth", 1.0), ("time_limit", -1.0), ("max_al_iterations", 0), ("max_ddp_iterations", 0),
+    ("max_total_ddp_iterations", 0), ("lambda0", float("inf")),
+])
+def test_bad_options_raise_value_error_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        SolverOptions(**{field: value})
+
+
+def test_options_defaults_are_valid_and_method_flags():
+    assert SolverOptions().method == "al-reb"
+    assert (SolverOptions(method="ddp").use_al, SolverOptions(method="ddp").use_reb) == (False, False)
+    assert (SolverOptions(method="al").use_al, SolverOptions(method="al").use_reb) == (True, False)
+    assert (SolverOptions(method="al-reb").use_al, SolverOptions(method="al-reb").use_reb) == (True, True)
+    with pytest.raises(TypeError, match="options"):
+        HSDDP({"method": "al"})
+
+
+def test_solve_rejects_bad_warm_starts(warm_start):
+    problem = fresh_problem()
+    solver = HSDDP(SolverOptions(method="ddp", max_ddp_iterations=1))
+    N = problem.n_knots
+    for U in (warm_start[:-1], warm_start[:, :3], warm_start.ravel(), warm_start[None]):
+        with pytest.raises(ValueError, match="U_init"):
+            solver.solve(problem, U)
+    U_nan = np.array(warm_start)
+    U_nan[3, 1] = np.nan
+    with pytest.raises(ValueError, match="U_init"):
+        solver.solve(problem, U_nan)
+    with pytest.raises(ValueError, match="multipliers"):
+        solver.solve(problem, warm_start, multipliers=np.zeros(problem.n_phases + 1))
+    with pytest.raises(ValueError, match="K_init"):
+        solver.solve(problem, warm_start, X_init=np.zeros((N + 1, 14)))
+    with pytest.raises(ValueError, match="X_init"):
+        solver.solve(problem, warm_start, X_init=np.zeros((N, 14)), K_init=np.zeros((N, 4, 14)))
