@@ -67,6 +67,7 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
         ax.set_title(label, fontsize=10, loc="left")
         ax.set_ylabel("z [m]")
     axes[-1, 0].set_xlabel("x [m]")
+    fig.subplots_adjust(hspace=0.45)
     return _save(fig, path)
 
 

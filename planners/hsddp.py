@@ -52,6 +52,9 @@ class Workspace:
         self.nominal = _Traj(n, m)
         self.candidate = _Traj(n, m)
         self.lin = Linearization(n)
+        self.lin_candidate = Linearization(n)
+        self.lin_valid = False
+        """True when ``lin`` already holds the dynamics derivatives at ``nominal`` (speculative rollout)."""
         self.l_x = np.zeros((n, NX))
         self.l_u = np.zeros((n, NU))
         self.l_xx = np.zeros((n, NX, NX))
@@ -72,7 +75,7 @@ class Workspace:
 
 def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
                    K: np.ndarray | None = None, k_ff: np.ndarray | None = None, eps: float = 0.0,
-                   lam6: np.ndarray | None = None) -> bool:
+                   lam6: np.ndarray | None = None, lin: Linearization | None = None) -> bool:
     """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` (eq. 8) through the hybrid system.
 
     The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``, so each
@@ -81,6 +84,9 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
 
     Args:
         lam6: optional ``(N, 6)`` scratch for Pinocchio's contact forces.
+        lin: when given, also linearize the dynamics at every knot of the new trajectory into it (the
+            same numbers as :meth:`HybridDynamics.linearize`; the solver's speculative first trial, which
+            saves a second pass over the horizon when the full step is accepted).
     """
     dyn = problem.dynamics
     model, prox = dyn.model, dyn._prox
@@ -95,6 +101,10 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             c += eps * k_ff
     else:
         c = U_ref if (k_ff is None or eps == 0.0) else U_ref + eps * k_ff
+    if lin is not None:
+        lam6 = lin.lam6
+        a_q, a_v, a_t, l_q, l_v, l_t = lin.a_q, lin.a_v, lin.a_tau, lin.lam6_q, lin.lam6_v, lin.lam6_tau
+        acc = lin.acc
     lam6 = np.zeros((N, 6)) if lam6 is None else lam6
     X[0] = problem.x0
     ps = problem.phase_start
@@ -119,11 +129,30 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             tau[3:] = u
             q = x[:7]
             v = x[7:]
-            if mode:
+            if lin is None:
+                if mode:
+                    a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+                    lam6[k, :nl] = data.lambda_c
+                else:
+                    a = pin.aba(model, free, q, v, tau)
+            elif mode:
                 a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+                acc[k] = a
                 lam6[k, :nl] = data.lambda_c
+                dq, dv, dt_, lq, lv, lt = pin.computeConstraintDynamicsDerivatives(model, data, cms, cds, prox)
+                a_q[k] = dq
+                a_v[k] = dv
+                a_t[k] = dt_
+                l_q[k, :nl] = lq
+                l_v[k, :nl] = lv
+                l_t[k, :nl] = lt
             else:
-                a = pin.aba(model, free, q, v, tau)
+                dq, dv, minv = pin.computeABADerivatives(model, free, q, v, tau)
+                a_q[k] = dq
+                a_v[k] = dv
+                a_t[k] = minv
+                a = free.ddq
+                acc[k] = a
             xn = X[k + 1]
             np.multiply(a, h, out=tmp)
             np.add(v, tmp, out=xn[7:])
@@ -136,7 +165,11 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
         out.X_pre[i] = x
         if i + 1 < problem.n_phases:
             X[ps[i + 1]], _ = dyn._reset(x, problem.schedule.next_mode(i), e)
-    grf_from_lambda(lam6, problem.modes, dyn._contact, out.GRF)
+    if lin is not None:
+        lin.finish(N, problem.modes, problem.h, dyn.integrator, dyn._contact)
+        out.GRF[:] = lin.grf[:N]
+    else:
+        grf_from_lambda(lam6, problem.modes, dyn._contact, out.GRF)
     return True
 
 
@@ -225,7 +258,8 @@ class HSDDP:
         timings = {"linearize": 0.0, "cost_derivatives": 0.0, "backward": 0.0, "line_search": 0.0,
                    "reset_jacobians": 0.0, "line_search_trials": 0}
         t0 = time.perf_counter()
-        ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init)
+        ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init, lin=ws.lin)
+        ws.lin_valid = ok
         if not ok:
             raise ValueError("the warm start (U_init, X_init, K_init) produces a non-finite rollout")
         state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running"}
@@ -297,7 +331,8 @@ class HSDDP:
         ws = self._ws
         tr = ws.nominal
         t = time.perf_counter()
-        problem.dynamics.linearize(tr.X, tr.U, problem.modes, ws.lin, problem.h)
+        if not ws.lin_valid:
+            problem.dynamics.linearize(tr.X, tr.U, problem.modes, ws.lin, problem.h)
         t2 = time.perf_counter()
         dyn = problem.dynamics
         e = problem.restitution
@@ -356,10 +391,13 @@ class HSDDP:
                 t = time.perf_counter()
                 eps = 1.0
                 new_costs = None
+                cand_linearized = False
                 while eps >= opt.min_step:
                     timings["line_search_trials"] += 1
+                    # the full step is usually accepted: linearize along it on the way (speculative)
+                    cand_linearized = eps == 1.0
                     ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
-                                        ws.lam6)
+                                        ws.lam6, ws.lin_candidate if cand_linearized else None)
                     if ok:
                         cand = self._evaluate(objective, ws.candidate, cs)
                         expected = eps * dV1 + 0.5 * eps * eps * dV2
@@ -378,6 +416,9 @@ class HSDDP:
                 accepted = True
             decrease = costs.total - new_costs.total
             ws.nominal, ws.candidate = ws.candidate, ws.nominal
+            if cand_linearized:
+                ws.lin, ws.lin_candidate = ws.lin_candidate, ws.lin
+            ws.lin_valid = cand_linearized
             costs = new_costs
             state["mu"] = state["mu"] / opt.mu_growth
             if state["mu"] < opt.mu_min:
