@@ -207,6 +207,8 @@ class HSDDP:
         self.last_constraint_state: ConstraintState | None = None
         """Outer-loop state at the end of the last solve (warm start for the next one)."""
         self.last_objective: Objective | None = None
+        self.last_problem: HybridProblem | None = None
+        """The problem the workspace's nominal trajectory and linearization belong to."""
 
     # ------------------------------------------------------------------ public API
     def solve(self, problem: HybridProblem, U_init: np.ndarray, X_init: np.ndarray | None = None,
@@ -314,6 +316,7 @@ class HSDDP:
         solve_time = time.perf_counter() - t0
         self.last_constraint_state = cs.copy()
         self.last_objective = objective
+        self.last_problem = problem
         return Solution(X=tr.X.copy(), X_pre=tr.X_pre.copy(), U=tr.U.copy(), GRF=tr.GRF.copy(), K=ws.K.copy(),
                         k_ff=ws.k_ff.copy(), modes=problem.modes.copy(), phase_start=problem.phase_start.copy(),
                         schedule=problem.schedule, dt=problem.dt, switching=g, multipliers=cs.lam.copy(),

@@ -172,8 +172,15 @@ class Solution:
         return float(np.sum(self.switching ** 2))
 
     @property
+    def phase_dt(self) -> np.ndarray:
+        """Step of each phase ``durations / knots`` (n,) [s] (differs from ``dt`` after STO)."""
+        return self.schedule.durations / np.diff(self.phase_start)
+
+    @property
     def times(self) -> np.ndarray:
-        return self.dt * np.arange(self.X.shape[0])
+        """``(N+1,)`` time of each state [s], with each phase's own step."""
+        h = np.repeat(self.phase_dt, np.diff(self.phase_start))
+        return np.concatenate([[0.0], np.cumsum(h)])
 
     def log_array(self, field: str) -> np.ndarray:
         """One column of the log as an array."""

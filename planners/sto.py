@@ -170,7 +170,7 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
             feedback policy; without it, V_zz is iLQR's Gauss-Newton approximation (a few % off).
     """
     ws = solver._ws
-    if ws is None or not ws.fits(problem) or solver.last_objective is None:
+    if ws is None or solver.last_problem is not problem or solver.last_objective is None:
         raise ValueError("solver has no linearization of this problem; call solver.solve(problem, ...) first")
     tr = ws.nominal
     lin = ws.lin
@@ -324,8 +324,16 @@ class STOOptions:
     def __post_init__(self) -> None:
         if self.method not in STO_METHODS:
             raise ValueError(f"method must be one of {STO_METHODS}, got {self.method!r}")
-        if not (isinstance(self.iterations, int) and self.iterations >= 0):
+        if isinstance(self.iterations, bool) or not (isinstance(self.iterations, int) and self.iterations >= 0):
             raise ValueError(f"iterations must be an integer >= 0, got {self.iterations!r}")
+        if not (0.0 < self.step_factor < 1.0):
+            raise ValueError(f"step_factor must be in (0, 1), got {self.step_factor!r}")
+        if not (0.0 < self.min_step <= 1.0):
+            raise ValueError(f"min_step must be in (0, 1], got {self.min_step!r}")
+        if not (self.tolerance > 0.0 and np.isfinite(self.tolerance)):
+            raise ValueError(f"tolerance must be finite and > 0, got {self.tolerance!r}")
+        if not (0.0 <= self.armijo < 1.0):
+            raise ValueError(f"armijo must be in [0, 1), got {self.armijo!r}")
         if not (0 < self.min_duration < self.max_duration):
             raise ValueError(f"need 0 < min_duration < max_duration, got {self.min_duration}, {self.max_duration}")
 
@@ -438,7 +446,8 @@ def step_size_study(solver: HSDDP, problem: HybridProblem, U_nominal: np.ndarray
     ``eps dV1 + eps^2/2 dV2 + eps_z V_z^T dz + eps_z^2/2 dz^T V_zz dz``.
 
     Args:
-        solver: an :class:`HSDDP` whose options and outer-loop state (``last_constraint_state``) are used.
+        solver: an :class:`HSDDP` whose options and outer-loop state (``last_constraint_state``) are used;
+            its workspace is replaced by this study's (the nominal rollout of ``U_nominal``).
     Returns:
         ``{"steps": [...], "dz": [...], "<case>": {"actual": [...], "predicted": [...]}}`` for the cases
         ``"control"``, ``"durations"``, ``"both"``.
@@ -450,8 +459,9 @@ def step_size_study(solver: HSDDP, problem: HybridProblem, U_nominal: np.ndarray
     if cs is None:
         raise ValueError("solver has no outer-loop state; solve a problem with it first")
     ws = Workspace(problem)
-    solver._ws = ws
+    solver._ws = ws  # the solver's workspace now holds this study's nominal (documented side effect)
     solver.last_objective = Objective(problem)
+    solver.last_problem = problem
     if not rollout_policy(problem, ws.nominal, U_nominal):
         raise ValueError("U_nominal gives a non-finite rollout")
     timings = {"linearize": 0.0, "reset_jacobians": 0.0, "cost_derivatives": 0.0}

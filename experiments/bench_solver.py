@@ -1,0 +1,317 @@
+"""Benchmark HS-DDP Algorithm 1 on the paper's 1480-knot problem: where the time of a solve goes.
+
+The problem is paper task 1 (``HybridProblem.bounding(5)``: 5 bounding cycles of 80/72/72/72 ms at
+h = 1 ms, 1480 knots, 19 resets), warm-started by the heuristic controller and solved with al-reb.
+Before timing, one small solve (one cycle) warms numba's JIT (compile or cache load of the backward
+pass), so compile time is excluded. The solve is then repeated ``--repeats`` times with fresh solvers;
+the best and the median are reported, with a breakdown per DDP iteration of the best run:
+
+* dynamics derivatives: the solver's separate linearization passes (``timings["linearize"]``) plus the
+  reset-map Jacobians (``timings["reset_jacobians"]``). The solver also linearizes *inside* the first
+  (full-step) line-search rollout of every DDP iteration and inside the warm-start rollout (speculative,
+  kept when the full step is accepted); that part is counted under the line search and estimated
+  separately from the instrumented rollouts (mean time with linearization minus mean time without);
+* cost derivatives (``timings["cost_derivatives"]``); backward pass (``timings["backward"]``, all
+  attempts including regularization retries); line search (``timings["line_search"]``) per trial;
+* the rest of the solve (warm-start rollout, objective evaluations outside the line search, logging).
+
+Goals: <= 50 ms per DDP iteration and the whole al-reb solve <= 5 s; ratios measured/goal are printed.
+Optionally an MPC-like warm re-solve (from the previous solution, few DDP iterations) and a cProfile
+of one solve (``--profile``, top 10 functions by cumulative time).
+
+Usage::
+
+    python experiments/bench_solver.py [--repeats 3] [--cycles 5] [--profile] [--mpc-iterations 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import dataclasses
+import io
+import os
+import platform
+import pstats
+import statistics
+import time
+
+import numpy as np
+import pinocchio as pin
+
+import planners.hsddp as hsddp_module
+from planners.hsddp import HSDDP
+from planners.problem import HybridProblem
+from planners.solution import SolverOptions
+from planners.tasks import heuristic_warm_start
+
+GOAL_MS_PER_DDP_ITERATION = 50.0
+GOAL_SOLVE_S = 5.0
+
+
+class RolloutMeter:
+    """Wraps ``planners.hsddp.rollout_policy`` (the solver looks it up at call time) to time every rollout,
+    split into plain rollouts and rollouts that also linearize (``lin`` given)."""
+
+    def __init__(self) -> None:
+        self.original = hsddp_module.rollout_policy
+        self.reset()
+
+    def reset(self) -> None:
+        self.plain: list[float] = []
+        self.with_lin: list[float] = []
+
+    def __enter__(self) -> RolloutMeter:
+        original = self.original
+
+        def timed(*args, **kwargs):
+            lin = kwargs.get("lin", args[8] if len(args) > 8 else None)
+            t = time.perf_counter()
+            out = original(*args, **kwargs)
+            (self.plain if lin is None else self.with_lin).append(time.perf_counter() - t)
+            return out
+
+        hsddp_module.rollout_policy = timed
+        return self
+
+    def __exit__(self, *exc) -> None:
+        hsddp_module.rollout_policy = self.original
+
+
+@dataclasses.dataclass
+class Run:
+    solve_s: float
+    ddp_iterations: int
+    al_iterations: int
+    status: str
+    objective: float
+    timings: dict
+    n_linearize: int
+    n_dyn_linearize: int
+    n_backward: int
+    rollouts_plain: list
+    rollouts_lin: list
+
+
+def timed_solve(problem: HybridProblem, U: np.ndarray, options: SolverOptions, meter: RolloutMeter,
+                **solve_kwargs) -> tuple[Run, HSDDP, object]:
+    """One solve with a fresh solver; counts the solver's linearization and backward-pass calls."""
+    solver = HSDDP(options)
+    counts = {"linearize": 0, "backward": 0, "dyn_linearize": 0}
+    lin_method, back_method = solver._linearize, solver._backward
+    dyn = problem.dynamics
+    dyn_linearize = type(dyn).linearize
+
+    def dyn_lin(*a, **k):
+        counts["dyn_linearize"] += 1
+        return dyn_linearize(dyn, *a, **k)
+
+    def linearize(*a, **k):
+        counts["linearize"] += 1
+        return lin_method(*a, **k)
+
+    def backward(*a, **k):
+        counts["backward"] += 1
+        return back_method(*a, **k)
+
+    solver._linearize, solver._backward = linearize, backward  # instance attributes shadow the methods
+    dyn.linearize = dyn_lin
+    meter.reset()
+    try:
+        t = time.perf_counter()
+        sol = solver.solve(problem, U, **solve_kwargs)
+        elapsed = time.perf_counter() - t
+    finally:
+        del dyn.linearize
+    run = Run(elapsed, sol.ddp_iterations, sol.al_iterations, sol.status, sol.objective, dict(sol.timings),
+              counts["linearize"], counts["dyn_linearize"], counts["backward"], list(meter.plain),
+              list(meter.with_lin))
+    return run, solver, sol
+
+
+def calibrate(problem: HybridProblem, sol, cs, repeat: int = 5) -> dict:
+    """Best-of-``repeat`` times [s] of the pieces of a line-search trial around the solved trajectory (the
+    feedback policy with ``eps = 1``): a plain rollout, a rollout with fused linearization, a separate
+    linearization pass, an objective evaluation. Measured outside the solve (warm caches): a lower bound."""
+    from hsddp_gym.dynamics import Linearization
+    from planners.hsddp import _Traj
+    from planners.objective import Objective
+
+    rollout = hsddp_module.rollout_policy
+    tr = _Traj(problem.n_knots, problem.n_phases)
+    lin = Linearization(problem.n_knots)
+    obj = Objective(problem)
+    policy = (sol.U, sol.X, sol.K, sol.k_ff, 1.0)  # a full-step line-search trial around the solution
+
+    def best(fn):
+        out = []
+        for _ in range(repeat):
+            t = time.perf_counter()
+            fn()
+            out.append(time.perf_counter() - t)
+        return min(out)
+
+    return {
+        "rollout": best(lambda: rollout(problem, tr, *policy)),
+        "rollout_lin": best(lambda: rollout(problem, tr, *policy, lin=lin)),
+        "linearize": best(lambda: problem.dynamics.linearize(sol.X, sol.U, problem.modes, lin, problem.h)),
+        "evaluate": best(lambda: obj.evaluate(sol.X, sol.X_pre, sol.U, sol.GRF, cs)),
+    }
+
+
+def breakdown(run: Run, n_knots: int, cal: dict) -> None:
+    """Print the per-DDP-iteration table of one run (``cal``: :func:`calibrate`)."""
+    tm = run.timings
+    it = max(run.ddp_iterations, 1)
+    trials = int(tm.get("line_search_trials", 0))
+    lin_sep = tm.get("linearize", 0.0)
+    resets = tm.get("reset_jacobians", 0.0)
+    cost = tm.get("cost_derivatives", 0.0)
+    back = tm.get("backward", 0.0)
+    ls = tm.get("line_search", 0.0)
+    plain, withlin = run.rollouts_plain, run.rollouts_lin
+    # the first rollout of a solve is the warm start (outside the line search); with the speculative
+    # linearization it is a rollout with ``lin``, and so is the full-step trial of every DDP iteration
+    warm = withlin[0] if withlin else (plain[0] if plain else 0.0)
+    n_spec = max(len(withlin) - 1, 0)
+    fused_each = max(cal["rollout_lin"] - cal["rollout"], 0.0)
+    other = run.solve_s - (lin_sep + resets + cost + back + ls + warm)
+
+    def row(name, total_s, calls=None, note="", knots=True):
+        ms_it = 1e3 * total_s / it
+        extra = " " * 34
+        if calls == 0:
+            extra = f"{0:5d} calls" + " " * 23
+        elif calls:
+            extra = f"{calls:5d} x {1e3 * total_s / calls:7.2f} ms"
+            extra += f" = {1e6 * total_s / calls / n_knots:6.2f} us/knot" if knots else " " * 17
+        print(f"  {name:<46}{1e3 * total_s:8.1f} ms {ms_it:7.2f} ms/it  {extra} {note}".rstrip())
+
+    print(f"  {'per solve / per DDP iteration':<46}{'total':>11} {'per DDP it':>12}  calls x per call = per knot")
+    row("dynamics derivatives, separate passes", lin_sep, run.n_dyn_linearize, "timings['linearize']")
+    row("reset-map Jacobians (19 per linearization)", resets, run.n_linearize, "timings['reset_jacobians']",
+        knots=False)
+    row("  = linearize + reset_jacobians", lin_sep + resets)
+    row("cost derivatives", cost, run.n_linearize, "(per linearization)")
+    row("backward pass", back, run.n_backward, "(incl. regularization retries)")
+    row("line search", ls, trials, "(per trial)")
+    row("  rollouts with fused linearization (eps = 1)", float(np.sum(withlin[1:])), n_spec)
+    row("  rollouts without (eps < 1)", float(np.sum(plain)), len(plain))
+    row("  ~ of which fused dynamics derivatives", fused_each * n_spec, n_spec, "(calibrated, see below)")
+    row("warm-start rollout" + (" + linearization" if withlin else ""), warm, 1)
+    row("other (objective values, AL updates, logging)", other)
+    row("TOTAL", run.solve_s, run.ddp_iterations, "(per DDP iteration)")
+    derivs = lin_sep + resets + fused_each * len(withlin)
+    print(f"  all dynamics derivatives (separate + fused, incl. warm start): ~{1e3 * derivs:.0f} ms = "
+          f"{1e3 * derivs / it:.1f} ms per DDP iteration; {run.n_linearize} linearizations "
+          f"({run.n_dyn_linearize} separate passes) for {run.ddp_iterations} DDP iterations")
+    print(f"  calibration around the solution (outside the solve, best of 5): policy rollout "
+          f"{1e3 * cal['rollout']:.1f} ms ({1e6 * cal['rollout'] / n_knots:.1f} us/knot), rollout + linearization "
+          f"{1e3 * cal['rollout_lin']:.1f} ms ({1e6 * cal['rollout_lin'] / n_knots:.1f} us/knot), separate "
+          f"linearize pass {1e3 * cal['linearize']:.1f} ms ({1e6 * cal['linearize'] / n_knots:.1f} us/knot), "
+          f"objective evaluation {1e3 * cal['evaluate']:.2f} ms")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     epilog=__doc__.split("\n\n", 1)[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--repeats", type=int, default=3, help="timed solves; best and median reported "
+                                                               "(default %(default)s)")
+    parser.add_argument("--cycles", type=int, default=5, help="bounding cycles (default %(default)s: the paper's "
+                                                             "1480-knot problem)")
+    parser.add_argument("--method", choices=("ddp", "al", "al-reb"), default="al-reb",
+                        help="Algorithm 1 variant (default %(default)s)")
+    parser.add_argument("--mpc-iterations", type=int, default=3,
+                        help="max_total_ddp_iterations of the MPC-like warm re-solve; 0 skips it (default %(default)s)")
+    parser.add_argument("--profile", action="store_true", help="cProfile one extra solve; print the top 10 "
+                                                                "functions by cumulative time")
+    args = parser.parse_args(argv)
+    if args.repeats < 1 or args.cycles < 1 or args.mpc_iterations < 0:
+        parser.error("--repeats and --cycles must be >= 1, --mpc-iterations >= 0")
+
+    options = SolverOptions(method=args.method)
+    print(f"HS-DDP solver benchmark -- Python {platform.python_version()}, numpy {np.__version__}, "
+          f"Pinocchio {pin.__version__}, {os.cpu_count()} CPUs, load average "
+          f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+
+    # warm numba's JIT (and Pinocchio's first-call allocations) on a small problem: excluded from the timings
+    small = HybridProblem.bounding(1)
+    t = time.perf_counter()
+    HSDDP(options).solve(small, heuristic_warm_start(small).U)
+    print(f"JIT warm-up: one {small.n_knots}-knot solve took {time.perf_counter() - t:.2f} s "
+          "(numba compile / cache load; excluded from everything below)")
+
+    problem = HybridProblem.bounding(args.cycles)
+    t = time.perf_counter()
+    warm = heuristic_warm_start(problem)
+    t_warm = time.perf_counter() - t
+    n = problem.n_knots
+    print(f"problem: {args.cycles} bounding cycles, {n} knots, {problem.n_phases} phases "
+          f"({problem.n_phases - 1} resets), method {args.method}; heuristic warm start {1e3 * t_warm:.0f} ms "
+          "(not timed below)\n")
+
+    runs = []
+    with RolloutMeter() as meter:
+        for r in range(args.repeats):
+            run, solver, sol = timed_solve(problem, warm.U, options, meter)
+            runs.append(run)
+            print(f"repeat {r + 1}: {run.solve_s:.3f} s, {run.ddp_iterations} DDP iterations, "
+                  f"{run.al_iterations} AL iterations, {1e3 * run.solve_s / max(run.ddp_iterations, 1):.1f} ms per "
+                  f"DDP iteration, status {run.status}, objective {run.objective:.6g}")
+    times = [r.solve_s for r in runs]
+    per_it = [1e3 * r.solve_s / max(r.ddp_iterations, 1) for r in runs]
+    best = runs[int(np.argmin(times))]
+    if len({r.ddp_iterations for r in runs}) != 1 or len({r.objective for r in runs}) != 1:
+        print("WARNING: repeats differ in iterations or objective (the solver should be deterministic)")
+
+    print(f"\nbreakdown of the best run ({best.solve_s:.3f} s, {best.ddp_iterations} DDP iterations):")
+    breakdown(best, n, calibrate(problem, sol, solver.last_constraint_state))
+
+    best_s, med_s = min(times), statistics.median(times)
+    best_it, med_it = min(per_it), statistics.median(per_it)
+    print(f"\nsolve time:           best {best_s:.3f} s, median {med_s:.3f} s  over {args.repeats} repeats; "
+          f"{best.ddp_iterations} DDP iterations")
+    print(f"time per DDP iteration: best {best_it:.1f} ms, median {med_it:.1f} ms "
+          f"({1e3 * best_it / n:.1f} us per knot per iteration, best)")
+    print(f"goal: <= {GOAL_MS_PER_DDP_ITERATION:.0f} ms per DDP iteration -> measured/goal = "
+          f"{best_it / GOAL_MS_PER_DDP_ITERATION:.2f} (best), {med_it / GOAL_MS_PER_DDP_ITERATION:.2f} (median)")
+    print(f"goal: whole {args.method} solve <= {GOAL_SOLVE_S:.0f} s -> measured/goal = "
+          f"{best_s / GOAL_SOLVE_S:.2f} (best), {med_s / GOAL_SOLVE_S:.2f} (median)")
+
+    if args.mpc_iterations > 0:
+        mpc_opts = dataclasses.replace(options, max_total_ddp_iterations=args.mpc_iterations)
+        cs = solver.last_constraint_state
+        print(f"\nMPC-like warm re-solves (max_total_ddp_iterations={args.mpc_iterations}, continuing the outer-loop "
+              "state of the last solve; best of the repeats):")
+        cases = {
+            "same x0, U of the previous solution": (problem, dict()),
+            "x0 perturbed (+0.05 m/s forward, +1 cm height), feedback warm start U + K (x - X)": (
+                problem.with_x0(problem.x0 + np.eye(problem.x0.size)[7] * 0.05 + np.eye(problem.x0.size)[1] * 0.01),
+                dict(X_init=sol.X, K_init=sol.K)),
+        }
+        with RolloutMeter() as meter:
+            for name, (pr, kw) in cases.items():
+                rs = [timed_solve(pr, sol.U, mpc_opts, meter, constraint_state=cs, **kw)[0]
+                      for _ in range(args.repeats)]
+                rb = min(rs, key=lambda r: r.solve_s)
+                print(f"  {name}: {1e3 * rb.solve_s:.1f} ms, {rb.ddp_iterations} DDP iterations, status {rb.status}, "
+                      f"objective {rb.objective:.6g} (previous {sol.objective:.6g})")
+
+    if args.profile:
+        prof = cProfile.Profile()
+        prof.enable()
+        psol = HSDDP(options).solve(problem, warm.U)
+        prof.disable()
+        s = io.StringIO()
+        pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(10)
+        print(f"\ncProfile of one solve ({psol.ddp_iterations} DDP iterations; profiling overhead inflates the "
+              "times), top 10 by cumulative time:")
+        lines = s.getvalue().strip().splitlines()
+        start = next((i for i, line in enumerate(lines) if line.lstrip().startswith("ncalls")), 0)
+        print("\n".join(lines[start:]))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

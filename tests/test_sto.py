@@ -1,0 +1,325 @@
+"""HS-DDP Algorithm 2 (switching-time optimization, paper Sec. IV-E) on one bounding cycle (296 knots).
+
+* ``time_derivatives``: V_z and V_zz against finite differences of the objective obtained by rolling out
+  the *fixed* time-augmented policy (``u = U + K_x dx + K_z dz`` for HS-DDP, ``u = U`` open loop) on the
+  time-scaled problem with perturbed durations -- the function the Newton step of eq. 31 models;
+* the time-scaled problem of eq. 28 (``with_durations``: same knots, ``h_i = T_i / N_i``);
+* ``optimize_switching_times``: monotone objective, feasibility, bounds, and the paper's claim that the
+  feedback policy gives a larger total-time reduction than the open-loop method of Xu & Antsaklis [24];
+* ``step_size_study`` (paper Fig. 8) and option validation.
+
+The whole module takes ~15 s (most of it the two 30-iteration STO runs and the two exact-V_zz passes).
+"""
+
+from __future__ import annotations
+
+import types
+
+import numpy as np
+import pytest
+
+from hsddp_gym.dynamics import HybridDynamics
+from planners.hsddp import HSDDP, _Traj, constraint_metrics, rollout_policy
+from planners.objective import Objective
+from planners.problem import HybridProblem
+from planners.solution import SolverOptions
+from planners.sto import STOOptions, optimize_switching_times, rollout_time_policy, step_size_study, time_derivatives
+from planners.tasks import heuristic_warm_start
+
+FD_STEP_GRAD = 1e-5
+"""Central-difference step for V_z [s]."""
+FD_STEP_HESS = 1e-4
+"""Step of the 4-point mixed differences for V_zz [s]."""
+
+
+# ---------------------------------------------------------------------------------------------- fixtures
+@pytest.fixture(scope="module")
+def solved() -> types.SimpleNamespace:
+    """Algorithm 1 (al-reb) solved on one bounding cycle from the heuristic warm start. Read-only for the
+    tests: nothing here may call ``solve`` / ``step_size_study`` on ``solver`` (they reset its workspace)."""
+    problem = HybridProblem.bounding(1)
+    warm = heuristic_warm_start(problem)
+    solver = HSDDP(SolverOptions(method="al-reb"))
+    sol = solver.solve(problem, warm.U)
+    assert sol.converged and sol.switching_violation <= 1e-4
+    cache: dict = {}
+
+    def deriv(feedback: bool, second_order: bool):
+        key = (feedback, second_order)
+        if key not in cache:
+            cache[key] = time_derivatives(solver, problem, feedback=feedback, second_order=second_order)
+        return cache[key]
+
+    return types.SimpleNamespace(problem=problem, solver=solver, sol=sol, warm=warm, deriv=deriv,
+                                 z0=problem.schedule.durations.copy(),
+                                 out=_Traj(problem.n_knots, problem.n_phases))
+
+
+def closed_loop_objective(s: types.SimpleNamespace, deriv, dz: np.ndarray, feedback: bool) -> float:
+    """Objective of the fixed policy rolled out on the time-scaled problem with durations ``z0 + dz``."""
+    problem_new = s.problem.with_durations(s.z0 + dz)
+    ok = rollout_time_policy(problem_new, s.solver._ws.nominal, deriv, dz, feedback, s.out)
+    assert ok, f"non-finite rollout at dz={dz}"
+    return Objective(problem_new).evaluate(s.out.X, s.out.X_pre, s.out.U, s.out.GRF,
+                                           s.solver.last_constraint_state).total
+
+
+def fd_gradient(J, n: int, step: float, fourth_order: bool = False) -> np.ndarray:
+    """Central differences ``(J(+s e_i) - J(-s e_i)) / 2s``; ``fourth_order``: the 5-point central stencil
+    (truncation ~s^4 instead of ~s^2)."""
+    E = np.eye(n)
+    if not fourth_order:
+        return np.array([(J(step * e) - J(-step * e)) / (2.0 * step) for e in E])
+    return np.array([(8.0 * (J(step * e) - J(-step * e)) - (J(2.0 * step * e) - J(-2.0 * step * e)))
+                     / (12.0 * step) for e in E])
+
+
+def fd_hessian(J, n: int, step: float) -> np.ndarray:
+    """4-point mixed central differences
+    ``(J(+e_i+e_j) - J(+e_i-e_j) - J(-e_i+e_j) + J(-e_i-e_j)) / 4s^2`` (steps of ``s``)."""
+    E = step * np.eye(n)
+    H = np.empty((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            H[i, j] = H[j, i] = (J(E[i] + E[j]) - J(E[i] - E[j]) - J(-E[i] + E[j]) + J(-E[i] - E[j])) / (4 * step ** 2)
+    return H
+
+
+def rel_err(value: np.ndarray, reference: np.ndarray) -> float:
+    """``max |value - reference| / max |reference|``."""
+    return float(np.max(np.abs(value - reference)) / np.max(np.abs(reference)))
+
+
+# ------------------------------------------------------------------------------------- time derivatives
+@pytest.mark.parametrize("feedback", [True, False], ids=["hsddp", "open-loop"])
+def test_exact_time_derivatives_match_finite_differences(solved, feedback):
+    """second_order=True: V_z and V_zz are the gradient and Hessian of the closed-loop objective.
+    Measured: V_z rel. error 3e-9 (HS-DDP), 3e-7 (open loop, FD truncation); V_zz 2.2e-5, 9.5e-5."""
+    s = solved
+    d = s.deriv(feedback, True)
+    n = s.problem.n_phases
+    assert d.V_z.shape == (n,) and d.V_zz.shape == (n, n)
+    J = lambda dz: closed_loop_objective(s, d, dz, feedback)  # noqa: E731
+    # the unperturbed rollout reproduces the solution's objective
+    assert J(np.zeros(n)) == pytest.approx(s.sol.objective, rel=1e-12)
+    g = fd_gradient(J, n, FD_STEP_GRAD)
+    H = fd_hessian(J, n, FD_STEP_HESS)
+    assert rel_err(d.V_z, g) <= 1e-3, (d.V_z, g)
+    assert rel_err(d.V_zz, H) <= 1e-3, (d.V_zz, H)
+    np.testing.assert_allclose(d.V_zz, d.V_zz.T, rtol=0, atol=1e-9 * np.max(np.abs(d.V_zz)))
+
+
+@pytest.mark.parametrize("feedback", [True, False], ids=["hsddp", "open-loop"])
+def test_ilqr_time_derivatives(solved, feedback):
+    """second_order=False (iLQR, the paper's choice): V_z is still exact (it needs first derivatives only;
+    measured rel. error 1e-11 (HS-DDP), 4e-11 (open loop) against the 5-point stencil), V_zz is the
+    Gauss-Newton approximation: measured 4.0 % off (HS-DDP) and 0.047 % (open loop). The 10 % bound still
+    catches a wrong sign or factor of 2."""
+    s = solved
+    d = s.deriv(feedback, False)
+    n = s.problem.n_phases
+    J = lambda dz: closed_loop_objective(s, d, dz, feedback)  # noqa: E731
+    g = fd_gradient(J, n, FD_STEP_GRAD, fourth_order=True)
+    assert rel_err(d.V_z, g) <= 1e-6, (d.V_z, g)
+    H = fd_hessian(J, n, FD_STEP_HESS)
+    err = rel_err(d.V_zz, H)
+    print(f"\niLQR V_zz relative error ({'HS-DDP' if feedback else 'open loop'}): {err:.2e}")
+    assert err <= 0.10, (d.V_zz, H)
+    np.testing.assert_allclose(d.V_zz, d.V_zz.T, rtol=0, atol=1e-9 * np.max(np.abs(d.V_zz)))
+    if not feedback:
+        # without gains, V_z = Q_z never sees the second-order terms
+        np.testing.assert_allclose(d.V_z, s.deriv(False, True).V_z, rtol=1e-12, atol=0)
+
+
+def test_time_derivatives_need_a_solve():
+    with pytest.raises(ValueError, match="solve"):
+        time_derivatives(HSDDP(), HybridProblem.bounding(1))
+
+
+# ----------------------------------------------------------------------------------- time-scaled problem
+@pytest.mark.parametrize("scale", [0.8, 1.0, 1.25])
+def test_with_durations_keeps_knots_and_scales_steps(solved, scale):
+    p = solved.problem
+    z = solved.z0 * scale
+    q = p.with_durations(z)
+    np.testing.assert_array_equal(q.knots, p.knots)
+    np.testing.assert_array_equal(q.phase_start, p.phase_start)
+    np.testing.assert_array_equal(q.modes, p.modes)
+    assert q.n_knots == p.n_knots and q.n_phases == p.n_phases
+    np.testing.assert_allclose(q.schedule.durations, z, rtol=1e-15)
+    np.testing.assert_allclose(q.phase_dt, z / p.knots, rtol=1e-15)
+    np.testing.assert_array_equal(q.h, q.phase_dt[q.phase_of_knot])
+    np.testing.assert_allclose(p.h, 1e-3, rtol=1e-12)  # the paper's 80/72/72/72 ms at h = 1 ms
+    # running cost = sum h_k l_k scales with the durations for fixed trajectory arrays; terminal costs do not
+    tr, cs = solved.sol, solved.solver.last_constraint_state
+    c0 = Objective(p).evaluate(tr.X, tr.X_pre, tr.U, tr.GRF, cs)
+    c1 = Objective(q).evaluate(tr.X, tr.X_pre, tr.U, tr.GRF, cs)
+    assert c1.running == pytest.approx(scale * c0.running, rel=1e-12)
+    assert (c1.terminal, c1.al, c1.barrier) == (c0.terminal, c0.al, c0.barrier)
+
+
+def test_unit_scaling_reproduces_the_original_rollout(solved):
+    p = solved.problem
+    U = solved.warm.U
+    a, b = _Traj(p.n_knots, p.n_phases), _Traj(p.n_knots, p.n_phases)
+    assert rollout_policy(p, a, U)
+    assert rollout_policy(p.with_durations(solved.z0 * 1.0), b, U)
+    for name in ("X", "X_pre", "U", "GRF"):
+        np.testing.assert_array_equal(getattr(b, name), getattr(a, name), err_msg=name)
+    # and the open-loop rollout of the heuristic's controls is the heuristic's trajectory
+    np.testing.assert_allclose(a.X, solved.warm.X, rtol=0, atol=1e-9)
+
+
+def test_time_scaled_problem_equals_a_problem_built_with_that_step(solved):
+    """Doubling every duration with the same knots is the problem built directly with h = 2 ms."""
+    p = solved.problem
+    q = p.with_durations(2.0 * solved.z0)
+    r = HybridProblem.bounding(1, durations=tuple(2.0 * solved.z0), dynamics=HybridDynamics(dt=2e-3))
+    np.testing.assert_array_equal(r.knots, q.knots)
+    np.testing.assert_allclose(r.h, q.h, rtol=1e-15)
+    U = 0.5 * solved.warm.U
+    a, b = _Traj(p.n_knots, p.n_phases), _Traj(p.n_knots, p.n_phases)
+    assert rollout_policy(q, a, U) and rollout_policy(r, b, U)
+    np.testing.assert_allclose(a.X, b.X, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("feedback", [True, False], ids=["hsddp", "open-loop"])
+def test_time_policy_with_zero_step_reproduces_the_solution(solved, feedback):
+    p = solved.problem
+    d = solved.deriv(feedback, False)
+    out = _Traj(p.n_knots, p.n_phases)
+    assert rollout_time_policy(p.with_durations(solved.z0), solved.solver._ws.nominal, d,
+                               np.zeros(p.n_phases), feedback, out)
+    np.testing.assert_allclose(out.X, solved.sol.X, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out.U, solved.sol.U, rtol=0, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------ Algorithm 2
+@pytest.fixture(scope="module")
+def sto_runs() -> dict:
+    """30 STO iterations with HS-DDP (~1 s) and with the open-loop baseline (~2.5 s)."""
+    problem = HybridProblem.bounding(1)
+    U = heuristic_warm_start(problem).U
+    return {m: (problem, optimize_switching_times(problem, U, STOOptions(method=m, iterations=30)))
+            for m in ("hsddp", "open-loop")}
+
+
+def check_sto_result(problem: HybridProblem, res, options: STOOptions) -> None:
+    """Invariants of any STO run: monotone objective, feasibility, durations in bounds, consistent records."""
+    obj = res.objectives
+    assert len(obj) == len(res.durations) == len(res.costs) >= 2, "no accepted STO iteration"
+    assert np.all(np.diff(obj) <= 0.0), f"objective increased: {obj}"
+    assert obj[-1] < obj[0]
+    accepted = [r for r in res.records if r["status"] == "accepted"]
+    assert len(accepted) == len(obj) - 1
+    for j, rec in enumerate(accepted):
+        assert rec["objective_rollout"] < rec["objective_before"], rec
+        assert rec["objective_before"] == pytest.approx(obj[j], rel=1e-12)
+        assert rec["objective_after_resolve"] == obj[j + 1]
+    assert all(r["status"] == "accepted" for r in res.records[:-1])
+    assert res.durations.shape == (len(obj), problem.n_phases)
+    np.testing.assert_array_equal(res.durations[0], problem.schedule.durations)
+    assert np.all(res.durations >= options.min_duration) and np.all(res.durations <= options.max_duration)
+    np.testing.assert_allclose(res.solution.schedule.durations, res.durations[-1], rtol=1e-15)
+    assert res.total_time == pytest.approx(res.durations[-1].sum(), rel=1e-15)
+    # constraints of the final solution (eqs. 17d-17g)
+    assert res.solution.switching_violation <= 1e-4
+    tau, min_fz, fric = constraint_metrics(problem.with_durations(res.durations[-1]), res.solution.U,
+                                           res.solution.GRF)
+    assert tau <= 1e-6 and min_fz >= 0.0 and fric <= 1e-6, (tau, min_fz, fric)
+
+
+def test_sto_hsddp_decreases_objective_and_total_time(sto_runs):
+    problem, res = sto_runs["hsddp"]
+    check_sto_result(problem, res, STOOptions())
+    assert res.solution.converged
+    # measured 41.3 % (0.296 -> 0.174 s); the paper reports 21.1 %
+    assert res.reduction >= 0.15, res.durations[-1]
+
+
+def test_sto_hsddp_reduces_more_than_open_loop(sto_runs):
+    (problem, hs), (_, ol) = sto_runs["hsddp"], sto_runs["open-loop"]
+    check_sto_result(problem, ol, STOOptions(method="open-loop"))
+    print(f"\ntotal-time reduction after 30 STO iterations: HS-DDP {100 * hs.reduction:.1f} % "
+          f"({hs.total_time:.4f} s, {len(hs.durations) - 1} accepted), open loop [24] {100 * ol.reduction:.1f} % "
+          f"({ol.total_time:.4f} s, {len(ol.durations) - 1} accepted); paper: 21.1 % vs 6.3 %")
+    assert hs.reduction > ol.reduction
+
+
+@pytest.mark.parametrize("cycles, durations", [(2, None), (1, (0.09, 0.08, 0.08, 0.08))],
+                         ids=["two-cycles", "one-cycle-90-80-80-80ms"])
+def test_sto_other_schedules(cycles, durations):
+    problem = HybridProblem.bounding(cycles, durations=durations)
+    options = STOOptions(method="hsddp", iterations=5)
+    res = optimize_switching_times(problem, heuristic_warm_start(problem).U, options)
+    assert res.durations.shape[1] == 4 * cycles
+    check_sto_result(problem, res, options)
+
+
+def test_sto_zero_iterations_is_algorithm_1(solved):
+    problem = HybridProblem.bounding(1)
+    res = optimize_switching_times(problem, solved.warm.U, STOOptions(iterations=0))
+    assert res.records == [] and res.reduction == 0.0
+    assert res.objectives.tolist() == [pytest.approx(solved.sol.objective, rel=1e-12)]
+
+
+# -------------------------------------------------------------------------------------------- Fig. 8
+def test_step_size_study_prediction_matches_for_small_steps(solved):
+    """The paper's Fig. 8 point: the first HS-DDP duration step (eps_z = 0.5), before Algorithm 1 re-solves.
+    Measured relative error of the quadratic model at s = 0.01: 7e-5 (control), 8e-4 (durations)."""
+    s = solved
+    d = s.deriv(True, False)
+    w, Q = np.linalg.eigh(d.V_zz)
+    assert np.all(w > 0)
+    dz = -(Q @ ((Q.T @ d.V_z) / w))
+    z1 = np.clip(s.z0 + 0.5 * dz, 0.02, 0.2)
+    pr1 = s.problem.with_durations(z1)
+    cand = _Traj(pr1.n_knots, pr1.n_phases)
+    assert rollout_time_policy(pr1, s.solver._ws.nominal, d, z1 - s.z0, True, cand)
+    # step_size_study replaces the solver's workspace: use a separate solver with the same outer-loop state
+    other = HSDDP(s.solver.options)
+    other.last_constraint_state = s.solver.last_constraint_state.copy()
+    steps = [0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.4]
+    study = step_size_study(other, pr1, cand.U.copy(), steps)
+    assert study["steps"] == steps
+    for case in ("control", "durations", "both"):
+        actual, predicted = np.array(study[case]["actual"]), np.array(study[case]["predicted"])
+        assert actual.shape == predicted.shape == (len(steps),)
+        assert np.all(np.isfinite(actual)) and np.all(np.isfinite(predicted)), case
+        assert predicted[0] == 0.0 and abs(actual[0]) <= 1e-9 * abs(study["objective"])
+        assert predicted[1] < 0.0 and actual[1] < 0.0, case  # a descent step
+    rel = {c: np.abs(np.array(study[c]["actual"]) - np.array(study[c]["predicted"]))
+           / np.abs(np.array(study[c]["predicted"])).clip(1e-300) for c in ("control", "durations")}
+    assert rel["control"][1] < 0.10 and rel["durations"][1] < 0.10, rel
+    # Fig. 8: the quadratic model is far more sensitive to eps_z than to eps (measured 0.2 % vs 7000 % at 0.4)
+    assert rel["durations"][-1] > rel["control"][-1]
+
+
+# ------------------------------------------------------------------------------------------ validation
+@pytest.mark.parametrize("kwargs, field", [
+    ({"method": "foo"}, "method"),
+    ({"min_duration": 0.2, "max_duration": 0.2}, "min_duration"),
+    ({"min_duration": 0.3, "max_duration": 0.2}, "max_duration"),
+    ({"min_duration": 0.0}, "min_duration"),
+    ({"iterations": -1}, "iterations"),
+    ({"iterations": 2.5}, "iterations"),
+])
+def test_bad_options_raise(kwargs, field):
+    with pytest.raises(ValueError, match=field):
+        STOOptions(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [{"max_duration": 0.075}, {"min_duration": 0.075}])
+def test_initial_durations_outside_bounds_raise(kwargs):
+    problem = HybridProblem.bounding(1)  # 80/72/72/72 ms
+    with pytest.raises(ValueError, match="initial durations"):
+        optimize_switching_times(problem, np.zeros((problem.n_knots, 4)), STOOptions(**kwargs))
+
+
+@pytest.mark.parametrize(("field", "value"), [("step_factor", 1.0), ("step_factor", 1.5), ("step_factor", 0.0),
+                                               ("min_step", 0.0), ("tolerance", 0.0), ("armijo", 1.0),
+                                               ("iterations", True)])
+def test_line_search_options_are_validated(field, value):
+    """step_factor >= 1 once made the eps_z backtracking loop endless."""
+    with pytest.raises(ValueError, match=field):
+        STOOptions(**{field: value})
