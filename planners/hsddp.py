@@ -292,6 +292,12 @@ class HSDDP:
             viol = float(np.sum(g * g))
             if state["status"] in ("time_limit", "iteration_limit", "diverged"):
                 break
+            if opt.max_total_ddp_iterations is not None and state["ddp"] >= opt.max_total_ddp_iterations:
+                state["status"] = "iteration_limit"
+                break
+            if opt.time_limit is not None and time.perf_counter() - t0 > opt.time_limit:
+                state["status"] = "time_limit"
+                break
             if not opt.use_al or viol <= opt.al_tolerance:
                 converged = True
                 break

@@ -1,0 +1,312 @@
+"""HS-DDP model-predictive control: re-plan from the observed state, act with the plan's feedback law.
+
+As in MuJoCo MPC, the planner optimizes and the policy is queried at the control rate from the latest
+plan. At each re-plan (every ``replan_period`` seconds of env time):
+
+1. the observation gives the state, the contact mode and (from the policy's memory) the time already spent
+   in that mode and the last stance foot;
+2. a bounding :class:`~hsddp_gym.schedule.ModeSchedule` starts with the current mode for the rest of its
+   nominal duration (at least ``min_phase`` seconds) and continues the bounding cycle to cover at least
+   ``horizon`` seconds (default one gait cycle);
+3. the previous plan, aligned by phase with the contact events (:class:`~planners.tracking.PlanTracker`),
+   is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
+   rollout, AL multipliers phase by phase, the outer-loop penalty and barrier state); phases beyond the
+   previous plan copy the same mode one cycle earlier;
+4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds);
+5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
+   between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
+
+A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
+feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import numpy as np
+
+from hsddp_gym.conventions import BACK, FRONT, NU, NX, Mode
+from hsddp_gym.dynamics import HybridDynamics
+from hsddp_gym.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.validation import check_int, check_positive
+from planners.heuristic import HeuristicBoundingController, HeuristicGains
+from planners.hsddp import HSDDP
+from planners.objective import ConstraintState
+from planners.policies import EnvInterface, HeuristicPolicy, Policy
+from planners.problem import HybridProblem
+from planners.solution import SolverOptions
+from planners.tracking import PlanTracker
+
+_CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
+
+
+@dataclasses.dataclass(frozen=True)
+class MPCOptions:
+    """Settings of :class:`MPCPolicy`.
+
+    Attributes:
+        horizon: planned time at least [s] (default: one gait cycle of the nominal durations).
+        planner_dt: knot spacing of the planner [s] (coarser than the simulator's 1 ms is allowed).
+        replan_period: env time between re-plans [s].
+        max_iterations: DDP iterations per re-plan. warmup_iterations: for the first plan of an episode.
+        time_budget: wall-clock limit of one re-plan [s] (None: none).
+        latency_steps: control steps between the start of a re-plan and the moment its plan is used.
+        durations: nominal (back stance, flight, front stance, flight) durations [s].
+        min_phase: shortest remaining duration given to the current phase [s].
+        method: HS-DDP constraint handling ("al-reb", "al" or "ddp").
+        sigma_max: cap of the AL penalty carried across re-plans.
+        integrator: the planner's integrator; semi-implicit Euler keeps the light shanks' closed loops
+            stable at a coarse ``planner_dt``.
+        warm_start_kd: joint damping of the heuristic controller that warm-starts the first plan (the
+            heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
+    """
+
+    horizon: float = 0.296
+    planner_dt: float = 0.005
+    replan_period: float = 0.02
+    max_iterations: int = 3
+    warmup_iterations: int = 30
+    time_budget: float | None = None
+    latency_steps: int = 0
+    durations: tuple = PAPER_BOUNDING_DURATIONS
+    min_phase: float = 0.01
+    method: str = "al-reb"
+    sigma_max: float = 500.0
+    integrator: str = "semi_implicit"
+    warm_start_kd: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("horizon", "planner_dt", "replan_period", "min_phase", "sigma_max"):
+            check_positive(getattr(self, name), name)
+        check_int(self.max_iterations, "max_iterations", minimum=1)
+        check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
+        check_int(self.latency_steps, "latency_steps", minimum=0)
+        if self.time_budget is not None:
+            check_positive(self.time_budget, "time_budget")
+        if len(self.durations) != 4 or any(not (d > 0) for d in self.durations):
+            raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
+        if self.method not in ("ddp", "al", "al-reb"):
+            raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
+
+
+class MPCPolicy(Policy):
+    """HS-DDP MPC acting from observations (see the module docstring).
+
+    Args:
+        interface: the env's public settings (``MPCPolicy.from_env(env)``).
+        options: :class:`MPCOptions`.
+
+    Attributes:
+        stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list).
+        last_solution: the latest plan (a :class:`~planners.solution.Solution`).
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), options: MPCOptions = MPCOptions()) -> None:
+        super().__init__(interface)
+        if not isinstance(options, MPCOptions):
+            raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
+        self.options = options
+        self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
+        self._fallback = HeuristicPolicy(interface)
+        self._warm_controller = HeuristicBoundingController(
+            gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
+        self.reset()
+
+    def _reset_copy_state(self) -> None:
+        self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
+        self._fallback = self._fallback.spawn()
+
+    def reset(self) -> None:
+        self._solver = HSDDP(SolverOptions(method=self.options.method))
+        self.tracker: PlanTracker | None = None
+        self._pending: tuple | None = None
+        self.last_solution = None
+        self._problem = None
+        self._cs: ConstraintState | None = None
+        self._mode: Mode | None = None
+        self._time_in_mode = 0.0
+        self._since_replan = np.inf
+        self._last_stance: int | None = None
+        self._fallback.reset()
+        self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": []}
+
+    # ------------------------------------------------------------------ bookkeeping
+    def _observe_mode(self, mode: Mode) -> Mode:
+        if mode != self._mode:
+            if mode in (Mode.BACK_STANCE, Mode.FRONT_STANCE) or self._mode is None:
+                pass
+            self._mode = mode
+            self._time_in_mode = 0.0
+        if mode == Mode.BACK_STANCE:
+            self._last_stance = BACK
+        elif mode == Mode.FRONT_STANCE:
+            self._last_stance = FRONT
+        # a double stance is treated as the stance of the foot that just landed
+        if mode == Mode.DOUBLE_STANCE:
+            return Mode.FRONT_STANCE if self._last_stance == BACK else Mode.BACK_STANCE
+        return mode
+
+    def _schedule(self, mode: Mode) -> tuple[ModeSchedule, int]:
+        """Schedule from the current (effective) mode, and the cycle index of its first phase."""
+        o = self.options
+        if mode == Mode.FLIGHT:
+            start = 1 if self._last_stance in (BACK, None) else 3
+        else:
+            start = 0 if mode == Mode.BACK_STANCE else 2
+        first = max(o.durations[start] - self._time_in_mode, o.min_phase)
+        modes, durs = [_CYCLE[start]], [first]
+        j = start
+        while sum(durs) < o.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
+            j = (j + 1) % 4
+            modes.append(_CYCLE[j])
+            durs.append(o.durations[j])
+        h = o.planner_dt
+        durs = [max(1, round(d / h)) * h for d in durs]
+        return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4]), start
+
+    # ------------------------------------------------------------------ warm start
+    def _warm_start(self, problem: HybridProblem, x: np.ndarray):
+        """Shift the previous plan onto ``problem`` phase by phase: ``(U, X, K, lam)`` or None."""
+        tr, prev = self.tracker, self.last_solution
+        if tr is None or prev is None:
+            return None
+        N = problem.n_knots
+        U = np.zeros((N, NU))
+        X = np.zeros((N + 1, NX))
+        K = np.zeros((N, NU, NX))
+        lam = np.zeros(problem.n_phases)
+        have = np.zeros(N, dtype=bool)
+        prev_len = np.diff(prev.phase_start)
+        # the previous plan's phase that matches the current one: the cursor's, the one before it (the
+        # contact switch is late) or the one after it
+        first = problem.schedule.modes[0]
+        if tr.modes[tr.phase] == first:
+            p0, offset0 = tr.phase, tr.local_time
+        elif tr.phase > 0 and tr.modes[tr.phase - 1] == first:
+            p0 = tr.phase - 1
+            offset0 = (prev_len[p0] - 1) * tr.phase_dt[p0]
+        elif tr.phase + 1 < tr.n_phases and tr.modes[tr.phase + 1] == first:
+            p0, offset0 = tr.phase + 1, 0.0
+        else:
+            return None
+        for j in range(problem.n_phases):
+            a, b = problem.phase_start[j], problem.phase_start[j + 1]
+            p = p0 + j
+            if p < tr.n_phases and tr.modes[p] == problem.schedule.modes[j]:
+                lam[j] = self._prev_lam[p] if self._prev_lam is not None else 0.0
+                offset = offset0 if j == 0 else 0.0
+                for k in range(a, b):
+                    t_local = offset + (k - a) * problem.phase_dt[j]
+                    kp = prev.phase_start[p] + min(int(t_local / tr.phase_dt[p] + 1e-9), prev_len[p] - 1)
+                    U[k], X[k], K[k] = prev.U[kp], prev.X[kp], prev.K[kp]
+                    have[k] = True
+            elif j >= 4:
+                lam[j] = lam[j - 4]
+                src = problem.phase_start[j - 4]
+                n_src = problem.phase_start[j - 3] - src
+                for k in range(a, b):
+                    ks = src + min(k - a, n_src - 1)
+                    U[k], X[k], K[k] = U[ks], X[ks], K[ks]
+                    have[k] = have[ks]
+        if not have.all():
+            return None
+        X[N] = X[N - 1]
+        X[:, 0] += x[0] - X[0, 0]
+        return U, X, K, lam
+
+    def _heuristic_controls(self, problem: HybridProblem) -> np.ndarray:
+        from hsddp_gym.rollout import rollout
+
+        ctrl = self._warm_controller.as_schedule_controller(problem.schedule)
+        traj = rollout(problem.dynamics, problem.schedule, problem.x0, controller=ctrl)
+        if not traj.is_finite:
+            raise RuntimeError("heuristic warm start diverged")
+        return traj.U
+
+    # ------------------------------------------------------------------ re-plan
+    def replan(self, x: np.ndarray, mode: Mode) -> bool:
+        """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
+        o = self.options
+        t0 = time.perf_counter()
+        schedule, _ = self._schedule(mode)
+        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.interface.target_speed,
+                                         dynamics=self.dynamics)
+        first = self.last_solution is None
+        iters = o.warmup_iterations if first else o.max_iterations
+        self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
+                                             max_total_ddp_iterations=iters, time_limit=o.time_budget,
+                                             max_al_iterations=4 if first else 2)
+        try:
+            sol = None
+            ws = None if first else self._warm_start(problem, x)
+            if ws is not None:
+                U, X, K, lam = ws
+                cs = self._cs.copy() if self._cs is not None else None
+                if cs is not None:
+                    cs.lam = lam
+                    cs.sigma = min(cs.sigma, o.sigma_max)
+                # warm starts, most informed first: shifted plan with its feedback law, then open loop
+                for X_init, K_init in ((X, K), (None, None)):
+                    try:
+                        sol = self._solver.solve(problem, U, X_init=X_init, K_init=K_init, constraint_state=cs)
+                        break
+                    except ValueError:
+                        sol = None
+            if sol is None:
+                sol = self._solver.solve(problem, self._heuristic_controls(problem))
+            if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged":
+                raise RuntimeError(f"planner status {sol.status}")
+        except (RuntimeError, ValueError, FloatingPointError, np.linalg.LinAlgError) as exc:
+            self.last_failure = f"{type(exc).__name__}: {exc}"
+            self.stats["planner_failures"] += 1
+            self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
+            return False
+        cs = self._solver.last_constraint_state
+        if cs is not None and o.method != "ddp" and sol.switching_violation > sol.options.al_tolerance:
+            cs.lam = cs.lam + cs.sigma * sol.switching  # continue the outer loop across re-plans (eq. 24)
+            cs.sigma = min(cs.sigma * sol.options.beta, o.sigma_max)
+        self._cs = cs
+        self.stats["replans"] += 1
+        self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
+        self.stats["iterations"].append(sol.ddp_iterations)
+        new_tracker = PlanTracker.from_solution(sol, problem)
+        self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
+        return True
+
+    def _activate_pending(self) -> None:
+        tracker, sol, problem, lam, _ = self._pending
+        if self.tracker is not None and self._pending[4] > 0:
+            # the plan was computed latency steps ago: move its cursor to now
+            tracker.advance(self._pending[4] * self.interface.control_dt)
+        self.tracker, self.last_solution, self._problem, self._prev_lam = tracker, sol, problem, lam
+        self._pending = None
+
+    # ------------------------------------------------------------------ act
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        x, mode, _ = self._parse(obs)
+        eff = self._observe_mode(mode)
+        if self.tracker is not None:
+            self.tracker.sync(eff)
+        if self._since_replan >= self.options.replan_period - 1e-9:
+            self._since_replan = 0.0
+            if self.replan(x, eff) and (self.tracker is None or self._pending[4] == 0):
+                self._activate_pending()
+        elif self._pending is not None:
+            tracker, sol, problem, lam, steps = self._pending
+            steps -= 1
+            self._pending = (tracker, sol, problem, lam, steps)
+            if steps <= 0:
+                self._pending = (tracker, sol, problem, lam, self.options.latency_steps)
+                self._activate_pending()
+        if self.tracker is None:
+            u = self._fallback.controller.torque(x, eff)
+        else:
+            u = self.tracker.control(x)
+            self.tracker.advance(self.interface.control_dt)
+        self._time_in_mode += self.interface.control_dt
+        self._since_replan += self.interface.control_dt
+        return self.interface.action_from_torque(u)
+
+    _prev_lam = None

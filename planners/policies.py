@@ -1,0 +1,221 @@
+"""Policies that act on ``hsddp_gym/Bounding-v0`` from observations only.
+
+Every policy here is
+
+* a plain callable ``policy(obs) -> action`` for one environment (``obs`` ``(obs_dim,)``, ``action`` ``(4,)``
+  float32 normalized torques in ``[-1, 1]``), with its own memory (``reset()`` starts a new episode);
+* a Stable-Baselines3 ``predict(observation, state=None, episode_start=None, deterministic=True) ->
+  (actions, state)`` predictor (batched ``(n_envs, obs_dim)`` in, ``(n_envs, 4)`` out; one independent copy
+  of the policy per environment, reset where ``episode_start`` is true), so ``evaluate_policy`` runs it;
+* convertible into an SB3 ``BasePolicy`` with :func:`planners.sb3.as_sb3_policy` for imitation tooling.
+
+Policies never look inside the simulator: they map the observation back to a state, contact mode and gait
+phase with :func:`hsddp_gym.observation.state_from_observation` and use the env's public settings (control
+period, torque limit, observation layout) given at construction (``Policy.from_env(env)`` reads them).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import numpy as np
+
+from hsddp_gym.conventions import BACK, FRONT, NU, Mode
+from hsddp_gym.observation import DEFAULT_LAYOUT, ObservationLayout, state_from_observation
+from hsddp_gym.validation import check_positive
+from planners.heuristic import HeuristicBoundingController, HeuristicGains
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvInterface:
+    """The public settings of the environment a policy acts in.
+
+    Attributes:
+        control_dt: control period of one env step [s] (``frame_skip * sim_timestep``).
+        torque_limit: torque of a normalized action of 1 [N m].
+        layout: the observation layout.
+        gait_period: period of the observation's phase clock [s].
+        target_speed: the env's desired forward speed [m/s].
+    """
+
+    control_dt: float = 0.005
+    torque_limit: float = 33.0
+    layout: ObservationLayout = DEFAULT_LAYOUT
+    gait_period: float = 0.296
+    target_speed: float = 1.0
+
+    def __post_init__(self) -> None:
+        check_positive(self.control_dt, "control_dt")
+        check_positive(self.torque_limit, "torque_limit")
+        check_positive(self.gait_period, "gait_period")
+        if not isinstance(self.layout, ObservationLayout):
+            raise TypeError(f"layout must be an ObservationLayout, got {type(self.layout).__name__}")
+
+    @classmethod
+    def from_env(cls, env) -> EnvInterface:
+        """Read the settings of a (possibly wrapped) ``Bounding-v0`` env."""
+        u = env.unwrapped
+        return cls(control_dt=float(u.dt), torque_limit=float(u.torque_limit), layout=u.observation_layout,
+                   gait_period=float(u.gait_period), target_speed=float(u.target_speed))
+
+    def action_from_torque(self, u: np.ndarray) -> np.ndarray:
+        """Normalized action (4,) float32 from torques [N m] (clipped to the box)."""
+        return np.clip(np.asarray(u, dtype=np.float64) / self.torque_limit, -1.0, 1.0).astype(np.float32)
+
+
+class Policy:
+    """Base class: subclasses implement :meth:`act` (one env) and :meth:`reset`."""
+
+    def __init__(self, interface: EnvInterface = EnvInterface()) -> None:
+        if not isinstance(interface, EnvInterface):
+            raise TypeError(f"interface must be an EnvInterface, got {type(interface).__name__}")
+        self.interface = interface
+        self._copies: list[Policy] = []
+
+    @classmethod
+    def from_env(cls, env, **kwargs):
+        """Build the policy for ``env`` (reads its :class:`EnvInterface`)."""
+        return cls(interface=EnvInterface.from_env(env), **kwargs)
+
+    # -------------------------------------------------------------- single env
+    def reset(self) -> None:
+        """Forget the episode (called at the start of each episode)."""
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """Action (4,) float32 for one observation."""
+        raise NotImplementedError
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        return self.act(obs)
+
+    def _parse(self, obs) -> tuple[np.ndarray, Mode, float]:
+        return state_from_observation(obs, self.interface.layout)
+
+    # -------------------------------------------------------------- SB3 protocol
+    def spawn(self) -> Policy:
+        """An independent copy with fresh memory (one per vectorized environment)."""
+        twin = copy.copy(self)
+        twin._copies = []
+        twin._reset_copy_state()
+        twin.reset()
+        return twin
+
+    def _reset_copy_state(self) -> None:
+        """Give a shallow copy its own mutable memory (override when the memory holds arrays/objects)."""
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        """SB3 ``PolicyPredictor`` protocol: batched or single observations, one policy copy per env."""
+        obs = np.asarray(observation)
+        single = obs.ndim == 1
+        batch = obs[None] if single else obs
+        if batch.ndim != 2 or batch.shape[1] != self.interface.layout.size:
+            raise ValueError(f"observation must have shape ({self.interface.layout.size},) or "
+                             f"(n_envs, {self.interface.layout.size}), got {obs.shape}")
+        n = batch.shape[0]
+        fresh = len(self._copies) != n
+        if fresh:
+            self._copies = [self.spawn() for _ in range(n)]
+        starts = np.ones(n, dtype=bool) if episode_start is None and fresh else (
+            np.zeros(n, dtype=bool) if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(n))
+        actions = np.empty((n, NU), dtype=np.float32)
+        for i in range(n):
+            if starts[i] and not fresh:
+                self._copies[i].reset()
+            actions[i] = self._copies[i].act(batch[i])
+        return (actions[0] if single else actions), state
+
+
+class RandomPolicy(Policy):
+    """Uniform random actions from a seeded generator (``seed``); ``reset`` keeps the stream going."""
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), seed: int | None = 0) -> None:
+        super().__init__(interface)
+        self.seed = seed
+        self._rng = np.random.default_rng(seed)
+
+    def _reset_copy_state(self) -> None:
+        self._rng = np.random.default_rng(self._rng.integers(2 ** 63))
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self._rng.uniform(-1.0, 1.0, NU).astype(np.float32)
+
+
+class HeuristicPolicy(Policy):
+    """The heuristic bounding controller (:mod:`planners.heuristic`) driven by the env's contact flags.
+
+    In flight the foot expected to land next is the one that was not the last stance foot (front after a
+    back stance); before any stance it is guessed from the pitch rate.
+
+    Args:
+        gains: :class:`HeuristicGains` (the desired speed defaults to the env's target speed).
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), gains: HeuristicGains | None = None) -> None:
+        super().__init__(interface)
+        gains = gains if gains is not None else HeuristicGains(speed=interface.target_speed)
+        self.controller = HeuristicBoundingController(gains=gains)
+        self._last_stance: int | None = None
+
+    def reset(self) -> None:
+        self._last_stance = None
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        x, mode, _ = self._parse(obs)
+        if mode == Mode.BACK_STANCE:
+            self._last_stance = BACK
+        elif mode == Mode.FRONT_STANCE:
+            self._last_stance = FRONT
+        nxt = None
+        if mode == Mode.FLIGHT and self._last_stance is not None:
+            nxt = FRONT if self._last_stance == BACK else BACK
+        return self.interface.action_from_torque(self.controller.torque(x, mode, nxt))
+
+
+class PlanTrackingExpert(Policy):
+    """Tracks one HS-DDP plan with its feedback law ``u = U_k + K_k (x - X_k)`` (paper eq. 8, eps = 0).
+
+    The plan's cursor advances by the env's control period and is kept in step with the env's contact
+    events by :class:`planners.tracking.PlanTracker` (early touchdown: jump to the next phase; late
+    touchdown: wait on the flight phase's last knot; lift-off: plan time). The plan should start at the
+    env's initial state (e.g. ``options={"state": plan.X[0]}`` at reset). After the plan's last knot the
+    expert hands over to ``fallback`` (default: the heuristic controller).
+
+    Args:
+        solution: a :class:`~planners.solution.Solution`.
+        fallback: policy used after the plan ends (None: hold the last knot's feedback law).
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), solution=None, fallback: Policy | None = None
+                 ) -> None:
+        super().__init__(interface)
+        if solution is None:
+            raise ValueError("solution must be a Solution (the plan to track)")
+        self.solution = solution
+        self.fallback = fallback if fallback is not None else HeuristicPolicy(interface)
+        self.tracker = None
+        self.errors: list[float] = []
+        self.reset()
+
+    def _reset_copy_state(self) -> None:
+        self.fallback = self.fallback.spawn()
+
+    def reset(self) -> None:
+        from planners.tracking import PlanTracker
+
+        self.tracker = PlanTracker.from_solution(self.solution)
+        self.errors = []
+        self.fallback.reset()
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        from planners.tracking import tracking_error
+
+        x, mode, _ = self._parse(obs)
+        if self.tracker.finished:
+            return self.fallback.act(obs)
+        self.tracker.sync(mode)
+        x_nom, _ = self.tracker.nominal()
+        self.errors.append(tracking_error(x, x_nom))
+        u = self.tracker.control(x)
+        self.tracker.advance(self.interface.control_dt)
+        return self.interface.action_from_torque(u)
