@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from hsddp_gym.conventions import BACK, FRONT, NU, NX, Mode
+from hsddp_gym.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.dynamics import HybridDynamics
 from hsddp_gym.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
 from hsddp_gym.validation import check_int, check_positive
@@ -59,6 +59,12 @@ class MPCOptions:
         sigma_max: cap of the AL penalty carried across re-plans.
         integrator: the planner's integrator; semi-implicit Euler keeps the light shanks' closed loops
             stable at a coarse ``planner_dt``.
+        debounce_steps: control steps the landing foot must touch before a flight phase ends.
+        min_flight: fraction of the nominal flight before which a touchdown is taken for a graze.
+        max_wait: how long past its nominal end a flight waits for the touchdown before the gait clock
+            moves on anyway [s].
+        reb_delta, reb_eps: relaxed-barrier relaxation and weight used in every re-plan (kept moderate:
+            the one-shot solve's shrinking delta makes warm-started re-plans needlessly stiff).
         warm_start_kd: joint damping of the heuristic controller that warm-starts the first plan (the
             heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
     """
@@ -76,13 +82,23 @@ class MPCOptions:
     sigma_max: float = 500.0
     integrator: str = "semi_implicit"
     warm_start_kd: float = 0.1
+    debounce_steps: int = 2
+    min_flight: float = 0.3
+    max_wait: float = 0.03
+    reb_delta: float = 0.2
+    reb_eps: float = 1e-4
 
     def __post_init__(self) -> None:
-        for name in ("horizon", "planner_dt", "replan_period", "min_phase", "sigma_max"):
+        for name in ("horizon", "planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait"):
             check_positive(getattr(self, name), name)
         check_int(self.max_iterations, "max_iterations", minimum=1)
         check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
         check_int(self.latency_steps, "latency_steps", minimum=0)
+        check_int(self.debounce_steps, "debounce_steps", minimum=1)
+        if not (0.0 <= self.min_flight <= 1.0):
+            raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
+        check_positive(self.reb_delta, "reb_delta")
+        check_positive(self.reb_eps, "reb_eps")
         if self.time_budget is not None:
             check_positive(self.time_budget, "time_budget")
         if len(self.durations) != 4 or any(not (d > 0) for d in self.durations):
@@ -125,46 +141,59 @@ class MPCPolicy(Policy):
         self.last_solution = None
         self._problem = None
         self._cs: ConstraintState | None = None
-        self._mode: Mode | None = None
-        self._time_in_mode = 0.0
+        self._phase_j: int | None = None
+        self._tau = 0.0
+        self._contact_steps = [0, 0]
         self._since_replan = np.inf
-        self._last_stance: int | None = None
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": []}
 
-    # ------------------------------------------------------------------ bookkeeping
-    def _observe_mode(self, mode: Mode) -> Mode:
-        if mode != self._mode:
-            if mode in (Mode.BACK_STANCE, Mode.FRONT_STANCE) or self._mode is None:
-                pass
-            self._mode = mode
-            self._time_in_mode = 0.0
-        if mode == Mode.BACK_STANCE:
-            self._last_stance = BACK
-        elif mode == Mode.FRONT_STANCE:
-            self._last_stance = FRONT
-        # a double stance is treated as the stance of the foot that just landed
-        if mode == Mode.DOUBLE_STANCE:
-            return Mode.FRONT_STANCE if self._last_stance == BACK else Mode.BACK_STANCE
-        return mode
+    # ------------------------------------------------------------------ gait clock
+    def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
+        """Advance the gait clock by the observed contacts; return the mode of the current gait phase.
 
-    def _schedule(self, mode: Mode) -> tuple[ModeSchedule, int]:
-        """Schedule from the current (effective) mode, and the cycle index of its first phase."""
+        The phase changes on time, except that a flight ends when its landing foot has touched for
+        ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or
+        ``max_wait`` after its nominal end (late touchdown); grazes of other feet are ignored.
+        """
         o = self.options
-        if mode == Mode.FLIGHT:
-            start = 1 if self._last_stance in (BACK, None) else 3
-        else:
-            start = 0 if mode == Mode.BACK_STANCE else 2
-        first = max(o.durations[start] - self._time_in_mode, o.min_phase)
-        modes, durs = [_CYCLE[start]], [first]
-        j = start
+        for foot in (FRONT, BACK):
+            self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
+        if self._phase_j is None:
+            if mode == Mode.FLIGHT:
+                self._phase_j = 1 if x[NQ + IPITCH] > 0 else 3
+            else:
+                self._phase_j = 0 if mode.in_contact(BACK) and not mode.in_contact(FRONT) else (
+                    2 if not mode.in_contact(BACK) else 0)
+            self._tau = 0.0
+            return _CYCLE[self._phase_j]
+        j = self._phase_j
+        nominal = o.durations[j]
+        advance = False
+        if _CYCLE[j] == Mode.FLIGHT:
+            landing = FRONT if j == 1 else BACK
+            touched = self._contact_steps[landing] >= o.debounce_steps
+            advance = (touched and self._tau >= o.min_flight * nominal) or self._tau >= nominal + o.max_wait
+        elif self._tau >= nominal - 1e-9:
+            advance = True
+        if advance:
+            self._phase_j = (j + 1) % 4
+            self._tau = 0.0
+        return _CYCLE[self._phase_j]
+
+    def _schedule(self) -> ModeSchedule:
+        """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
+        ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance."""
+        o = self.options
+        j = self._phase_j
+        modes, durs = [_CYCLE[j]], [max(o.durations[j] - self._tau, o.min_phase)]
         while sum(durs) < o.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
             durs.append(o.durations[j])
         h = o.planner_dt
         durs = [max(1, round(d / h)) * h for d in durs]
-        return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4]), start
+        return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
 
     # ------------------------------------------------------------------ warm start
     def _warm_start(self, problem: HybridProblem, x: np.ndarray):
@@ -230,7 +259,7 @@ class MPCPolicy(Policy):
         """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
         o = self.options
         t0 = time.perf_counter()
-        schedule, _ = self._schedule(mode)
+        schedule = self._schedule()
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.interface.target_speed,
                                          dynamics=self.dynamics)
         first = self.last_solution is None
@@ -247,6 +276,9 @@ class MPCPolicy(Policy):
                 if cs is not None:
                     cs.lam = lam
                     cs.sigma = min(cs.sigma, o.sigma_max)
+                    cs.delta_torque = cs.delta_grf = o.reb_delta
+                    cs.eps_torque = cs.eps_grf = o.reb_eps
+                U = np.clip(U, -self.interface.torque_limit, self.interface.torque_limit)
                 # warm starts, most informed first: shifted plan with its feedback law, then open loop
                 for X_init, K_init in ((X, K), (None, None)):
                     try:
@@ -286,7 +318,7 @@ class MPCPolicy(Policy):
     # ------------------------------------------------------------------ act
     def act(self, obs: np.ndarray) -> np.ndarray:
         x, mode, _ = self._parse(obs)
-        eff = self._observe_mode(mode)
+        eff = self._update_clock(mode, x)
         if self.tracker is not None:
             self.tracker.sync(eff)
         if self._since_replan >= self.options.replan_period - 1e-9:
@@ -305,7 +337,7 @@ class MPCPolicy(Policy):
         else:
             u = self.tracker.control(x)
             self.tracker.advance(self.interface.control_dt)
-        self._time_in_mode += self.interface.control_dt
+        self._tau += self.interface.control_dt
         self._since_replan += self.interface.control_dt
         return self.interface.action_from_torque(u)
 
