@@ -109,16 +109,94 @@ def cmd_sto(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------------------------- rollout
+ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
+
+
+def make_policy(name: str, env, seed: int = 0, mpc_options=None):
+    """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic`` or ``random``) and the reset
+    options it needs (the expert starts from its plan's initial state)."""
+    from planners.policies import HeuristicPolicy, PlanTrackingExpert, RandomPolicy
+
+    if name == "mpc":
+        from planners.mpc import MPCOptions, MPCPolicy
+
+        return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
+    if name == "expert":
+        from planners.tasks import plan_bounding
+
+        sol = plan_bounding("al-reb", cycles=5).solution
+        return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0]}
+    if name == "heuristic":
+        return HeuristicPolicy.from_env(env), None
+    if name == "random":
+        return RandomPolicy.from_env(env, seed=seed), None
+    raise ValueError(f"policy must be one of {ROLLOUT_POLICIES}, got {name!r}")
+
+
+def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
+                 env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False) -> dict:
+    """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``."""
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    import hsddp_gym  # noqa: F401  (registers the env)
+    from planners.evaluation import run_episode, summarize
+
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = dict(env_kwargs or {})
+    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs)
+    policy, options = make_policy(policy_name, env, seed)
+    if push is not None:
+        options = dict(options or {})
+        options["push"] = push
+    results = []
+    for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
+        results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
+    summary = summarize(results)
+    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed)
+    if video and results and results[0].frames:
+        from hsddp_gym.render import save_gif
+
+        save_gif(results[0].frames, out / "episode0.gif", fps=env.metadata.get("render_fps", 30))
+        summary["video"] = "episode0.gif"
+    from hsddp_gym.io import write_npz
+
+    write_npz(out / "episode0.npz", states=results[0].states, actions=results[0].actions,
+              rewards=results[0].rewards)
+    write_json(out / "summary.json", summary)
+    env.close()
+    return summary
+
+
+def cmd_rollout(args) -> int:
+    out = Path(args.out)
+    env_kwargs = {}
+    if args.target_speed is not None:
+        env_kwargs["target_speed"] = args.target_speed
+    push = None
+    if args.push is not None:
+        t, dvx, dvz, dw = args.push
+        push = [t, [dvx, dvz, dw]]
+    summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
+                           push=push, quiet=args.quiet)
+    for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
+              "replans", "planner_failures", "mean_replan_ms"):
+        v = summary.get(k)
+        print(f"  {k:<22} {v:.4g}" if isinstance(v, float) else f"  {k:<22} {v}")
+    print(f"wrote {out / 'summary.json'}")
+    return 0
+
+
 # ----------------------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
     from planners.tasks import plan_bounding
 
     out = Path(args.out)
-    print("[1/2] heuristic bounding controller (the warm start), 5 cycles of 80/72/72/72 ms ...")
+    print("[1/3] heuristic bounding controller (the warm start), 5 cycles of 80/72/72/72 ms ...")
     heur = plan_bounding("heuristic", cycles=args.cycles)
-    print("[2/2] HS-DDP (impact-aware DDP + AL switching constraints + relaxed barriers) ...")
+    print("[2/3] HS-DDP plan (impact-aware DDP + AL switching constraints + relaxed barriers) ...")
     plan = plan_bounding("al-reb", cycles=args.cycles, verbose=not args.quiet)
-    summary = {"heuristic": heur.summary, "al-reb": plan.summary}
     from hsddp_gym import plotting
 
     robot = plan.problem.dynamics.robot
@@ -128,11 +206,19 @@ def cmd_demo(args) -> int:
                          target_speed=1.0)
     plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")
     plan.solution.save(out / "solution.npz")
-    summary["files"] = ["motion.png", "states.png", "convergence.png", "solution.npz"]
+    print(f"[3/3] HS-DDP MPC in hsddp_gym/Bounding-v0: {args.episodes} seeded episode(s) ...")
+    mpc = run_rollouts("mpc", args.episodes, 0, out / "mpc", video=not args.no_video, quiet=args.quiet)
+    summary = {"heuristic_plan": heur.summary, "hsddp_plan": plan.summary, "mpc_in_env": mpc,
+               "files": ["motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"]
+               + ([] if args.no_video else ["mpc/episode0.gif"])}
     write_json(out / "summary.json", summary)
-    for name in ("heuristic", "al-reb"):
+    for name in ("heuristic_plan", "hsddp_plan"):
         print(f"{name}:")
         _print_summary(summary[name])
+    print("mpc_in_env:")
+    for k in ("mean_return", "falls", "mean_forward_speed", "real_time_factor", "mean_replan_ms"):
+        v = mpc.get(k)
+        print(f"  {k:<24} {v:.4g}" if isinstance(v, float) else f"  {k:<24} {v}")
     print(f"wrote {out}/summary.json and figures")
     return 0
 
@@ -149,9 +235,13 @@ def build_parser() -> argparse.ArgumentParser:
                                     "figures and a summary",
                        description="The main job: heuristic warm start, HS-DDP (al-reb) plan of the paper's "
                                    "bounding task, figures (motion.png, states.png, convergence.png), "
-                                   "solution.npz and summary.json in --out.")
+                                   "solution.npz, then the HS-DDP MPC bounding in hsddp_gym/Bounding-v0 "
+                                   "(mpc/summary.json, mpc/episode0.gif) and summary.json in --out.")
     p.add_argument("--out", default="runs/demo", help="output directory (default: %(default)s)")
     p.add_argument("--cycles", type=_positive_int, default=5, help="gait cycles to plan (default: %(default)s)")
+    p.add_argument("--episodes", type=_positive_int, default=1,
+                   help="MPC episodes to run in the env (default: %(default)s)")
+    p.add_argument("--no-video", action="store_true", help="skip the GIF of the MPC episode")
     p.add_argument("--quiet", action="store_true", help="do not print the solver's iteration table")
     p.set_defaults(func=cmd_demo)
 
@@ -173,6 +263,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--quiet", action="store_true", help="do not print the solver's iteration table")
     p.set_defaults(func=cmd_plan)
+
+    p = sub.add_parser("rollout", help="run a policy in hsddp_gym/Bounding-v0 for seeded episodes",
+                       description="Run --episodes seeded episodes (seeds --seed, --seed+1, ...) of a policy in "
+                                   "hsddp_gym/Bounding-v0 with its default reset noise and time limit; write "
+                                   "summary.json (mean/std return, falls, forward speed, episode length, real-time "
+                                   "factor, replans, planner failures, mean replan ms), episode0.npz and, with "
+                                   "--video, episode0.gif.")
+    p.add_argument("--policy", choices=ROLLOUT_POLICIES, default="mpc",
+                   help="mpc: HS-DDP model-predictive control; expert: tracks a 5-cycle al-reb plan (episodes "
+                        "start at the plan's initial state); heuristic: the warm-start controller; random: uniform "
+                        "actions (default: %(default)s)")
+    p.add_argument("--episodes", type=_positive_int, default=10, help="episodes (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
+    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--push", type=float, nargs=4, metavar=("T", "DVX", "DVZ", "DPITCH"), default=None,
+                   help="push at episode time T [s]: add (DVX, DVZ) [m/s] and DPITCH [rad/s] to the trunk velocity")
+    p.add_argument("--video", action="store_true", help="write episode0.gif")
+    p.add_argument("--out", default="runs/rollout", help="output directory (default: %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_rollout)
 
     p = sub.add_parser("sto", help="paper task 2: switching-time optimization (HS-DDP Algorithm 2 or the "
                                    "open-loop baseline)",
