@@ -56,7 +56,7 @@ def main(argv=None) -> int:
     print("== expert tracking the 5-cycle al-reb plan", flush=True)
     summary["expert_tracking"] = expert_tracking(out)
     t, dvx, dvz, dw = args.push
-    push = [t, [dvx, dvz, dw]]
+    push = {"delta_v": [dvx, dvz, dw], "time": t}
     for policy in ("mpc", "heuristic"):
         print(f"== push {push} with {policy}", flush=True)
         summary[f"push_{policy}"] = run_rollouts(policy, 3, 100, out / f"push_{policy}", push=push)

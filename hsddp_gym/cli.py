@@ -149,7 +149,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     policy, options = make_policy(policy_name, env, seed)
     if push is not None:
         options = dict(options or {})
-        options["push"] = push
+        options["push"] = push  # {"delta_v": (3,), "time": t}
     results = []
     for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
@@ -177,7 +177,7 @@ def cmd_rollout(args) -> int:
     push = None
     if args.push is not None:
         t, dvx, dvz, dw = args.push
-        push = [t, [dvx, dvz, dw]]
+        push = {"delta_v": [dvx, dvz, dw], "time": t}
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
                            push=push, quiet=args.quiet)
     for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
