@@ -40,6 +40,8 @@ from planners.solution import SolverOptions
 from planners.tracking import PlanTracker
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
+FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
+"""The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,13 +49,15 @@ class MPCOptions:
     """Settings of :class:`MPCPolicy`.
 
     Attributes:
-        horizon: planned time at least [s] (default: one gait cycle of the nominal durations).
+        horizon: planned time at least [s] (None: one gait cycle of the durations).
         planner_dt: knot spacing of the planner [s] (coarser than the simulator's 1 ms is allowed).
         replan_period: env time between re-plans [s].
         max_iterations: DDP iterations per re-plan. warmup_iterations: for the first plan of an episode.
         time_budget: wall-clock limit of one re-plan [s] (None: none).
         latency_steps: control steps between the start of a re-plan and the moment its plan is used.
-        durations: nominal (back stance, flight, front stance, flight) durations [s].
+        durations: nominal (back stance, flight, front stance, flight) durations [s]; None picks them from
+            the target speed: the paper's 80/72/72/72 ms up to 1.2 m/s, the authors' 1.5 m/s gait
+            80/100/80/100 ms above (their MHPC bounding code).
         min_phase: shortest remaining duration given to the current phase [s].
         method: HS-DDP constraint handling ("al-reb", "al" or "ddp").
         sigma_max: cap of the AL penalty carried across re-plans.
@@ -73,14 +77,14 @@ class MPCOptions:
             heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
     """
 
-    horizon: float = 0.296
+    horizon: float | None = None
     planner_dt: float = 0.005
     replan_period: float = 0.02
     max_iterations: int = 3
     warmup_iterations: int = 30
     time_budget: float | None = None
     latency_steps: int = 0
-    durations: tuple = PAPER_BOUNDING_DURATIONS
+    durations: tuple | None = None
     min_phase: float = 0.01
     method: str = "al-reb"
     sigma_max: float = 500.0
@@ -94,7 +98,9 @@ class MPCOptions:
     z_velocity: str = "code"
 
     def __post_init__(self) -> None:
-        for name in ("horizon", "planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait"):
+        if self.horizon is not None:
+            check_positive(self.horizon, "horizon")
+        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait"):
             check_positive(getattr(self, name), name)
         check_int(self.max_iterations, "max_iterations", minimum=1)
         check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
@@ -106,7 +112,7 @@ class MPCOptions:
         check_positive(self.reb_eps, "reb_eps")
         if self.time_budget is not None:
             check_positive(self.time_budget, "time_budget")
-        if len(self.durations) != 4 or any(not (d > 0) for d in self.durations):
+        if self.durations is not None and (len(self.durations) != 4 or any(not (d > 0) for d in self.durations)):
             raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
@@ -129,6 +135,11 @@ class MPCPolicy(Policy):
         if not isinstance(options, MPCOptions):
             raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
         self.options = options
+        if options.durations is not None:
+            self.durations = tuple(float(d) for d in options.durations)
+        else:
+            self.durations = PAPER_BOUNDING_DURATIONS if interface.target_speed <= 1.2 else FAST_BOUNDING_DURATIONS
+        self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
         self._fallback = HeuristicPolicy(interface)
         self._warm_controller = HeuristicBoundingController(
@@ -173,7 +184,7 @@ class MPCPolicy(Policy):
             self._tau = 0.0
             return _CYCLE[self._phase_j]
         j = self._phase_j
-        nominal = o.durations[j]
+        nominal = self.durations[j]
         advance = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
@@ -191,11 +202,11 @@ class MPCPolicy(Policy):
         ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance."""
         o = self.options
         j = self._phase_j
-        modes, durs = [_CYCLE[j]], [max(o.durations[j] - self._tau, o.min_phase)]
-        while sum(durs) < o.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
+        modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+        while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
-            durs.append(o.durations[j])
+            durs.append(self.durations[j])
         h = o.planner_dt
         durs = [max(1, round(d / h)) * h for d in durs]
         return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
