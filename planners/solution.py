@@ -31,7 +31,8 @@ class SolverOptions:
         eps_torque, eps_grf: ReB weights per knot; eps_growth: multiplied each AL iteration.
         armijo: accept a step when actual / expected decrease >= armijo. step_factor: backtracking factor;
             min_step: smallest step tried.
-        mu_min, mu_growth, mu_max: regularization of Q_uu (mu I): on failure mu <- max(mu_min, mu * growth);
+        mu_min, mu_growth, mu_max: regularization of Q_uu (mu I): on failure mu <- max(mu_min, mu * growth)
+            (mu_min = 1e-3 as in the authors' code);
             after an accepted step mu <- mu / growth (0 below mu_min); give up above mu_max.
         time_limit: wall-clock budget [s] (None: none); reaching it stops with status ``"time_limit"``.
         max_total_ddp_iterations: cap over all AL iterations (None: none).
@@ -55,7 +56,7 @@ class SolverOptions:
     armijo: float = 1e-2
     step_factor: float = 0.5
     min_step: float = 1e-3
-    mu_min: float = 1e-6
+    mu_min: float = 1e-3
     mu_growth: float = 4.0
     mu_max: float = 1e8
     time_limit: float | None = None
