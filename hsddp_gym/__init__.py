@@ -1,3 +1,23 @@
-"""hsddp_gym: HS-DDP for the planar MIT Mini Cheetah, and a Gymnasium bounding benchmark."""
+"""hsddp_gym: HS-DDP for the planar MIT Mini Cheetah, and a Gymnasium bounding benchmark.
+
+Importing the package registers the Gymnasium environment ``hsddp_gym/Bounding-v0`` (entry point
+``envs.bounding:BoundingEnv``, imported lazily), so both ``import hsddp_gym; gym.make("hsddp_gym/Bounding-v0")``
+and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work.
+"""
 
 __version__ = "0.1.0"
+
+BOUNDING_ENV_ID = "hsddp_gym/Bounding-v0"
+BOUNDING_MAX_EPISODE_STEPS = 1000
+"""1000 control steps = 5 s at the default 200 Hz (about 17 bounding cycles)."""
+
+
+def _register_envs() -> None:
+    import gymnasium as gym
+
+    if BOUNDING_ENV_ID not in gym.registry:
+        gym.register(id=BOUNDING_ENV_ID, entry_point="envs.bounding:BoundingEnv",
+                     max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
+
+
+_register_envs()

@@ -1,0 +1,107 @@
+"""Throughput of ``hsddp_gym/Bounding-v0`` (single process), and HalfCheetah-v5 for comparison.
+
+Prints env steps/s and simulated 1-ms steps/s for ``frame_skip=1`` and the default frame skip, under
+random actions (a mix of flight, impacts, stance and sliding) and under zero torque from a standing
+start (mostly double stance: the contact-solver path). When ``gymnasium[mujoco]`` is installed it also
+times HalfCheetah-v5 (MuJoCo, 0.01 s timestep, frame_skip 5) and prints the ratio of env steps/s.
+
+Usage::
+
+    python experiments/bench_env.py [--seconds 3] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import gymnasium as gym
+import numpy as np
+
+import hsddp_gym  # noqa: F401  (registers the env)
+from envs.bounding import DEFAULT_FRAME_SKIP, BoundingEnv
+
+GOAL_SIM_STEPS_PER_S = 20_000
+
+
+def time_env(env: gym.Env, seconds: float, seed: int, policy: str) -> tuple[float, int]:
+    """Step ``env`` for about ``seconds`` wall-clock seconds (resetting on episode end).
+
+    Returns:
+        ``(env steps per second, env steps taken)``.
+    """
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    shape = env.action_space.shape
+    zeros = np.zeros(shape, dtype=np.float32)
+    actions = rng.uniform(-1.0, 1.0, size=(4096,) + shape).astype(np.float32)
+    steps = 0
+    start = time.perf_counter()
+    deadline = start + seconds
+    while True:
+        for _ in range(100):
+            action = actions[steps % len(actions)] if policy == "random" else zeros
+            _, _, terminated, truncated, _ = env.step(action)
+            steps += 1
+            if terminated or truncated:
+                env.reset()
+        now = time.perf_counter()
+        if now >= deadline:
+            break
+    return steps / (now - start), steps
+
+
+def standing_state(env: BoundingEnv) -> np.ndarray:
+    """A posture with both feet on the ground (hips 0.25 pi, knees -0.5 pi), at rest."""
+    q = np.array([0.0, 0.0, 0.0, 0.25 * np.pi, -0.5 * np.pi, 0.25 * np.pi, -0.5 * np.pi])
+    q[1] = -env.robot.foot_heights(q).min()
+    return np.concatenate([q, np.zeros(7)])
+
+
+class _StandingStart(gym.Wrapper):
+    """Reset to a standing posture so that zero torque exercises the double-contact solver path."""
+
+    def reset(self, *, seed=None, options=None):
+        return self.env.reset(seed=seed, options={"state": standing_state(self.env.unwrapped)})
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=3.0, help="wall-clock seconds per measurement")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+
+    print(f"Bounding-v0, single process, {args.seconds:g} s per row (goal: >= {GOAL_SIM_STEPS_PER_S:,} "
+          "simulated 1-ms steps/s)")
+    print(f"{'frame_skip':>10} {'actions':>14} {'env steps/s':>12} {'sim steps/s':>12} {'x real time':>11}")
+    results = {}
+    for frame_skip in sorted({1, DEFAULT_FRAME_SKIP}):
+        for policy in ("random", "zero-standing"):
+            env = BoundingEnv(frame_skip=frame_skip, terminate_when_unhealthy=(policy == "random"))
+            if policy == "zero-standing":
+                env = _StandingStart(env)
+            rate, _ = time_env(env, args.seconds, args.seed, "random" if policy == "random" else "zero")
+            sim_rate = rate * frame_skip
+            sim_dt = env.unwrapped.sim_timestep
+            results[(frame_skip, policy)] = rate
+            print(f"{frame_skip:>10} {policy:>14} {rate:>12,.0f} {sim_rate:>12,.0f} {sim_rate * sim_dt:>11.1f}")
+            env.close()
+
+    try:
+        import mujoco  # noqa: F401
+
+        cheetah = gym.make("HalfCheetah-v5")
+    except Exception as exc:  # gymnasium[mujoco] missing (ImportError / DependencyNotInstalled)
+        print(f"HalfCheetah-v5 skipped: gymnasium[mujoco] is not installed ({type(exc).__name__}: {exc})")
+        return
+    rate, _ = time_env(cheetah, args.seconds, args.seed, "random")
+    cheetah.close()
+    ours = results[(DEFAULT_FRAME_SKIP, "random")]
+    print(f"HalfCheetah-v5 (MuJoCo, frame_skip 5, 50 ms per step): {rate:,.0f} env steps/s "
+          f"({rate * 5:,.0f} MuJoCo steps/s)")
+    print(f"ratio Bounding-v0 (frame_skip {DEFAULT_FRAME_SKIP}, random) / HalfCheetah-v5 env steps/s: "
+          f"{ours / rate:.3f}")
+
+
+if __name__ == "__main__":
+    main()

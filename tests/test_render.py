@@ -1,0 +1,109 @@
+"""Off-screen drawing (hsddp_gym/render.py) and the env's render modes."""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import pytest
+
+from envs.bounding import BoundingEnv
+from hsddp_gym.references import paper_initial_state
+from hsddp_gym.render import render_state, render_trajectory, save_gif
+
+PIL = pytest.importorskip("PIL")
+
+
+def test_render_state_shape_dtype_and_content():
+    x = paper_initial_state()
+    img = render_state(x, width=200, height=120)
+    assert img.shape == (120, 200, 3) and img.dtype == np.uint8
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 4  # ground, trunk, legs, feet, background
+    moved = x.copy()
+    moved[3] += 0.5  # swing the front thigh
+    assert not np.array_equal(img, render_state(moved, width=200, height=120))
+    # a configuration (7,) draws the same picture as the state
+    np.testing.assert_array_equal(img, render_state(x[:7], width=200, height=120))
+
+
+def test_grf_arrows_and_contact_markers_are_drawn():
+    x = paper_initial_state()
+    plain = render_state(x, contact=[False, False])
+    with_grf = render_state(x, contact=[False, False], grf=[0.0, 0.0, 30.0, 150.0])
+    with_contact = render_state(x, contact=[False, True])
+    diff = np.any(plain != with_grf, axis=2)
+    assert diff.sum() > 50
+    assert not np.array_equal(plain, with_contact)
+
+
+def test_render_trajectory_and_bad_inputs():
+    X = np.repeat(paper_initial_state()[None], 6, axis=0)
+    frames = render_trajectory(X, every=2, width=64, height=48)
+    assert len(frames) == 3 and frames[0].shape == (48, 64, 3)
+    with pytest.raises(ValueError, match="x"):
+        render_state(np.zeros(5))
+    with pytest.raises(ValueError, match="finite"):
+        render_state(np.full(14, np.nan))
+    with pytest.raises(ValueError, match="width"):
+        render_state(paper_initial_state(), width=3)
+    with pytest.raises(ValueError, match="X must have shape"):
+        render_trajectory(np.zeros((3, 5)))
+
+
+def test_save_gif_is_atomic_and_readable(tmp_path):
+    from PIL import Image
+
+    frames = [render_state(paper_initial_state(), width=80, height=60) for _ in range(3)]
+    frames[1] = frames[1].copy()
+    frames[1][:10] = 0
+    path = save_gif(frames, tmp_path / "robot.gif", fps=10)
+    assert os.path.exists(path)
+    assert sorted(os.listdir(tmp_path)) == ["robot.gif"]  # no temporary file left behind
+    with Image.open(path) as im:
+        assert im.size == (80, 60) and im.n_frames == 3
+    # overwrite in place
+    save_gif(frames[:2], path, fps=10)
+    with Image.open(path) as im:
+        assert im.n_frames == 2
+    with pytest.raises(ValueError, match="gif or .mp4"):
+        save_gif(frames, tmp_path / "robot.png")
+    with pytest.raises(ValueError, match="at least one"):
+        save_gif([], tmp_path / "empty.gif")
+    with pytest.raises(ValueError, match="same shape"):
+        save_gif([frames[0], frames[0][:30]], tmp_path / "mixed.gif")
+    with pytest.raises(ValueError, match="uint8"):
+        save_gif([frames[0].astype(float)], tmp_path / "float.gif")
+    with pytest.raises(ValueError, match="fps"):
+        save_gif(frames, tmp_path / "fps.gif", fps=0)
+    assert sorted(os.listdir(tmp_path)) == ["robot.gif"]
+
+
+def test_save_mp4_needs_imageio_ffmpeg(tmp_path):
+    frames = [render_state(paper_initial_state(), width=64, height=48)] * 2
+    try:
+        import imageio_ffmpeg  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="imageio-ffmpeg"):
+            save_gif(frames, tmp_path / "robot.mp4", fps=10)
+        assert os.listdir(tmp_path) == []
+    else:  # pragma: no cover - only where imageio-ffmpeg is installed
+        assert os.path.getsize(save_gif(frames, tmp_path / "robot.mp4", fps=10)) > 0
+
+
+def test_env_rgb_array_and_headless_human_rendering():
+    env = BoundingEnv(render_mode="rgb_array", width=160, height=100)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (100, 160, 3) and frame.dtype == np.uint8
+    env.step(np.zeros(4))
+    assert not np.array_equal(frame, env.render())
+    assert BoundingEnv().render() is None  # no render mode: a warning, no image
+    human = BoundingEnv(render_mode="human", width=64, height=48)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        human.reset(seed=0)
+        human.step(np.zeros(4))
+        assert human.render() is None
+    human.close()
+    env.close()
