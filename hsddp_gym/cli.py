@@ -223,6 +223,162 @@ def cmd_demo(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------------------------- dataset, train
+# (demonstration datasets and learning baselines: hsddp_gym.datasets, planners.imitation, planners.sb3)
+DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
+TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"must be comma-separated integers, got {text!r}") from exc
+    if not values or any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"must be comma-separated positive integers, got {text!r}")
+    return values
+
+
+def cmd_dataset(args) -> int:
+    from hsddp_gym.datasets import generate_dataset
+
+    env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
+    try:
+        res = generate_dataset(args.policy, args.episodes, args.out, seed=args.seed, workers=args.workers,
+                               dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
+                               max_episode_steps=args.max_episode_steps, include_gains=args.gains,
+                               progress=not args.quiet)
+    except FileExistsError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    m = res.metadata
+    print(f"{res.dataset_id}: {res.episodes} episodes, {res.total_steps} transitions, {m['falls']} falls, "
+          f"generated in {res.generation_time_s:.1f} s with {args.workers} worker(s) "
+          f"({res.total_steps / max(res.generation_time_s, 1e-9):.0f} transitions/s)")
+    print(f"  ref_max_score {m['ref_max_score']:.4g} (mean return of these episodes), ref_min_score "
+          f"{m['ref_min_score']:.4g} (random policy)")
+    print(f"wrote {res.path}/ (minari/, episodes.npz, metadata.json); load with "
+          f"hsddp_gym.datasets.load_minari('{res.path}') or MINARI_DATASETS_PATH={res.path}/minari "
+          f"minari.load_dataset('{res.dataset_id}')")
+    return 0
+
+
+def cmd_train(args) -> int:
+    out = Path(args.out)
+    env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
+    if args.algo in ("ppo", "sac"):
+        from planners.sb3 import train_sb3
+
+        if args.steps is None:
+            print("error: --steps is required for ppo and sac", file=sys.stderr)
+            return 2
+        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else None
+        if args.learning_starts is not None and args.algo == "ppo":
+            print("error: --learning-starts applies to sac only", file=sys.stderr)
+            return 2
+        res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
+                        max_episode_steps=args.max_episode_steps, overrides=overrides, eval_freq=args.eval_freq,
+                        final_eval_episodes=args.eval_episodes, progress=not args.quiet,
+                        time_limit=args.time_limit)
+        summary = res.summary
+    elif args.algo == "bc":
+        from planners.imitation import BCConfig, run_bc
+
+        if args.dataset is None:
+            print("error: --dataset is required for bc", file=sys.stderr)
+            return 2
+        config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed)
+        summary = run_bc(args.dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
+                         eval_episodes=args.eval_episodes, curve=args.curve,
+                         env_kwargs=env_kwargs or None, max_episode_steps=args.max_episode_steps,
+                         progress=not args.quiet)
+    else:
+        from planners.imitation import BCConfig, DAggerConfig, run_dagger
+
+        config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
+                              beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
+                              bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                                          seed=args.seed))
+        summary = run_dagger(args.expert, out, seed=args.seed, config=config, dataset=args.dataset,
+                             demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
+                             env_kwargs=env_kwargs, progress=not args.quiet)
+    ev = summary.get("eval") or {}
+    used = {"ppo": "steps", "sac": "steps", "bc": "transitions", "dagger": "expert_labels"}[args.algo]
+    print(f"{args.algo}: {used} {summary.get(used)}, training wall time {summary.get('wall_time_s', 0.0):.1f} s"
+          + (f"; evaluation over {ev['episodes']} episodes: return {ev['mean_return']:.4g} +- "
+             f"{ev['std_return']:.4g}, falls {ev['falls']}, forward speed {ev['mean_forward_speed']:.3g} m/s"
+             if ev else ""))
+    print(f"wrote {out / 'summary.json'}")
+    return 0
+
+
+def _add_learning_parsers(sub) -> None:
+    p = sub.add_parser("dataset", help="generate a demonstration dataset (Minari + npz) with a policy",
+                       description="Run --episodes episodes (episode i reset with seed --seed + i, a fresh policy "
+                                   "per episode, so the data do not depend on --workers) in parallel worker "
+                                   "processes and write a Minari dataset (OUT/minari, MINARI_DATASETS_PATH=OUT/minari)"
+                                   ", OUT/episodes.npz and OUT/metadata.json atomically. infos carry qpos, qvel, "
+                                   "contact, the expert's nominal state/action and solver statistics at every step. "
+                                   "See hsddp_gym.datasets.")
+    p.add_argument("--policy", choices=DATASET_POLICIES, default="mpc",
+                   help="mpc: HS-DDP MPC; expert: tracks the 5-cycle al-reb HS-DDP plan (episodes start at the "
+                        "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
+                        "controller; random: uniform actions (default: %(default)s)")
+    p.add_argument("--episodes", type=_positive_int, default=10, help="episodes (default: %(default)s)")
+    p.add_argument("--workers", type=_positive_int, default=1, help="worker processes (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of episode 0 (default: %(default)s)")
+    p.add_argument("--out", required=True, help="dataset directory (must not exist unless --overwrite)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("--dataset-id", default=None, help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0)")
+    p.add_argument("--max-episode-steps", type=_positive_int, default=None,
+                   help="time limit override (default: the env's 1000)")
+    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--gains", action="store_true", help="also store the plan's feedback gains (4x14 per step)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser("train", help="train a baseline: behaviour cloning, DAgger, PPO or SAC",
+                       description="bc: MLP 2x256 ReLU, Adam 1e-3, MSE on normalized actions, on --dataset; dagger: "
+                                   "BC + relabelling rounds by --expert with beta = BETA_DECAY**round; ppo / sac: "
+                                   "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters (planners.sb3). "
+                                   "Writes the model, summary.json (with training wall time and a 10-episode "
+                                   "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
+    p.add_argument("--algo", choices=TRAIN_ALGOS, required=True)
+    p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--steps", type=_positive_int, default=None, help="ppo/sac: env steps")
+    p.add_argument("--eval-freq", type=int, default=None,
+                   help="ppo/sac: env steps between evaluations of 5 episodes during training (default: steps/10, "
+                        "at least 1000; 0: none)")
+    p.add_argument("--learning-starts", type=int, default=None, help="sac: override learning_starts (zoo: 10000)")
+    p.add_argument("--time-limit", type=_positive_float, default=None,
+                   help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
+                        "the steps that fit (--steps is then the upper bound)")
+    p.add_argument("--dataset", default=None, help="bc (required) / dagger (optional round-0 data): a dataset "
+                                                   "directory written by `hsddp-gym dataset`")
+    p.add_argument("--format", choices=("minari", "npz"), default="minari",
+                   help="read the dataset through minari.load_dataset or its episodes.npz (default: %(default)s)")
+    p.add_argument("--demos", type=_positive_int, default=None, help="use the first DEMOS episodes of --dataset")
+    p.add_argument("--epochs", type=_positive_int, default=50, help="bc/dagger: BC epochs (default: %(default)s)")
+    p.add_argument("--batch-size", type=_positive_int, default=256, help="bc/dagger (default: %(default)s)")
+    p.add_argument("--lr", type=_positive_float, default=1e-3, help="bc/dagger: Adam step (default: %(default)s)")
+    p.add_argument("--curve", type=_int_list, default=None,
+                   help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
+    p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",
+                   help="dagger: the labelling expert (default: %(default)s)")
+    p.add_argument("--rounds", type=int, default=4, help="dagger: rounds after round 0 (default: %(default)s)")
+    p.add_argument("--episodes-per-round", type=_positive_int, default=5, help="dagger (default: %(default)s)")
+    p.add_argument("--beta-decay", type=float, default=0.5, help="dagger: beta_i = decay**i (default: %(default)s)")
+    p.add_argument("--eval-episodes", type=int, default=10,
+                   help="final evaluation episodes, seeds 0.. (default: %(default)s; 0: none)")
+    p.add_argument("--max-episode-steps", type=_positive_int, default=None,
+                   help="time limit override for training/evaluation episodes (default: the env's 1000)")
+    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_train)
+# ----------------------------------------------------------------------------------------------- end dataset, train
+
+
 # ----------------------------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -300,6 +456,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="runs/sto", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no per-iteration lines")
     p.set_defaults(func=cmd_sto)
+    _add_learning_parsers(sub)
     return parser
 
 

@@ -98,7 +98,8 @@ def test_env_rgb_array_and_headless_human_rendering():
     assert frame.shape == (100, 160, 3) and frame.dtype == np.uint8
     env.step(np.zeros(4))
     assert not np.array_equal(frame, env.render())
-    assert BoundingEnv().render() is None  # no render mode: a warning, no image
+    with pytest.warns(UserWarning, match="without a render_mode"):
+        assert BoundingEnv().render() is None  # no render mode: a warning, no image
     human = BoundingEnv(render_mode="human", width=64, height=48)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -1,0 +1,213 @@
+"""One comparison of every available policy on hsddp_gym/Bounding-v0 with the same protocol.
+
+Protocol: ``--episodes`` (default 10) episodes seeded 0, 1, ..., default env (reset noise 0.01, 1000-step
+limit), deterministic actions, via ``planners.imitation.evaluate_policy_episodes`` (which runs
+``planners.evaluation.run_episode``). The plan-tracking expert is reset to its plan's initial state
+(``options={"state": plan.X[0]}``: no reset noise, so its episodes are identical whatever the seed).
+
+Policies: ``mpc`` (HS-DDP MPC, default options), ``expert`` (tracks the 5-cycle al-reb plan), ``heuristic``,
+``random``, and the trained ones read from their run directories (skipped with a note when the files are
+missing): ``bc`` and ``dagger`` (``policy.npz`` + ``summary.json`` of ``hsddp-gym train --algo bc|dagger``),
+``ppo`` and ``sac`` (``model.zip`` + ``summary.json``, weights only, plus ``vecnormalize.npz`` for PPO).
+
+Writes into ``--out``: ``compare.md`` and ``compare.json`` (mean +- std return, falls, forward speed, the
+samples each policy learned from -- env steps for PPO/SAC, demonstration episodes and transitions for BC,
+expert labels for DAgger -- and the training wall time) and ``curves.png`` (PPO/SAC return vs env steps;
+BC and DAgger return vs expert-labelled transitions) when matplotlib is available.
+
+Usage:
+    python experiments/compare_policies.py --out runs/compare [--runs runs/train] [--episodes 10]
+        [--policies mpc expert heuristic random bc dagger ppo sac] [--bc DIR] [--dagger DIR] [--ppo DIR] [--sac DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.io import write_json
+
+POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
+TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summary.json"),
+           "ppo": ("model.zip", "summary.json"), "sac": ("model.zip", "summary.json")}
+
+
+def build(name: str, run_dir: Path | None):
+    """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
+    import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401
+    from planners.policies import EnvInterface, HeuristicPolicy, PlanTrackingExpert, RandomPolicy
+
+    env = gym.make("hsddp_gym/Bounding-v0")
+    interface = EnvInterface.from_env(env)
+    if name == "mpc":
+        from planners.mpc import MPCOptions, MPCPolicy
+
+        return MPCPolicy(interface, MPCOptions()), None, {"samples": "-", "train_time_s": None}
+    if name == "expert":
+        from planners.tasks import plan_bounding
+
+        t = time.perf_counter()
+        sol = plan_bounding("al-reb", cycles=5).solution
+        return (PlanTrackingExpert(interface, solution=sol), {"state": sol.X[0]},
+                {"samples": "-", "train_time_s": time.perf_counter() - t, "train_time_note": "offline HS-DDP plan"})
+    if name == "heuristic":
+        return HeuristicPolicy(interface), None, {"samples": "-", "train_time_s": None}
+    if name == "random":
+        return RandomPolicy(interface, seed=0), None, {"samples": "-", "train_time_s": None}
+    missing = [f for f in TRAINED[name] if run_dir is None or not (run_dir / f).exists()]
+    if missing:
+        raise FileNotFoundError(f"{name}: missing {', '.join(missing)} in {run_dir}")
+    summary = json.loads((run_dir / "summary.json").read_text())
+    if name in ("bc", "dagger"):
+        from planners.imitation import MLPPolicy
+
+        policy = MLPPolicy.load(run_dir / "policy.npz", interface)
+        if name == "bc":
+            samples = f"{summary['demonstrations']} demos ({summary['transitions']} transitions, " \
+                      f"{summary.get('dataset_policy')})"
+        else:
+            samples = f"{summary['expert_labels']} expert labels ({summary['expert']['name']} expert)"
+    else:
+        from planners.sb3 import load_trained_policy
+
+        policy = load_trained_policy(run_dir, env)
+        samples = f"{summary['steps']} env steps"
+    return policy, None, {"samples": samples, "train_time_s": summary.get("wall_time_s"), "summary": summary}
+
+
+def _read_csv(path: Path) -> list[dict]:
+    if not path.exists():
+        return []
+    with open(path) as fh:
+        return list(csv.DictReader(fh))
+
+
+def plot_curves(runs: dict, out: Path) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    any_a = any_b = False
+    for i, name in enumerate(("ppo", "sac")):
+        d = runs.get(name)
+        if d is None:
+            continue
+        ev = _read_csv(d / "eval_curve.csv")
+        tr = _read_csv(d / "curve.csv")
+        if tr:
+            x = np.array([float(r["env_step"]) for r in tr])
+            y = np.array([float(r["episode_return"]) for r in tr])
+            k = max(1, len(y) // 30)
+            if len(y) >= k:
+                a.plot(x[k - 1:], np.convolve(y, np.ones(k) / k, mode="valid"), color=f"C{i}", alpha=0.5,
+                       label=f"{name} training episodes (mean of {k})")
+                any_a = True
+        if ev:
+            a.errorbar([float(r["env_step"]) for r in ev], [float(r["mean_return"]) for r in ev],
+                       yerr=[float(r["std_return"]) for r in ev], color=f"C{i}", marker="o", ms=3, capsize=2,
+                       label=f"{name} deterministic eval")
+            any_a = True
+    a.set_xlabel("env steps")
+    a.set_ylabel("episode return")
+    a.set_title("PPO / SAC")
+    for i, name in enumerate(("bc", "dagger")):
+        d = runs.get(name)
+        rows = _read_csv(d / "curve.csv") if d is not None else []
+        rows = [r for r in rows if r.get("mean_return")]
+        if not rows:
+            continue
+        x = [float(r["transitions"]) if name == "bc" else float(r["expert_labels"]) for r in rows]
+        b.errorbar(x, [float(r["mean_return"]) for r in rows], yerr=[float(r["std_return"]) for r in rows],
+                   color=f"C{i + 2}", marker="o", ms=3, capsize=2,
+                   label="BC (first n demos)" if name == "bc" else "DAgger (per round)")
+        any_b = True
+    b.set_xlabel("expert-labelled transitions")
+    b.set_ylabel("mean return (eval)")
+    b.set_title("BC / DAgger")
+    for ax, used in ((a, any_a), (b, any_b)):
+        ax.grid(alpha=0.3)
+        if used:
+            ax.legend(fontsize=7)
+        else:
+            ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
+    fig.tight_layout()
+    fig.savefig(out / "curves.png", dpi=120)
+    plt.close(fig)
+    return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="runs/compare")
+    p.add_argument("--runs", default="runs/train", help="default parent of the bc/dagger/ppo/sac run directories")
+    for name in TRAINED:
+        p.add_argument(f"--{name}", default=None, help=f"{name} run directory (default: RUNS/{name})")
+    p.add_argument("--episodes", type=int, default=10, help="episodes per policy, seeds 0.. (default: %(default)s)")
+    p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES))
+    args = p.parse_args(argv)
+    if args.episodes < 10:
+        print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    from planners.imitation import evaluate_policy_episodes
+
+    runs = {n: Path(getattr(args, n) or Path(args.runs) / n) for n in TRAINED}
+    rows, notes = [], []
+    for name in args.policies:
+        try:
+            policy, options, info = build(name, runs.get(name))
+        except FileNotFoundError as exc:
+            notes.append(f"skipped {exc}")
+            print(f"skip: {exc}", flush=True)
+            continue
+        t = time.perf_counter()
+        ev = evaluate_policy_episodes(policy, args.episodes, 0, reset_options=options)
+        row = {"policy": name, "mean_return": ev["mean_return"], "std_return": ev["std_return"],
+               "returns": ev["returns"], "falls": ev["falls"], "episodes": ev["episodes"],
+               "mean_forward_speed": ev["mean_forward_speed"], "mean_episode_length": ev["mean_episode_length"],
+               "samples": info["samples"], "train_time_s": info.get("train_time_s"),
+               "eval_wall_s": time.perf_counter() - t, "real_time_factor": ev.get("real_time_factor")}
+        if ev.get("replans"):
+            row.update(replans=ev["replans"], planner_failures=ev["planner_failures"],
+                       mean_replan_ms=ev["mean_replan_ms"])
+        rows.append(row)
+        print(f"{name:<10} return {row['mean_return']:8.1f} ± {row['std_return']:6.1f}  falls {row['falls']}/"
+              f"{row['episodes']}  speed {row['mean_forward_speed']:+.2f} m/s  length "
+              f"{row['mean_episode_length']:.0f}  ({row['eval_wall_s']:.0f} s)", flush=True)
+    lines = [f"# Policies on hsddp_gym/Bounding-v0 ({args.episodes} episodes, seeds 0..{args.episodes - 1}, "
+             "deterministic)", "",
+             "| policy | return (mean ± std) | falls | forward speed [m/s] | episode length | learned from | "
+             "training wall time |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        tt = "-" if r["train_time_s"] is None else f"{r['train_time_s']:.0f} s"
+        lines.append(f"| {r['policy']} | {r['mean_return']:.1f} ± {r['std_return']:.1f} | {r['falls']}/"
+                     f"{r['episodes']} | {r['mean_forward_speed']:.2f} | {r['mean_episode_length']:.0f} | "
+                     f"{r['samples']} | {tt} |")
+    lines += ["", "The expert starts every episode at its plan's initial state (no reset noise).",
+              "Return per step is at most 1.5 (tracking 1 + healthy 0.5, minus the control cost); 1000 steps."]
+    lines += [f"- {n}" for n in notes]
+    plotted = plot_curves({n: d for n, d in runs.items() if d.exists()}, out)
+    if plotted:
+        lines += ["", "![curves](curves.png)"]
+    (out / "compare.md").write_text("\n".join(lines) + "\n")
+    write_json(out / "compare.json", {"episodes": args.episodes, "seeds": list(range(args.episodes)), "rows": rows,
+                                      "notes": notes, "runs": {n: str(d) for n, d in runs.items()}})
+    print("\n".join(lines))
+    print(f"wrote {out / 'compare.md'}, {out / 'compare.json'}" + (", curves.png" if plotted else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

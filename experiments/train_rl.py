@@ -1,0 +1,69 @@
+"""RL baselines on hsddp_gym/Bounding-v0: PPO and SAC with the RL-Zoo HalfCheetah-v3 hyperparameters.
+
+Hyperparameters (planners.sb3.PPO_HYPERPARAMS / SAC_HYPERPARAMS, from rl-baselines3-zoo hyperparams/*.yml):
+
+* PPO: VecNormalize (obs + reward), 1 env, n_steps 512, batch 64, gamma 0.98, gae_lambda 0.92,
+  lr 2.0633e-5, clip 0.1, n_epochs 20, ent_coef 4e-4, max_grad_norm 0.8, vf_coef 0.58,
+  policy_kwargs log_std_init -2, ortho_init False, ReLU, pi/vf [256, 256].
+* SAC: SB3 defaults (lr 3e-4, buffer 1e6, batch 256, tau 0.005, gamma 0.99, train_freq 1, gradient_steps 1,
+  auto entropy, [256, 256] ReLU) + learning_starts 10000.
+
+Each run writes into OUT/ALGO/seedS: model.zip, vecnormalize.{pkl,npz} (PPO), train.monitor.csv,
+evaluations.npz, curve.csv / eval_curve.csv / curve.png (return vs env steps) and summary.json (hyperparameters,
+wall time, a final deterministic evaluation on seeds 0..9). One run is the same as
+``hsddp-gym train --algo ALGO --steps N --seed S --out DIR``.
+
+Usage:
+    python experiments/train_rl.py --algos ppo sac --seeds 0 --steps 50000 --out runs/rl      # short check
+    python experiments/train_rl.py --algos ppo sac --seeds 0 1 2 3 4 --steps 1000000 --out runs/rl  # the protocol
+
+The machine is shared: one torch thread per run, runs one after the other. Measured throughput on this
+2-core machine (shared) is printed at the end of every run (env steps / wall second).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from planners.sb3 import ALGOS, train_sb3
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS))
+    p.add_argument("--seeds", nargs="+", type=int, default=[0])
+    p.add_argument("--steps", type=int, default=1_000_000, help="env steps per run (default: %(default)s)")
+    p.add_argument("--out", default="runs/rl")
+    p.add_argument("--learning-starts", type=int, default=None, help="SAC override (zoo: 10000)")
+    p.add_argument("--eval-freq", type=int, default=None, help="env steps between 5-episode evaluations")
+    p.add_argument("--eval-episodes", type=int, default=10, help="final evaluation episodes (seeds 0..)")
+    p.add_argument("--progress", action="store_true", help="SB3 progress bar")
+    p.add_argument("--time-limit", type=float, default=None,
+                   help="wall-clock budget per run [s]: training stops there and reports the steps that fit")
+    args = p.parse_args(argv)
+    rows = []
+    for algo in args.algos:
+        for seed in args.seeds:
+            out = Path(args.out) / algo / f"seed{seed}"
+            overrides = {"learning_starts": args.learning_starts} if algo == "sac" and args.learning_starts else None
+            res = train_sb3(algo, args.steps, seed, out, overrides=overrides, eval_freq=args.eval_freq,
+                            final_eval_episodes=args.eval_episodes, progress=args.progress,
+                            time_limit=args.time_limit)
+            s = res.summary
+            ev = s.get("eval", {})
+            rows.append((algo, seed, s["steps"], s["wall_time_s"], ev.get("mean_return"), ev.get("std_return"),
+                         ev.get("falls")))
+            nan = float("nan")
+            print(f"{algo} seed {seed}: {s['steps']} steps in {s['wall_time_s']:.0f} s "
+                  f"({s['steps'] / s['wall_time_s']:.0f} steps/s); eval return {ev.get('mean_return', nan):.1f} +- "
+                  f"{ev.get('std_return', nan):.1f}, falls {ev.get('falls')}/{ev.get('episodes')} -> {out}", flush=True)
+    print("\n| algo | seed | env steps | wall [s] | return (10 eps) | falls |\n|---|---|---|---|---|---|")
+    for algo, seed, steps, wall, m, sd, falls in rows:
+        print(f"| {algo} | {seed} | {steps} | {wall:.0f} | {m:.1f} ± {sd:.1f} | {falls} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,591 @@
+"""Learning from demonstrations in plain PyTorch: behaviour cloning and DAgger (no ``imitation`` dependency).
+
+**Behaviour cloning** (:func:`train_bc`, defaults in :class:`BCConfig`): an MLP ``obs -> action`` with two
+hidden layers of 256 ReLU units and a tanh output (the env's actions are normalized torques in [-1, 1]),
+trained with Adam (lr 1e-3, batch 256, no weight decay) on the mean squared error to the demonstrated
+normalized actions, for ``epochs`` passes over the data. Observations are standardized with the mean and
+standard deviation of the training data (std floored at 1e-3, result clipped to +-10, as SB3's
+VecNormalize). Seeded: ``torch.manual_seed(seed)`` for the initialization and a seeded generator for the
+minibatch order, one CPU thread, so a run is reproducible.
+
+The trained policy is an :class:`MLPPolicy`, a :class:`~planners.policies.Policy` whose inference is NumPy
+only (no torch at evaluation), saved as ``.npz`` (weights + normalization + config as JSON; loading never
+unpickles).
+
+**Demonstrations** (:func:`load_demonstrations`) come from a Minari dataset (``minari.load_dataset`` /
+:func:`hsddp_gym.datasets.load_minari`, the default) or from a dataset's ``episodes.npz``
+(:func:`hsddp_gym.datasets.load_npz`): pairs (observation t, action t) of the first ``episodes`` episodes.
+
+**DAgger** (:func:`train_dagger`, Ross et al. 2011): round 0 trains BC on the initial demonstrations (or on
+``episodes_per_round`` expert episodes if none are given). In round ``i >= 1`` the executed action is the
+expert's with probability ``beta_i = beta_decay ** i`` and the learner's otherwise (drawn per step from a
+seeded generator); the expert runs *alongside* on the same env states for the whole episode -- it is
+queried at every visited observation, so a policy with memory (gait clock, plan cursor, MPC warm start)
+keeps its memory consistent -- and its action is the label of that observation. The labels are added to the
+aggregate data and BC is retrained from scratch on it. ``expert_labels`` counts every expert label used for
+training (the initial demonstrations' actions included).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.io import read_npz, write_npz
+from planners.policies import EnvInterface, Policy
+
+ACTIVATIONS = ("relu", "tanh")
+
+
+# ================================================================================================ config
+@dataclasses.dataclass(frozen=True)
+class BCConfig:
+    """Behaviour-cloning settings (defaults documented in the module docstring)."""
+
+    hidden: tuple = (256, 256)
+    activation: str = "relu"
+    lr: float = 1e-3
+    batch_size: int = 256
+    epochs: int = 50
+    weight_decay: float = 0.0
+    seed: int = 0
+    std_floor: float = 1e-3
+    obs_clip: float = 10.0
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {ACTIVATIONS}, got {self.activation!r}")
+        if not self.hidden or any(int(h) < 1 for h in self.hidden):
+            raise ValueError(f"hidden must be a non-empty sequence of positive sizes, got {self.hidden!r}")
+        for name in ("lr", "std_floor", "obs_clip"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("batch_size", "epochs", "threads"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["hidden"] = [int(h) for h in self.hidden]
+        return d
+
+
+# ================================================================================================ policy
+class MLPPolicy(Policy):
+    """A deterministic MLP policy ``action = tanh(W_L f(... f(W_1 z + b_1)) + b_L)`` with ``z`` the clipped,
+    standardized observation; NumPy inference.
+
+    Args:
+        weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
+        obs_mean, obs_std: standardization (obs_dim,). config: the :class:`BCConfig` it was trained with.
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), weights=None, obs_mean=None, obs_std=None,
+                 config: BCConfig = BCConfig(), info: dict | None = None) -> None:
+        super().__init__(interface)
+        if weights is None or obs_mean is None or obs_std is None:
+            raise ValueError("weights, obs_mean and obs_std are required")
+        self.weights = [(np.asarray(W, dtype=np.float64), np.asarray(b, dtype=np.float64)) for W, b in weights]
+        self.obs_mean = np.asarray(obs_mean, dtype=np.float64)
+        self.obs_std = np.asarray(obs_std, dtype=np.float64)
+        self.config = config
+        self.info = dict(info or {})
+        if self.obs_mean.shape != (interface.layout.size,):
+            raise ValueError(f"obs_mean must have shape ({interface.layout.size},), got {self.obs_mean.shape}")
+
+    def forward(self, obs: np.ndarray) -> np.ndarray:
+        """Actions ``(n, 4)`` for observations ``(n, obs_dim)`` (float64)."""
+        z = np.clip((np.asarray(obs, dtype=np.float64) - self.obs_mean) / self.obs_std, -self.config.obs_clip,
+                    self.config.obs_clip)
+        for W, b in self.weights[:-1]:
+            z = z @ W.T + b
+            z = np.maximum(z, 0.0) if self.config.activation == "relu" else np.tanh(z)
+        W, b = self.weights[-1]
+        return np.tanh(z @ W.T + b)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.forward(np.asarray(obs)[None])[0].astype(np.float32)
+
+    def save(self, path) -> Path:
+        """Write ``.npz``: ``W0, b0, W1, ...``, ``obs_mean``, ``obs_std`` and ``meta`` (JSON: config, info)."""
+        arrays = {"obs_mean": self.obs_mean, "obs_std": self.obs_std}
+        for i, (W, b) in enumerate(self.weights):
+            arrays[f"W{i}"], arrays[f"b{i}"] = W, b
+        meta = {"config": self.config.to_dict(), "n_layers": len(self.weights), "info": self.info,
+                "layout_exclude_current_positions": bool(self.interface.layout.exclude_current_positions)}
+        arrays["meta"] = np.array(json.dumps(meta))
+        return write_npz(path, **arrays)
+
+    @classmethod
+    def load(cls, path, interface: EnvInterface | None = None) -> MLPPolicy:
+        """Read a policy written by :meth:`save` (no pickle). ``interface``: the env's (default: defaults)."""
+        d = read_npz(path)
+        meta = json.loads(str(d["meta"]))
+        cfg = dict(meta["config"])
+        cfg["hidden"] = tuple(cfg["hidden"])
+        weights = [(d[f"W{i}"], d[f"b{i}"]) for i in range(meta["n_layers"])]
+        return cls(interface if interface is not None else EnvInterface(), weights=weights, obs_mean=d["obs_mean"],
+                   obs_std=d["obs_std"], config=BCConfig(**cfg), info=meta.get("info"))
+
+
+# ================================================================================================ data
+@dataclasses.dataclass
+class Demonstrations:
+    """Labelled observations: ``obs (N, d)`` float32, ``actions (N, 4)`` float32, ``episode (N,)`` the
+    episode each pair comes from (0-based, in dataset order)."""
+
+    obs: np.ndarray
+    actions: np.ndarray
+    episode: np.ndarray
+
+    @property
+    def n_episodes(self) -> int:
+        return int(self.episode.max() + 1) if len(self.episode) else 0
+
+    def __len__(self) -> int:
+        return int(len(self.obs))
+
+    def first_episodes(self, n: int) -> Demonstrations:
+        keep = self.episode < int(n)
+        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep])
+
+    def concat(self, other: Demonstrations) -> Demonstrations:
+        offset = self.n_episodes
+        return Demonstrations(np.concatenate([self.obs, other.obs]), np.concatenate([self.actions, other.actions]),
+                              np.concatenate([self.episode, other.episode + offset]))
+
+
+def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari") -> Demonstrations:
+    """(observation t, action t) pairs from a dataset.
+
+    Args:
+        source: a ``MinariDataset``, a :class:`hsddp_gym.datasets.FlatDataset`, a dataset directory written
+            by :func:`hsddp_gym.datasets.generate_dataset`, or an ``episodes.npz`` file.
+        episodes: use only the first ``episodes`` episodes (None: all).
+        fmt: for a directory, read the Minari dataset (``"minari"``, via ``minari.load_dataset``) or
+            ``episodes.npz`` (``"npz"``).
+    """
+    from hsddp_gym import datasets
+
+    if fmt not in ("minari", "npz"):
+        raise ValueError(f"fmt must be 'minari' or 'npz', got {fmt!r}")
+    if isinstance(source, (str, Path)):
+        p = Path(source)
+        if p.is_file():
+            source = datasets.load_npz(p)
+        elif fmt == "npz":
+            source = datasets.load_npz(p)
+        else:
+            source = datasets.load_minari(p)
+    obs, acts, ep = [], [], []
+    if isinstance(source, datasets.FlatDataset):
+        n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
+        for i in range(n):
+            e = source.episode(i)
+            obs.append(e["observations"][:-1])
+            acts.append(e["actions"])
+            ep.append(np.full(len(e["actions"]), i))
+    else:  # a MinariDataset
+        n = source.total_episodes if episodes is None else min(int(episodes), source.total_episodes)
+        for i, e in enumerate(source.iterate_episodes(episode_indices=list(range(n)))):
+            obs.append(np.asarray(e.observations)[:-1])
+            acts.append(np.asarray(e.actions))
+            ep.append(np.full(len(e.actions), i))
+    if not obs:
+        raise ValueError("the dataset has no episodes")
+    return Demonstrations(np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32),
+                          np.concatenate(ep).astype(np.int64))
+
+
+# ================================================================================================ BC
+def _activation(name: str):
+    import torch.nn as nn
+
+    return nn.ReLU if name == "relu" else nn.Tanh
+
+
+def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: EnvInterface = EnvInterface(),
+             callback: Callable | None = None) -> tuple[MLPPolicy, dict]:
+    """Behaviour cloning on ``demos`` (see the module docstring).
+
+    Args:
+        callback: called after every epoch with ``(epoch, mean_loss)``.
+    Returns:
+        ``(policy, history)`` with ``history = {"loss": [mean training loss per epoch], "wall_time_s",
+        "transitions"}``.
+    """
+    import torch
+    import torch.nn as nn
+
+    if len(demos) == 0:
+        raise ValueError("demos is empty")
+    torch.set_num_threads(int(config.threads))
+    torch.manual_seed(int(config.seed))
+    t0 = time.perf_counter()
+    obs = np.asarray(demos.obs, dtype=np.float64)
+    acts = np.clip(np.asarray(demos.actions, dtype=np.float64), -1.0, 1.0)
+    mean = obs.mean(axis=0)
+    std = np.maximum(obs.std(axis=0), config.std_floor)
+    z = np.clip((obs - mean) / std, -config.obs_clip, config.obs_clip)
+    X = torch.as_tensor(z, dtype=torch.float32)
+    Y = torch.as_tensor(acts, dtype=torch.float32)
+    layers, size = [], X.shape[1]
+    for h in config.hidden:
+        layers += [nn.Linear(size, int(h)), _activation(config.activation)()]
+        size = int(h)
+    layers += [nn.Linear(size, Y.shape[1]), nn.Tanh()]
+    net = nn.Sequential(*layers)
+    opt = torch.optim.Adam(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    gen = torch.Generator().manual_seed(int(config.seed))
+    n, bs = len(X), min(int(config.batch_size), len(X))
+    losses = []
+    for epoch in range(int(config.epochs)):
+        perm = torch.randperm(n, generator=gen)
+        total = 0.0
+        for start in range(0, n, bs):
+            idx = perm[start:start + bs]
+            loss = ((net(X[idx]) - Y[idx]) ** 2).mean()
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            total += float(loss.detach()) * len(idx)
+        losses.append(total / n)
+        if callback is not None:
+            callback(epoch, losses[-1])
+    linears = [m for m in net if isinstance(m, nn.Linear)]
+    weights = [(m.weight.detach().numpy().astype(np.float64), m.bias.detach().numpy().astype(np.float64))
+               for m in linears]
+    history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n),
+               "episodes": demos.n_episodes}
+    policy = MLPPolicy(interface, weights=weights, obs_mean=mean, obs_std=std, config=config,
+                       info={"transitions": int(n), "episodes": demos.n_episodes, "final_loss": losses[-1]})
+    return policy, history
+
+
+# ================================================================================================ DAgger
+@dataclasses.dataclass(frozen=True)
+class DAggerConfig:
+    """DAgger settings.
+
+    Attributes:
+        rounds: relabelling rounds after round 0. episodes_per_round: learner/mixture episodes per round
+            (and expert episodes of round 0 when no initial demonstrations are given).
+        beta_decay: ``beta_i = beta_decay ** i`` (round 0: 1, pure expert). 0 gives pure learner rollouts.
+        bc: the BC settings used in every round (retrained from scratch on the aggregate data).
+        seed: episode ``j`` of round ``i`` is reset with seed ``seed + 1000 * i + j``; the mixture draws come
+            from ``np.random.default_rng([seed, i, j])``.
+        max_episode_steps: time-limit override of the rollouts (None: the env's 1000).
+    """
+
+    rounds: int = 4
+    episodes_per_round: int = 5
+    beta_decay: float = 0.5
+    bc: BCConfig = BCConfig()
+    seed: int = 0
+    max_episode_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        if int(self.rounds) < 0:
+            raise ValueError(f"rounds must be >= 0, got {self.rounds!r}")
+        if int(self.episodes_per_round) < 1:
+            raise ValueError(f"episodes_per_round must be >= 1, got {self.episodes_per_round!r}")
+        if not 0.0 <= float(self.beta_decay) <= 1.0:
+            raise ValueError(f"beta_decay must be in [0, 1], got {self.beta_decay!r}")
+
+    def beta(self, round_index: int) -> float:
+        return 1.0 if round_index == 0 else float(self.beta_decay) ** int(round_index)
+
+
+@dataclasses.dataclass
+class DAggerResult:
+    """``policy`` (the last round's learner), ``data`` (aggregate labels), ``history`` (one dict per round:
+    ``round, beta, episodes, new_labels, expert_labels, transitions, rollout_mean_return, expert_actions_fraction,
+    final_loss, eval`` (if evaluated)), ``expert_labels`` (total) and ``wall_time_s``."""
+
+    policy: MLPPolicy
+    data: Demonstrations
+    history: list
+    expert_labels: int
+    wall_time_s: float
+
+
+def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
+                   options: dict | None = None) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """One episode in which the expert labels every visited observation and the executed action is the
+    expert's with probability ``beta``. Returns ``(obs (T, d), expert actions (T, 4), return, expert acts)``."""
+    obs, _ = env.reset(seed=int(seed), options=options)
+    expert.reset()
+    if learner is not None:
+        learner.reset()
+    O, A, ret, n_expert = [], [], 0.0, 0
+    while True:
+        label = np.asarray(expert(obs), dtype=np.float32)
+        O.append(np.asarray(obs, dtype=np.float32))
+        A.append(label)
+        use_expert = learner is None or rng.random() < beta
+        n_expert += int(use_expert)
+        action = label if use_expert else np.asarray(learner(obs), dtype=np.float32)
+        obs, reward, terminated, truncated, _ = env.step(action)
+        ret += float(reward)
+        if terminated or truncated:
+            break
+    return np.array(O), np.array(A), ret, n_expert
+
+
+def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig(),
+                 initial: Demonstrations | None = None, env_kwargs: dict | None = None,
+                 evaluate: Callable | None = None, progress: bool = True) -> DAggerResult:
+    """DAgger with any expert (see the module docstring).
+
+    Args:
+        expert_factory: ``(env, episode_seed) -> (expert Policy, reset_options or None)``, e.g.
+            :class:`hsddp_gym.datasets.PolicySpec`; one expert is built per rollout.
+        initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
+        evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
+    """
+    from tqdm import tqdm
+
+    from hsddp_gym.datasets import make_env
+
+    t0 = time.perf_counter()
+    env = make_env(env_kwargs, config.max_episode_steps)
+    interface = EnvInterface.from_env(env)
+    history = []
+    data = initial
+    expert_labels = 0
+    bar = tqdm(total=config.rounds + 1, desc="DAgger rounds", unit="round", disable=not progress)
+    learner = None
+    for r in range(config.rounds + 1):
+        beta = config.beta(r)
+        new, returns, expert_acts, n_eps = None, [], 0, 0
+        if r > 0 or data is None:
+            parts = []
+            for j in range(config.episodes_per_round):
+                seed = config.seed + 1000 * r + j
+                expert, options = expert_factory(env, seed)
+                O, A, ret, ne = dagger_rollout(env, learner if r > 0 else None, expert, beta, seed,
+                                               np.random.default_rng([config.seed, r, j]), options)
+                parts.append(Demonstrations(O, A, np.full(len(O), j)))
+                returns.append(ret)
+                expert_acts += ne
+            new = parts[0]
+            for p in parts[1:]:
+                new = new.concat(p)
+            n_eps = len(parts)
+            data = new if data is None else data.concat(new)
+            expert_labels += len(new)
+        else:
+            expert_labels += len(data)  # the initial demonstrations' actions are expert labels too
+        learner, hist = train_bc(data, dataclasses.replace(config.bc, seed=config.bc.seed + r), interface)
+        rec = {"round": r, "beta": beta, "episodes": n_eps, "new_labels": int(len(new)) if new is not None else
+               int(len(data)), "expert_labels": int(expert_labels), "transitions": int(len(data)),
+               "rollout_mean_return": float(np.mean(returns)) if returns else None,
+               "expert_actions_fraction": (expert_acts / len(new)) if new is not None and len(new) else 1.0,
+               "final_loss": hist["loss"][-1], "bc_wall_time_s": hist["wall_time_s"]}
+        if evaluate is not None:
+            rec["eval"] = evaluate(learner)
+        history.append(rec)
+        bar.update(1)
+        bar.set_postfix(labels=expert_labels)
+    bar.close()
+    env.close()
+    learner.info.update(expert_labels=int(expert_labels), dagger_rounds=int(config.rounds))
+    return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0)
+
+
+# ================================================================================================ evaluation
+def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwargs: dict | None = None,
+                             max_episode_steps: int | None = None, reset_options: dict | None = None) -> dict:
+    """The comparison protocol: ``episodes`` episodes seeded ``seed, seed + 1, ...``, the policy's
+    deterministic actions; returns :func:`planners.evaluation.summarize` (mean/std return, falls, forward
+    speed, episode length, ...)."""
+    from hsddp_gym.datasets import make_env
+    from planners.evaluation import run_episode, summarize
+
+    env = make_env(env_kwargs, max_episode_steps)
+    try:
+        results = [run_episode(env, policy, seed + i, options=reset_options) for i in range(int(episodes))]
+    finally:
+        env.close()
+    return summarize(results)
+
+
+# ================================================================================================ runs
+def plot_curve(path, x, y, yerr=None, xlabel: str = "", ylabel: str = "mean return", title: str = "",
+               reference: dict | None = None) -> bool:
+    """A line plot with error bars saved to ``path`` (False when matplotlib is missing)."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.errorbar(x, y, yerr=yerr, marker="o", ms=4, capsize=3)
+    for i, (name, value) in enumerate((reference or {}).items()):
+        if value is not None:
+            ax.axhline(value, ls="--", lw=1, color=f"C{i + 1}", label=name)
+    if reference:
+        ax.legend(fontsize=8)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return True
+
+
+def _write_csv(path, header, rows) -> None:
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+
+
+def _eval_brief(summary: dict) -> dict:
+    keys = ("episodes", "seeds", "mean_return", "std_return", "returns", "falls", "mean_forward_speed",
+            "mean_episode_length")
+    return {k: summary[k] for k in keys if k in summary}
+
+
+def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: int | None = None,
+           fmt: str = "minari", eval_episodes: int = 10, curve: list | None = None,
+           env_kwargs: dict | None = None, max_episode_steps: int | None = None, progress: bool = True) -> dict:
+    """Train BC on a dataset directory and write into ``out``: ``policy.npz``, ``summary.json``,
+    ``loss.csv`` and, with ``curve`` (numbers of demonstration episodes), ``curve.csv`` / ``curve.png`` of
+    the evaluation return of BC trained on the first n episodes.
+
+    The evaluation uses the comparison protocol (``eval_episodes`` episodes, seeds 0, 1, ..., default reset
+    noise, the env's 1000-step limit unless ``max_episode_steps``).
+    """
+    from hsddp_gym.datasets import make_env, read_metadata
+    from hsddp_gym.io import write_json
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = dataclasses.replace(config or BCConfig(), seed=int(seed))
+    meta = read_metadata(dataset)
+    env_kwargs = dict(meta.get("env_kwargs", {}) if env_kwargs is None else env_kwargs)
+    env = make_env(env_kwargs, max_episode_steps)
+    interface = EnvInterface.from_env(env)
+    env.close()
+    data = load_demonstrations(dataset, episodes=demos, fmt=fmt)
+    loss_bar = None
+    if progress:
+        from tqdm import tqdm
+
+        loss_bar = tqdm(total=config.epochs, desc="BC epochs", unit="epoch")
+
+    def cb(epoch, loss):
+        if loss_bar is not None:
+            loss_bar.update(1)
+            loss_bar.set_postfix(loss=f"{loss:.4g}")
+
+    policy, hist = train_bc(data, config, interface, callback=cb)
+    if loss_bar is not None:
+        loss_bar.close()
+    policy.info.update(dataset=str(dataset), dataset_id=meta.get("dataset_id"))
+    policy.save(out / "policy.npz")
+    _write_csv(out / "loss.csv", ["epoch", "loss"], [[i + 1, f"{v:.6g}"] for i, v in enumerate(hist["loss"])])
+    summary = {"algo": "bc", "dataset": str(dataset), "dataset_id": meta.get("dataset_id"),
+               "dataset_policy": meta.get("policy", {}).get("name"), "format": fmt, "seed": int(seed),
+               "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
+               "config": config.to_dict(), "loss": hist["loss"], "final_loss": hist["loss"][-1],
+               "wall_time_s": hist["wall_time_s"], "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
+               "files": ["policy.npz", "loss.csv", "summary.json"]}
+    if eval_episodes > 0:
+        summary["eval"] = _eval_brief(evaluate_policy_episodes(policy, eval_episodes, 0, env_kwargs,
+                                                               max_episode_steps))
+    if curve:
+        rows, points = [], []
+        for n in sorted({min(int(c), data.n_episodes) for c in curve if int(c) >= 1}):
+            sub = data if n >= data.n_episodes else data.first_episodes(n)
+            p, h = (policy, hist) if sub is data else train_bc(sub, config, interface)
+            ev = evaluate_policy_episodes(p, max(eval_episodes, 1), 0, env_kwargs, max_episode_steps)
+            rows.append([n, len(sub), f"{ev['mean_return']:.6g}", f"{ev['std_return']:.6g}", ev["falls"],
+                         f"{h['wall_time_s']:.3f}"])
+            points.append({"demonstrations": n, "transitions": len(sub), "mean_return": ev["mean_return"],
+                           "std_return": ev["std_return"], "falls": ev["falls"]})
+        _write_csv(out / "curve.csv", ["demonstrations", "transitions", "mean_return", "std_return", "falls",
+                                       "train_wall_time_s"], rows)
+        summary["curve"] = points
+        summary["files"].append("curve.csv")
+        if points and plot_curve(out / "curve.png", [p["demonstrations"] for p in points],
+                                 [p["mean_return"] for p in points], [p["std_return"] for p in points],
+                                 "demonstration episodes", title="BC vs number of demonstrations",
+                                 reference={"dataset policy (ref_max_score)": meta.get("ref_max_score"),
+                                            "random (ref_min_score)": meta.get("ref_min_score")}):
+            summary["files"].append("curve.png")
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
+               demos: int | None = None, fmt: str = "minari", eval_episodes: int = 10,
+               env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True) -> dict:
+    """DAgger with a built-in expert (``heuristic``, ``mpc`` or ``expert``) and write into ``out``:
+    ``policy.npz``, ``dagger_data.npz`` (aggregate labels), ``summary.json``, ``curve.csv`` / ``curve.png``
+    (evaluation return after each round vs expert labels).
+
+    Args:
+        dataset: optional dataset directory whose first ``demos`` episodes are the round-0 demonstrations.
+    """
+    from hsddp_gym.datasets import PolicySpec, solve_expert_plan
+    from hsddp_gym.io import write_json
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = dataclasses.replace(config or DAggerConfig(), seed=int(seed),
+                                 bc=dataclasses.replace((config or DAggerConfig()).bc, seed=int(seed)))
+    env_kwargs = dict(env_kwargs or {})
+    files = ["policy.npz", "dagger_data.npz", "summary.json", "curve.csv"]
+    plan = None
+    if expert == "expert":
+        plan = solve_expert_plan(out / "expert_plan.npz")
+        spec = PolicySpec("expert", plan_path=str(out / "expert_plan.npz"))
+        files.append("expert_plan.npz")
+    else:
+        spec = PolicySpec(expert, options=dict(mpc_options or {}))
+    initial = load_demonstrations(dataset, episodes=demos, fmt=fmt) if dataset is not None else None
+
+    def evaluate(p):
+        if eval_episodes <= 0:
+            return None
+        return _eval_brief(evaluate_policy_episodes(p, eval_episodes, 0, env_kwargs, config.max_episode_steps))
+
+    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress)
+    res.policy.save(out / "policy.npz")
+    write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode)
+    rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],
+             f"{h['eval']['mean_return']:.6g}" if h.get("eval") else "", f"{h['eval']['std_return']:.6g}"
+             if h.get("eval") else "", h["eval"]["falls"] if h.get("eval") else ""] for h in res.history]
+    _write_csv(out / "curve.csv", ["round", "beta", "expert_labels", "transitions", "mean_return", "std_return",
+                                   "falls"], rows)
+    evals = [h for h in res.history if h.get("eval")]
+    if evals and plot_curve(out / "curve.png", [h["expert_labels"] for h in evals],
+                            [h["eval"]["mean_return"] for h in evals], [h["eval"]["std_return"] for h in evals],
+                            "expert labels", title=f"DAgger ({expert} expert) vs expert labels"):
+        files.append("curve.png")
+    summary = {"algo": "dagger", "expert": spec.describe(), "seed": int(seed), "config": {
+        **{k: v for k, v in dataclasses.asdict(config).items() if k != "bc"}, "bc": config.bc.to_dict()},
+        "initial_dataset": None if dataset is None else str(dataset), "initial_demonstrations":
+        None if initial is None else initial.n_episodes, "expert_labels": res.expert_labels,
+        "transitions": len(res.data), "history": res.history, "wall_time_s": res.wall_time_s,
+        "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files}
+    if plan is not None:
+        summary["expert_plan"] = plan
+    if res.history and res.history[-1].get("eval"):
+        summary["eval"] = res.history[-1]["eval"]
+    write_json(out / "summary.json", summary)
+    return summary

@@ -1,0 +1,193 @@
+"""Learning from demonstrations and RL baselines: BC, DAgger, the SB3 adapter, PPO/SAC smoke runs."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym import cli
+from hsddp_gym.datasets import PolicySpec, generate_dataset
+from planners.imitation import (
+    BCConfig,
+    DAggerConfig,
+    MLPPolicy,
+    load_demonstrations,
+    train_bc,
+    train_dagger,
+)
+from planners.policies import HeuristicPolicy, RandomPolicy
+from planners.sb3 import as_sb3_policy
+
+torch = pytest.importorskip("torch")
+torch.set_num_threads(1)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demos") / "heuristic"
+    generate_dataset("heuristic", 3, out, seed=0, max_episode_steps=60, progress=False)
+    return out
+
+
+def make_env(**kw):
+    return gym.make("hsddp_gym/Bounding-v0", **kw)
+
+
+# ------------------------------------------------------------------------------------------ BC
+def test_minari_and_npz_give_the_same_demonstrations(dataset):
+    a = load_demonstrations(dataset, fmt="minari")
+    b = load_demonstrations(dataset / "episodes.npz")
+    np.testing.assert_array_equal(a.obs, b.obs)
+    np.testing.assert_array_equal(a.actions, b.actions)
+    assert a.n_episodes == 3 and len(a) == len(a.actions)
+    assert load_demonstrations(dataset, episodes=1, fmt="npz").n_episodes == 1
+
+
+def test_bc_loss_decreases_and_is_reproducible(dataset, tmp_path):
+    demos = load_demonstrations(dataset)
+    cfg = BCConfig(hidden=(64, 64), epochs=15, batch_size=64, seed=3)
+    policy, hist = train_bc(demos, cfg)
+    loss = hist["loss"]
+    assert len(loss) == 15 and loss[-1] < 0.5 * loss[0]
+    again, hist2 = train_bc(demos, cfg)
+    assert hist2["loss"] == loss
+    obs = demos.obs[:20]
+    np.testing.assert_array_equal(policy.forward(obs), again.forward(obs))
+    policy.save(tmp_path / "bc.npz")
+    loaded = MLPPolicy.load(tmp_path / "bc.npz")
+    a = loaded.act(obs[0])
+    assert a.shape == (4,) and a.dtype == np.float32 and np.all(np.abs(a) <= 1)
+    np.testing.assert_array_equal(loaded.forward(obs), policy.forward(obs))
+
+
+def test_dagger_counts_expert_labels(dataset):
+    cfg = DAggerConfig(rounds=2, episodes_per_round=2, beta_decay=0.5, max_episode_steps=25,
+                       bc=BCConfig(hidden=(32, 32), epochs=3, batch_size=64))
+    initial = load_demonstrations(dataset, episodes=1)
+    calls = []
+
+    def evaluate(p):
+        calls.append(p)
+        return {"ok": True}
+
+    res = train_dagger(PolicySpec("heuristic"), cfg, initial=initial, evaluate=evaluate, progress=False)
+    h = res.history
+    assert [r["round"] for r in h] == [0, 1, 2] and [r["beta"] for r in h] == [1.0, 0.5, 0.25]
+    assert h[0]["new_labels"] == len(initial)
+    new = sum(r["new_labels"] for r in h[1:])
+    assert res.expert_labels == len(initial) + new == len(res.data) == h[-1]["expert_labels"]
+    assert all(r["episodes"] == 2 for r in h[1:]) and 0 < new <= 4 * 25
+    assert 0.0 <= h[2]["expert_actions_fraction"] <= 1.0 and len(calls) == 3
+    # the labels are the expert's actions on the visited observations
+    expert = HeuristicPolicy()
+    obs = res.data.obs[len(initial):]
+    first = obs[: int(np.argmax(res.data.episode[len(initial):] != res.data.episode[len(initial)])) or len(obs)]
+    expert.reset()
+    np.testing.assert_array_equal(np.stack([expert(o) for o in first]),
+                                  res.data.actions[len(initial):len(initial) + len(first)])
+
+
+def test_dagger_without_initial_data_starts_from_expert_episodes():
+    cfg = DAggerConfig(rounds=1, episodes_per_round=1, max_episode_steps=10,
+                       bc=BCConfig(hidden=(16,), epochs=2))
+    res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
+    assert res.history[0]["episodes"] == 1 and res.history[0]["expert_actions_fraction"] == 1.0
+    assert res.expert_labels == len(res.data) <= 20
+
+
+# ------------------------------------------------------------------------------------------ SB3 adapter
+def test_sb3_adapter_returns_the_callables_actions():
+    from stable_baselines3.common.policies import BasePolicy
+
+    env = make_env(max_episode_steps=40)
+    reference = HeuristicPolicy.from_env(env)
+    adapted = as_sb3_policy(HeuristicPolicy.from_env(env), env.observation_space, env.action_space)
+    assert isinstance(adapted, BasePolicy)
+    obs, _ = env.reset(seed=4)
+    reference.reset()
+    start = True
+    for _ in range(40):
+        expected = reference(obs)
+        got, state = adapted.predict(obs, episode_start=np.array([start]), deterministic=True)
+        assert state is None and got.shape == (4,) and got.dtype == np.float32
+        np.testing.assert_array_equal(got, expected)
+        start = False
+        obs, _, term, trunc, _ = env.step(expected)
+        if term or trunc:
+            break
+    # _predict on a batch tensor and a plain (memoryless) callable
+    batch = np.stack([obs, obs]).astype(np.float32)
+    fn = RandomPolicy(seed=0)
+    plain = as_sb3_policy(lambda o: np.tanh(o[:4]).astype(np.float32), env.observation_space, env.action_space)
+    out = plain._predict(torch.as_tensor(batch)).numpy()
+    np.testing.assert_array_equal(out, np.tanh(batch[:, :4]))
+    acts, _ = plain.predict(batch)
+    np.testing.assert_array_equal(acts, np.tanh(batch[:, :4]))
+    with pytest.raises(TypeError):
+        as_sb3_policy(fn, gym.spaces.Discrete(2), env.action_space)
+
+
+def test_evaluate_policy_runs_the_adapter_and_the_raw_policy():
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
+
+    results = []
+    for wrap in (True, False):
+        env = Monitor(make_env(max_episode_steps=40))
+        env.reset(seed=0)
+        policy = HeuristicPolicy.from_env(env)
+        model = as_sb3_policy(policy, env.observation_space, env.action_space) if wrap else policy
+        rewards, lengths = evaluate_policy(model, env, n_eval_episodes=2, deterministic=True,
+                                           return_episode_rewards=True)
+        assert len(rewards) == 2 and all(0 < n <= 40 for n in lengths)
+        results.append(rewards)
+    np.testing.assert_allclose(results[0], results[1])
+
+
+# ------------------------------------------------------------------------------------------ CLI training
+def test_cli_bc_writes_policy_and_evaluation(dataset, tmp_path):
+    out = tmp_path / "bc"
+    rc = cli.main(["train", "--algo", "bc", "--dataset", str(dataset), "--epochs", "3", "--seed", "0",
+                   "--out", str(out), "--eval-episodes", "2", "--max-episode-steps", "30", "--curve", "1,3",
+                   "--quiet"])
+    assert rc == 0
+    import json
+
+    s = json.loads((out / "summary.json").read_text())
+    assert s["demonstrations"] == 3 and s["eval"]["episodes"] == 2 and len(s["curve"]) == 2
+    assert (out / "policy.npz").exists() and (out / "curve.csv").exists()
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_cli_ppo_sac_smoke(algo, tmp_path):
+    import json
+
+    from planners.sb3 import load_trained_policy
+
+    out = tmp_path / algo
+    argv = ["train", "--algo", algo, "--steps", "300", "--seed", "1", "--out", str(out), "--max-episode-steps",
+            "50", "--eval-freq", "200", "--eval-episodes", "2", "--quiet"]
+    if algo == "sac":
+        argv += ["--learning-starts", "100"]
+    assert cli.main(argv) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["algo"] == algo and s["steps"] >= 300 and s["seed"] == 1 and s["wall_time_s"] > 0
+    assert s["eval"]["episodes"] == 2
+    for name in ("model.zip", "train.monitor.csv", "curve.csv", "evaluations.npz", "eval_curve.csv"):
+        assert (out / name).exists(), name
+    if algo == "ppo":
+        assert (out / "vecnormalize.npz").exists() and (out / "vecnormalize.pkl").exists()
+        assert s["hyperparameters"]["n_steps"] == 512 and s["hyperparameters"]["learning_rate"] == 2.0633e-5
+    else:
+        assert s["hyperparameters"]["learning_starts"] == 100
+    # the weights-only reload acts like the SB3 model
+    policy = load_trained_policy(out)
+    env = make_env()
+    obs, _ = env.reset(seed=0)
+    from stable_baselines3 import PPO, SAC
+
+    ref = (PPO if algo == "ppo" else SAC).load(out / "model.zip", device="cpu")
+    expected, _ = ref.predict(policy.normalize(obs), deterministic=True)
+    np.testing.assert_allclose(policy.act(obs), np.clip(expected, -1, 1), atol=1e-6)
