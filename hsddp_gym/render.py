@@ -11,11 +11,11 @@ Pillow is an optional dependency (``pip install hsddp_gym[viz]``); it is importe
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
 
 from hsddp_gym.conventions import FEET, NGRF, NQ, NX
+from hsddp_gym.io import atomic_path
 from hsddp_gym.model import CheetahModel
 from hsddp_gym.validation import check_int, check_positive, check_vector
 
@@ -184,10 +184,7 @@ def save_gif(frames, path: str | os.PathLike, fps: float = 30.0) -> str:
             raise ValueError(f"frames[{i}] must be an (H, W, 3) uint8 image, got shape {f.shape} dtype {f.dtype}")
         if f.shape != shape:
             raise ValueError(f"all frames must have the same shape {shape}, frames[{i}] has {f.shape}")
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(suffix=ext, prefix=".tmp_", dir=directory)
-    os.close(fd)
-    try:
+    with atomic_path(path, suffix=ext) as tmp:
         if ext == ".gif":
             Image, _ = _pil()
             imgs = [Image.fromarray(f) for f in frames]
@@ -201,9 +198,4 @@ def save_gif(frames, path: str | os.PathLike, fps: float = 30.0) -> str:
                 raise ImportError("writing .mp4 needs imageio and imageio-ffmpeg "
                                   "(pip install imageio imageio-ffmpeg); use a .gif path instead") from exc
             imageio.mimsave(tmp, frames, fps=fps, format="FFMPEG")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
     return path

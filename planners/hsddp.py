@@ -408,7 +408,9 @@ class HSDDP:
                     ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
                                         ws.lam6, ws.lin_candidate if cand_linearized else None)
                     if ok:
-                        cand = self._evaluate(objective, ws.candidate, cs)
+                        # a trial far off the nominal may overflow the barrier: an inf cost is a failed trial
+                        with np.errstate(over="ignore", invalid="ignore"):
+                            cand = self._evaluate(objective, ws.candidate, cs)
                         expected = eps * dV1 + 0.5 * eps * eps * dV2
                         if np.isfinite(cand.total) and expected < 0 and \
                                 (cand.total - costs.total) <= opt.armijo * expected:
