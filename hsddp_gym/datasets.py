@@ -13,7 +13,8 @@ Built-in policies (:data:`POLICIES`): ``mpc`` (:class:`planners.mpc.MPCPolicy`, 
 fields), ``expert`` (:class:`planners.policies.PlanTrackingExpert` tracking the HS-DDP plan
 ``planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as ``expert_plan.npz``
 in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without* reset noise,
-so all expert episodes are identical -- the seed is recorded but has no effect), ``heuristic``
+so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's 1.48 s the
+default MPC takes over), ``heuristic``
 (:class:`planners.policies.HeuristicPolicy`) and ``random`` (:class:`planners.policies.RandomPolicy`
 seeded with the episode seed).
 
@@ -56,7 +57,7 @@ taken at it (for t < T; the last row, where no action is taken, repeats the last
   latest solve, ``replanned`` (a solve was attempted at this step), ``planner_failed`` (it failed; the old
   plan kept acting); with ``include_gains=True`` also ``expert_feedback_gain (4, 14)`` = K / torque_limit
   (column 0, the trunk x, is zero: the trackers do not feed it back). The MPC fills the solver fields from
-  its re-plans; the expert from its single offline solve (``replanned`` always False); policies without a
+  its re-plans; the expert from its single offline solve, then from its fallback MPC's re-plans; policies without a
   planner (heuristic, random, learned) with zeros.
 """
 
@@ -150,7 +151,7 @@ class PolicySpec:
         elif self.name == "expert":
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
                             "reset_options": "{'state': plan.X[0]} (no reset noise)",
-                            "fallback_after_plan": "planners.policies.HeuristicPolicy"}
+                            "fallback_after_plan": "planners.mpc.MPCPolicy (default options)"}
         elif self.name == "random":
             d["options"] = {"seed": "episode seed"}
         else:

@@ -178,12 +178,13 @@ class PlanTrackingExpert(Policy):
     The plan's cursor advances by the env's control period and is kept in step with the env's contact
     events by :class:`planners.tracking.PlanTracker` (early touchdown: jump to the next phase; late
     touchdown: wait on the flight phase's last knot; lift-off: plan time). The plan should start at the
-    env's initial state (e.g. ``options={"state": plan.X[0]}`` at reset). After the plan's last knot the
-    expert hands over to ``fallback`` (default: the heuristic controller).
+    env's initial state (e.g. ``options={"state": plan.X[0]}`` at reset). When the plan ends (the touchdown
+    after its last flight, or its last knot) the expert hands over to ``fallback``.
 
     Args:
         solution: a :class:`~planners.solution.Solution`.
-        fallback: policy used after the plan ends (None: hold the last knot's feedback law).
+        fallback: policy used after the plan ends (None: HS-DDP MPC with default options,
+            :class:`planners.mpc.MPCPolicy`, which picks up the gait from the observed contacts).
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), solution=None, fallback: Policy | None = None
@@ -192,7 +193,11 @@ class PlanTrackingExpert(Policy):
         if solution is None:
             raise ValueError("solution must be a Solution (the plan to track)")
         self.solution = solution
-        self.fallback = fallback if fallback is not None else HeuristicPolicy(interface)
+        if fallback is None:
+            from planners.mpc import MPCPolicy  # planners.mpc imports this module
+
+            fallback = MPCPolicy(interface)
+        self.fallback = fallback
         self.tracker = None
         self.errors: list[float] = []
         self.reset()
@@ -206,6 +211,16 @@ class PlanTrackingExpert(Policy):
         self.tracker = PlanTracker.from_solution(self.solution)
         self.errors = []
         self.fallback.reset()
+
+    @property
+    def stats(self) -> dict | None:
+        """The fallback's planner statistics (replans, failures, solve times), if it has any."""
+        return getattr(self.fallback, "stats", None)
+
+    @property
+    def last_solution(self):
+        """The fallback's latest plan, if it plans."""
+        return getattr(self.fallback, "last_solution", None)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         from planners.tracking import tracking_error

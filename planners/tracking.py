@@ -14,6 +14,8 @@ phase's step) and a cursor in plan time. The control at the cursor is the plan's
   it waits on the phase's last knot (its feedback law keeps acting).
 * *Lift-off* follows plan time: the plan's own controls lift the foot, so a stance phase ends on schedule
   even if the foot still reads as touching (resting feet are flagged as in contact).
+* *End*: the plan is :attr:`~PlanTracker.finished` when the touchdown that ends its last phase is seen (a
+  plan ending in flight), or when plan time runs out (a plan ending in stance).
 """
 
 from __future__ import annotations
@@ -81,9 +83,12 @@ class PlanTracker:
         if mode == plan_mode or self.finished:
             return
         early = [f for f in (0, 1) if mode.in_contact(f) and not plan_mode.in_contact(f)]
-        if early and i + 1 < self.n_phases and all(self.next_modes[i].in_contact(f) for f in early):
-            self.phase = i + 1
-            self.local_time = 0.0
+        if early and all(self.next_modes[i].in_contact(f) for f in early):
+            if i + 1 < self.n_phases:
+                self.phase = i + 1
+                self.local_time = 0.0
+            else:  # the touchdown that ends the plan: hand over (the cursor stays on the last knot)
+                self.finished = True
 
     def advance(self, dt: float) -> None:
         """Move the cursor by ``dt`` seconds of plan time (waiting before touchdowns)."""

@@ -109,6 +109,18 @@ def test_tracker_waits_for_a_late_touchdown(plan):
     assert tr.phase == 2
 
 
+def test_tracker_finishes_at_the_touchdown_that_ends_the_plan(plan):
+    tr = _tracker(plan)
+    assert tr.modes[-1] == Mode.FLIGHT and tr.next_modes[-1] == Mode.BACK_STANCE
+    tr.phase = tr.n_phases - 1  # the last flight
+    tr.advance(0.2)  # far past its end: waits on its last knot
+    assert not tr.finished and tr.phase == tr.n_phases - 1
+    tr.sync(Mode.FRONT_STANCE)  # not the landing foot
+    assert not tr.finished
+    tr.sync(Mode.BACK_STANCE)
+    assert tr.finished
+
+
 def test_tracker_lift_off_follows_plan_time(plan):
     tr = _tracker(plan)
     tr.sync(Mode.BACK_STANCE)
@@ -125,6 +137,16 @@ def test_expert_tracks_its_plan_in_the_env(plan):
     assert not res.fell and res.length == steps
     assert abs(res.states[-1, 0] - plan.X[-1, 0]) < 0.05  # within 5 cm of the plan after 2 cycles
     assert np.mean(expert.errors) < 0.1
+
+
+def test_expert_hands_over_to_its_fallback_after_the_plan(plan):
+    env = make_env(reset_noise_scale=0.0)
+    fallback = MPCPolicy.from_env(env)
+    expert = PlanTrackingExpert.from_env(env, solution=plan, fallback=fallback)
+    steps = int(round(plan.times[-1] / env.unwrapped.dt))
+    res = run_episode(env, expert, 0, options={"state": plan.X[0]}, max_steps=steps + 120)
+    assert expert.tracker.finished and fallback.stats["replans"] > 0
+    assert not res.fell and res.length == steps + 120
 
 
 def test_mpc_bounds_deterministically():
