@@ -16,11 +16,30 @@ model that a demanding user can read and tune:
 
 In flight every joint tracks the posture of the next touchdown (the per-mode references of
 :mod:`hsddp_gym.references`) with the hip shifted by a Raibert-style speed correction.
+
+:class:`ContactEventBoundingController` is the same idea for a simulator whose contacts follow the state
+(``hsddp_gym/Bounding-v0``), where no schedule says when a stance ends: there a stance lasts until the leg
+force vanishes (~140 ms with the gains above) and the trunk pitches over. It is a per-leg state machine
+driven by touchdown events (contact flags) and its own timers:
+
+* **stance** starts when a swinging leg touches the ground and lasts a fixed ``stance_duration``; the
+  stance legs produce a ground force ``F`` (``u = -J^T F``) that best realizes, by weighted least squares
+  inside the friction cone, a desired force and pitch moment: vertical ``m (g + (vz_lo - vz) / T_rem)``
+  reaching at lift-off the vertical speed of a ``flight_duration`` hop (plus a height correction),
+  horizontal ``m k_v (v_d - vx)``, and a pitch moment ``I (w_lo - w) / T_rem`` reaching at lift-off the
+  bounding pitch rate (``+pitch_rate`` nose-down after a back stance, ``-pitch_rate`` after a front
+  stance), corrected by the pitch error; ``T_rem`` is the stance time left (at least ``horizon_floor``);
+* **swing**: when the stance time is up the leg is actively folded (foot ``retract_leg`` below the hip)
+  for ``retract_duration``, so it lifts off, then it reaches for the ground: its foot goes to
+  ``touchdown_leg`` below the hip (world vertical), ahead of it by ``neutral * vx * T_stance / 2 +
+  raibert * (vx - v_d)`` (Raibert foot placement), through joint PD on the inverse kinematics. Only a
+  leg in this reaching phase can start a new stance.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -134,3 +153,196 @@ class HeuristicBoundingController:
             return self.torque(x, mode, td)
 
         return controller
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactEventGains:
+    """Gains of :class:`ContactEventBoundingController` (defaults: tuned in ``hsddp_gym/Bounding-v0`` at its
+    default settings, 5 ms control period; they give a ~165 ms cycle of 60 ms stances and 15-25 ms flights
+    at ~1 m/s).
+
+    Attributes:
+        speed: desired forward speed [m/s].
+        stance_duration: time a leg pushes after its touchdown [s].
+        flight_duration: flight time the vertical lift-off speed is aimed at [s].
+        retract_duration: time a leg folds after its stance before it reaches for the ground [s].
+        initial_stance_elapsed: stance time already elapsed for a leg in contact at the first observation [s].
+        pitch_rate: magnitude of the lift-off pitch rate aimed at [rad/s].
+        pitch_gain: lift-off pitch-rate change per rad of pitch error [1/s].
+        horizon_floor: smallest time-to-lift-off used by the force targets [s].
+        height: desired trunk height [m]; height_gain: lift-off vertical speed per m of height error [1/s].
+        speed_gain: horizontal acceleration per m/s of speed error [1/s].
+        weight_fx, weight_fz, weight_pitch: least-squares weights of the force / moment targets.
+        touchdown_leg, retract_leg: hip-to-foot height when reaching for the ground / folded [m].
+        raibert: foot placement ahead of the hip per m/s of speed error [s].
+        neutral: fraction of ``vx * stance_duration / 2`` the foot is placed ahead of the hip.
+        kp, kd: swing-leg joint PD gains (4,) (``kd * dt / I`` must stay below 2 for the light legs at the
+            control period ``dt``, hence the small knee damping).
+        torque_limit: saturate the output [N m].
+    """
+
+    speed: float = 1.0
+    stance_duration: float = 0.05
+    flight_duration: float = 0.044
+    retract_duration: float = 0.049
+    initial_stance_elapsed: float = 0.003
+    pitch_rate: float = 5.84
+    pitch_gain: float = 6.2
+    horizon_floor: float = 0.033
+    height: float = 0.297
+    height_gain: float = 5.6
+    speed_gain: float = 5.0
+    weight_fx: float = 0.16
+    weight_fz: float = 1.0
+    weight_pitch: float = 187.0
+    touchdown_leg: float = 0.3
+    retract_leg: float = 0.174
+    raibert: float = 0.039
+    neutral: float = 0.088
+    kp: tuple = (40.0, 30.0, 40.0, 30.0)
+    kd: tuple = (0.8, 0.15, 0.8, 0.15)
+    torque_limit: float = 33.0
+
+    def __post_init__(self) -> None:
+        for name in ("stance_duration", "flight_duration", "horizon_floor", "height", "weight_fz",
+                     "touchdown_leg", "retract_leg", "torque_limit"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"ContactEventGains.{name} must be a positive finite number, got {value!r}")
+        for name in ("retract_duration", "initial_stance_elapsed", "pitch_rate", "pitch_gain", "height_gain",
+                     "speed_gain", "weight_fx", "weight_pitch", "raibert", "neutral"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"ContactEventGains.{name} must be a finite number >= 0, got {value!r}")
+        for name in ("kp", "kd"):
+            if len(getattr(self, name)) != NU:
+                raise ValueError(f"ContactEventGains.{name} must have {NU} entries, got {getattr(self, name)!r}")
+
+
+_STANCE, _SWING = "stance", "swing"
+
+
+class ContactEventBoundingController:
+    """The bounding controller for state-based contacts: stance and swing of each leg follow the observed
+    touchdowns and the controller's own timers (see the module docstring). It keeps memory: call
+    :meth:`reset` at the start of an episode and :meth:`torque` once per control period ``dt``.
+
+    Args:
+        dt: control period [s]. robot: the model. gains: :class:`ContactEventGains`.
+    """
+
+    def __init__(self, dt: float, robot: CheetahModel | None = None,
+                 gains: ContactEventGains = ContactEventGains()) -> None:
+        if not isinstance(gains, ContactEventGains):
+            raise TypeError(f"gains must be a ContactEventGains, got {type(gains).__name__}")
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be a positive finite number [s], got {dt!r}")
+        self.dt = float(dt)
+        self.robot = robot if robot is not None else CheetahModel()
+        self.gains = gains
+        self._kp = np.asarray(gains.kp, dtype=float)
+        self._kd = np.asarray(gains.kd, dtype=float)
+        p = self.robot.params
+        self._mass = p.total_mass
+        self._gravity = p.gravity
+        self._mu = p.friction
+        self._l1, self._l2 = p.thigh.length, p.shank.length
+        legs = 2 * (p.thigh.mass + p.shank.mass)
+        self._inertia = p.trunk.inertia_yy + legs * p.hip_offset ** 2
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the episode (new lists, so shallow copies reset independently)."""
+        self.leg_state: list[str] | None = None
+        self.leg_time = [0.0, 0.0]
+
+    def torque(self, x: np.ndarray, contact) -> np.ndarray:
+        """Joint torques (4,) for state ``x`` (14,) and contact flags ``[front, back]``; advances the timers
+        by ``dt``."""
+        x = check_vector(x, NX, "x")
+        g = self.gains
+        contact = (bool(contact[FRONT]), bool(contact[BACK]))
+        if self.leg_state is None:  # first observation: legs on the ground are mid-stance
+            self.leg_state = [_STANCE if c else _SWING for c in contact]
+            self.leg_time = [g.initial_stance_elapsed if c else g.retract_duration for c in contact]
+        for f in (FRONT, BACK):
+            if self.leg_state[f] == _STANCE:
+                if self.leg_time[f] >= g.stance_duration:
+                    self.leg_state[f], self.leg_time[f] = _SWING, 0.0
+            elif contact[f] and self.leg_time[f] >= g.retract_duration:
+                self.leg_state[f], self.leg_time[f] = _STANCE, 0.0
+        u = np.zeros(NU)
+        stance = [f for f in (FRONT, BACK) if self.leg_state[f] == _STANCE]
+        if stance:
+            self._stance_torque(x, stance, u)
+        for f in (FRONT, BACK):
+            if self.leg_state[f] == _SWING:
+                self._swing_torque(x, f, u)
+            self.leg_time[f] += self.dt
+        return np.clip(u, -g.torque_limit, g.torque_limit, out=u)
+
+    # ------------------------------------------------------------------ swing
+    def _leg_ik(self, a: float, b: float) -> tuple[float, float]:
+        """(hip, knee) putting the foot at ``(a, b)`` from the hip in the trunk frame, knee bent backward."""
+        l1, l2 = self._l1, self._l2
+        c = (a * a + b * b - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)
+        knee = -math.acos(min(max(c, -1.0), 1.0))
+        hip = math.atan2(-a, -b) - math.atan2(l2 * math.sin(knee), l1 + l2 * math.cos(knee))
+        return hip, knee
+
+    def _swing_torque(self, x: np.ndarray, foot: int, u: np.ndarray) -> None:
+        g = self.gains
+        if self.leg_time[foot] < g.retract_duration:
+            ahead, below = 0.0, g.retract_leg
+        else:
+            vx = x[IVX]
+            ahead = g.neutral * vx * g.stance_duration / 2.0 + g.raibert * (vx - g.speed)
+            below = g.touchdown_leg
+        # world offset (ahead, -below) in the trunk frame (positive pitch is nose-down)
+        c, s = math.cos(x[IPITCH]), math.sin(x[IPITCH])
+        target = np.array(self._leg_ik(ahead * c + below * s, ahead * s - below * c))
+        j, iu = list(FOOT_JOINTS[foot]), list(FOOT_U[foot])
+        u[iu] = self._kp[iu] * (target - x[j]) - self._kd[iu] * x[NQ + np.asarray(j)]
+
+    # ------------------------------------------------------------------ stance
+    def _stance_torque(self, x: np.ndarray, feet: list[int], u: np.ndarray) -> None:
+        g = self.gains
+        q = x[:NQ]
+        single = feet[0] if len(feet) == 1 else None
+        elapsed = self.leg_time[single] if single is not None else 0.0
+        t_rem = max(g.stance_duration - elapsed, g.horizon_floor)
+        vz_lift_off = self._gravity * g.flight_duration / 2.0 + g.height_gain * (g.height - q[IZ])
+        fz = self._mass * (self._gravity + (vz_lift_off - x[IVZ]) / t_rem)
+        fx = self._mass * g.speed_gain * (g.speed - x[IVX])
+        positions = self.robot.foot_positions(q)
+        if single is not None:
+            sign = 1.0 if single == BACK else -1.0  # a back stance ends pitching nose-down
+            pitch = q[IPITCH]
+            rate_target = sign * g.pitch_rate - g.pitch_gain * (pitch + sign * g.pitch_rate * g.flight_duration / 2.0)
+            moment = self._inertia * (rate_target - x[NQ + IPITCH]) / t_rem
+            forces = {single: self._allocate(positions[single] - q[[0, IZ]], np.array([fx, fz, moment]))}
+        else:  # double stance: share the force, no pitch control
+            half = max(fz / 2.0, 0.0)
+            forces = {f: np.array([float(np.clip(fx / 2.0, -self._mu * half, self._mu * half)), half]) for f in feet}
+        for f, force in forces.items():
+            J = self.robot.foot_jacobian(q, f)[:, list(FOOT_JOINTS[f])]
+            u[list(FOOT_U[f])] = -(J.T @ force)
+
+    def _allocate(self, r: np.ndarray, wrench: np.ndarray) -> np.ndarray:
+        """Foot force ``[fx, fz]`` inside the friction cone closest (weighted least squares) to the desired
+        ``[Fx, Fz, pitch moment]``; the moment of ``F`` at ``r`` from the trunk origin is ``r_z F_x - r_x F_z``."""
+        g = self.gains
+        A = np.array([[1.0, 0.0], [0.0, 1.0], [r[1], -r[0]]])
+        w = np.array([g.weight_fx, g.weight_fz, g.weight_pitch])
+        f = np.linalg.solve(A.T @ (w[:, None] * A), A.T @ (w * wrench))
+        if f[1] >= 0.0 and abs(f[0]) <= self._mu * f[1]:
+            return f
+        best, cost = np.zeros(2), float(wrench @ (w * wrench))
+        for edge in (np.array([self._mu, 1.0]), np.array([-self._mu, 1.0])):
+            a = A @ edge
+            lam = max(float(a @ (w * wrench)) / float(a @ (w * a)), 0.0)
+            e = lam * a - wrench
+            c = float(e @ (w * e))
+            if c < cost:
+                best, cost = lam * edge, c
+        return best

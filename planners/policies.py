@@ -24,7 +24,12 @@ import numpy as np
 from hsddp_gym.conventions import BACK, FRONT, NU, Mode
 from hsddp_gym.observation import DEFAULT_LAYOUT, ObservationLayout, state_from_observation
 from hsddp_gym.validation import check_positive
-from planners.heuristic import HeuristicBoundingController, HeuristicGains
+from planners.heuristic import (
+    ContactEventBoundingController,
+    ContactEventGains,
+    HeuristicBoundingController,
+    HeuristicGains,
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,34 +147,45 @@ class RandomPolicy(Policy):
 
 
 class HeuristicPolicy(Policy):
-    """The heuristic bounding controller (:mod:`planners.heuristic`) driven by the env's contact flags.
+    """The heuristic bounding controller driven by the env's contact flags.
 
-    In flight the foot expected to land next is the one that was not the last stance foot (front after a
-    back stance); before any stance it is guessed from the pitch rate.
+    It acts with :class:`planners.heuristic.ContactEventBoundingController` (``self.gait``): a per-leg
+    stance/swing state machine started by the observed touchdowns, with a fixed stance time after which the
+    leg is actively folded, a wrench-based stance force (height, speed, bounding pitch rate) and Raibert
+    foot placement. The observation's contact flags and the policy's own timers are its only gait inputs
+    (the gait clock is not used).
+
+    ``self.controller`` is the schedule-driven :class:`~planners.heuristic.HeuristicBoundingController`
+    (the planner's warm start, ``torque(x, mode)``), kept for callers that supply the contact mode from a
+    schedule (e.g. the MPC's fallback); it is not used by :meth:`act`.
 
     Args:
-        gains: :class:`HeuristicGains` (the desired speed defaults to the env's target speed).
+        gains: :class:`HeuristicGains` of ``self.controller`` (the desired speed defaults to the env's
+            target speed).
+        gait_gains: :class:`ContactEventGains` of ``self.gait`` (default: tuned for the env's defaults, with
+            the env's target speed and torque limit).
     """
 
-    def __init__(self, interface: EnvInterface = EnvInterface(), gains: HeuristicGains | None = None) -> None:
+    def __init__(self, interface: EnvInterface = EnvInterface(), gains: HeuristicGains | None = None,
+                 gait_gains: ContactEventGains | None = None) -> None:
         super().__init__(interface)
         gains = gains if gains is not None else HeuristicGains(speed=interface.target_speed)
         self.controller = HeuristicBoundingController(gains=gains)
-        self._last_stance: int | None = None
+        gait_gains = gait_gains if gait_gains is not None else ContactEventGains(
+            speed=interface.target_speed, torque_limit=interface.torque_limit)
+        self.gait = ContactEventBoundingController(interface.control_dt, robot=self.controller.robot,
+                                                   gains=gait_gains)
+
+    def _reset_copy_state(self) -> None:
+        self.gait = copy.copy(self.gait)
 
     def reset(self) -> None:
-        self._last_stance = None
+        self.gait.reset()
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         x, mode, _ = self._parse(obs)
-        if mode == Mode.BACK_STANCE:
-            self._last_stance = BACK
-        elif mode == Mode.FRONT_STANCE:
-            self._last_stance = FRONT
-        nxt = None
-        if mode == Mode.FLIGHT and self._last_stance is not None:
-            nxt = FRONT if self._last_stance == BACK else BACK
-        return self.interface.action_from_torque(self.controller.torque(x, mode, nxt))
+        u = self.gait.torque(x, (mode.in_contact(FRONT), mode.in_contact(BACK)))
+        return self.interface.action_from_torque(u)
 
 
 class PlanTrackingExpert(Policy):
