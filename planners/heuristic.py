@@ -49,6 +49,10 @@ from hsddp_gym.references import end_of_mode_reference
 from hsddp_gym.schedule import PAPER_BOUNDING_DURATIONS
 from hsddp_gym.validation import check_vector
 
+_MIN_FOOT_DEPTH = 0.01
+"""Smallest foot depth below the trunk [m] used in the pitch-moment balance (a foot level with the trunk,
+only possible mid-tumble, would otherwise divide by zero)."""
+
 
 @dataclasses.dataclass(frozen=True)
 class HeuristicGains:
@@ -132,7 +136,8 @@ class HeuristicBoundingController:
             positions = self.robot.foot_positions(q)
             for foot in feet:
                 r = positions[foot] - q[[0, IZ]]
-                fx = (self._inertia * ddpitch / len(feet) + r[0] * fz) / r[1] + g.kv * (g.speed - x[IVX])
+                depth = min(r[1], -_MIN_FOOT_DEPTH)  # the foot is below the trunk; never divide by ~0
+                fx = (self._inertia * ddpitch / len(feet) + r[0] * fz) / depth + g.kv * (g.speed - x[IVX])
                 fx = float(np.clip(fx, -self.robot.params.friction * fz, self.robot.params.friction * fz))
                 J = self.robot.foot_jacobian(q, foot)[:, list(FOOT_JOINTS[foot])]
                 u[list(FOOT_U[foot])] = -(J.T @ np.array([fx, fz]))
