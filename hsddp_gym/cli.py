@@ -247,7 +247,7 @@ def cmd_dataset(args) -> int:
         res = generate_dataset(args.policy, args.episodes, args.out, seed=args.seed, workers=args.workers,
                                dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
                                max_episode_steps=args.max_episode_steps, include_gains=args.gains,
-                               progress=not args.quiet)
+                               progress=not args.quiet, action_noise=args.action_noise)
     except FileExistsError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -261,6 +261,13 @@ def cmd_dataset(args) -> int:
           f"hsddp_gym.datasets.load_minari('{res.path}') or MINARI_DATASETS_PATH={res.path}/minari "
           f"minari.load_dataset('{res.dataset_id}')")
     return 0
+
+
+def _bc_extra(args) -> dict:
+    extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay)}
+    if args.hidden:
+        extra["hidden"] = tuple(args.hidden)
+    return extra
 
 
 def cmd_train(args) -> int:
@@ -287,7 +294,8 @@ def cmd_train(args) -> int:
         if args.dataset is None:
             print("error: --dataset is required for bc", file=sys.stderr)
             return 2
-        config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed)
+        config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
+                          **_bc_extra(args))
         summary = run_bc(args.dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
                          eval_episodes=args.eval_episodes, curve=args.curve,
                          env_kwargs=env_kwargs or None, max_episode_steps=args.max_episode_steps,
@@ -298,7 +306,7 @@ def cmd_train(args) -> int:
         config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                                          seed=args.seed))
+                                          seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config, dataset=args.dataset,
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
                              env_kwargs=env_kwargs, progress=not args.quiet)
@@ -334,6 +342,10 @@ def _add_learning_parsers(sub) -> None:
                    help="time limit override (default: the env's 1000)")
     p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--gains", action="store_true", help="also store the plan's feedback gains (4x14 per step)")
+    p.add_argument("--action-noise", type=float, default=0.0,
+                   help="DART noise injection: execute the policy's action plus Gaussian noise of this std "
+                        "(normalized units, e.g. 0.04) and store the clean action in infos/expert_action, the "
+                        "label BC/DAgger use (default: 0, no noise)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -362,6 +374,13 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--epochs", type=_positive_int, default=50, help="bc/dagger: BC epochs (default: %(default)s)")
     p.add_argument("--batch-size", type=_positive_int, default=256, help="bc/dagger (default: %(default)s)")
     p.add_argument("--lr", type=_positive_float, default=1e-3, help="bc/dagger: Adam step (default: %(default)s)")
+    p.add_argument("--features", choices=("obs", "gait_clock"), default="obs",
+                   help="bc/dagger: MLP inputs; gait_clock appends the MPC's gait clock (phase one-hot, time in "
+                        "phase, cycle sin/cos) rebuilt from the observation history, since the MPC's phase drifts "
+                        "from the observation clock (default: %(default)s)")
+    p.add_argument("--hidden", type=_int_list, default=None, help="bc/dagger: hidden layer sizes (default: 256,256)")
+    p.add_argument("--weight-decay", type=float, default=0.0, help="bc/dagger: Adam weight decay (default: 0)")
+    p.add_argument("--lr-decay", action="store_true", help="bc/dagger: cosine learning-rate decay to 0 over the epochs")
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",

@@ -18,6 +18,11 @@ default MPC takes over), ``heuristic``
 (:class:`planners.policies.HeuristicPolicy`) and ``random`` (:class:`planners.policies.RandomPolicy`
 seeded with the episode seed).
 
+DART noise injection (``action_noise > 0``, Laskey et al. 2017): the executed actions are the policy's plus
+Gaussian noise (seeded by the episode seed), so the episodes visit the states around the policy's
+trajectory from which it recovers; the policy's clean actions are stored in ``infos["expert_action"]``
+and are the labels :func:`planners.imitation.load_demonstrations` uses.
+
 Output (``out`` is one directory, created atomically)
 ----------------------------------------------------
 ::
@@ -80,12 +85,15 @@ import numpy as np
 
 from hsddp_gym.conventions import NU, NX
 from hsddp_gym.io import read_npz, write_json, write_npz
+from hsddp_gym.validation import check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 POLICIES = ("mpc", "expert", "heuristic", "random")
 EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
 """The expert's plan: ``planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
 REF_MIN_EPISODES = 5
+NOISE_STREAM = 7919
+"""First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 """Episodes of the random policy (seeds ``seed .. seed + 4``) averaged into ``ref_min_score``."""
 
 DECISION_SCHEMA: dict[str, tuple[tuple, str]] = {
@@ -319,12 +327,19 @@ def _check_info(info: dict, schema: dict, step: int) -> None:
 
 
 def record_episode(env, policy, seed: int, options: dict | None = None, index: int = 0,
-                   include_gains: bool = False) -> Episode:
+                   include_gains: bool = False, action_noise: float = 0.0) -> Episode:
     """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)``.
 
     ``policy`` is any callable ``obs -> action`` with an optional ``reset()``; planner statistics and the
     tracked plan knot are recorded when it has them (see the module docstring).
+
+    ``action_noise > 0`` (DART noise injection): the executed (and recorded) action is
+    ``clip(a + action_noise * N(0, I), -1, 1)`` with ``a`` the policy's action, the noise drawn from
+    ``np.random.default_rng([NOISE_STREAM, seed])``; ``a`` itself is stored in ``infos["expert_action"]``
+    (row t: the clean action at observation t; the last row repeats the last one) -- the label for imitation.
     """
+    action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
+    noise_rng = np.random.default_rng([NOISE_STREAM, int(seed)]) if action_noise > 0 else None
     t0 = time.perf_counter()
     obs, info = env.reset(seed=int(seed), options=options)
     if hasattr(policy, "reset"):
@@ -336,6 +351,10 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     with capture_plan_controls() as slot:
         while True:
             action, decision = rec.act(obs, slot)
+            if noise_rng is not None:
+                decision = {**decision, "expert_action": action.copy()}
+                action = np.clip(action + action_noise * noise_rng.standard_normal(action.shape), -1.0,
+                                 1.0).astype(np.float32)
             rows.append({**info, **decision})
             obs, reward, terminated, truncated, info = env.step(action)
             _check_info(info, schema, len(actions))
@@ -346,8 +365,13 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
             truncs.append(bool(truncated))
             if terminated or truncated:
                 break
-    rows.append({**info, **rec.final()})
+    final = rec.final()
+    if noise_rng is not None:
+        final["expert_action"] = rows[-1]["expert_action"].copy()
+    rows.append({**info, **final})
     infos = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
+    if noise_rng is not None:
+        infos["expert_action"] = infos["expert_action"].astype(np.float32)
     for k, (shape, dtype) in DECISION_SCHEMA.items():
         infos[k] = infos[k].astype(dtype, copy=False).reshape(len(rows), *shape)
     return Episode(index=int(index), seed=int(seed), observations=np.asarray(observations, dtype=np.float32),
@@ -366,6 +390,7 @@ class EpisodeTask:
     env_kwargs: dict
     max_episode_steps: int | None
     include_gains: bool = False
+    action_noise: float = 0.0
 
 
 def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None):
@@ -385,7 +410,8 @@ def run_episode_task(task: EpisodeTask) -> Episode:
     env = make_env(task.env_kwargs, task.max_episode_steps)
     try:
         policy, options = task.policy_factory(env, task.seed)
-        return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains)
+        return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains,
+                              action_noise=task.action_noise)
     finally:
         env.close()
 
@@ -397,13 +423,15 @@ def _worker_init(threads: int) -> None:
 
 def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, workers: int = 1,
                      env_kwargs: dict | None = None, max_episode_steps: int | None = None,
-                     include_gains: bool = False, progress: bool = True, desc: str = "episodes") -> list[Episode]:
+                     include_gains: bool = False, progress: bool = True, desc: str = "episodes",
+                     action_noise: float = 0.0) -> list[Episode]:
     """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` processes.
 
     Args:
         policy_factory: picklable ``(env, episode_seed) -> (policy, reset_options or None)`` (e.g. a
             :class:`PolicySpec`); called once per episode, in the worker.
         workers: 1 runs in this process; more use ``spawn``-started worker processes.
+        action_noise: DART noise on the executed actions (see :func:`record_episode`).
     Returns:
         The episodes in index order (identical for any ``workers``).
     """
@@ -414,8 +442,8 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
         raise ValueError(f"workers must be >= 1, got {workers}")
     from tqdm import tqdm
 
-    tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains)
-             for i in range(episodes)]
+    tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
+                         float(action_noise)) for i in range(episodes)]
     results: list[Episode | None] = [None] * episodes
     bar = tqdm(total=episodes, desc=desc, unit="ep", disable=not progress)
     steps = 0
@@ -607,7 +635,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                      dataset_id: str | None = None, overwrite: bool = False, env_kwargs: dict | None = None,
                      max_episode_steps: int | None = None, policy_options: dict | None = None,
                      include_gains: bool = False, progress: bool = True, policy_name: str | None = None,
-                     policy_description: dict | None = None) -> DatasetResult:
+                     policy_description: dict | None = None, action_noise: float = 0.0) -> DatasetResult:
     """Generate a demonstration dataset into ``out`` (see the module docstring).
 
     Args:
@@ -620,7 +648,12 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
         policy_options: ``MPCOptions`` fields for ``mpc``.
         include_gains: also store the plan's feedback gains (``expert_feedback_gain (4, 14)`` per step).
+        action_noise: DART noise injection (:func:`record_episode`): the executed actions (``actions``) are
+            the policy's plus Gaussian noise of this standard deviation (normalized units), the policy's clean
+            actions are in ``infos["expert_action"]`` (what :func:`planners.imitation.load_demonstrations`
+            uses as labels). Recorded in the metadata.
     """
+    action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
     out = Path(out)
     _check_target(out, overwrite)
     env_kwargs = dict(env_kwargs or {})
@@ -643,7 +676,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         plan_time = time.perf_counter() - t0
         t1 = time.perf_counter()
         eps = collect_episodes(spec, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
-                               progress, desc=f"{name} episodes")
+                               progress, desc=f"{name} episodes", action_noise=action_noise)
         gen_time = time.perf_counter() - t1
         ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed)
         ref_max = float(np.mean([e.episode_return for e in eps]))
@@ -659,6 +692,10 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             "control_dt": float(env.unwrapped.dt),
             "policy": describe,
             "seed": int(seed),
+            "action_noise": action_noise,
+            "action_noise_note": "DART: actions = clip(policy action + action_noise * N(0, I), -1, 1) were executed; "
+                                 "the policy's clean actions (labels) are infos/expert_action" if action_noise > 0
+                                 else "none: actions are the policy's",
             "episode_seeds": [e.seed for e in eps],
             "episodes": len(eps),
             "total_steps": int(sum(e.length for e in eps)),

@@ -5,16 +5,27 @@ hidden layers of 256 ReLU units and a tanh output (the env's actions are normali
 trained with Adam (lr 1e-3, batch 256, no weight decay) on the mean squared error to the demonstrated
 normalized actions, for ``epochs`` passes over the data. Observations are standardized with the mean and
 standard deviation of the training data (std floored at 1e-3, result clipped to +-10, as SB3's
-VecNormalize). Seeded: ``torch.manual_seed(seed)`` for the initialization and a seeded generator for the
+VecNormalize). ``lr_decay`` anneals the step with a cosine schedule to 0 over the epochs. Seeded:
+``torch.manual_seed(seed)`` for the initialization and a seeded generator for the
 minibatch order, one CPU thread, so a run is reproducible.
 
 The trained policy is an :class:`MLPPolicy`, a :class:`~planners.policies.Policy` whose inference is NumPy
 only (no torch at evaluation), saved as ``.npz`` (weights + normalization + config as JSON; loading never
 unpickles).
 
+**Inputs** (``BCConfig.features``): ``"obs"`` (default) feeds the observation; ``"gait_clock"`` appends the
+7 features of the MPC's gait clock (:class:`planners.mpc.GaitClock`: phase one-hot, time in phase, cycle
+sin/cos). The MPC's phase is advanced by the observed touchdowns and drifts from the observation's clock
+``2 pi t / gait_period`` (about 0.2 cycles per second, a whole cycle over a 5 s episode), so its action is
+not a function of the observation alone; the clock, however, is a deterministic function of the observation
+history (contact flags, pitch rate, step count), which :class:`MLPPolicy` replays while acting (it then has
+memory, cleared by ``reset()``) and :func:`build_inputs` replays per demonstration episode.
+
 **Demonstrations** (:func:`load_demonstrations`) come from a Minari dataset (``minari.load_dataset`` /
 :func:`hsddp_gym.datasets.load_minari`, the default) or from a dataset's ``episodes.npz``
-(:func:`hsddp_gym.datasets.load_npz`): pairs (observation t, action t) of the first ``episodes`` episodes.
+(:func:`hsddp_gym.datasets.load_npz`): pairs (observation t, action t) of the first ``episodes`` episodes;
+for datasets recorded with DART noise injection (``hsddp-gym dataset --action-noise``) the label is the
+expert's clean action ``infos["expert_action"]``, not the noisy executed one.
 
 **DAgger** (:func:`train_dagger`, Ross et al. 2011): round 0 trains BC on the initial demonstrations (or on
 ``episodes_per_round`` expert episodes if none are given). In round ``i >= 1`` the executed action is the
@@ -40,6 +51,9 @@ from hsddp_gym.io import read_npz, write_npz
 from planners.policies import EnvInterface, Policy
 
 ACTIVATIONS = ("relu", "tanh")
+FEATURES = ("obs", "gait_clock")
+"""Inputs of the MLP: ``obs`` (the observation) or ``gait_clock`` (the observation plus the 7
+:meth:`planners.mpc.GaitClock.features` of the MPC's gait clock, rebuilt from the observation history)."""
 
 
 # ================================================================================================ config
@@ -57,8 +71,12 @@ class BCConfig:
     std_floor: float = 1e-3
     obs_clip: float = 10.0
     threads: int = 1
+    features: str = "obs"
+    lr_decay: bool = False
 
     def __post_init__(self) -> None:
+        if self.features not in FEATURES:
+            raise ValueError(f"features must be one of {FEATURES}, got {self.features!r}")
         if self.activation not in ACTIVATIONS:
             raise ValueError(f"activation must be one of {ACTIVATIONS}, got {self.activation!r}")
         if not self.hidden or any(int(h) < 1 for h in self.hidden):
@@ -76,6 +94,71 @@ class BCConfig:
         return d
 
 
+# ================================================================================================ features
+def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict | None = None):
+    """The :class:`planners.mpc.GaitClock` of an :class:`planners.mpc.MPCPolicy` built for ``interface``
+    with ``MPCOptions(**mpc_options)`` (default options)."""
+    from planners.mpc import MPCOptions, MPCPolicy
+
+    o = MPCOptions(**dict(mpc_options or {}))
+    return MPCPolicy(interface, o).clock.copy()
+
+
+def _clock_params(clock) -> dict:
+    return {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
+            "min_flight": clock.min_flight, "max_wait": clock.max_wait}
+
+
+def _clock_from_params(params: dict):
+    from planners.mpc import GaitClock
+
+    return GaitClock(tuple(params["durations"]), params["dt"], params["debounce_steps"], params["min_flight"],
+                     params["max_wait"])
+
+
+def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
+    """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
+    reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
+    (exactly what :class:`MLPPolicy` and :class:`planners.mpc.MPCPolicy` do while acting)."""
+    from hsddp_gym.conventions import IPITCH, NQ
+    from hsddp_gym.observation import DEFAULT_LAYOUT, state_from_observation
+
+    layout = layout if layout is not None else DEFAULT_LAYOUT
+    clock = clock.copy()
+    clock.reset()
+    out = np.zeros((len(obs), clock.N_FEATURES))
+    for t, o in enumerate(np.asarray(obs)):
+        x, mode, _ = state_from_observation(o, layout)
+        clock.update(mode, float(x[NQ + IPITCH]))
+        out[t] = clock.features()
+        clock.tick()
+    return out
+
+
+def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` of the contiguous runs of equal episode ids."""
+    episode = np.asarray(episode)
+    if len(episode) == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(episode) != 0) + 1
+    edges = [0, *cuts.tolist(), len(episode)]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def build_inputs(demos: Demonstrations, config: BCConfig, clock=None, layout=None) -> np.ndarray:
+    """The MLP inputs (float64) of ``demos`` for ``config.features`` (``clock``: a GaitClock for
+    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock)."""
+    obs = np.asarray(demos.obs, dtype=np.float64)
+    if config.features == "obs":
+        return obs
+    if clock is None:
+        raise ValueError("features='gait_clock' needs a gait clock")
+    feats = np.zeros((len(obs), clock.N_FEATURES))
+    for a, b in _episode_runs(demos.episode):
+        feats[a:b] = gait_clock_features(obs[a:b], clock, layout)
+    return np.concatenate([obs, feats], axis=1)
+
+
 # ================================================================================================ policy
 class MLPPolicy(Policy):
     """A deterministic MLP policy ``action = tanh(W_L f(... f(W_1 z + b_1)) + b_L)`` with ``z`` the clipped,
@@ -83,11 +166,14 @@ class MLPPolicy(Policy):
 
     Args:
         weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
-        obs_mean, obs_std: standardization (obs_dim,). config: the :class:`BCConfig` it was trained with.
+        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features).
+        config: the :class:`BCConfig` it was trained with.
+        clock: the :class:`planners.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock`` features;
+            the policy then has memory (the clock), reset by :meth:`reset`.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), weights=None, obs_mean=None, obs_std=None,
-                 config: BCConfig = BCConfig(), info: dict | None = None) -> None:
+                 config: BCConfig = BCConfig(), info: dict | None = None, clock=None) -> None:
         super().__init__(interface)
         if weights is None or obs_mean is None or obs_std is None:
             raise ValueError("weights, obs_mean and obs_std are required")
@@ -96,11 +182,30 @@ class MLPPolicy(Policy):
         self.obs_std = np.asarray(obs_std, dtype=np.float64)
         self.config = config
         self.info = dict(info or {})
-        if self.obs_mean.shape != (interface.layout.size,):
-            raise ValueError(f"obs_mean must have shape ({interface.layout.size},), got {self.obs_mean.shape}")
+        if isinstance(clock, dict):
+            clock = _clock_from_params(clock)
+        if config.features == "gait_clock":
+            clock = clock if clock is not None else make_gait_clock(interface)
+            self.clock = clock.copy()
+            self.clock.reset()
+            n_in = interface.layout.size + self.clock.N_FEATURES
+        else:
+            self.clock = None
+            n_in = interface.layout.size
+        if self.obs_mean.shape != (n_in,):
+            raise ValueError(f"obs_mean must have shape ({n_in},), got {self.obs_mean.shape}")
+
+    def reset(self) -> None:
+        if self.clock is not None:
+            self.clock.reset()
+
+    def _reset_copy_state(self) -> None:
+        if self.clock is not None:
+            self.clock = self.clock.copy()
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
-        """Actions ``(n, 4)`` for observations ``(n, obs_dim)`` (float64)."""
+        """Actions ``(n, 4)`` for network inputs ``(n, n_in)`` (float64): observations, with the gait-clock
+        features appended for ``features='gait_clock'`` (see :func:`build_inputs`)."""
         z = np.clip((np.asarray(obs, dtype=np.float64) - self.obs_mean) / self.obs_std, -self.config.obs_clip,
                     self.config.obs_clip)
         for W, b in self.weights[:-1]:
@@ -110,7 +215,15 @@ class MLPPolicy(Policy):
         return np.tanh(z @ W.T + b)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.forward(np.asarray(obs)[None])[0].astype(np.float32)
+        z = np.asarray(obs, dtype=np.float64)
+        if self.clock is not None:
+            from hsddp_gym.conventions import IPITCH, NQ
+
+            x, mode, _ = self._parse(obs)
+            self.clock.update(mode, float(x[NQ + IPITCH]))
+            z = np.concatenate([z, self.clock.features()])
+            self.clock.tick()
+        return self.forward(z[None])[0].astype(np.float32)
 
     def save(self, path) -> Path:
         """Write ``.npz``: ``W0, b0, W1, ...``, ``obs_mean``, ``obs_std`` and ``meta`` (JSON: config, info)."""
@@ -118,6 +231,7 @@ class MLPPolicy(Policy):
         for i, (W, b) in enumerate(self.weights):
             arrays[f"W{i}"], arrays[f"b{i}"] = W, b
         meta = {"config": self.config.to_dict(), "n_layers": len(self.weights), "info": self.info,
+                "clock": _clock_params(self.clock) if self.clock is not None else None,
                 "layout_exclude_current_positions": bool(self.interface.layout.exclude_current_positions)}
         arrays["meta"] = np.array(json.dumps(meta))
         return write_npz(path, **arrays)
@@ -131,7 +245,7 @@ class MLPPolicy(Policy):
         cfg["hidden"] = tuple(cfg["hidden"])
         weights = [(d[f"W{i}"], d[f"b{i}"]) for i in range(meta["n_layers"])]
         return cls(interface if interface is not None else EnvInterface(), weights=weights, obs_mean=d["obs_mean"],
-                   obs_std=d["obs_std"], config=BCConfig(**cfg), info=meta.get("info"))
+                   obs_std=d["obs_std"], config=BCConfig(**cfg), info=meta.get("info"), clock=meta.get("clock"))
 
 
 # ================================================================================================ data
@@ -164,6 +278,9 @@ class Demonstrations:
 def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari") -> Demonstrations:
     """(observation t, action t) pairs from a dataset.
 
+    The action is the label: ``infos["expert_action"]`` when the dataset has it (datasets recorded with
+    DART action noise, whose ``actions`` are the noisy executed ones), the recorded action otherwise.
+
     Args:
         source: a ``MinariDataset``, a :class:`hsddp_gym.datasets.FlatDataset`, a dataset directory written
             by :func:`hsddp_gym.datasets.generate_dataset`, or an ``episodes.npz`` file.
@@ -189,13 +306,15 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         for i in range(n):
             e = source.episode(i)
             obs.append(e["observations"][:-1])
-            acts.append(e["actions"])
+            acts.append(e["infos"]["expert_action"][:-1] if "expert_action" in e["infos"] else e["actions"])
             ep.append(np.full(len(e["actions"]), i))
     else:  # a MinariDataset
         n = source.total_episodes if episodes is None else min(int(episodes), source.total_episodes)
         for i, e in enumerate(source.iterate_episodes(episode_indices=list(range(n)))):
             obs.append(np.asarray(e.observations)[:-1])
-            acts.append(np.asarray(e.actions))
+            infos = e.infos if isinstance(e.infos, dict) else {}
+            acts.append(np.asarray(infos["expert_action"])[:-1] if "expert_action" in infos else
+                        np.asarray(e.actions))
             ep.append(np.full(len(e.actions), i))
     if not obs:
         raise ValueError("the dataset has no episodes")
@@ -211,11 +330,13 @@ def _activation(name: str):
 
 
 def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: EnvInterface = EnvInterface(),
-             callback: Callable | None = None) -> tuple[MLPPolicy, dict]:
+             callback: Callable | None = None, clock=None) -> tuple[MLPPolicy, dict]:
     """Behaviour cloning on ``demos`` (see the module docstring).
 
     Args:
         callback: called after every epoch with ``(epoch, mean_loss)``.
+        clock: the gait clock for ``config.features == "gait_clock"`` (default: the default MPC's for
+            ``interface``, :func:`make_gait_clock`).
     Returns:
         ``(policy, history)`` with ``history = {"loss": [mean training loss per epoch], "wall_time_s",
         "transitions"}``.
@@ -228,7 +349,9 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     torch.set_num_threads(int(config.threads))
     torch.manual_seed(int(config.seed))
     t0 = time.perf_counter()
-    obs = np.asarray(demos.obs, dtype=np.float64)
+    if config.features == "gait_clock" and clock is None:
+        clock = make_gait_clock(interface)
+    obs = build_inputs(demos, config, clock, interface.layout)
     acts = np.clip(np.asarray(demos.actions, dtype=np.float64), -1.0, 1.0)
     mean = obs.mean(axis=0)
     std = np.maximum(obs.std(axis=0), config.std_floor)
@@ -242,6 +365,7 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     layers += [nn.Linear(size, Y.shape[1]), nn.Tanh()]
     net = nn.Sequential(*layers)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, int(config.epochs)) if config.lr_decay else None
     gen = torch.Generator().manual_seed(int(config.seed))
     n, bs = len(X), min(int(config.batch_size), len(X))
     losses = []
@@ -256,6 +380,8 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
             opt.step()
             total += float(loss.detach()) * len(idx)
         losses.append(total / n)
+        if sched is not None:
+            sched.step()
         if callback is not None:
             callback(epoch, losses[-1])
     linears = [m for m in net if isinstance(m, nn.Linear)]
@@ -264,7 +390,8 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n),
                "episodes": demos.n_episodes}
     policy = MLPPolicy(interface, weights=weights, obs_mean=mean, obs_std=std, config=config,
-                       info={"transitions": int(n), "episodes": demos.n_episodes, "final_loss": losses[-1]})
+                       info={"transitions": int(n), "episodes": demos.n_episodes, "final_loss": losses[-1]},
+                       clock=clock if config.features == "gait_clock" else None)
     return policy, history
 
 
@@ -340,7 +467,7 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
 
 def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig(),
                  initial: Demonstrations | None = None, env_kwargs: dict | None = None,
-                 evaluate: Callable | None = None, progress: bool = True) -> DAggerResult:
+                 evaluate: Callable | None = None, progress: bool = True, clock=None) -> DAggerResult:
     """DAgger with any expert (see the module docstring).
 
     Args:
@@ -348,6 +475,7 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
             :class:`hsddp_gym.datasets.PolicySpec`; one expert is built per rollout.
         initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
         evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
+        clock: the gait clock of ``gait_clock`` features (default: the default MPC's, :func:`make_gait_clock`).
     """
     from tqdm import tqdm
 
@@ -382,7 +510,8 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
             expert_labels += len(new)
         else:
             expert_labels += len(data)  # the initial demonstrations' actions are expert labels too
-        learner, hist = train_bc(data, dataclasses.replace(config.bc, seed=config.bc.seed + r), interface)
+        learner, hist = train_bc(data, dataclasses.replace(config.bc, seed=config.bc.seed + r), interface,
+                                 clock=clock)
         rec = {"round": r, "beta": beta, "episodes": n_eps, "new_labels": int(len(new)) if new is not None else
                int(len(data)), "expert_labels": int(expert_labels), "transitions": int(len(data)),
                "rollout_mean_return": float(np.mean(returns)) if returns else None,
@@ -492,7 +621,12 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
             loss_bar.update(1)
             loss_bar.set_postfix(loss=f"{loss:.4g}")
 
-    policy, hist = train_bc(data, config, interface, callback=cb)
+    clock = None
+    if config.features == "gait_clock":
+        pol_meta = meta.get("policy", {})
+        opts = pol_meta.get("options") if isinstance(pol_meta, dict) and pol_meta.get("name") == "mpc" else None
+        clock = make_gait_clock(interface, opts)
+    policy, hist = train_bc(data, config, interface, callback=cb, clock=clock)
     if loss_bar is not None:
         loss_bar.close()
     policy.info.update(dataset=str(dataset), dataset_id=meta.get("dataset_id"))
@@ -511,7 +645,7 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
         rows, points = [], []
         for n in sorted({min(int(c), data.n_episodes) for c in curve if int(c) >= 1}):
             sub = data if n >= data.n_episodes else data.first_episodes(n)
-            p, h = (policy, hist) if sub is data else train_bc(sub, config, interface)
+            p, h = (policy, hist) if sub is data else train_bc(sub, config, interface, clock=clock)
             ev = evaluate_policy_episodes(p, max(eval_episodes, 1), 0, env_kwargs, max_episode_steps)
             rows.append([n, len(sub), f"{ev['mean_return']:.6g}", f"{ev['std_return']:.6g}", ev["falls"],
                          f"{h['wall_time_s']:.3f}"])
@@ -564,7 +698,14 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
             return None
         return _eval_brief(evaluate_policy_episodes(p, eval_episodes, 0, env_kwargs, config.max_episode_steps))
 
-    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress)
+    clock = None
+    if config.bc.features == "gait_clock":
+        from hsddp_gym.datasets import make_env
+
+        env = make_env(env_kwargs, config.max_episode_steps)
+        clock = make_gait_clock(EnvInterface.from_env(env), mpc_options if expert == "mpc" else None)
+        env.close()
+    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock)
     res.policy.save(out / "policy.npz")
     write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode)
     rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],

@@ -23,6 +23,7 @@ feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -118,6 +119,92 @@ class MPCOptions:
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
 
 
+class GaitClock:
+    """The MPC's gait clock: the bounding phase ``phase`` (index into (back stance, flight, front stance,
+    flight)) and the time ``tau`` spent in it, a deterministic function of the observation history.
+
+    The phase changes on time, except that a flight ends when its landing foot has touched for
+    ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or ``max_wait``
+    after its nominal end (late touchdown); grazes of other feet are ignored. The first observation picks
+    the phase from the contacts (and, in flight, the sign of the pitch rate).
+
+    Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
+    (``2 pi t / gait_period``): on seed 0 of the default env the MPC's phase slips by about 0.2 cycles per
+    second, i.e. through a whole cycle in a 5 s episode. A learner that imitates the MPC needs this clock
+    (:meth:`features`), which it can rebuild from the observations alone (:func:`gait_clock_features`).
+
+    Args:
+        durations: nominal (back stance, flight, front stance, flight) durations [s].
+        dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
+    """
+
+    def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
+                 max_wait: float = 0.03) -> None:
+        if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
+            raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
+        self.durations = tuple(float(d) for d in durations)
+        self.dt = check_positive(dt, "dt")
+        self.debounce_steps = check_int(debounce_steps, "debounce_steps", minimum=1)
+        self.min_flight = float(min_flight)
+        self.max_wait = float(max_wait)
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase: int | None = None
+        self.tau = 0.0
+        self._contact_steps = [0, 0]
+
+    def copy(self) -> GaitClock:
+        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait)
+        twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
+        return twin
+
+    def update(self, mode: Mode, pitch_rate: float) -> Mode:
+        """Advance by the observed contact ``mode``; return the mode of the current gait phase."""
+        for foot in (FRONT, BACK):
+            self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
+        if self.phase is None:
+            if mode == Mode.FLIGHT:
+                self.phase = 1 if pitch_rate > 0 else 3
+            else:
+                self.phase = 0 if mode.in_contact(BACK) and not mode.in_contact(FRONT) else (
+                    2 if not mode.in_contact(BACK) else 0)
+            self.tau = 0.0
+            return _CYCLE[self.phase]
+        j = self.phase
+        nominal = self.durations[j]
+        advance = False
+        if _CYCLE[j] == Mode.FLIGHT:
+            landing = FRONT if j == 1 else BACK
+            touched = self._contact_steps[landing] >= self.debounce_steps
+            advance = (touched and self.tau >= self.min_flight * nominal) or self.tau >= nominal + self.max_wait
+        elif self.tau >= nominal - 1e-9:
+            advance = True
+        if advance:
+            self.phase = (j + 1) % 4
+            self.tau = 0.0
+        return _CYCLE[self.phase]
+
+    def tick(self) -> None:
+        """One control period has passed."""
+        self.tau += self.dt
+
+    N_FEATURES = 7
+
+    def features(self) -> np.ndarray:
+        """(7,): one-hot of the phase (4), ``tau / nominal duration`` (clipped to [0, 2]) and sin, cos of the
+        cycle fraction ``(start of the phase + tau) / cycle duration``; zeros before the first update."""
+        f = np.zeros(self.N_FEATURES)
+        if self.phase is None:
+            return f
+        j = self.phase
+        f[j] = 1.0
+        f[4] = min(self.tau / self.durations[j], 2.0)
+        frac = (sum(self.durations[:j]) + min(self.tau, self.durations[j])) / sum(self.durations)
+        f[5], f[6] = math.sin(2 * math.pi * frac), math.cos(2 * math.pi * frac)
+        return f
+
+
 class MPCPolicy(Policy):
     """HS-DDP MPC acting from observations (see the module docstring).
 
@@ -157,45 +244,24 @@ class MPCPolicy(Policy):
         self.last_solution = None
         self._problem = None
         self._cs: ConstraintState | None = None
-        self._phase_j: int | None = None
-        self._tau = 0.0
-        self._contact_steps = [0, 0]
+        self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
+                               self.options.min_flight, self.options.max_wait)
         self._since_replan = np.inf
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": []}
 
     # ------------------------------------------------------------------ gait clock
-    def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
-        """Advance the gait clock by the observed contacts; return the mode of the current gait phase.
+    @property
+    def _phase_j(self) -> int | None:
+        return self.clock.phase
 
-        The phase changes on time, except that a flight ends when its landing foot has touched for
-        ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or
-        ``max_wait`` after its nominal end (late touchdown); grazes of other feet are ignored.
-        """
-        o = self.options
-        for foot in (FRONT, BACK):
-            self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
-        if self._phase_j is None:
-            if mode == Mode.FLIGHT:
-                self._phase_j = 1 if x[NQ + IPITCH] > 0 else 3
-            else:
-                self._phase_j = 0 if mode.in_contact(BACK) and not mode.in_contact(FRONT) else (
-                    2 if not mode.in_contact(BACK) else 0)
-            self._tau = 0.0
-            return _CYCLE[self._phase_j]
-        j = self._phase_j
-        nominal = self.durations[j]
-        advance = False
-        if _CYCLE[j] == Mode.FLIGHT:
-            landing = FRONT if j == 1 else BACK
-            touched = self._contact_steps[landing] >= o.debounce_steps
-            advance = (touched and self._tau >= o.min_flight * nominal) or self._tau >= nominal + o.max_wait
-        elif self._tau >= nominal - 1e-9:
-            advance = True
-        if advance:
-            self._phase_j = (j + 1) % 4
-            self._tau = 0.0
-        return _CYCLE[self._phase_j]
+    @property
+    def _tau(self) -> float:
+        return self.clock.tau
+
+    def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
+        """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
+        return self.clock.update(mode, float(x[NQ + IPITCH]))
 
     def _schedule(self) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -353,7 +419,7 @@ class MPCPolicy(Policy):
         else:
             u = self.tracker.control(x)
             self.tracker.advance(self.interface.control_dt)
-        self._tau += self.interface.control_dt
+        self.clock.tick()
         self._since_replan += self.interface.control_dt
         return self.interface.action_from_torque(u)
 

@@ -201,3 +201,26 @@ def test_mpc_fields_and_feedback_law(tmp_path):
                                                      x - inf["expert_state_nominal"][:T])
     np.testing.assert_allclose(np.clip(u, -1, 1), ep.actions, atol=1e-4)
     assert json.loads((out / "metadata.json").read_text())["infos_schema"][GAIN_KEY][0] == [4, 14]
+
+
+def test_action_noise_executes_noisy_actions_and_stores_clean_labels(tmp_path):
+    import json
+
+    from hsddp_gym.datasets import load_npz
+
+    out = tmp_path / "dart"
+    generate_dataset("heuristic", 2, out, seed=5, max_episode_steps=25, progress=False, action_noise=0.05)
+    d = load_npz(out)
+    e = d.episode(0)
+    label = e["infos"]["expert_action"]
+    assert label.shape == (len(e["actions"]) + 1, 4) and label.dtype == np.float32
+    diff = e["actions"] - label[:-1]
+    assert 0.02 < diff.std() < 0.08 and np.all(np.abs(e["actions"]) <= 1)
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["action_noise"] == 0.05
+    again = tmp_path / "again"
+    generate_dataset("heuristic", 2, again, seed=5, max_episode_steps=25, progress=False, action_noise=0.05,
+                     workers=2)
+    np.testing.assert_array_equal(load_npz(again).actions, d.actions)  # seeded by the episode seed
+    with pytest.raises(ValueError):
+        generate_dataset("heuristic", 1, tmp_path / "bad", action_noise=-0.1, progress=False)

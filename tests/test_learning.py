@@ -191,3 +191,45 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
     ref = (PPO if algo == "ppo" else SAC).load(out / "model.zip", device="cpu")
     expected, _ = ref.predict(policy.normalize(obs), deterministic=True)
     np.testing.assert_allclose(policy.act(obs), np.clip(expected, -1, 1), atol=1e-6)
+
+
+def test_bc_with_gait_clock_features_has_memory_and_round_trips(dataset, tmp_path):
+    from planners.imitation import build_inputs, gait_clock_features, make_gait_clock
+
+    demos = load_demonstrations(dataset)
+    cfg = BCConfig(hidden=(32,), epochs=3, batch_size=64, features="gait_clock", lr_decay=True)
+    policy, hist = train_bc(demos, cfg)
+    assert policy.obs_mean.shape == (17 + 7,) and len(hist["loss"]) == 3
+    ep0 = demos.obs[demos.episode == 0]
+    clock = make_gait_clock()
+    # the inputs of each episode start from a reset clock
+    Z = build_inputs(demos, cfg, clock)
+    np.testing.assert_array_equal(Z[demos.episode == 1][:, 17:], gait_clock_features(demos.obs[demos.episode == 1],
+                                                                                      clock))
+    # acting rebuilds the same features step by step; reset() restarts the clock
+    policy.reset()
+    acts = np.array([policy.act(o) for o in ep0[:30]])
+    np.testing.assert_allclose(acts, policy.forward(Z[:30]).astype(np.float32), atol=1e-6)
+    assert policy.clock.phase is not None
+    policy.reset()
+    assert policy.clock.phase is None
+    policy.save(tmp_path / "bc.npz")
+    loaded = MLPPolicy.load(tmp_path / "bc.npz")
+    assert loaded.config.features == "gait_clock" and loaded.clock.durations == clock.durations
+    np.testing.assert_array_equal(np.array([loaded.act(o) for o in ep0[:30]]), acts)
+    twin = loaded.spawn()
+    assert twin.clock is not loaded.clock
+    with pytest.raises(ValueError):
+        BCConfig(features="history")
+
+
+def test_demonstration_labels_are_the_clean_actions_of_a_noisy_dataset(tmp_path):
+    out = tmp_path / "dart"
+    generate_dataset("heuristic", 2, out, seed=0, max_episode_steps=30, progress=False, action_noise=0.1)
+    for fmt in ("minari", "npz"):
+        demos = load_demonstrations(out, fmt=fmt)
+        policy = HeuristicPolicy.from_env(make_env())
+        ep0 = demos.obs[demos.episode == 0]
+        policy.reset()
+        clean = np.array([policy(o) for o in ep0])
+        np.testing.assert_allclose(demos.actions[demos.episode == 0], clean, atol=1e-6)

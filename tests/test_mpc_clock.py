@@ -1,0 +1,68 @@
+"""The MPC's gait clock (planners.mpc.GaitClock): its rules and that a learner can rebuild it from observations."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym.conventions import Mode
+from planners.imitation import gait_clock_features, make_gait_clock
+from planners.mpc import GaitClock, MPCOptions, MPCPolicy
+from planners.policies import EnvInterface
+
+
+def test_clock_rules():
+    c = GaitClock((0.02, 0.02, 0.02, 0.02), 0.005, debounce_steps=2, min_flight=0.3, max_wait=0.01)
+    assert c.update(Mode.BACK_STANCE, 0.0) == Mode.BACK_STANCE and c.phase == 0
+    for _ in range(4):  # stance ends on time
+        c.tick()
+        c.update(Mode.BACK_STANCE, 0.0)
+    assert c.phase == 1 and c.tau == 0.0
+    # late touchdown: the flight waits max_wait past its nominal end, then moves on
+    for _ in range(6):
+        c.tick()
+        c.update(Mode.FLIGHT, 0.0)
+    assert c.phase == 2
+    # early touchdown of the landing (back) foot ends flight 3 after debounce_steps contact steps
+    for _ in range(4):
+        c.tick()
+        c.update(Mode.BACK_STANCE, 0.0)
+    assert c.phase == 3
+    c.tick()
+    c.update(Mode.BACK_STANCE, 0.0)
+    assert c.phase == 3  # one contact step only
+    c.tick()
+    c.update(Mode.BACK_STANCE, 0.0)
+    assert c.phase == 0
+    f = c.features()
+    assert f.shape == (7,) and f[0] == 1.0 and f[4] == 0.0 and np.isclose(f[6], 1.0)
+    c.reset()
+    assert c.phase is None and not c.features().any()
+    with pytest.raises(ValueError):
+        GaitClock((0.1, 0.1, 0.1), 0.005)
+
+
+@pytest.mark.slow
+def test_features_rebuilt_from_observations_match_the_mpc_clock():
+    env = gym.make("hsddp_gym/Bounding-v0")
+    mpc = MPCPolicy.from_env(env, options=MPCOptions(warmup_iterations=5, max_iterations=1))
+    obs, _ = env.reset(seed=3)
+    mpc.reset()
+    O, live = [], []
+    for _ in range(120):
+        a = mpc(obs)
+        O.append(obs)
+        live.append((mpc.clock.phase, mpc.clock.tau - mpc.clock.dt))
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            break
+    env.close()
+    clock = make_gait_clock(EnvInterface.from_env(env))
+    feats = gait_clock_features(np.array(O), clock)
+    phases = [p for p, _ in live]
+    assert len(set(phases)) >= 3  # the episode went through several phases
+    np.testing.assert_array_equal(feats[:, :4].argmax(axis=1), phases)
+    taus = np.array([t for _, t in live])
+    np.testing.assert_allclose(feats[:, 4], np.minimum(taus / np.array(clock.durations)[phases], 2.0), atol=1e-9)
