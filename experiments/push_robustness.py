@@ -29,13 +29,23 @@ DEFAULT_PUSHES = [
 ]
 
 
+POLICIES = ("mpc", "mpc-recovery", "mpc-handover", "heuristic", "random")
+"""``mpc-recovery``: the MPC with ``MPCOptions(recovery=True)`` (immediate re-plan, more iterations, the
+heuristic only after a failed re-plan); ``mpc-handover``: also ``recovery_handover=True`` (the heuristic acts
+for the whole recovery window)."""
+
+
 def make_policy(name: str, env):
-    from planners.mpc import MPCPolicy
+    from planners.mpc import MPCOptions, MPCPolicy
     from planners.policies import HeuristicPolicy, RandomPolicy
 
+    if name == "mpc-recovery":
+        return MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    if name == "mpc-handover":
+        return MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_handover=True))
     factories = {"mpc": MPCPolicy, "heuristic": HeuristicPolicy, "random": RandomPolicy}
     if name not in factories:
-        raise ValueError(f"policy must be one of {sorted(factories)}, got {name!r}")
+        raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
     return factories[name].from_env(env)
 
 
@@ -83,7 +93,7 @@ def markdown(results: dict, push_time: float, steps: int, dt: float) -> str:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/push", help="output directory (default: %(default)s)")
-    p.add_argument("--policies", nargs="+", default=["mpc", "heuristic"], choices=("mpc", "heuristic", "random"),
+    p.add_argument("--policies", nargs="+", default=["mpc", "heuristic"], choices=POLICIES,
                    help="policies to test (default: %(default)s)")
     p.add_argument("--seeds", type=int, default=3, help="episodes per policy and push (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=100, help="seed of the first episode (default: %(default)s)")

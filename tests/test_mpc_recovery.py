@@ -1,0 +1,103 @@
+"""The MPC's push recovery (``MPCOptions(recovery=True)``): off by default, triggered only by a plan deviation
+above its threshold, an immediate re-plan with more iterations, and the heuristic acting after a failed
+recovery re-plan."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401
+from planners.evaluation import run_episode
+from planners.mpc import MPCOptions, MPCPolicy
+
+ARMED = 110
+"""Control steps (0.55 s) after which the recovery is armed (``recovery_after`` = 0.5 s)."""
+
+
+def make_env():
+    return gym.make("hsddp_gym/Bounding-v0")
+
+
+def run(env, policy, obs, steps):
+    actions = []
+    for _ in range(steps):
+        a = policy(obs)
+        actions.append(a)
+        obs, _, terminated, _, _ = env.step(a)
+        assert not terminated
+    return obs, np.array(actions)
+
+
+def test_recovery_is_off_by_default_and_validated():
+    o = MPCOptions()
+    assert o.recovery is False and o.recovery_fallback and not o.recovery_handover
+    with pytest.raises(ValueError, match="recovery_iterations"):
+        MPCOptions(recovery_iterations=0)
+    with pytest.raises(ValueError, match="recovery_threshold"):
+        MPCOptions(recovery_threshold=0.0)
+    with pytest.raises(ValueError, match="recovery_window"):
+        MPCOptions(recovery_window=-0.1)
+    assert MPCPolicy().plan_deviation(np.zeros(14)) == 0.0  # no plan yet
+
+
+def test_recovery_does_not_change_unpushed_bounding():
+    """Without a push the deviation stays under the threshold: the same actions as the plain MPC."""
+    env = make_env()
+    plain, rec = MPCPolicy.from_env(env), MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    obs, _ = env.reset(seed=0)
+    _, a_plain = run(env, plain, obs, ARMED + 20)
+    obs, _ = env.reset(seed=0)
+    _, a_rec = run(env, rec, obs, ARMED + 20)
+    assert rec.stats["recoveries"] == 0 and rec.stats["fallback_steps"] == 0
+    np.testing.assert_array_equal(a_plain, a_rec)
+
+
+def test_recovery_triggers_only_above_threshold_and_replans_at_once():
+    env = make_env()
+    policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    obs, _ = env.reset(seed=0)
+    obs, _ = run(env, policy, obs, ARMED)
+    obs = env.unwrapped.apply_push([0.2, 0.0, 0.0])  # small: below the 0.5 m/s threshold
+    obs, _ = run(env, policy, obs, 6)
+    assert policy.stats["recoveries"] == 0
+    while policy._since_replan >= policy.options.replan_period - 2 * policy.interface.control_dt:
+        obs, _ = run(env, policy, obs, 1)  # stand right after a periodic re-plan
+    obs = env.unwrapped.apply_push([-1.5, 0.0, 0.0])
+    x, _, _ = policy._parse(obs)
+    assert policy.plan_deviation(x) > policy.options.recovery_threshold
+    n = policy.stats["replans"] + policy.stats["planner_failures"]
+    policy(obs)
+    assert policy.stats["recoveries"] == 1 and policy.recovering
+    assert policy.stats["replans"] + policy.stats["planner_failures"] == n + 1  # no wait for the period
+    if policy.stats["replans"] > 0 and policy.stats["iterations"]:
+        assert policy.stats["iterations"][-1] <= policy.options.recovery_iterations
+
+
+def test_failed_recovery_replans_hand_over_to_the_heuristic(monkeypatch):
+    env = make_env()
+    policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    obs, _ = env.reset(seed=0)
+    obs, _ = run(env, policy, obs, ARMED)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("solver exploded")
+
+    monkeypatch.setattr(policy._solver, "solve", broken)
+    obs = env.unwrapped.apply_push([-1.0, 0.0, 0.0])
+    obs, _ = run(env, policy, obs, 10)
+    assert policy.stats["recoveries"] == 1 and policy.stats["planner_failures"] >= 1
+    assert policy.stats["fallback_steps"] >= 9  # the heuristic acts, the episode goes on
+
+
+def test_recovery_survives_a_push_the_plain_mpc_falls_after():
+    """Seed 100, ``[+1.5, 0, 0]`` at t = 1 s: the plain MPC falls at 1.255 s, the recovering one bounds on
+    (it also survives the whole 2.5 s episode of ``experiments/push_robustness.py``)."""
+    push = {"push": {"delta_v": [1.5, 0.0, 0.0], "time": 1.0}}
+    env = make_env()
+    plain = run_episode(env, MPCPolicy.from_env(env), 100, options=push, max_steps=300)
+    assert plain.fell and plain.length < 260
+    policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    rec = run_episode(env, policy, 100, options=push, max_steps=300)
+    assert not rec.fell and policy.stats["recoveries"] >= 1
