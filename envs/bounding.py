@@ -162,8 +162,9 @@ class BoundingEnv(gym.Env):
     knee), so a joint damping gain ``kd`` held for a control period ``dt`` is unstable once
     ``kd * dt / I > 2``: about 0.2 N m s/rad at 100 Hz, 0.4 at 200 Hz, 2 at 1 kHz. ``frame_skip=5``
     (200 Hz) keeps 14-16 decisions per 72-80 ms bounding phase and lets a learned policy damp its legs,
-    while 100 Hz leaves almost no stable feedback. Model-based feedback controllers with stiff joint gains
-    (the heuristic controller, the planner's DDP gains, both designed at 1 ms) should use ``frame_skip=1``.
+    while 100 Hz leaves almost no stable feedback. The contact-event heuristic policy and the MPC (which
+    plans on a 5 ms grid) are designed for the default; tracking a 1 ms plan's stiff DDP gains may prefer
+    ``frame_skip=1``.
     1000 steps (5 s) span about 17 bounding cycles, enough to expose drift, and keep episodes short for
     PPO/SAC; use ``gym.make(..., max_episode_steps=...)`` to change it.
 
