@@ -305,6 +305,8 @@ def cmd_train(args) -> int:
 
         config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
+                              rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
+                              rollout_steps=args.rollout_steps,
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                           seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config, dataset=args.dataset,
@@ -388,6 +390,17 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--rounds", type=int, default=4, help="dagger: rounds after round 0 (default: %(default)s)")
     p.add_argument("--episodes-per-round", type=_positive_int, default=5, help="dagger (default: %(default)s)")
     p.add_argument("--beta-decay", type=float, default=0.5, help="dagger: beta_i = decay**i (default: %(default)s)")
+    p.add_argument("--rollout-noise", type=float, default=0.0,
+                   help="dagger: DART-style noise: Gaussian std (normalized units, e.g. 0.04) added to the executed "
+                        "action of the relabelling rollouts (rounds >= 1); labels stay the expert's clean action "
+                        "(default: 0, none)")
+    p.add_argument("--rollout-steps", type=_positive_int, default=None,
+                   help="dagger: truncate the relabelling rollouts (rounds >= 1) after this many steps, to spend "
+                        "the label budget on many starts (the learner's falls happen early); every labelled step "
+                        "counts (default: full episodes)")
+    p.add_argument("--warm-start", action="store_true",
+                   help="dagger: rounds >= 1 fine-tune the previous round's network (and keep its input "
+                        "standardization) for --epochs instead of retraining from scratch")
     p.add_argument("--eval-episodes", type=int, default=10,
                    help="final evaluation episodes, seeds 0.. (default: %(default)s; 0: none)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,

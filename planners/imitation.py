@@ -33,8 +33,10 @@ expert's with probability ``beta_i = beta_decay ** i`` and the learner's otherwi
 seeded generator); the expert runs *alongside* on the same env states for the whole episode -- it is
 queried at every visited observation, so a policy with memory (gait clock, plan cursor, MPC warm start)
 keeps its memory consistent -- and its action is the label of that observation. The labels are added to the
-aggregate data and BC is retrained from scratch on it. ``expert_labels`` counts every expert label used for
-training (the initial demonstrations' actions included).
+aggregate data and BC is retrained from scratch on it (or, with ``warm_start``, fine-tuned from the previous
+round's network). ``rollout_noise`` adds DART-style Gaussian noise to the executed actions of rounds
+``>= 1`` (labels stay clean); ``rollout_steps`` truncates their rollouts. ``expert_labels`` counts every
+expert label used for training (the initial demonstrations' actions included).
 """
 
 from __future__ import annotations
@@ -330,13 +332,16 @@ def _activation(name: str):
 
 
 def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: EnvInterface = EnvInterface(),
-             callback: Callable | None = None, clock=None) -> tuple[MLPPolicy, dict]:
+             callback: Callable | None = None, clock=None, init: MLPPolicy | None = None
+             ) -> tuple[MLPPolicy, dict]:
     """Behaviour cloning on ``demos`` (see the module docstring).
 
     Args:
         callback: called after every epoch with ``(epoch, mean_loss)``.
         clock: the gait clock for ``config.features == "gait_clock"`` (default: the default MPC's for
             ``interface``, :func:`make_gait_clock`).
+        init: warm start: start from this policy's weights and keep its input standardization (its layer
+            sizes, activation and features must match ``config``) instead of a fresh initialization.
     Returns:
         ``(policy, history)`` with ``history = {"loss": [mean training loss per epoch], "wall_time_s",
         "transitions"}``.
@@ -353,8 +358,14 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
         clock = make_gait_clock(interface)
     obs = build_inputs(demos, config, clock, interface.layout)
     acts = np.clip(np.asarray(demos.actions, dtype=np.float64), -1.0, 1.0)
-    mean = obs.mean(axis=0)
-    std = np.maximum(obs.std(axis=0), config.std_floor)
+    if init is not None:
+        if (tuple(int(h) for h in init.config.hidden) != tuple(int(h) for h in config.hidden)
+                or init.config.activation != config.activation or init.config.features != config.features):
+            raise ValueError("init must have the hidden sizes, activation and features of config")
+        mean, std = init.obs_mean.copy(), init.obs_std.copy()
+    else:
+        mean = obs.mean(axis=0)
+        std = np.maximum(obs.std(axis=0), config.std_floor)
     z = np.clip((obs - mean) / std, -config.obs_clip, config.obs_clip)
     X = torch.as_tensor(z, dtype=torch.float32)
     Y = torch.as_tensor(acts, dtype=torch.float32)
@@ -364,6 +375,11 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
         size = int(h)
     layers += [nn.Linear(size, Y.shape[1]), nn.Tanh()]
     net = nn.Sequential(*layers)
+    if init is not None:
+        with torch.no_grad():
+            for m, (W, b) in zip([m for m in net if isinstance(m, nn.Linear)], init.weights):
+                m.weight.copy_(torch.as_tensor(W, dtype=torch.float32))
+                m.bias.copy_(torch.as_tensor(b, dtype=torch.float32))
     opt = torch.optim.Adam(net.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, int(config.epochs)) if config.lr_decay else None
     gen = torch.Generator().manual_seed(int(config.seed))
@@ -408,6 +424,16 @@ class DAggerConfig:
         seed: episode ``j`` of round ``i`` is reset with seed ``seed + 1000 * i + j``; the mixture draws come
             from ``np.random.default_rng([seed, i, j])``.
         max_episode_steps: time-limit override of the rollouts (None: the env's 1000).
+        rollout_noise: DART-style noise in rounds >= 1: the executed action (expert's or learner's) gets
+            i.i.d. Gaussian noise of this std (normalized units, clipped to [-1, 1]) drawn from the round's
+            generator, so the aggregate data covers the recoveries from perturbed states; the label stays the
+            expert's clean action (0: none).
+        warm_start: rounds >= 1 start training from the previous round's network and input standardization
+            (``epochs`` per round, lr schedule restarted) instead of a fresh initialization.
+        rollout_steps: truncate the relabelling rollouts of rounds >= 1 after this many steps (None: run to
+            the end of the episode). The learner's falls happen in the first ~150 steps (the start transient
+            from the reset noise), so short rollouts spend the label budget on many initial states instead of
+            on steady bounding. Only the labelled steps count; the evaluation is not truncated.
     """
 
     rounds: int = 4
@@ -416,6 +442,9 @@ class DAggerConfig:
     bc: BCConfig = BCConfig()
     seed: int = 0
     max_episode_steps: int | None = None
+    rollout_noise: float = 0.0
+    warm_start: bool = False
+    rollout_steps: int | None = None
 
     def __post_init__(self) -> None:
         if int(self.rounds) < 0:
@@ -424,6 +453,10 @@ class DAggerConfig:
             raise ValueError(f"episodes_per_round must be >= 1, got {self.episodes_per_round!r}")
         if not 0.0 <= float(self.beta_decay) <= 1.0:
             raise ValueError(f"beta_decay must be in [0, 1], got {self.beta_decay!r}")
+        if self.rollout_steps is not None and int(self.rollout_steps) < 1:
+            raise ValueError(f"rollout_steps must be >= 1 or None, got {self.rollout_steps!r}")
+        if not float(self.rollout_noise) >= 0.0:
+            raise ValueError(f"rollout_noise must be >= 0, got {self.rollout_noise!r}")
 
     def beta(self, round_index: int) -> float:
         return 1.0 if round_index == 0 else float(self.beta_decay) ** int(round_index)
@@ -443,9 +476,12 @@ class DAggerResult:
 
 
 def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
-                   options: dict | None = None) -> tuple[np.ndarray, np.ndarray, float, int]:
-    """One episode in which the expert labels every visited observation and the executed action is the
-    expert's with probability ``beta``. Returns ``(obs (T, d), expert actions (T, 4), return, expert acts)``."""
+                   options: dict | None = None, noise: float = 0.0, max_steps: int | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
+    observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
+    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). Returns ``(obs (T, d),
+    expert actions (T, 4), return, expert acts)``."""
     obs, _ = env.reset(seed=int(seed), options=options)
     expert.reset()
     if learner is not None:
@@ -458,9 +494,11 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
         use_expert = learner is None or rng.random() < beta
         n_expert += int(use_expert)
         action = label if use_expert else np.asarray(learner(obs), dtype=np.float32)
+        if noise > 0:
+            action = np.clip(action + noise * rng.standard_normal(action.shape), -1.0, 1.0).astype(np.float32)
         obs, reward, terminated, truncated, _ = env.step(action)
         ret += float(reward)
-        if terminated or truncated:
+        if terminated or truncated or (max_steps is not None and len(O) >= int(max_steps)):
             break
     return np.array(O), np.array(A), ret, n_expert
 
@@ -498,7 +536,9 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
                 seed = config.seed + 1000 * r + j
                 expert, options = expert_factory(env, seed)
                 O, A, ret, ne = dagger_rollout(env, learner if r > 0 else None, expert, beta, seed,
-                                               np.random.default_rng([config.seed, r, j]), options)
+                                               np.random.default_rng([config.seed, r, j]), options,
+                                               noise=float(config.rollout_noise) if r > 0 else 0.0,
+                                               max_steps=config.rollout_steps if r > 0 else None)
                 parts.append(Demonstrations(O, A, np.full(len(O), j)))
                 returns.append(ret)
                 expert_acts += ne
@@ -511,7 +551,7 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
         else:
             expert_labels += len(data)  # the initial demonstrations' actions are expert labels too
         learner, hist = train_bc(data, dataclasses.replace(config.bc, seed=config.bc.seed + r), interface,
-                                 clock=clock)
+                                 clock=clock, init=learner if config.warm_start else None)
         rec = {"round": r, "beta": beta, "episodes": n_eps, "new_labels": int(len(new)) if new is not None else
                int(len(data)), "expert_labels": int(expert_labels), "transitions": int(len(data)),
                "rollout_mean_return": float(np.mean(returns)) if returns else None,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -13,6 +15,7 @@ from planners.imitation import (
     BCConfig,
     DAggerConfig,
     MLPPolicy,
+    dagger_rollout,
     load_demonstrations,
     train_bc,
     train_dagger,
@@ -95,6 +98,97 @@ def test_dagger_without_initial_data_starts_from_expert_episodes():
     res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
     assert res.history[0]["episodes"] == 1 and res.history[0]["expert_actions_fraction"] == 1.0
     assert res.expert_labels == len(res.data) <= 20
+
+
+class _RecordActions(gym.Wrapper):
+    def __init__(self, env):
+        super().__init__(env)
+        self.actions = []
+
+    def step(self, action):
+        self.actions.append(np.array(action, dtype=np.float32))
+        return super().step(action)
+
+
+def test_dagger_rollout_noise_perturbs_executed_actions_not_labels():
+    env = _RecordActions(make_env(max_episode_steps=30))
+    expert = HeuristicPolicy.from_env(env)
+    O0, A0, _, n0 = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0))
+    clean = np.array(env.actions)
+    np.testing.assert_array_equal(clean, A0)  # no noise: the executed action is the label
+    env.actions = []
+    O, A, _, n = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0), noise=0.1)
+    executed = np.array(env.actions)
+    assert n == len(O) and len(executed) == len(A)
+    assert np.all(np.abs(executed) <= 1.0)
+    dev = executed - A
+    assert 0.05 < float(np.std(dev)) < 0.15  # the executed actions carry the noise ...
+    assert not np.allclose(O[1:min(len(O), len(O0))], O0[1:min(len(O), len(O0))])  # ... which moves the states
+    # ... and the labels are the clean expert actions on the visited observations
+    replay = HeuristicPolicy.from_env(env)
+    replay.reset()
+    np.testing.assert_array_equal(np.stack([replay(o) for o in O]), A)
+    with pytest.raises(ValueError):
+        DAggerConfig(rollout_noise=-0.1)
+
+
+def test_train_bc_warm_start_keeps_init_normalization_and_weights(dataset):
+    demos = load_demonstrations(dataset)
+    cfg = BCConfig(hidden=(32, 32), epochs=3, batch_size=64, seed=1)
+    first, _ = train_bc(demos.first_episodes(1), cfg)
+    tiny = BCConfig(hidden=(32, 32), epochs=1, batch_size=64, seed=2, lr=1e-9)
+    warm, _ = train_bc(demos, tiny, init=first)
+    np.testing.assert_array_equal(warm.obs_mean, first.obs_mean)
+    np.testing.assert_array_equal(warm.obs_std, first.obs_std)
+    np.testing.assert_allclose(warm.forward(demos.obs[:10]), first.forward(demos.obs[:10]), atol=1e-5)
+    cold, _ = train_bc(demos, tiny)
+    assert not np.allclose(cold.obs_mean, first.obs_mean)
+    assert not np.allclose(cold.forward(demos.obs[:10]), first.forward(demos.obs[:10]), atol=1e-3)
+    with pytest.raises(ValueError):
+        train_bc(demos, BCConfig(hidden=(16,), epochs=1), init=first)
+
+
+def test_dagger_warm_start_and_noise_options():
+    cfg = DAggerConfig(rounds=2, episodes_per_round=1, max_episode_steps=15, rollout_noise=0.05, warm_start=True,
+                       bc=BCConfig(hidden=(16,), epochs=2))
+    learners = []
+    res = train_dagger(PolicySpec("heuristic"), cfg, progress=False, evaluate=lambda p: learners.append(p) or {})
+    assert len(learners) == 3 and res.policy is learners[-1]
+    for p in learners[1:]:  # warm start: the round-0 standardization is kept
+        np.testing.assert_array_equal(p.obs_mean, learners[0].obs_mean)
+    cold = train_dagger(PolicySpec("heuristic"), dataclasses.replace(cfg, warm_start=False), progress=False)
+    assert not np.array_equal(cold.policy.obs_mean, learners[0].obs_mean)
+    # the noise changes the relabelled states, not round 0
+    quiet = train_dagger(PolicySpec("heuristic"), dataclasses.replace(cfg, rollout_noise=0.0), progress=False)
+    n0 = res.history[0]["new_labels"]
+    np.testing.assert_array_equal(quiet.data.obs[:n0], res.data.obs[:n0])
+    m = min(len(quiet.data), len(res.data))
+    assert not np.array_equal(quiet.data.obs[n0:m], res.data.obs[n0:m])
+    assert res.expert_labels == len(res.data)
+
+
+def test_dagger_rollout_steps_truncates_relabelling_rollouts_only():
+    env = make_env(max_episode_steps=30)
+    expert = HeuristicPolicy.from_env(env)
+    O, A, _, _ = dagger_rollout(env, None, expert, 1.0, 2, np.random.default_rng(0), max_steps=7)
+    assert len(O) == len(A) == 7
+    cfg = DAggerConfig(rounds=2, episodes_per_round=2, max_episode_steps=20, rollout_steps=6,
+                       bc=BCConfig(hidden=(16,), epochs=2))
+    res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
+    h = res.history
+    assert h[0]["new_labels"] == 40  # round 0: full expert episodes (the heuristic does not fall in 20 steps)
+    assert all(r["new_labels"] <= 12 for r in h[1:]) and res.expert_labels == len(res.data) == 40 + sum(
+        r["new_labels"] for r in h[1:])
+    with pytest.raises(ValueError):
+        DAggerConfig(rollout_steps=0)
+
+
+def test_cli_dagger_flags():
+    args = cli.build_parser().parse_args(["train", "--algo", "dagger", "--out", "x", "--rollout-noise", "0.04",
+                                          "--warm-start", "--rollout-steps", "200"])
+    assert args.rollout_noise == 0.04 and args.warm_start is True and args.rollout_steps == 200
+    args = cli.build_parser().parse_args(["train", "--algo", "dagger", "--out", "x"])
+    assert args.rollout_noise == 0.0 and args.warm_start is False and args.rollout_steps is None
 
 
 # ------------------------------------------------------------------------------------------ SB3 adapter
