@@ -84,7 +84,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.conventions import NU, NX
-from hsddp_gym.io import read_npz, write_json, write_npz
+from hsddp_gym.io import json_default, read_npz, write_json, write_npz
 from hsddp_gym.validation import check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
@@ -593,21 +593,11 @@ def _write_into(tmp: Path, episodes, dataset_id, env, metadata, ref_min_score, r
             ref_min_score=float(ref_min_score), ref_max_score=float(ref_max_score),
             description=description or f"{metadata.get('policy', {}).get('name', '?')} demonstrations on {ENV_ID}",
             requirements=None)
-        ds.storage.update_metadata({"hsddp_gym": json.loads(json.dumps(metadata, default=_json_default))})
+        ds.storage.update_metadata({"hsddp_gym": json.loads(json.dumps(metadata, default=json_default))})
     arrays = episodes_to_arrays(episodes)
-    arrays["metadata"] = np.array(json.dumps(metadata, default=_json_default))
+    arrays["metadata"] = np.array(json.dumps(metadata, default=json_default))
     write_npz(tmp / "episodes.npz", **arrays)
     write_json(tmp / "metadata.json", metadata)
-
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"cannot serialize {type(obj).__name__} to JSON")
 
 
 def mean_random_return(env_kwargs: dict | None = None, max_episode_steps: int | None = None, seed: int = 0,

@@ -33,7 +33,7 @@ def atomic_path(path, suffix: str = ""):
 def write_json(path, payload) -> Path:
     """Write ``payload`` as indented JSON atomically."""
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(payload, indent=2, default=_json_default) + "\n")
+        tmp.write_text(json.dumps(payload, indent=2, default=json_default) + "\n")
     return Path(path)
 
 
@@ -54,7 +54,8 @@ def read_npz(path) -> dict:
         return {k: data[k] for k in data.files}
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps(..., default=json_default)``: arrays and NumPy scalars as Python values, paths as strings."""
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, np.generic):
