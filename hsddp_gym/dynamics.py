@@ -224,7 +224,12 @@ class HybridDynamics:
             modes: contact mode per knot ``(N,)`` (ints). out: a :class:`Linearization` of length ``>= N``.
             h: step per knot ``(N,)`` or a scalar (default: ``self.dt``); time-scaled problems (switching-time
                 optimization) give each phase its own step.
+
+        Raises:
+            ValueError/TypeError naming the argument for wrong shapes, non-finite states or controls, unknown
+            modes, a too small ``out`` or non-positive steps (checks are O(N) numpy calls, a few us).
         """
+        X, U, modes, h = _check_horizon(X, U, modes, out, h)
         n = U.shape[0]
         tau = self._tau
         model, free, prox = self.model, self._free, self._prox
@@ -347,6 +352,41 @@ class HybridDynamics:
         P[NQ:, NQ:] = cs.data.ddq_dv  # Pinocchio stores dv+/dv- - I here (stack_notes §2)
         P[NQ:, NQ:] += np.eye(NV)
         return x_plus, impulse
+
+
+_MODE_VALUES = tuple(int(m) for m in Mode)
+
+
+def _check_horizon(X, U, modes, out, h):
+    """Validate the arguments of :meth:`HybridDynamics.linearize`; returns ``(X, U, modes, h)`` as arrays
+    (no copies of float64 / integer inputs)."""
+    U = np.asarray(U, dtype=np.float64)
+    if U.ndim != 2 or U.shape[1] != NU or U.shape[0] < 1:
+        raise ValueError(f"U must have shape (N, {NU}) with N >= 1, got {U.shape}")
+    n = U.shape[0]
+    X = np.asarray(X, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != NX or X.shape[0] < n:
+        raise ValueError(f"X must have shape (N+1, {NX}) with N = {n} (the length of U), got {X.shape}")
+    if not (np.isfinite(X[:n]).all() and np.isfinite(U).all()):
+        raise ValueError("X and U must be finite (found NaN or inf in X[:N] or U)")
+    modes = np.asarray(modes)
+    if modes.shape != (n,) or not np.issubdtype(modes.dtype, np.integer):
+        raise ValueError(f"modes must be an integer array of shape ({n},), got {modes.dtype} {modes.shape}")
+    if modes.min() < min(_MODE_VALUES) or modes.max() > max(_MODE_VALUES):
+        raise ValueError(f"modes must hold contact modes {list(_MODE_VALUES)}, got values "
+                         f"{sorted(set(modes.tolist()) - set(_MODE_VALUES))}")
+    if not isinstance(out, Linearization):
+        raise TypeError(f"out must be a Linearization, got {type(out).__name__}")
+    if out.capacity < n:
+        raise ValueError(f"out has capacity {out.capacity} < N = {n} knots")
+    if h is not None:
+        ha = np.asarray(h, dtype=np.float64)
+        if ha.shape not in ((), (n,)):
+            raise ValueError(f"h must be a scalar or have shape ({n},), got {ha.shape}")
+        if not (np.isfinite(ha).all() and (ha > 0.0).all()):
+            raise ValueError("h must be finite and > 0")
+        h = ha if ha.ndim else float(ha)
+    return X, U, modes, h
 
 
 def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h, integrator: str,

@@ -7,6 +7,7 @@ The authors' code measures z from the hip height with straight legs, ground at z
 from __future__ import annotations
 
 import math
+import numbers
 
 import numpy as np
 
@@ -23,6 +24,8 @@ def paper_initial_state(params: RobotParams = DEFAULT_PARAMS) -> np.ndarray:
     Returns:
         x0 (14,).
     """
+    if not isinstance(params, RobotParams):
+        raise TypeError(f"params must be a RobotParams, got {type(params).__name__}")
     q0 = np.array([0.0, -0.1093, -0.1542, 1.0957, -2.2033, 0.9742, -1.7098])
     q0[1] += params.leg_length
     v0 = np.array([0.9011, 0.2756, 0.7333, 0.0446, 0.0009, 1.3219, 2.7346])
@@ -70,6 +73,10 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         key = "FL_back_td"
     else:
         raise ValueError(f"no bounding reference for mode={mode!r} with touchdown_foot={touchdown_foot!r}")
+    if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not math.isfinite(float(speed)):
+        raise ValueError(f"speed must be a finite number [m/s], got {speed!r}")
+    if not isinstance(params, RobotParams):
+        raise TypeError(f"params must be a RobotParams, got {type(params).__name__}")
     if z_velocity not in ("code", "paper"):
         raise ValueError(f"z_velocity must be 'code' or 'paper', got {z_velocity!r}")
     z, pitch, hf, kf, hb, kb, zdot = _END_POSTURES[key]

@@ -29,16 +29,18 @@ class ModeSchedule:
     zero at the end of the phase.
 
     Args:
-        modes: ``n`` contact modes (``Mode`` or ints).
+        modes: ``n`` contact modes (``Mode`` or ints; bools are refused).
         durations: ``n`` positive durations [s].
         final_mode: mode after the last phase (default: ``modes[-1]``, i.e. no switch at the end).
     """
 
     def __init__(self, modes, durations, final_mode=None) -> None:
         try:
-            self.modes = tuple(Mode(m) for m in modes)
-        except (ValueError, TypeError):
-            raise ValueError(f"modes must be contact modes {[m.name for m in Mode]}, got {modes!r}") from None
+            items = list(modes)
+        except TypeError:
+            raise ValueError(f"modes must be a sequence of contact modes {[m.name for m in Mode]}, "
+                             f"got {modes!r}") from None
+        self.modes = tuple(as_mode(m, f"modes[{i}]") for i, m in enumerate(items))
         if not self.modes:
             raise ValueError("modes must hold at least one mode")
         durations = _durations_array(durations)
@@ -48,10 +50,7 @@ class ModeSchedule:
             raise ValueError(f"durations must be finite and > 0, got {durations}")
         self.durations = durations
         self.durations.setflags(write=False)
-        try:
-            self.final_mode = self.modes[-1] if final_mode is None else Mode(final_mode)
-        except ValueError:
-            raise ValueError(f"final_mode must be a contact mode, got {final_mode!r}") from None
+        self.final_mode = self.modes[-1] if final_mode is None else as_mode(final_mode, "final_mode")
 
     # --------------------------------------------------------------------------- factories
     @classmethod

@@ -26,6 +26,38 @@ def _zero_v_block() -> np.ndarray:
     return np.hstack([np.zeros((NV, NQ)), np.eye(NV)])
 
 
+def block_rel_err(value: np.ndarray, reference: np.ndarray) -> float:
+    """``max |value - reference| / max |reference|``: the error relative to the block's own scale.
+
+    Complements ``tools.max_rel_err`` (elementwise, relative to ``max(1, |reference|)``), which compares
+    entries below 1 in absolute terms: a block whose entries are all ~1e-2 would pass it with 1e-3 relative
+    error. A reference that is identically zero must be matched exactly."""
+    value, reference = np.asarray(value, dtype=np.float64), np.asarray(reference, dtype=np.float64)
+    assert value.shape == reference.shape, (value.shape, reference.shape)
+    scale = float(np.max(np.abs(reference)))
+    err = float(np.max(np.abs(value - reference)))
+    return err if scale == 0.0 else err / scale
+
+
+def assert_derivatives_match(dyn, x, u, mode, tools):
+    """Every Jacobian of ``step_derivatives`` (f_x, f_u, grf_x, grf_u, and the continuous da/dx, da/du hidden
+    in f = x + h (...)) against central differences: max relative error <= tools.FD_TOL in both measures,
+    elementwise and per block."""
+    h = dyn.dt
+    _, _, f_x, f_u, grf_x, grf_u = dyn.step_derivatives(x, u, mode)
+    pairs = {
+        "f_x": (f_x, tools.fd_jacobian(lambda xx: dyn.step(xx, u, mode)[0], x)),
+        "f_u": (f_u, tools.fd_jacobian(lambda uu: dyn.step(x, uu, mode)[0], u)),
+        "grf_x": (grf_x, tools.fd_jacobian(lambda xx: dyn.step(xx, u, mode)[1], x)),
+        "grf_u": (grf_u, tools.fd_jacobian(lambda uu: dyn.step(x, uu, mode)[1], u)),
+        "a_x": ((f_x[NQ:] - _zero_v_block()) / h, tools.fd_jacobian(lambda xx: dyn.accelerations(xx, u, mode)[0], x)),
+        "a_u": (f_u[NQ:] / h, tools.fd_jacobian(lambda uu: dyn.accelerations(x, uu, mode)[0], u)),
+    }
+    for name, (analytic, fd) in pairs.items():
+        assert tools.max_rel_err(analytic, fd) <= tools.FD_TOL, (name, tools.max_rel_err(analytic, fd))
+        assert block_rel_err(analytic, fd) <= tools.FD_TOL, (name, block_rel_err(analytic, fd))
+
+
 # ----------------------------------------------------------------------------------------- step derivatives
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 @pytest.mark.parametrize("mode", MODES, ids=[m.name for m in MODES])
@@ -67,6 +99,19 @@ def test_step_derivatives_match_finite_differences(robot, rng, tools, mode, inte
         a_u_fd = tools.fd_jacobian(lambda uu, x=x: dyn.accelerations(x, uu, mode)[0], u)
         assert tools.max_rel_err(a_x, a_x_fd) <= tools.FD_TOL
         assert tools.max_rel_err(a_u, a_u_fd) <= tools.FD_TOL
+        assert_derivatives_match(dyn, x, u, mode, tools)  # the same, per block as well
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+@pytest.mark.parametrize("mode", MODES, ids=[m.name for m in MODES])
+def test_step_derivatives_match_finite_differences_far_from_the_nominal_state(robot, rng, tools, mode, integrator):
+    """Broader random states (joint angles +-0.3 rad, rates ~2 rad/s, torques up to the 33 N m limit) than the
+    near-nominal ones above, and the per-block relative error as well as the elementwise one."""
+    dyn = HybridDynamics(robot, integrator=integrator)
+    for _ in range(N_STATES):
+        x = tools.random_state(rng, q_scale=0.3, v_scale=2.0)
+        u = tools.random_control(rng, scale=33.0)
+        assert_derivatives_match(dyn, x, u, mode, tools)
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -165,8 +210,12 @@ def test_linearize_with_per_knot_steps(robot, rng, tools, integrator):
 # ----------------------------------------------------------------------------------------- contact physics
 @pytest.mark.parametrize("mode", CONTACT_MODES, ids=[m.name for m in CONTACT_MODES])
 def test_stance_feet_do_not_accelerate(robot, dynamics, rng, tools, mode):
-    for _ in range(6):
-        x, u = tools.random_state(rng), tools.random_control(rng)
+    """|J a + dJ v| <= 1e-9 for every stance foot, near the nominal state and far from it."""
+    for i in range(12):
+        if i < 6:
+            x, u = tools.random_state(rng), tools.random_control(rng)
+        else:
+            x, u = tools.random_state(rng, q_scale=0.3, v_scale=2.0), tools.random_control(rng, scale=33.0)
         a, _ = dynamics.accelerations(x, u, mode)
         data = robot.new_data()
         pin.forwardKinematics(robot.model, data, x[:NQ], x[NQ:], a)

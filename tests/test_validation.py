@@ -23,6 +23,11 @@ U0 = np.zeros(NU)
 ROBOT = CheetahModel()
 DYN = HybridDynamics(ROBOT)
 SCHEDULE = ModeSchedule([Mode.BACK_STANCE, Mode.FLIGHT], [0.004, 0.003])
+NH = 4
+"""Knots of the small horizon given to ``linearize``."""
+XH = np.tile(X0, (NH + 1, 1))
+UH = np.zeros((NH, NU))
+MH = np.array([int(Mode.BACK_STANCE), int(Mode.FLIGHT), int(Mode.FRONT_STANCE), int(Mode.DOUBLE_STANCE)])
 
 
 def _with(arr: np.ndarray, index: int, value: float) -> np.ndarray:
@@ -144,7 +149,36 @@ CASES = [
     ("knots-dt-zero", lambda: SCHEDULE.knots(0.0), ValueError, "dt"),
     ("knots-dt-str", lambda: SCHEDULE.knots("1e-3"), TypeError, "dt"),
     ("with-durations", lambda: SCHEDULE.with_durations([0.1, 0.0]), ValueError, "durations"),
+    ("schedule-modes-bool", lambda: ModeSchedule([True], [0.1]), TypeError, "modes"),
+    ("schedule-final-mode-bool", lambda: ModeSchedule([0], [0.1], final_mode=False), TypeError, "final_mode"),
+    # HybridDynamics.linearize (public horizon entry point of the solver)
+    ("linearize-U-shape", lambda: DYN.linearize(XH, np.zeros((NH, 3)), MH, Linearization(NH)), ValueError, "U"),
+    ("linearize-U-empty", lambda: DYN.linearize(XH, np.zeros((0, NU)), MH[:0], Linearization(NH)), ValueError, "U"),
+    ("linearize-U-nan", lambda: DYN.linearize(XH, _with(np.zeros((NH, NU)), 2, np.nan), MH, Linearization(NH)),
+     ValueError, "U"),
+    ("linearize-X-short", lambda: DYN.linearize(XH[:NH - 1], UH, MH, Linearization(NH)), ValueError, "X"),
+    ("linearize-X-columns", lambda: DYN.linearize(XH[:, :NQ], UH, MH, Linearization(NH)), ValueError, "X"),
+    ("linearize-X-inf", lambda: DYN.linearize(_with(XH, 1, np.inf), UH, MH, Linearization(NH)), ValueError, "X"),
+    ("linearize-modes-unknown", lambda: DYN.linearize(XH, UH, np.full(NH, 7), Linearization(NH)), ValueError,
+     "modes"),
+    ("linearize-modes-negative", lambda: DYN.linearize(XH, UH, np.full(NH, -1), Linearization(NH)), ValueError,
+     "modes"),
+    ("linearize-modes-length", lambda: DYN.linearize(XH, UH, MH[:2], Linearization(NH)), ValueError, "modes"),
+    ("linearize-modes-float", lambda: DYN.linearize(XH, UH, MH.astype(float), Linearization(NH)), ValueError,
+     "modes"),
+    ("linearize-out-capacity", lambda: DYN.linearize(XH, UH, MH, Linearization(NH - 1)), ValueError, "out"),
+    ("linearize-out-type", lambda: DYN.linearize(XH, UH, MH, None), TypeError, "out"),
+    ("linearize-h-negative", lambda: DYN.linearize(XH, UH, MH, Linearization(NH), -1e-3), ValueError, "h"),
+    ("linearize-h-nan", lambda: DYN.linearize(XH, UH, MH, Linearization(NH), np.full(NH, np.nan)), ValueError, "h"),
+    ("linearize-h-shape", lambda: DYN.linearize(XH, UH, MH, Linearization(NH), np.full(NH + 1, 1e-3)), ValueError,
+     "h"),
     # references and the heuristic
+    ("reference-speed-nan", lambda: end_of_mode_reference(Mode.BACK_STANCE, None, speed=math.nan), ValueError,
+     "speed"),
+    ("reference-speed-str", lambda: end_of_mode_reference(Mode.BACK_STANCE, None, speed="1"), ValueError, "speed"),
+    ("reference-params", lambda: end_of_mode_reference(Mode.BACK_STANCE, None, params="robot"), TypeError,
+     "params"),
+    ("initial-state-params", lambda: paper_initial_state("robot"), TypeError, "params"),
     ("reference-touchdown-foot", lambda: end_of_mode_reference(Mode.FLIGHT, None), ValueError, "touchdown_foot"),
     ("reference-z-velocity", lambda: end_of_mode_reference(Mode.BACK_STANCE, None, z_velocity="zero"), ValueError,
      "z_velocity"),
@@ -222,6 +256,17 @@ def test_bad_input_does_not_corrupt_later_calls():
     result = dyn.step(X0, U0, Mode.BACK_STANCE)
     np.testing.assert_array_equal(result[0], reference[0])
     np.testing.assert_array_equal(result[1], reference[1])
+
+
+def test_linearize_accepts_what_the_solver_passes():
+    """Valid horizons still work after the checks: a (N,) step array, a scalar step, Mode members as modes."""
+    for h in (None, 1e-3, np.full(NH, 1e-3)):
+        lin = Linearization(NH + 2)
+        DYN.linearize(XH, UH, MH, lin, h)
+        _, _, f_x, _, _, _ = DYN.step_derivatives(X0, U0, Mode(int(MH[-1])))
+        np.testing.assert_allclose(lin.f_x[NH - 1], f_x, rtol=1e-12, atol=1e-12)
+    DYN.linearize(XH, UH, [Mode(int(m)) for m in MH], Linearization(NH))
+    DYN.linearize(XH[:NH], UH, MH, Linearization(NH))  # only X[:N] is read
 
 
 def test_controller_output_is_checked():
