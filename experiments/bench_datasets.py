@@ -7,7 +7,8 @@ For each policy and worker count it runs ``hsddp_gym.datasets.generate_dataset``
 and prints: episodes, transitions, the episode-generation wall time (worker start-up included: spawn-started
 processes import numpy, Pinocchio, numba and gymnasium), transitions/s, the start-up time alone (measured
 separately as W one-step episodes on a fresh pool) and the rate without it, and the total time including the
-random-policy reference episodes and writing Minari + npz. The in-process (workers=1) run is warmed up
+random-policy reference episodes and writing Minari + npz (and the per-episode checkpoints that let an
+interrupted run resume, which are part of the generation time). The in-process (workers=1) run is warmed up
 first (imports, model construction), so it measures steady-state generation. Nothing is kept. The machine's
 load average is printed: with other jobs on the cores, 2 workers cannot be twice as fast.
 """
@@ -48,12 +49,15 @@ def bench(policy: str, episodes: int, workers: int, max_steps: int | None) -> di
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--heuristic-episodes", type=int, default=200)
+    p.add_argument("--heuristic-episodes", type=int, default=200,
+                   help="episodes of the heuristic policy per worker count (default: %(default)s)")
     p.add_argument("--heuristic-steps", type=int, default=None, help="time limit (default: the env's 1000)")
-    p.add_argument("--mpc-episodes", type=int, default=6)
+    p.add_argument("--mpc-episodes", type=int, default=6,
+                   help="episodes of the HS-DDP MPC per worker count (default: %(default)s)")
     p.add_argument("--mpc-steps", type=int, default=300, help="MPC time limit per episode (default: %(default)s)")
-    p.add_argument("--workers", type=int, nargs="+", default=[1, 2])
-    p.add_argument("--skip-mpc", action="store_true")
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 2],
+                   help="worker counts to measure (default: 1 2)")
+    p.add_argument("--skip-mpc", action="store_true", help="measure the heuristic only")
     args = p.parse_args(argv)
     rows = []
     jobs = [("heuristic", args.heuristic_episodes, args.heuristic_steps)]

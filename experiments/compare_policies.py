@@ -18,6 +18,7 @@ BC and DAgger return vs expert-labelled transitions) when matplotlib is availabl
 Usage:
     python experiments/compare_policies.py --out runs/compare [--runs runs/train] [--episodes 10]
         [--policies mpc expert heuristic random bc dagger ppo sac] [--bc DIR] [--dagger DIR] [--ppo DIR] [--sac DIR]
+        [--max-episode-steps N]   (N < 1000 only for smoke tests: the protocol is the env's 1000-step limit)
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def build(name: str, run_dir: Path | None):
     import hsddp_gym  # noqa: F401
     from planners.policies import EnvInterface, HeuristicPolicy, PlanTrackingExpert, RandomPolicy
 
-    env = gym.make("hsddp_gym/Bounding-v0")
+    env = gym.make("hsddp_gym/Bounding-v0")  # only its public settings are read (the default env)
     interface = EnvInterface.from_env(env)
     if name == "mpc":
         from planners.mpc import MPCOptions, MPCPolicy
@@ -150,12 +151,17 @@ def plot_curves(runs: dict, out: Path) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", default="runs/compare")
+    p.add_argument("--out", default="runs/compare",
+                   help="output directory for compare.md, compare.json and curves.png (default: %(default)s)")
     p.add_argument("--runs", default="runs/train", help="default parent of the bc/dagger/ppo/sac run directories")
     for name in TRAINED:
         p.add_argument(f"--{name}", default=None, help=f"{name} run directory (default: RUNS/{name})")
     p.add_argument("--episodes", type=int, default=10, help="episodes per policy, seeds 0.. (default: %(default)s)")
-    p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES))
+    p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES),
+                   help="policies to evaluate; trained ones whose run directory lacks its files are skipped with a "
+                        "note (default: all)")
+    p.add_argument("--max-episode-steps", type=int, default=None,
+                   help="time limit override, for smoke tests only (default: the env's 1000, the protocol)")
     args = p.parse_args(argv)
     if args.episodes < 10:
         print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
@@ -173,7 +179,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"skip: {exc}", flush=True)
             continue
         t = time.perf_counter()
-        ev = evaluate_policy_episodes(policy, args.episodes, 0, reset_options=options)
+        ev = evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
+                                      reset_options=options)
         row = {"policy": name, "mean_return": ev["mean_return"], "std_return": ev["std_return"],
                "returns": ev["returns"], "falls": ev["falls"], "episodes": ev["episodes"],
                "mean_forward_speed": ev["mean_forward_speed"], "mean_episode_length": ev["mean_episode_length"],
@@ -186,8 +193,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<10} return {row['mean_return']:8.1f} ± {row['std_return']:6.1f}  falls {row['falls']}/"
               f"{row['episodes']}  speed {row['mean_forward_speed']:+.2f} m/s  length "
               f"{row['mean_episode_length']:.0f}  ({row['eval_wall_s']:.0f} s)", flush=True)
+    limit = "" if args.max_episode_steps is None else f", time limit {args.max_episode_steps} steps"
     lines = [f"# Policies on hsddp_gym/Bounding-v0 ({args.episodes} episodes, seeds 0..{args.episodes - 1}, "
-             "deterministic)", "",
+             f"deterministic{limit})", "",
              "| policy | return (mean ± std) | falls | forward speed [m/s] | episode length | learned from | "
              "training wall time |", "|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -202,7 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     if plotted:
         lines += ["", "![curves](curves.png)"]
     (out / "compare.md").write_text("\n".join(lines) + "\n")
-    write_json(out / "compare.json", {"episodes": args.episodes, "seeds": list(range(args.episodes)), "rows": rows,
+    write_json(out / "compare.json", {"episodes": args.episodes, "seeds": list(range(args.episodes)),
+                                      "max_episode_steps": args.max_episode_steps, "rows": rows,
                                       "notes": notes, "runs": {n: str(d) for n, d in runs.items()}})
     print("\n".join(lines))
     print(f"wrote {out / 'compare.md'}, {out / 'compare.json'}" + (", curves.png" if plotted else ""))

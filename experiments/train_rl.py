@@ -32,10 +32,10 @@ from planners.sb3 import ALGOS, train_sb3
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS))
-    p.add_argument("--seeds", nargs="+", type=int, default=[0])
+    p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS), help="algorithms (default: both)")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0], help="training seeds, one run each (default: 0)")
     p.add_argument("--steps", type=int, default=1_000_000, help="env steps per run (default: %(default)s)")
-    p.add_argument("--out", default="runs/rl")
+    p.add_argument("--out", default="runs/rl", help="runs go to OUT/ALGO/seedS (default: %(default)s)")
     p.add_argument("--learning-starts", type=int, default=None, help="SAC override (zoo: 10000)")
     p.add_argument("--eval-freq", type=int, default=None, help="env steps between 5-episode evaluations")
     p.add_argument("--eval-episodes", type=int, default=10, help="final evaluation episodes (seeds 0..)")
@@ -47,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     for algo in args.algos:
         for seed in args.seeds:
             out = Path(args.out) / algo / f"seed{seed}"
-            overrides = {"learning_starts": args.learning_starts} if algo == "sac" and args.learning_starts else None
+            overrides = ({"learning_starts": args.learning_starts}
+                         if algo == "sac" and args.learning_starts is not None else None)
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides, eval_freq=args.eval_freq,
                             final_eval_episodes=args.eval_episodes, progress=args.progress,
                             time_limit=args.time_limit)

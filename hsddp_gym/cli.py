@@ -27,6 +27,27 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _nonnegative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text}")
+    return value
+
+
+def _nonnegative_float(text: str) -> float:
+    value = float(text)
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return value
+
+
+def _fraction(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
+    return value
+
+
 # ----------------------------------------------------------------------------------------------- plan
 def _plan_outputs(result, out: Path, plots: bool) -> dict:
     files = {}
@@ -135,8 +156,11 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
-                 env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False) -> dict:
-    """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``."""
+                 env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
+                 max_episode_steps: int | None = None) -> dict:
+    """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
+
+    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -145,7 +169,8 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
 
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = dict(env_kwargs or {})
-    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs)
+    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
+    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
     policy, options = make_policy(policy_name, env, seed)
     if push is not None:
         options = dict(options or {})
@@ -154,7 +179,8 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
     summary = summarize(results)
-    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed)
+    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
+                   max_episode_steps=env.spec.max_episode_steps)
     if video and results and results[0].frames:
         from hsddp_gym.render import save_gif
 
@@ -179,7 +205,7 @@ def cmd_rollout(args) -> int:
         t, dvx, dvz, dw = args.push
         push = {"delta_v": [dvx, dvz, dw], "time": t}
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
-                           push=push, quiet=args.quiet)
+                           push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps)
     for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
               "replans", "planner_failures", "mean_replan_ms"):
         v = summary.get(k)
@@ -207,7 +233,8 @@ def cmd_demo(args) -> int:
     plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")
     plan.solution.save(out / "solution.npz")
     print(f"[3/3] HS-DDP MPC in hsddp_gym/Bounding-v0: {args.episodes} seeded episode(s) ...")
-    mpc = run_rollouts("mpc", args.episodes, 0, out / "mpc", video=not args.no_video, quiet=args.quiet)
+    mpc = run_rollouts("mpc", args.episodes, 0, out / "mpc", video=not args.no_video, quiet=args.quiet,
+                       max_episode_steps=args.max_episode_steps)
     summary = {"heuristic_plan": heur.summary, "hsddp_plan": plan.summary, "mpc_in_env": mpc,
                "files": ["motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"]
                + ([] if args.no_video else ["mpc/episode0.gif"])}
@@ -240,22 +267,31 @@ def _int_list(text: str) -> list[int]:
 
 
 def cmd_dataset(args) -> int:
-    from hsddp_gym.datasets import generate_dataset
+    from hsddp_gym.datasets import generate_dataset, partial_dir
 
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     try:
         res = generate_dataset(args.policy, args.episodes, args.out, seed=args.seed, workers=args.workers,
                                dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
                                max_episode_steps=args.max_episode_steps, include_gains=args.gains,
-                               progress=not args.quiet, action_noise=args.action_noise)
+                               progress=not args.quiet, action_noise=args.action_noise, resume=not args.no_resume)
     except FileExistsError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        partial = partial_dir(args.out)
+        done = len(list(partial.glob("episode-*.npz"))) if partial.exists() else 0
+        print(f"\ninterrupted: no dataset was written to {args.out}; {done} finished episode(s) are checkpointed "
+              f"in {partial}. Rerun the same command to resume (--no-resume to start over).", file=sys.stderr)
+        return 130
     m = res.metadata
-    print(f"{res.dataset_id}: {res.episodes} episodes, {res.total_steps} transitions, {m['falls']} falls, "
-          f"generated in {res.generation_time_s:.1f} s with {args.workers} worker(s) "
-          f"({res.total_steps / max(res.generation_time_s, 1e-9):.0f} transitions/s)")
-    print(f"  ref_max_score {m['ref_max_score']:.4g} (mean return of these episodes), ref_min_score "
+    recorded = res.episodes - res.resumed_episodes
+    print(f"{res.dataset_id}: {res.episodes} episodes, {res.total_steps} transitions, {m['falls']} falls; "
+          + (f"{res.resumed_episodes} episode(s) resumed from an interrupted run, " if res.resumed_episodes else "")
+          + f"{recorded} generated in {res.generation_time_s:.1f} s with {args.workers} worker(s)"
+          + (f" ({res.total_steps / max(res.generation_time_s, 1e-9):.0f} transitions/s)"
+             if not res.resumed_episodes else ""))
+    print(f"  ref_max_score {m['ref_max_score']:.4g} ({m['ref_max_score_source']}), ref_min_score "
           f"{m['ref_min_score']:.4g} (random policy)")
     print(f"wrote {res.path}/ (minari/, episodes.npz, metadata.json); load with "
           f"hsddp_gym.datasets.load_minari('{res.path}') or MINARI_DATASETS_PATH={res.path}/minari "
@@ -329,25 +365,36 @@ def _add_learning_parsers(sub) -> None:
                                    "processes and write a Minari dataset (OUT/minari, MINARI_DATASETS_PATH=OUT/minari)"
                                    ", OUT/episodes.npz and OUT/metadata.json atomically. infos carry qpos, qvel, "
                                    "contact, the expert's nominal state/action and solver statistics at every step. "
-                                   "See hsddp_gym.datasets.")
+                                   "Finished episodes are checkpointed, so an interrupted run can be resumed by "
+                                   "rerunning the same command. See hsddp_gym.datasets.")
     p.add_argument("--policy", choices=DATASET_POLICIES, default="mpc",
                    help="mpc: HS-DDP MPC; expert: tracks the 5-cycle al-reb HS-DDP plan (episodes start at the "
                         "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
                         "controller; random: uniform actions (default: %(default)s)")
-    p.add_argument("--episodes", type=_positive_int, default=10, help="episodes (default: %(default)s)")
-    p.add_argument("--workers", type=_positive_int, default=1, help="worker processes (default: %(default)s)")
+    p.add_argument("--episodes", type=_positive_int, default=10,
+                   help="episodes; episode i is reset with seed --seed + i (default: %(default)s)")
+    p.add_argument("--workers", type=_positive_int, default=1,
+                   help="worker processes (1: in this process); the data do not depend on it (default: "
+                        "%(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of episode 0 (default: %(default)s)")
     p.add_argument("--out", required=True, help="dataset directory (must not exist unless --overwrite)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out (the old dataset stays until the new one is complete) and "
+                        "discard checkpoints of an interrupted run with other settings")
+    p.add_argument("--no-resume", action="store_true",
+                   help="discard the checkpoints of an interrupted run (OUT's hidden sibling .NAME.partial) and "
+                        "start over; by default a rerun with the same settings resumes from them and a rerun "
+                        "with other settings refuses")
     p.add_argument("--dataset-id", default=None, help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override (default: the env's 1000)")
     p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--gains", action="store_true", help="also store the plan's feedback gains (4x14 per step)")
-    p.add_argument("--action-noise", type=float, default=0.0,
+    p.add_argument("--action-noise", type=_nonnegative_float, default=0.0,
                    help="DART noise injection: execute the policy's action plus Gaussian noise of this std "
                         "(normalized units, e.g. 0.04) and store the clean action in infos/expert_action, the "
-                        "label BC/DAgger use (default: 0, no noise)")
+                        "label BC/DAgger use; ref_max_score then comes from 5 noise-free episodes (default: 0, "
+                        "no noise)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -357,14 +404,20 @@ def _add_learning_parsers(sub) -> None:
                                    "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters (planners.sb3). "
                                    "Writes the model, summary.json (with training wall time and a 10-episode "
                                    "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
-    p.add_argument("--algo", choices=TRAIN_ALGOS, required=True)
-    p.add_argument("--seed", type=int, default=0, help="seed (default: %(default)s)")
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--steps", type=_positive_int, default=None, help="ppo/sac: env steps")
-    p.add_argument("--eval-freq", type=int, default=None,
+    p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,
+                   help="bc: behaviour cloning on --dataset; dagger: DAgger relabelled by --expert; ppo / sac: "
+                        "Stable-Baselines3 RL on hsddp_gym/Bounding-v0")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the network initialization and minibatch order (bc/dagger), of the DAgger "
+                        "rollouts, or of the model and training env (ppo/sac); the final evaluation always uses "
+                        "episode seeds 0.. (default: %(default)s)")
+    p.add_argument("--out", required=True, help="output directory (created; files in it are replaced)")
+    p.add_argument("--steps", type=_positive_int, default=None, help="ppo/sac (required): env steps to train for")
+    p.add_argument("--eval-freq", type=_nonnegative_int, default=None,
                    help="ppo/sac: env steps between evaluations of 5 episodes during training (default: steps/10, "
                         "at least 1000; 0: none)")
-    p.add_argument("--learning-starts", type=int, default=None, help="sac: override learning_starts (zoo: 10000)")
+    p.add_argument("--learning-starts", type=_nonnegative_int, default=None,
+                   help="sac: env steps of random actions before learning starts (default: the zoo's 10000)")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
@@ -372,25 +425,34 @@ def _add_learning_parsers(sub) -> None:
                                                    "directory written by `hsddp-gym dataset`")
     p.add_argument("--format", choices=("minari", "npz"), default="minari",
                    help="read the dataset through minari.load_dataset or its episodes.npz (default: %(default)s)")
-    p.add_argument("--demos", type=_positive_int, default=None, help="use the first DEMOS episodes of --dataset")
+    p.add_argument("--demos", type=_positive_int, default=None,
+                   help="bc/dagger: use only the first DEMOS episodes of --dataset (default: all)")
     p.add_argument("--epochs", type=_positive_int, default=50, help="bc/dagger: BC epochs (default: %(default)s)")
-    p.add_argument("--batch-size", type=_positive_int, default=256, help="bc/dagger (default: %(default)s)")
+    p.add_argument("--batch-size", type=_positive_int, default=256,
+                   help="bc/dagger: minibatch size of the BC updates (default: %(default)s)")
     p.add_argument("--lr", type=_positive_float, default=1e-3, help="bc/dagger: Adam step (default: %(default)s)")
     p.add_argument("--features", choices=("obs", "gait_clock"), default="obs",
                    help="bc/dagger: MLP inputs; gait_clock appends the MPC's gait clock (phase one-hot, time in "
                         "phase, cycle sin/cos) rebuilt from the observation history, since the MPC's phase drifts "
                         "from the observation clock (default: %(default)s)")
     p.add_argument("--hidden", type=_int_list, default=None, help="bc/dagger: hidden layer sizes (default: 256,256)")
-    p.add_argument("--weight-decay", type=float, default=0.0, help="bc/dagger: Adam weight decay (default: 0)")
+    p.add_argument("--weight-decay", type=_nonnegative_float, default=0.0,
+                   help="bc/dagger: Adam weight decay (default: 0)")
     p.add_argument("--lr-decay", action="store_true", help="bc/dagger: cosine learning-rate decay to 0 over the epochs")
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",
                    help="dagger: the labelling expert (default: %(default)s)")
-    p.add_argument("--rounds", type=int, default=4, help="dagger: rounds after round 0 (default: %(default)s)")
-    p.add_argument("--episodes-per-round", type=_positive_int, default=5, help="dagger (default: %(default)s)")
-    p.add_argument("--beta-decay", type=float, default=0.5, help="dagger: beta_i = decay**i (default: %(default)s)")
-    p.add_argument("--rollout-noise", type=float, default=0.0,
+    p.add_argument("--rounds", type=_nonnegative_int, default=4,
+                   help="dagger: relabelling rounds after round 0 (round 0: BC on --dataset or on expert "
+                        "episodes) (default: %(default)s)")
+    p.add_argument("--episodes-per-round", type=_positive_int, default=5,
+                   help="dagger: rollouts relabelled by the expert per round, and expert episodes of round 0 when "
+                        "no --dataset is given (default: %(default)s)")
+    p.add_argument("--beta-decay", type=_fraction, default=0.5,
+                   help="dagger: in round i the expert's action is executed with probability beta_i = "
+                        "BETA_DECAY**i, the learner's otherwise; 0: pure learner rollouts (default: %(default)s)")
+    p.add_argument("--rollout-noise", type=_nonnegative_float, default=0.0,
                    help="dagger: DART-style noise: Gaussian std (normalized units, e.g. 0.04) added to the executed "
                         "action of the relabelling rollouts (rounds >= 1); labels stay the expert's clean action "
                         "(default: 0, none)")
@@ -401,8 +463,9 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--warm-start", action="store_true",
                    help="dagger: rounds >= 1 fine-tune the previous round's network (and keep its input "
                         "standardization) for --epochs instead of retraining from scratch")
-    p.add_argument("--eval-episodes", type=int, default=10,
-                   help="final evaluation episodes, seeds 0.. (default: %(default)s; 0: none)")
+    p.add_argument("--eval-episodes", type=_nonnegative_int, default=10,
+                   help="final deterministic evaluation episodes, seeds 0.. (dagger: also after every round) "
+                        "(default: %(default)s; 0: none)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override for training/evaluation episodes (default: the env's 1000)")
     p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
@@ -428,8 +491,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="runs/demo", help="output directory (default: %(default)s)")
     p.add_argument("--cycles", type=_positive_int, default=5, help="gait cycles to plan (default: %(default)s)")
     p.add_argument("--episodes", type=_positive_int, default=1,
-                   help="MPC episodes to run in the env (default: %(default)s)")
-    p.add_argument("--no-video", action="store_true", help="skip the GIF of the MPC episode")
+                   help="MPC episodes to run in the env, seeds 0, 1, ... (default: %(default)s)")
+    p.add_argument("--max-episode-steps", type=_positive_int, default=None,
+                   help="time limit of the MPC episodes in control steps of 5 ms (default: the env's 1000)")
+    p.add_argument("--no-video", action="store_true", help="skip the GIF of the first MPC episode")
     p.add_argument("--quiet", action="store_true", help="do not print the solver's iteration table")
     p.set_defaults(func=cmd_demo)
 
@@ -454,10 +519,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("rollout", help="run a policy in hsddp_gym/Bounding-v0 for seeded episodes",
                        description="Run --episodes seeded episodes (seeds --seed, --seed+1, ...) of a policy in "
-                                   "hsddp_gym/Bounding-v0 with its default reset noise and time limit; write "
-                                   "summary.json (mean/std return, falls, forward speed, episode length, real-time "
-                                   "factor, replans, planner failures, mean replan ms), episode0.npz and, with "
-                                   "--video, episode0.gif.")
+                                   "hsddp_gym/Bounding-v0 with its default reset noise and time limit (or "
+                                   "--max-episode-steps); write summary.json (mean/std return, falls, forward "
+                                   "speed, episode length, real-time factor, replans, planner failures, mean "
+                                   "replan ms), episode0.npz and, with --video, episode0.gif.")
     p.add_argument("--policy", choices=ROLLOUT_POLICIES, default="mpc",
                    help="mpc: HS-DDP model-predictive control; expert: tracks a 5-cycle al-reb plan (episodes "
                         "start at the plan's initial state); heuristic: the warm-start controller; random: uniform "
@@ -467,7 +532,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--push", type=float, nargs=4, metavar=("T", "DVX", "DVZ", "DPITCH"), default=None,
                    help="push at episode time T [s]: add (DVX, DVZ) [m/s] and DPITCH [rad/s] to the trunk velocity")
-    p.add_argument("--video", action="store_true", help="write episode0.gif")
+    p.add_argument("--max-episode-steps", type=_positive_int, default=None,
+                   help="time limit in control steps of 5 ms (default: the env's 1000)")
+    p.add_argument("--video", action="store_true", help="write episode0.gif (the first episode, rendered off-screen)")
     p.add_argument("--out", default="runs/rollout", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_rollout)

@@ -32,7 +32,8 @@ def run_episode(env, policy: Policy, seed: int, options: dict | None = None, ren
                 max_steps: int | None = None) -> EpisodeResult:
     """Run one episode of ``env`` (a ``gym.make``'d ``Bounding-v0``) with ``policy`` from ``reset(seed)``.
 
-    ``render`` collects ``env.render()`` frames (the env needs ``render_mode="rgb_array"``).
+    ``render`` collects ``env.render()`` frames (the env needs ``render_mode="rgb_array"``); the rendering time
+    is not counted in ``wall_time`` (so the real-time factor measures the policy and the simulation only).
     """
     obs, info = env.reset(seed=int(seed), options=options)
     policy.reset()
@@ -41,6 +42,7 @@ def run_episode(env, policy: Policy, seed: int, options: dict | None = None, ren
     frames = [env.render()] if render else None
     fell = False
     t0 = time.perf_counter()
+    render_time = 0.0
     steps = 0
     while True:
         action = policy(obs)
@@ -50,13 +52,15 @@ def run_episode(env, policy: Policy, seed: int, options: dict | None = None, ren
         rewards.append(float(reward))
         states.append(np.concatenate([info["qpos"], info["qvel"]]))
         if render:
+            t_render = time.perf_counter()
             frames.append(env.render())
+            render_time += time.perf_counter() - t_render
         if terminated:
             fell = True
             break
         if truncated or (max_steps is not None and steps >= max_steps):
             break
-    wall = time.perf_counter() - t0
+    wall = time.perf_counter() - t0 - render_time
     dt = float(env.unwrapped.dt)
     states = np.array(states)
     sim_time = steps * dt

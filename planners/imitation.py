@@ -106,16 +106,23 @@ def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict 
     return MPCPolicy(interface, o).clock.copy()
 
 
+_CLOCK_EXTRA = ("lost_stance_steps",)
+"""Optional :class:`planners.mpc.GaitClock` settings, saved (and passed back) only when the clock has them."""
+
+
 def _clock_params(clock) -> dict:
-    return {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
-            "min_flight": clock.min_flight, "max_wait": clock.max_wait}
+    params = {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
+              "min_flight": clock.min_flight, "max_wait": clock.max_wait}
+    params.update({k: getattr(clock, k) for k in _CLOCK_EXTRA if getattr(clock, k, None)})
+    return params
 
 
 def _clock_from_params(params: dict):
     from planners.mpc import GaitClock
 
+    extra = {k: params[k] for k in _CLOCK_EXTRA if params.get(k)}
     return GaitClock(tuple(params["durations"]), params["dt"], params["debounce_steps"], params["min_flight"],
-                     params["max_wait"])
+                     params["max_wait"], **extra)
 
 
 def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:

@@ -109,6 +109,10 @@ class Policy:
     def _reset_copy_state(self) -> None:
         """Give a shallow copy its own mutable memory (override when the memory holds arrays/objects)."""
 
+    def _spawn_copies(self, n: int) -> list[Policy]:
+        """The ``n`` per-env copies used by :meth:`predict` (override to make copy 0 act like ``self``)."""
+        return [self.spawn() for _ in range(n)]
+
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """SB3 ``PolicyPredictor`` protocol: batched or single observations, one policy copy per env."""
         obs = np.asarray(observation)
@@ -120,7 +124,7 @@ class Policy:
         n = batch.shape[0]
         fresh = len(self._copies) != n
         if fresh:
-            self._copies = [self.spawn() for _ in range(n)]
+            self._copies = self._spawn_copies(n)
         starts = np.ones(n, dtype=bool) if episode_start is None and fresh else (
             np.zeros(n, dtype=bool) if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(n))
         actions = np.empty((n, NU), dtype=np.float32)
@@ -132,15 +136,30 @@ class Policy:
 
 
 class RandomPolicy(Policy):
-    """Uniform random actions from a seeded generator (``seed``); ``reset`` keeps the stream going."""
+    """Uniform random actions from a seeded generator (``seed``); ``reset`` keeps the stream going.
+
+    Through :meth:`predict` (and the SB3 adapter) env 0 continues this policy's stream from its current
+    state -- the same actions as calling the policy -- without advancing it, and env ``k >= 1`` draws from
+    the independent stream ``SeedSequence(entropy of seed, spawn_key=(k,))``.
+    """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), seed: int | None = 0) -> None:
         super().__init__(interface)
         self.seed = seed
-        self._rng = np.random.default_rng(seed)
+        self._seed_seq = np.random.SeedSequence(seed)
+        self._rng = np.random.default_rng(self._seed_seq)
 
     def _reset_copy_state(self) -> None:
-        self._rng = np.random.default_rng(self._rng.integers(2 ** 63))
+        self._rng = copy.deepcopy(self._rng)  # its own generator (the parent's stream is not advanced)
+
+    def _spawn_copies(self, n: int) -> list[Policy]:
+        copies = []
+        for k in range(n):
+            twin = self.spawn()
+            twin._rng = copy.deepcopy(self._rng) if k == 0 else np.random.default_rng(
+                np.random.SeedSequence(self._seed_seq.entropy, spawn_key=(k,)))
+            copies.append(twin)
+        return copies
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self._rng.uniform(-1.0, 1.0, NU).astype(np.float32)

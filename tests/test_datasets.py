@@ -1,5 +1,6 @@
 """Demonstration datasets: Minari loading, environment recovery, the infos schema, determinism across worker
-counts, refusal to overwrite, atomic writes, and the planner fields recorded from a short MPC run."""
+counts, refusal to overwrite, atomic writes, resuming or refusing after an interrupted run, reference scores,
+and the planner fields recorded from a short MPC run."""
 
 from __future__ import annotations
 
@@ -16,12 +17,14 @@ from hsddp_gym import cli
 from hsddp_gym.datasets import (
     DECISION_SCHEMA,
     GAIN_KEY,
+    NONDETERMINISTIC_INFOS,
     PolicySpec,
     collect_episodes,
     generate_dataset,
     load_minari,
     load_npz,
     minari_root,
+    partial_dir,
     read_metadata,
 )
 
@@ -88,18 +91,24 @@ def test_infos_schema_fixed_at_every_row(small):
         assert np.all(ep.infos["expert_state_nominal"] == 0.0)
 
 
-def test_recover_environment_in_a_fresh_process(small):
+def test_recover_environment_in_a_fresh_process(small, tmp_path):
     meta = read_metadata(small)
-    code = ("import minari\n"
+    fast = tmp_path / "fast"  # recorded with env kwargs: they must come back too
+    generate_dataset("heuristic", 1, fast, max_episode_steps=5, env_kwargs={"target_speed": 1.3}, progress=False,
+                     dataset_id="hsddp_gym/bounding/fast-v0")
+    code = ("import os, minari\n"  # no hsddp_gym import: the stored spec's entry point builds the env
+            f"os.environ['MINARI_DATASETS_PATH'] = {str(small / 'minari')!r}\n"
             f"ds = minari.load_dataset({meta['dataset_id']!r})\n"
             "env = ds.recover_environment()\n"
             "obs, info = env.reset(seed=0)\n"
-            "print(env.spec.id, env.spec.max_episode_steps, obs.shape[0], ds.total_episodes)\n")
-    env = {**os.environ, "MINARI_DATASETS_PATH": str(small / "minari")}
-    res = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120,
-                         cwd=str(small))
+            "print(env.spec.id, env.spec.max_episode_steps, obs.shape[0], ds.total_episodes)\n"
+            f"os.environ['MINARI_DATASETS_PATH'] = {str(fast / 'minari')!r}\n"
+            "env = minari.load_dataset('hsddp_gym/bounding/fast-v0').recover_environment()\n"
+            "print(env.unwrapped.target_speed, env.spec.max_episode_steps)\n")
+    res = subprocess.run([sys.executable, "-c", code], env=dict(os.environ), capture_output=True, text=True,
+                         timeout=120, cwd=str(small))
     assert res.returncode == 0, res.stderr
-    assert res.stdout.split() == ["hsddp_gym/Bounding-v0", str(STEPS), "17", str(EPISODES)]
+    assert res.stdout.split() == ["hsddp_gym/Bounding-v0", str(STEPS), "17", str(EPISODES), "1.3", "5"]
 
 
 def test_same_data_whatever_the_number_of_workers(small, tmp_path):
@@ -112,6 +121,19 @@ def test_same_data_whatever_the_number_of_workers(small, tmp_path):
     assert set(a.infos) == set(b.infos)
     for k in a.infos:
         np.testing.assert_array_equal(a.infos[k], b.infos[k], err_msg=k)
+
+
+def test_mpc_data_do_not_depend_on_the_number_of_workers(tmp_path):
+    a, b = tmp_path / "w1", tmp_path / "w2"
+    generate_dataset("mpc", 2, a, seed=3, workers=1, max_episode_steps=30, progress=False)
+    generate_dataset("mpc", 2, b, seed=3, workers=2, max_episode_steps=30, progress=False)
+    a, b = load_npz(a), load_npz(b)
+    np.testing.assert_array_equal(a.observations, b.observations)
+    np.testing.assert_array_equal(a.actions, b.actions)
+    assert a.infos["replanned"].any()
+    for k in a.infos:
+        if k not in NONDETERMINISTIC_INFOS:  # wall-clock solve times
+            np.testing.assert_array_equal(a.infos[k], b.infos[k], err_msg=k)
 
 
 def test_random_policy_episodes_do_not_depend_on_order():
@@ -158,6 +180,13 @@ def exploding_factory(env, seed):
     return _Exploding(after=3 if seed == 1 else 10_000), None
 
 
+def flaky_factory(env, seed):
+    """Explodes on the episode seeded $HSDDP_TEST_EXPLODE_SEED (read in the worker: spawned workers inherit
+    the environment), plays zeros otherwise: an interrupted run, then a rerun with the same settings."""
+    bad = os.environ.get("HSDDP_TEST_EXPLODE_SEED")
+    return _Exploding(after=3 if bad is not None and int(bad) == seed else 10_000), None
+
+
 @pytest.mark.parametrize("workers", [1, 2])
 def test_failure_leaves_no_dataset(tmp_path, workers):
     out = tmp_path / "broken"
@@ -165,7 +194,118 @@ def test_failure_leaves_no_dataset(tmp_path, workers):
         generate_dataset(exploding_factory, 3, out, workers=workers, max_episode_steps=10, progress=False,
                          policy_name="exploding")
     assert not out.exists()
-    assert _leftovers(tmp_path, "broken") == []
+    # at most the checkpoints of the finished episodes (to resume from), no temporary dataset directory
+    partial = partial_dir(out)
+    if workers == 1:  # episode 0 finished before episode 1 failed
+        assert _leftovers(tmp_path, "broken") == [".broken.partial"]
+        assert sorted(p.name for p in partial.glob("episode-*.npz")) == ["episode-000000.npz"]
+        assert (partial / "settings.json").exists()
+    else:  # the failure may arrive first: then there is nothing to resume and nothing is left
+        assert _leftovers(tmp_path, "broken") in ([], [".broken.partial"])
+        assert not (partial / "episode-000001.npz").exists()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_interrupted_run_resumes_with_the_same_data(tmp_path, monkeypatch, workers):
+    out, ref = tmp_path / "resumed", tmp_path / "reference"
+    kw = dict(max_episode_steps=12, progress=False, policy_name="flaky", seed=4, workers=workers)
+    monkeypatch.setenv("HSDDP_TEST_EXPLODE_SEED", "6")  # episode 2 of 4 fails
+    with pytest.raises(RuntimeError, match="boom"):
+        generate_dataset(flaky_factory, 4, out, **kw)
+    done = sorted(p.name for p in partial_dir(out).glob("episode-*.npz"))
+    assert "episode-000002.npz" not in done and (workers == 2 or done == ["episode-000000.npz", "episode-000001.npz"])
+    monkeypatch.delenv("HSDDP_TEST_EXPLODE_SEED")
+    res = generate_dataset(flaky_factory, 4, out, **kw)
+    assert res.resumed_episodes == len(done) and res.metadata["resumed_episodes"] == len(done)
+    generate_dataset(flaky_factory, 4, ref, **kw)
+    a, b = load_npz(out), load_npz(ref)
+    for name in ("observations", "actions", "rewards", "terminations", "truncations", "episode_seeds"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    for k in a.infos:
+        np.testing.assert_array_equal(a.infos[k], b.infos[k], err_msg=k)
+    assert load_minari(out).total_episodes == 4
+    assert _leftovers(tmp_path, "resumed") == [] and _leftovers(tmp_path, "reference") == []
+
+
+def _interrupt_while_writing(monkeypatch):
+    """Make the final write raise KeyboardInterrupt (Ctrl-C after every episode is checkpointed)."""
+    import hsddp_gym.datasets as D
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(D, "write_dataset", interrupted)
+
+
+def test_rerun_resumes_or_refuses_on_the_command_line(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "cli"
+    argv = ["dataset", "--policy", "heuristic", "--episodes", "3", "--seed", "2", "--out", str(out),
+            "--max-episode-steps", "8", "--quiet"]
+    with monkeypatch.context() as m:
+        _interrupt_while_writing(m)
+        assert cli.main(argv) == 130
+    err = capsys.readouterr().err
+    assert "interrupted" in err and "3 finished episode(s)" in err and "resume" in err
+    assert not out.exists() and len(list(partial_dir(out).glob("episode-*.npz"))) == 3
+    # other settings: refused, with the differing setting named, and the checkpoints kept
+    assert cli.main([*argv[:-3], "--max-episode-steps", "9", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "other settings" in err and "max_episode_steps" in err and "--no-resume" in err
+    assert len(list(partial_dir(out).glob("episode-*.npz"))) == 3 and not out.exists()
+    # the same settings: resumed
+    assert cli.main(argv) == 0
+    assert "3 episode(s) resumed" in capsys.readouterr().out
+    assert read_metadata(out)["resumed_episodes"] == 3 and not partial_dir(out).exists()
+    fresh = tmp_path / "fresh"
+    generate_dataset("heuristic", 3, fresh, seed=2, max_episode_steps=8, progress=False)
+    np.testing.assert_array_equal(load_npz(out).observations, load_npz(fresh).observations)
+    # --no-resume discards checkpoints (here: recorded with other settings) and starts over
+    with monkeypatch.context() as m:
+        _interrupt_while_writing(m)
+        assert cli.main([*argv[:-5], "--out", str(tmp_path / "again"), "--max-episode-steps", "6", "--quiet"]) == 130
+    capsys.readouterr()
+    assert cli.main([*argv[:-5], "--out", str(tmp_path / "again"), "--max-episode-steps", "7", "--no-resume",
+                     "--quiet"]) == 0
+    assert read_metadata(tmp_path / "again")["resumed_episodes"] == 0
+    assert read_metadata(tmp_path / "again")["max_episode_steps"] == 7
+
+
+def test_checkpoints_of_other_code_are_not_resumed(tmp_path, monkeypatch):
+    import hsddp_gym.datasets as D
+
+    out = tmp_path / "code"
+    with monkeypatch.context() as m:
+        _interrupt_while_writing(m)
+        with pytest.raises(KeyboardInterrupt):
+            generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False)
+    monkeypatch.setattr(D, "_code_fingerprint", lambda: "edited")
+    with pytest.raises(FileExistsError, match="code_sha256"):
+        generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False)
+    res = generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False, overwrite=True)
+    assert res.resumed_episodes == 0 and out.exists()
+
+
+def test_one_run_at_a_time_and_stale_temporaries_are_removed(tmp_path):
+    import fcntl
+
+    out = tmp_path / "busy"
+    partial = partial_dir(out)
+    partial.mkdir()
+    stale = tmp_path / ".busy.tmp-abcd1234"  # what a killed run's write leaves
+    stale.mkdir()
+    (stale / "episodes.npz").write_bytes(b"half")
+    unrelated = tmp_path / ".busy.tmp-x.keep"
+    unrelated.mkdir()
+    with open(partial / "lock", "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)  # another live run
+        with pytest.raises(FileExistsError, match="another run"):
+            generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False)
+        assert stale.exists() and not out.exists()
+    generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False)
+    assert not stale.exists() and unrelated.exists() and not partial.exists()
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (out.stat().st_mode & 0o777) == (0o777 & ~umask)  # not mkdtemp's 0700
 
 
 def test_failure_with_overwrite_keeps_the_old_dataset(small, tmp_path):
@@ -176,7 +316,7 @@ def test_failure_with_overwrite_keeps_the_old_dataset(small, tmp_path):
         generate_dataset(exploding_factory, 2, out, overwrite=True, max_episode_steps=10, progress=False,
                          policy_name="exploding")
     assert (out / "episodes.npz").read_bytes() == before
-    assert _leftovers(tmp_path, "keep") == []
+    assert _leftovers(tmp_path, "keep") == [".keep.partial"]  # episode 0's checkpoint, to resume from
 
 
 # ------------------------------------------------------------------------------------------ planner fields
@@ -201,6 +341,7 @@ def test_mpc_fields_and_feedback_law(tmp_path):
                                                      x - inf["expert_state_nominal"][:T])
     np.testing.assert_allclose(np.clip(u, -1, 1), ep.actions, atol=1e-4)
     assert json.loads((out / "metadata.json").read_text())["infos_schema"][GAIN_KEY][0] == [4, 14]
+    assert meta["determinism"].endswith("solve_ms") and NONDETERMINISTIC_INFOS == ("solve_ms",)
 
 
 def test_action_noise_executes_noisy_actions_and_stores_clean_labels(tmp_path):
@@ -218,9 +359,26 @@ def test_action_noise_executes_noisy_actions_and_stores_clean_labels(tmp_path):
     assert 0.02 < diff.std() < 0.08 and np.all(np.abs(e["actions"]) <= 1)
     meta = json.loads((out / "metadata.json").read_text())
     assert meta["action_noise"] == 0.05
+    # ref_max_score is the clean policy's score (seeds 5, 6 without noise), not the noisy episodes' mean
+    clean = generate_dataset("heuristic", 2, tmp_path / "clean", seed=5, max_episode_steps=25, progress=False)
+    assert meta["ref_max_score"] == pytest.approx(np.mean(clean.metadata["episode_returns"]))
+    assert meta["ref_max_score"] == pytest.approx(clean.metadata["ref_max_score"])
+    assert meta["mean_return"] == pytest.approx(np.mean(meta["episode_returns"])) != meta["ref_max_score"]
+    assert "without action noise" in meta["ref_max_score_source"]
+    assert load_minari(out).storage.metadata["ref_max_score"] == pytest.approx(meta["ref_max_score"])
     again = tmp_path / "again"
     generate_dataset("heuristic", 2, again, seed=5, max_episode_steps=25, progress=False, action_noise=0.05,
                      workers=2)
     np.testing.assert_array_equal(load_npz(again).actions, d.actions)  # seeded by the episode seed
     with pytest.raises(ValueError):
         generate_dataset("heuristic", 1, tmp_path / "bad", action_noise=-0.1, progress=False)
+
+
+def test_a_run_killed_before_its_first_episode_does_not_block_other_settings(tmp_path):
+    out = tmp_path / "early"
+    partial = partial_dir(out)
+    partial.mkdir()
+    (partial / "settings.json").write_text(json.dumps({"seed": 123}))  # what such a run leaves
+    (partial / ".episode-000000.npz.abc123.npz").write_bytes(b"half")  # an interrupted atomic write
+    res = generate_dataset("heuristic", 1, out, max_episode_steps=5, progress=False)
+    assert res.resumed_episodes == 0 and not partial.exists()

@@ -327,3 +327,72 @@ def test_demonstration_labels_are_the_clean_actions_of_a_noisy_dataset(tmp_path)
         policy.reset()
         clean = np.array([policy(o) for o in ep0])
         np.testing.assert_allclose(demos.actions[demos.episode == 0], clean, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------ DAgger with the MPC
+def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
+    """beta = 0: the learner alone drives the round-1 rollouts; every visited observation is labelled with
+    the MPC expert's action there (a fresh MPC replaying those observations gives the same labels)."""
+    import json
+
+    from hsddp_gym.io import read_npz
+    from planners.mpc import MPCPolicy
+
+    out = tmp_path / "dagger"
+    rc = cli.main(["train", "--algo", "dagger", "--expert", "mpc", "--rounds", "1", "--episodes-per-round", "1",
+                   "--beta-decay", "0", "--max-episode-steps", "16", "--epochs", "2", "--hidden", "16",
+                   "--eval-episodes", "1", "--seed", "0", "--out", str(out), "--quiet"])
+    assert rc == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["expert"]["name"] == "mpc" and [h["round"] for h in s["history"]] == [0, 1]
+    assert s["history"][0]["expert_actions_fraction"] == 1.0  # round 0: the MPC's own episode
+    assert s["history"][1]["expert_actions_fraction"] == 0.0  # round 1: the learner's actions only
+    assert s["expert_labels"] == s["transitions"] and s["eval"]["episodes"] == 1
+    d = read_npz(out / "dagger_data.npz")
+    learner_obs, labels = d["obs"][d["episode"] == 1], d["actions"][d["episode"] == 1]
+    assert 0 < len(learner_obs) <= 16
+    mpc = MPCPolicy.from_env(make_env())
+    mpc.reset()
+    np.testing.assert_array_equal(np.stack([mpc(o) for o in learner_obs]), labels)
+    # the learner's states are not the expert's own trajectory from the same reset
+    env = make_env(max_episode_steps=16)
+    obs, _ = env.reset(seed=1000)  # round 1, episode 0: seed + 1000 * round + j
+    np.testing.assert_array_equal(obs, learner_obs[0])
+    expert_obs = [obs]
+    mpc.reset()
+    for _ in range(len(learner_obs) - 1):
+        obs, *_ = env.step(mpc(obs))
+        expert_obs.append(obs)
+    assert not np.allclose(np.stack(expert_obs), learner_obs)
+
+
+# ------------------------------------------------------------------------------------------ the comparison
+def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    runs = tmp_path / "runs"
+    assert cli.main(["train", "--algo", "bc", "--dataset", str(dataset), "--epochs", "2", "--hidden", "16",
+                     "--curve", "1,3", "--eval-episodes", "1", "--max-episode-steps", "20", "--out",
+                     str(runs / "bc"), "--quiet"]) == 0
+    assert cli.main(["train", "--algo", "dagger", "--expert", "heuristic", "--rounds", "1", "--episodes-per-round",
+                     "1", "--max-episode-steps", "20", "--epochs", "2", "--hidden", "16", "--eval-episodes", "1",
+                     "--out", str(runs / "dagger"), "--quiet"]) == 0
+    assert cli.main(["train", "--algo", "ppo", "--steps", "256", "--max-episode-steps", "30", "--eval-freq", "128",
+                     "--eval-episodes", "1", "--out", str(runs / "ppo"), "--quiet"]) == 0
+    path = Path(__file__).resolve().parents[1] / "experiments" / "compare_policies.py"
+    spec = importlib.util.spec_from_file_location("compare_policies", path)
+    compare = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(compare)
+    out = tmp_path / "compare"
+    assert compare.main(["--out", str(out), "--runs", str(runs), "--episodes", "2", "--max-episode-steps", "30",
+                         "--policies", "heuristic", "random", "bc", "dagger", "ppo", "sac"]) == 0
+    table = (out / "compare.md").read_text()
+    for name in ("heuristic", "random", "bc", "dagger", "ppo"):
+        assert f"| {name} |" in table, name
+    assert "skipped sac" in table and "![curves](curves.png)" in table and (out / "curves.png").exists()
+    rows = {r["policy"]: r for r in json.loads((out / "compare.json").read_text())["rows"]}
+    assert rows["ppo"]["samples"].endswith("env steps") and rows["ppo"]["train_time_s"] > 0
+    assert "demos" in rows["bc"]["samples"] and "expert labels" in rows["dagger"]["samples"]
+    assert all(r["episodes"] == 2 and r["mean_episode_length"] <= 30 for r in rows.values())

@@ -1,14 +1,18 @@
-"""Policies in the env: interfaces, plan tracking rules, the MPC's behaviour and failure handling."""
+"""Policies in the env: interfaces (callable, SB3 predict with batched observations, SB3 BasePolicy adapter),
+acting from observations alone, plan tracking rules, the MPC's behaviour and failure handling, and the
+``rollout`` / ``demo`` commands."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import hsddp_gym  # noqa: F401
+from hsddp_gym import cli
 from hsddp_gym.conventions import Mode
 from planners.evaluation import run_episode, summarize
 from planners.mpc import MPCOptions, MPCPolicy
@@ -63,6 +67,98 @@ def test_sb3_evaluate_policy_runs_the_mpc():
     rewards, lengths = evaluate_policy(policy, env, n_eval_episodes=2, deterministic=True,
                                        return_episode_rewards=True)
     assert len(rewards) == 2 and all(n == 30 for n in lengths)
+
+
+ALL_POLICIES = ("heuristic", "random", "mpc", "expert")
+
+
+def _build(name, interface, plan):
+    """``(policy, reset options)`` of each kind, built from the env's public settings only."""
+    if name == "heuristic":
+        return HeuristicPolicy(interface), None
+    if name == "random":
+        return RandomPolicy(interface, seed=7), None
+    if name == "mpc":
+        return MPCPolicy(interface), None
+    return PlanTrackingExpert(interface, solution=plan), {"state": plan.X[0]}
+
+
+@pytest.mark.parametrize("name", ALL_POLICIES)
+def test_sb3_base_policy_adapter_returns_the_callables_actions(name, plan):
+    from stable_baselines3.common.policies import BasePolicy
+
+    from planners.sb3 import as_sb3_policy
+
+    env = make_env(max_episode_steps=40)
+    interface = EnvInterface.from_env(env)
+    reference, options = _build(name, interface, plan)
+    adapted = as_sb3_policy(_build(name, interface, plan)[0], env.observation_space, env.action_space)
+    assert isinstance(adapted, BasePolicy)
+    obs, _ = env.reset(seed=2, options=options)
+    reference.reset()
+    for t in range(40):
+        expected = reference(obs)
+        got, state = adapted.predict(obs[None], episode_start=np.array([t == 0]), deterministic=True)
+        assert got.shape == (1, 4) and got.dtype == np.float32 and state is None
+        np.testing.assert_array_equal(got[0], expected, err_msg=f"{name}, step {t}")
+        obs, _, terminated, truncated, _ = env.step(expected)
+        if terminated or truncated:
+            break
+
+
+@pytest.mark.parametrize("name", ["heuristic", "mpc"])
+def test_evaluate_policy_on_a_vec_env_keeps_one_policy_copy_per_env(name, plan):
+    """Batched observations (2 envs): each env's episode equals the callable's episode on that env's seed."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: Monitor(make_env(max_episode_steps=25)) for _ in range(2)])
+    venv.seed(10)  # env i is reset with seed 10 + i
+    policy, _ = _build(name, EnvInterface.from_env(venv.envs[0]), plan)
+    rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2, deterministic=True,
+                                       return_episode_rewards=True)
+    assert len(policy._copies) == 2 and policy._copies[0] is not policy._copies[1]
+    env = make_env(max_episode_steps=25)
+    alone = [run_episode(env, _build(name, EnvInterface.from_env(env), plan)[0], seed) for seed in (10, 11)]
+    np.testing.assert_allclose(rewards, [r.episode_return for r in alone], rtol=1e-6)
+    assert lengths == [r.length for r in alone]
+
+
+@pytest.mark.parametrize("name", ["heuristic", "mpc", "expert"])
+def test_policies_act_from_the_observation_alone(name, plan):
+    """A twin built from the env's public settings, never given the env, fed only the recorded observations
+    (after the env has moved on and been closed) reproduces every action: nothing is read from the simulator."""
+    env = make_env(max_episode_steps=60)
+    interface = EnvInterface.from_env(env)
+    policy, options = _build(name, interface, plan)
+    obs, _ = env.reset(seed=5, options=options)
+    policy.reset()
+    observations, actions = [], []
+    for _ in range(60):
+        observations.append(obs.copy())
+        actions.append(policy(obs))
+        obs, _, terminated, truncated, _ = env.step(actions[-1])
+        if terminated or truncated:
+            break
+    env.reset(seed=99)
+    env.close()
+    twin, _ = _build(name, interface, plan)
+    twin.reset()
+    np.testing.assert_array_equal(np.stack([twin(o) for o in observations]), np.stack(actions))
+
+
+def test_rendering_time_is_not_counted_in_the_real_time_factor():
+    import time
+
+    class SlowRender(gym.Wrapper):
+        def render(self):
+            time.sleep(0.01)
+            return np.zeros((8, 8, 3), dtype=np.uint8)
+
+    env = SlowRender(make_env(max_episode_steps=10))
+    res = run_episode(env, HeuristicPolicy.from_env(env), 0, render=True)
+    assert len(res.frames) == 11 and res.wall_time < 0.05
 
 
 def test_env_interface_from_env_and_validation():
@@ -198,3 +294,65 @@ def test_mpc_options_are_validated():
     with pytest.raises(TypeError, match="options"):
         MPCPolicy(options={"horizon": 0.3})
     assert dataclasses.replace(MPCOptions(), max_iterations=5).max_iterations == 5
+
+
+# ------------------------------------------------------------------------------------------ CLI
+SUMMARY_KEYS = ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length",
+                "real_time_factor", "replans", "planner_failures", "mean_replan_ms")
+
+
+@pytest.mark.parametrize("name", ALL_POLICIES)
+def test_cli_rollout_writes_the_summary_and_the_gif(name, tmp_path, capsys):
+    out = tmp_path / name
+    argv = ["rollout", "--policy", name, "--episodes", "2", "--seed", "3", "--max-episode-steps", "24",
+            "--out", str(out), "--quiet"]
+    video = name in ("mpc", "random")
+    assert cli.main(argv + (["--video"] if video else [])) == 0
+    s = json.loads((out / "summary.json").read_text())
+    for k in SUMMARY_KEYS:
+        assert k in s, k
+        if k != "mean_replan_ms" or name == "mpc":  # None for policies that did not re-plan
+            assert s[k] is not None and np.isfinite(s[k]), (k, s[k])
+    assert s["episodes"] == 2 and s["seeds"] == [3, 4] and s["real_time_factor"] > 0
+    assert s["max_episode_steps"] == 24 and s["mean_episode_length"] <= 24
+    if name == "mpc":
+        assert s["replans"] >= 2 * 6 and s["planner_failures"] == 0 and s["mean_replan_ms"] > 0
+        assert s["falls"] == 0 and s["mean_episode_length"] == 24
+    else:  # no planner (the expert tracks its offline plan for 1.48 s before its MPC fallback re-plans)
+        assert s["replans"] == 0 and s["planner_failures"] == 0 and s["mean_replan_ms"] is None
+    printed = capsys.readouterr().out
+    assert all(k in printed for k in SUMMARY_KEYS)
+    if video:
+        from PIL import Image
+
+        assert s["video"] == "episode0.gif"
+        with Image.open(out / "episode0.gif") as gif:
+            assert gif.n_frames >= 2
+    else:
+        assert not (out / "episode0.gif").exists()
+
+
+def test_cli_demo_plans_with_hsddp_and_runs_the_mpc(tmp_path):
+    out = tmp_path / "demo"
+    assert cli.main(["demo", "--cycles", "1", "--episodes", "1", "--max-episode-steps", "20", "--no-video",
+                     "--quiet", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["hsddp_plan"]["method"] == "al-reb" and s["hsddp_plan"]["ddp_iterations"] > 0
+    mpc = s["mpc_in_env"]
+    assert mpc["policy"] == "mpc" and mpc["replans"] > 0 and mpc["mean_episode_length"] == 20
+    for name in ("motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"):
+        assert (out / name).exists(), name
+
+
+def test_every_cli_option_has_help():
+    import argparse
+
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    assert set(sub.choices) >= {"demo", "plan", "rollout", "sto", "dataset", "train"}
+    for command, p in sub.choices.items():
+        assert p.description, command
+        for action in p._actions:
+            if isinstance(action, argparse._HelpAction):
+                continue
+            assert action.help and len(action.help) > 10, (command, action.option_strings)
