@@ -18,7 +18,7 @@ from hsddp_gym.plotting import _plt, _save
 from planners.hsddp import HSDDP, _Traj
 from planners.problem import HybridProblem
 from planners.solution import SolverOptions
-from planners.sto import rollout_time_policy, step_size_study, time_derivatives
+from planners.sto import STOOptions, duration_step, rollout_time_policy, step_size_study, time_derivatives
 from planners.tasks import heuristic_warm_start, run_sto
 
 PAPER = {"initial_total_time": 0.296, "hsddp": {"total_time": 0.2335, "reduction": 0.211},
@@ -84,9 +84,9 @@ def main(argv=None) -> int:
     solver = HSDDP(SolverOptions())
     solver.solve(problem, warm.U)
     d = time_derivatives(solver, problem)
-    w, Q = np.linalg.eigh(d.V_zz)
-    dz = -(Q @ ((Q.T @ d.V_z) / np.maximum(np.abs(w), 1e-8 * np.abs(w).max())))
-    z1 = np.clip(problem.schedule.durations + 0.5 * dz, 0.02, 0.2)
+    lower, upper = STOOptions().bounds(problem.n_phases)
+    dz, _, _ = duration_step(d.V_z, d.V_zz, problem.schedule.durations, lower, upper)  # Algorithm 2's step
+    z1 = np.clip(problem.schedule.durations + 0.5 * dz, lower, upper)
     pr1 = problem.with_durations(z1)
     cand = _Traj(pr1.n_knots, pr1.n_phases)
     rollout_time_policy(pr1, solver._ws.nominal, d, z1 - problem.schedule.durations, True, cand)

@@ -18,7 +18,10 @@ Algorithm 2: after Algorithm 1 converges, ``z <- z - eps_z V_zz^-1 V_z`` (eq. 31
 search on ``eps_z`` that asks for a decrease of the objective, rolling out the feedback policy
 ``u = u_hat + K_x dx + K_z dz`` (HS-DDP) -- or the control sequence held open loop (Xu & Antsaklis,
 whose derivatives are those of the open-loop cost, i.e. the same recursion with ``K = 0``); then
-Algorithm 1 again, warm-started, on the new durations. Durations stay inside ``[min, max]`` bounds.
+Algorithm 1 again, warm-started, on the new durations. Durations stay inside ``[min, max]`` bounds
+(per phase); the step is a projected Newton step (a duration held at a bound its gradient pushes against is
+fixed and the Newton system is solved on the others), with the eigenvalues of ``V_zz`` replaced by their
+absolute values (floored) when it is not positive definite: see :func:`duration_step`.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ import numpy as np
 
 from hsddp_gym.conventions import NQ, NU, NX
 from planners.hsddp import HSDDP, _Traj, rollout_policy
+from planners.objective import Objective
 from planners.problem import HybridProblem
 from planners.solution import Solution, SolverOptions
 
@@ -55,6 +59,10 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
             instead of iLQR); reset_tensor: optional ``reset_tensor(i, V_x_plus) -> T_xx`` for reset maps.
     Returns:
         ``(ok, V_x0 (14,), V_z0 (n_z,), V_xx0 (14, 14), V_xz0 (14, n_z), V_zz0 (n_z, n_z), dV1, dV2)``.
+    Raises:
+        numpy.linalg.LinAlgError: (``feedback``) ``Q_uu + mu I`` is not positive definite at some knot, so the
+            gains would not minimize the control's quadratic model; :func:`time_derivatives` then retries with
+            a larger ``mu``.
     """
     nx = f_x.shape[1]
     nu = f_u.shape[2]
@@ -110,6 +118,7 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
             Qzz[j, j] += fz @ Vxx_fz
             if feedback:
                 Quu_reg = Quu + mu * eye_u
+                np.linalg.cholesky(Quu_reg)  # LinAlgError unless positive definite: the caller regularizes more
                 Qi = np.linalg.inv(Quu_reg)
                 Qi = 0.5 * (Qi + Qi.T)
                 kk = -(Qi @ Qu)
@@ -296,13 +305,39 @@ def rollout_time_policy(problem_new: HybridProblem, nominal: _Traj, deriv: TimeD
     return rollout_policy(problem_new, out, nominal.U)
 
 
+def _bound_value(value, name: str):
+    """A duration bound as given to :class:`STOOptions`: a number, or one number per phase (a tuple)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a number or a sequence of numbers [s], got {value!r}")
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        out = float(value)
+        arr = np.array([out])
+    else:
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be a number or a sequence of numbers [s], got {value!r}") from None
+        if arr.ndim != 1 or arr.size == 0:
+            raise ValueError(f"{name} must be a number or a 1-D sequence (one bound per phase) [s], got {value!r}")
+        out = tuple(float(v) for v in arr)
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
+        raise ValueError(f"{name} must be finite and > 0 [s], got {value!r}")
+    return out
+
+
 @dataclasses.dataclass(frozen=True)
 class STOOptions:
     """Options of Algorithm 2.
 
     Attributes:
         method: ``"hsddp"`` (feedback policy, the paper) or ``"open-loop"`` (Xu & Antsaklis).
-        iterations: STO iterations (paper: 30). min_duration, max_duration: bounds per phase [s].
+        iterations: STO iterations (paper: 30).
+        min_duration, max_duration: bounds on the mode durations [s]: one number for every phase, or a
+            sequence with one number per phase (checked against the problem in
+            :func:`optimize_switching_times`). Not from the paper, which gives none: the default minimum
+            0.02 s (a quarter of the initial 72-80 ms phases; each phase keeps its knots, so its step
+            ``h_i = T_i / N_i`` stays >= 0.25 ms) keeps a phase from collapsing, the maximum 0.2 s keeps
+            the Euler step <= 2.8 ms. Neither is active in the paper's task 2.
         step_factor, min_step: backtracking on eps_z. armijo: sufficient decrease fraction.
         tolerance: stop when the accepted duration change is below it [s] (max norm).
         second_order: exact V_zz with the dynamics' second-order terms (see :func:`time_derivatives`);
@@ -312,8 +347,8 @@ class STOOptions:
 
     method: str = "hsddp"
     iterations: int = 30
-    min_duration: float = 0.02
-    max_duration: float = 0.2
+    min_duration: float | tuple = 0.02
+    max_duration: float | tuple = 0.2
     step_factor: float = 0.5
     min_step: float = 1e-3
     armijo: float = 1e-4
@@ -334,8 +369,72 @@ class STOOptions:
             raise ValueError(f"tolerance must be finite and > 0, got {self.tolerance!r}")
         if not (0.0 <= self.armijo < 1.0):
             raise ValueError(f"armijo must be in [0, 1), got {self.armijo!r}")
-        if not (0 < self.min_duration < self.max_duration):
-            raise ValueError(f"need 0 < min_duration < max_duration, got {self.min_duration}, {self.max_duration}")
+        if not isinstance(self.second_order, (bool, np.bool_)):
+            raise TypeError(f"second_order must be a bool, got {type(self.second_order).__name__}")
+        if not isinstance(self.solver, SolverOptions):
+            raise TypeError(f"solver must be a SolverOptions, got {type(self.solver).__name__}")
+        lo = _bound_value(self.min_duration, "min_duration")
+        hi = _bound_value(self.max_duration, "max_duration")
+        object.__setattr__(self, "min_duration", lo)
+        object.__setattr__(self, "max_duration", hi)
+        lo_a, hi_a = np.atleast_1d(lo), np.atleast_1d(hi)
+        if lo_a.size > 1 and hi_a.size > 1 and lo_a.size != hi_a.size:
+            raise ValueError(f"min_duration and max_duration give bounds for {lo_a.size} and {hi_a.size} phases")
+        if not np.all(lo_a < hi_a):
+            raise ValueError(f"need 0 < min_duration < max_duration (per phase), got {lo}, {hi}")
+
+    def bounds(self, n_phases: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(lower (n,), upper (n,))`` duration bounds [s] for a problem with ``n_phases`` phases."""
+        out = []
+        for name in ("min_duration", "max_duration"):
+            b = np.atleast_1d(np.asarray(getattr(self, name), dtype=np.float64))
+            if b.size == 1:
+                b = np.full(n_phases, b[0])
+            elif b.size != n_phases:
+                raise ValueError(f"{name} has {b.size} per-phase bounds, the problem has {n_phases} phases")
+            out.append(b)
+        return out[0], out[1]
+
+
+def duration_step(V_z: np.ndarray, V_zz: np.ndarray, z: np.ndarray, lower: np.ndarray, upper: np.ndarray
+                  ) -> tuple[np.ndarray, bool, np.ndarray]:
+    """The duration step of eq. 31, ``dz = -V_zz^-1 V_z``, made safe for bounds and a non-PD ``V_zz``.
+
+    * Bounds (projected Newton, Bertsekas 1982): a duration at its lower bound with ``V_z > 0`` (the
+      descent direction would push it below) or at its upper bound with ``V_z < 0`` is held, ``dz_i = 0``;
+      the Newton system is solved on the remaining (free) durations F: ``dz_F = -V_zz[F, F]^-1 V_z[F]``.
+      Clipping the full Newton step instead would move the free durations by an amount that assumes the
+      held ones move too. The caller still clips ``z + eps dz`` into the bounds in its line search.
+    * Fallback: when ``V_zz[F, F]`` is not positive definite (an eigenvalue <= ``floor = max(1e-8,
+      1e-6 max|w|)``), its eigenvalues ``w`` are replaced by ``max(|w|, floor)``. The direction is then a
+      descent direction, ``V_z . dz < 0`` unless ``V_z[F] = 0``, with Newton's length scale.
+
+    Args:
+        V_z (n,), V_zz (n, n): derivatives of the objective w.r.t. the durations.
+        z (n,): current durations [s]. lower, upper (n,): their bounds [s].
+    Returns:
+        ``(dz (n,), pd, free (n,) bool)``: the direction, whether ``V_zz[F, F]`` was positive definite
+        (True when no duration is free), and the free set.
+    """
+    V_z = np.asarray(V_z, dtype=np.float64)
+    n = V_z.shape[0]
+    V_zz = np.asarray(V_zz, dtype=np.float64)
+    if V_zz.shape != (n, n):
+        raise ValueError(f"V_zz must have shape ({n}, {n}), got {V_zz.shape}")
+    if not (np.all(np.isfinite(V_z)) and np.all(np.isfinite(V_zz))):
+        raise ValueError("V_z and V_zz must be finite")
+    held = ((z <= lower) & (V_z > 0.0)) | ((z >= upper) & (V_z < 0.0))
+    free = ~held
+    dz = np.zeros(n)
+    if not free.any():
+        return dz, True, free
+    H = V_zz[np.ix_(free, free)]
+    w, Q = np.linalg.eigh(0.5 * (H + H.T))
+    floor = max(1e-8, 1e-6 * float(np.max(np.abs(w))))
+    pd = bool(np.all(w > floor))
+    w_safe = w if pd else np.maximum(np.abs(w), floor)
+    dz[free] = -(Q @ ((Q.T @ V_z[free]) / w_safe))
+    return dz, pd, free
 
 
 @dataclasses.dataclass
@@ -364,16 +463,38 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
                              callback=None) -> STOResult:
     """Algorithm 2 (HS-DDP) or the open-loop baseline on ``problem`` (its durations are the start).
 
+    Each iteration: V_z, V_zz at the current solution (:func:`time_derivatives`), the direction of
+    :func:`duration_step`, a backtracking search on ``eps_z`` (durations ``clip(z + eps_z dz)``, rolled out
+    with the time-augmented feedback policy or, open loop, the controls as they are) that accepts only a
+    decrease of the objective, then Algorithm 1 re-solved on the new durations from the accepted rollout's
+    controls, continuing the outer-loop state (multipliers, penalty, barrier parameters) -- for both methods.
+
     Args:
         problem: the hybrid OCP; its knots per phase stay fixed, their step scales with the duration.
         U_init: warm start controls ``(N, 4)``.
+        options: an :class:`STOOptions`.
         callback: called with each iteration's record dict.
+    Returns:
+        An :class:`STOResult`. Its records have ``iteration``, ``V_z``, ``V_zz_pd``, ``free`` (durations not
+        held at a bound), ``step`` (the accepted eps_z, 0 if none), ``objective_before`` and ``status``:
+        ``"accepted"`` (then also ``durations``, ``total_time``, ``objective_rollout``, ``predicted``,
+        ``objective_after_resolve``, ``cost``, ``switching_violation``), ``"converged"`` (the full projected
+        Newton step is below ``tolerance``) or ``"no_decrease"`` (no decrease down to ``min_step``); the
+        last two end the run.
+    Raises:
+        TypeError: ``problem`` or ``options`` of the wrong type. ValueError: initial durations outside the
+        bounds, per-phase bounds of the wrong length, or a bad ``U_init`` (see :meth:`HSDDP.solve`).
     """
+    if not isinstance(problem, HybridProblem):
+        raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
+    if not isinstance(options, STOOptions):
+        raise TypeError(f"options must be an STOOptions, got {type(options).__name__}")
     t0 = time.perf_counter()
     feedback = options.method == "hsddp"
     z = problem.schedule.durations.copy()
-    if np.any(z < options.min_duration) or np.any(z > options.max_duration):
-        raise ValueError(f"initial durations {z} outside [{options.min_duration}, {options.max_duration}]")
+    lower, upper = options.bounds(problem.n_phases)
+    if np.any(z < lower) or np.any(z > upper):
+        raise ValueError(f"initial durations {z} outside [min_duration, max_duration] = [{lower}, {upper}]")
     pr = HybridProblem(problem.dynamics, problem.schedule, problem.costs, problem.x0, problem.constraints,
                        problem.restitution, knots=problem.knots)
     solver = HSDDP(options.solver)
@@ -387,34 +508,31 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
         cs = solver.last_constraint_state
         deriv = time_derivatives(solver, pr, feedback=feedback, second_order=options.second_order)
         Vz, Vzz = deriv.V_z, deriv.V_zz
-        w, Q = np.linalg.eigh(0.5 * (Vzz + Vzz.T))
-        floor = max(1e-8, 1e-6 * float(np.max(np.abs(w))))
-        pd = bool(np.all(w > floor))
-        w_safe = np.maximum(w, floor) if pd else np.maximum(np.abs(w), floor)
-        dz = -(Q @ ((Q.T @ Vz) / w_safe))
+        dz, pd, free = duration_step(Vz, Vzz, z, lower, upper)
         current = solver._evaluate(solver.last_objective, solver._ws.nominal, cs).total
         eps = 1.0
         accepted = None
+        stop = "no_decrease"
         while eps >= options.min_step:
-            z_new = np.clip(z + eps * dz, options.min_duration, options.max_duration)
+            z_new = np.clip(z + eps * dz, lower, upper)
             step = z_new - z
             if np.max(np.abs(step)) < options.tolerance:
+                if eps == 1.0:
+                    stop = "converged"  # the full (projected) Newton step is below the tolerance
                 break
             pr_new = pr.with_durations(z_new)
             ok = rollout_time_policy(pr_new, solver._ws.nominal, deriv, step, feedback, cand)
             if ok:
-                from planners.objective import Objective
-
                 new = Objective(pr_new).evaluate(cand.X, cand.X_pre, cand.U, cand.GRF, cs).total
                 predicted = float(Vz @ step + 0.5 * step @ Vzz @ step)
                 if np.isfinite(new) and new < current + options.armijo * min(predicted, 0.0) and new < current:
                     accepted = (z_new, pr_new, new, predicted)
                     break
             eps *= options.step_factor
-        rec = {"iteration": it + 1, "V_z": Vz.tolist(), "V_zz_pd": pd, "step": eps if accepted else 0.0,
-               "objective_before": current}
+        rec = {"iteration": it + 1, "V_z": Vz.tolist(), "V_zz_pd": pd, "free": free.tolist(),
+               "step": eps if accepted else 0.0, "objective_before": current}
         if accepted is None:
-            rec["status"] = "no_decrease"
+            rec["status"] = stop
             records.append(rec)
             if callback:
                 callback(rec)
@@ -453,7 +571,6 @@ def step_size_study(solver: HSDDP, problem: HybridProblem, U_nominal: np.ndarray
         ``"control"``, ``"durations"``, ``"both"``.
     """
     from planners.hsddp import Workspace
-    from planners.objective import Objective
 
     cs = solver.last_constraint_state
     if cs is None:

@@ -1,10 +1,13 @@
 """HS-DDP Algorithm 1 on a one-cycle bounding problem (296 knots, ~0.1-0.5 s per solve): the line search
-never accepts an increase, callbacks see every record, the AL update follows eq. 24, solves are
-bit-for-bit deterministic, solutions round-trip through ``.npz`` without pickle, and options are validated."""
+never accepts an increase, callbacks see every record (and the verbose printer prints them), the AL update
+follows eq. 24, warm starts with states, gains and multipliers are used, the stop statuses, solves are
+bit-for-bit deterministic, solutions round-trip through ``.npz`` without pickle, ``hsddp-gym plan`` writes
+the summary keys of issue 3, and options are validated."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 
@@ -12,8 +15,9 @@ import numpy as np
 import pytest
 
 from hsddp_gym.rollout import rollout
+from planners.callbacks import VerbosePrinter
 from planners.heuristic import HeuristicBoundingController
-from planners.hsddp import HSDDP, solve
+from planners.hsddp import HSDDP, _Traj, rollout_policy, solve
 from planners.objective import ConstraintState, Objective
 from planners.problem import HybridProblem
 from planners.solution import LOG_FIELDS, IterationRecord, Solution, SolverOptions
@@ -110,6 +114,35 @@ def test_line_search_backtracks_and_still_never_accepts_an_increase(warm_start):
     assert sol.timings["line_search_trials"] > len(steps)
 
 
+@pytest.mark.parametrize("failure", ["rollout", "cost"])
+def test_non_finite_trials_are_failed_trials(failure, warm_start, monkeypatch):
+    """Every full-step (eps = 1) line-search trial is made non-finite -- the rollout reports a non-finite
+    state, or it "succeeds" with a NaN force (so the cost is NaN): the line search rejects them all and
+    backtracks, and still never accepts an increase."""
+    import planners.hsddp as hsddp_module
+
+    original = hsddp_module.rollout_policy
+    spoiled = []
+
+    def spoil_full_steps(problem, out, U_ref, X_ref=None, K=None, k_ff=None, eps=0.0, lam6=None, lin=None):
+        ok = original(problem, out, U_ref, X_ref, K, k_ff, eps, lam6, lin)
+        if K is None or eps != 1.0:
+            return ok
+        spoiled.append(eps)
+        if failure == "rollout":
+            out.X[problem.phase_start[1]:] = np.nan
+            return False
+        out.GRF[3, 1] = np.nan
+        return ok
+
+    monkeypatch.setattr(hsddp_module, "rollout_policy", spoil_full_steps)
+    opt = SolverOptions(method="al-reb", max_al_iterations=2, max_ddp_iterations=5)
+    sol = HSDDP(opt).solve(fresh_problem(), warm_start)
+    assert check_log(sol, opt) >= 3 and spoiled
+    assert max(r.step for r in sol.log if r.event == "ddp") <= opt.step_factor
+    assert np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.GRF)) and np.isfinite(sol.objective)
+
+
 def test_callbacks_see_every_record(warm_start):
     seen: list[IterationRecord] = []
     calls = []
@@ -125,6 +158,72 @@ def test_callbacks_see_every_record(warm_start):
     sol2 = solve(fresh_problem(), warm_start, opt, callbacks=[seen2.append])
     assert _records_equal(seen2, sol.log) and _records_equal(sol2.log, sol.log)
     assert _records_equal(HSDDP(opt).solve(fresh_problem(), warm_start).log, sol.log)
+
+
+def test_verbose_printer_prints_every_record_and_the_default_is_silent(warm_start, capsys):
+    opt = SolverOptions(method="al", max_al_iterations=2, max_ddp_iterations=4)
+    quiet = HSDDP(opt).solve(fresh_problem(), warm_start)
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err == ""
+    assert len(quiet.log) > 3  # the in-memory log runs without being asked
+    sol = HSDDP(opt, verbose=True).solve(fresh_problem(), warm_start)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0] == VerbosePrinter.HEADER
+    assert len(lines) == 1 + len(sol.log)
+    assert [line.split()[-1] for line in lines[1:]] == [r.event for r in sol.log]
+    assert _records_equal(sol.log, quiet.log)  # printing changes nothing
+
+
+# ----------------------------------------------------------------------------------------- warm starts
+
+
+def test_warm_start_with_states_gains_and_multipliers(warm_start):
+    """A re-solve from a converged solution (U, X, K, multipliers, sigma) starts on it; the multipliers and
+    penalty given are the ones used; from a perturbed initial state the gains of the warm start reject the
+    perturbation (the first rollout is ``u = U + K (x - X)``, eq. 8 with eps = 0)."""
+    opt = SolverOptions(method="al", max_al_iterations=6)
+    sol = HSDDP(opt).solve(fresh_problem(), warm_start)
+    assert sol.converged and sol.sigma > opt.sigma0 and np.any(sol.multipliers != 0.0)
+    again = HSDDP(opt).solve(fresh_problem(), sol.U, X_init=sol.X, K_init=sol.K, multipliers=sol.multipliers,
+                             sigma=sol.sigma)
+    assert again.log[0].objective == pytest.approx(sol.objective, rel=1e-9)
+    assert again.converged and again.al_iterations == 1 and again.ddp_iterations <= 2
+    np.testing.assert_array_equal(again.multipliers, sol.multipliers)
+    assert again.sigma == sol.sigma
+    # the initial objective is eq. 23 with the multipliers and penalty passed in
+    problem = fresh_problem()
+    tr = _Traj(problem.n_knots, problem.n_phases)
+    assert rollout_policy(problem, tr, sol.U, sol.X, sol.K)
+    for lam, sigma in ((sol.multipliers, sol.sigma), (np.zeros(problem.n_phases), opt.sigma0)):
+        one = SolverOptions(method="al", max_al_iterations=1, max_ddp_iterations=1)
+        r = HSDDP(one).solve(fresh_problem(), sol.U, X_init=sol.X, K_init=sol.K, multipliers=lam, sigma=sigma)
+        cs = ConstraintState(sigma=sigma, lam=lam, use_al=True, use_reb=False, delta_torque=one.delta_torque0,
+                             delta_grf=one.delta_grf0, eps_torque=one.eps_torque, eps_grf=one.eps_grf)
+        assert r.log[0].objective == pytest.approx(Objective(problem).evaluate(tr.X, tr.X_pre, tr.U, tr.GRF,
+                                                                               cs).total, rel=1e-12)
+    # perturbed initial state (+0.2 m/s forward, +0.2 rad/s pitch rate): feedback warm start vs open loop
+    x0 = sol.X[0].copy()
+    x0[7] += 0.2
+    x0[9] += 0.2
+    one = SolverOptions(method="al", max_al_iterations=1, max_ddp_iterations=1)
+    fb = HSDDP(one).solve(fresh_problem().with_x0(x0), sol.U, X_init=sol.X, K_init=sol.K,
+                          multipliers=sol.multipliers, sigma=sol.sigma)
+    ol = HSDDP(one).solve(fresh_problem().with_x0(x0), sol.U, multipliers=sol.multipliers, sigma=sol.sigma)
+    assert fb.log[0].objective < 0.9 * ol.log[0].objective  # measured 437 vs 539
+
+
+# ----------------------------------------------------------------------------------------- stop status
+
+
+def test_stop_status_at_iteration_and_time_limits(warm_start):
+    sol = HSDDP(SolverOptions(method="al", max_total_ddp_iterations=2)).solve(fresh_problem(), warm_start)
+    assert (sol.status, sol.converged, sol.ddp_iterations) == ("iteration_limit", False, 2)
+    sol = HSDDP(SolverOptions(method="al", time_limit=1e-9)).solve(fresh_problem(), warm_start)
+    assert (sol.status, sol.converged, sol.ddp_iterations) == ("time_limit", False, 0)
+    # the solution is the warm start's rollout, with gains from a backward pass along it
+    np.testing.assert_array_equal(sol.U, warm_start)
+    assert np.all(np.isfinite(sol.K)) and np.max(np.abs(sol.K)) > 0
+    assert [r.event for r in sol.log] == ["init"]
 
 
 # ----------------------------------------------------------------------------------------- AL update (eq. 24)
@@ -288,6 +387,46 @@ def test_saved_file_needs_no_pickle_and_is_written_atomically(al_solution, tmp_p
     assert sorted(os.listdir(path.parent)) == ["sol.npz"]
     assert path.read_bytes() == before
     np.testing.assert_array_equal(Solution.load(path).X, al_solution.X)
+
+
+def test_load_never_unpickles(tmp_path):
+    """A file holding a pickled object array is refused (np.load with allow_pickle=False), not executed."""
+    path = tmp_path / "pickled.npz"
+    np.savez(path, X=np.array([{"payload": 1}], dtype=object), meta=np.array("{}"))
+    with pytest.raises(ValueError, match="allow_pickle"):
+        Solution.load(path)
+
+
+# ----------------------------------------------------------------------------------------- CLI summary
+
+PLAN_SUMMARY_KEYS = {"al_iterations", "ddp_iterations", "switching_violation", "min_normal_grf",
+                     "max_friction_violation", "max_abs_torque", "avg_forward_speed", "cost", "solve_time_s",
+                     "time_per_ddp_iteration_s"}
+"""The keys issue 3 asks ``hsddp-gym plan`` to add to summary.json."""
+
+
+@pytest.mark.parametrize("method", ["heuristic", "ddp", "al", "al-reb"])
+def test_plan_cli_writes_the_summary_keys(method, tmp_path):
+    """One cycle (the five-cycle numbers are the README's): the keys, and for al-reb the constraint bounds of
+    issue 3 on this small horizon."""
+    from hsddp_gym.cli import main
+
+    out = tmp_path / method
+    assert main(["plan", "--method", method, "--cycles", "1", "--out", str(out), "--no-plots", "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert PLAN_SUMMARY_KEYS <= set(s), PLAN_SUMMARY_KEYS - set(s)
+    assert s["method"] == method
+    if method == "heuristic":
+        assert (s["al_iterations"], s["ddp_iterations"], s["time_per_ddp_iteration_s"]) == (0, 0, None)
+        return
+    assert s["time_per_ddp_iteration_s"] == pytest.approx(s["solve_time_s"] / s["ddp_iterations"], rel=1e-12)
+    loaded = Solution.load(out / "solution.npz")
+    assert loaded.ddp_iterations == s["ddp_iterations"] and loaded.al_iterations == s["al_iterations"]
+    if method == "al-reb":
+        assert s["switching_violation"] <= 1e-4 and s["al_iterations"] <= 4
+        assert s["max_abs_torque"] <= 33.033 and s["min_normal_grf"] >= -0.1
+        assert s["max_friction_violation"] <= 0.1
+        assert abs(s["avg_forward_speed"] - 1.0) <= 0.1
 
 
 # ----------------------------------------------------------------------------------------- validation
