@@ -30,7 +30,7 @@ from hsddp_gym.validation import check_array, check_positive
 # [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
 _Q = 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5], dtype=float)
 _QF_BASE = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01], dtype=float)
-_QF_RATES = {Mode.BACK_STANCE: (5, 5, 0.01, 0.01), Mode.FLIGHT: (5, 5, 5, 5), Mode.FRONT_STANCE: (0.01, 0.01, 5, 5)}
+_QF_RATES = {Mode.BACK_STANCE: (500, 500, 1, 1), Mode.FLIGHT: (500, 500, 500, 500), Mode.FRONT_STANCE: (1, 1, 500, 500)}
 _R = {Mode.BACK_STANCE: (5, 5, 1, 1), Mode.FLIGHT: (1, 1, 1, 1), Mode.FRONT_STANCE: (1, 1, 5, 5)}
 _S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0}
 

@@ -313,9 +313,6 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
     assert scripts.get("hsddp-gym") == "hsddp_gym.cli:main"  # the console script is installed
 
 
-@pytest.mark.xfail(strict=True, reason="planners/problem.py builds Qf as concat(100 * base, _QF_RATES) without the "
-                   "factor 100 on the four joint-rate weights: 5 / 0.01 instead of 500 / 1 (original_code_facts "
-                   "§3.5: Q_f = 100 diag(..., 5, 5, 0.01, 0.01)); the summary's cost is then 7393 instead of 16288")
 def test_summary_cost_uses_the_section_3_5_weights(bounding_traj):
     """Issue 2: ``cost`` is the paper's eq. 32-33 cost with the weights of §3.5, recomputed here independently."""
     from planners.tasks import plan_bounding
