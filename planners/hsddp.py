@@ -348,8 +348,11 @@ class HSDDP:
         for i in range(problem.n_phases - 1):
             dyn._reset_jacobian(tr.X_pre[i], problem.schedule.next_mode(i), e, ws.P_x[i])
         t3 = time.perf_counter()
-        objective.derivatives(tr.X, tr.X_pre, tr.U, tr.GRF, ws.lin.grf_x, ws.lin.grf_u, cs, ws.l_x, ws.l_u,
-                              ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx)
+        # a warm start far off (an MPC re-plan after a push) can overflow the barrier terms: the non-finite
+        # derivatives then fail the backward pass, which the solver's status reports (no warning spam)
+        with np.errstate(over="ignore", invalid="ignore"):
+            objective.derivatives(tr.X, tr.X_pre, tr.U, tr.GRF, ws.lin.grf_x, ws.lin.grf_u, cs, ws.l_x, ws.l_u,
+                                  ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx)
         t4 = time.perf_counter()
         timings["linearize"] += t2 - t
         timings["reset_jacobians"] += t3 - t2

@@ -7,7 +7,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    in that mode and the last stance foot;
 2. a bounding :class:`~hsddp_gym.schedule.ModeSchedule` starts with the current mode for the rest of its
    nominal duration (at least ``min_phase`` seconds) and continues the bounding cycle to cover at least
-   ``horizon`` seconds (default one gait cycle);
+   ``horizon`` seconds (default one gait cycle); the plan's speed reference is the target speed moved at
+   most ``speed_ramp`` from the measured speed (a reference governor for pushes), and a stance whose foot
+   has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`);
 3. the previous plan, aligned by phase with the contact events (:class:`~planners.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
    rollout, AL multipliers phase by phase, the outer-loop penalty and barrier state); phases beyond the
@@ -105,6 +107,16 @@ class MPCOptions:
             down after a push has lengthened the flight (measured on 6 pushes x 3 seeds: no fewer falls).
         recovery_after: env time [s] before which no recovery triggers (the start-up transient from the
             reset noise is the warm-up plan's job; its deviations reach those of a push).
+        lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
+            gait clock takes the stance as lost (0: never; see :class:`GaitClock`): after a push that lifts the
+            stance foot early in its stance, the clock goes back to the flight that lands it and the MPC
+            re-plans at once, instead of planning stance dynamics for a foot in the air.
+        speed_ramp: the largest difference [m/s] between a plan's forward-speed reference and the measured
+            forward speed (:meth:`MPCPolicy.plan_speed`; None: always the target). A reference governor: after a
+            push that changes the speed by more than this, the plan does not demand the whole change within
+            one gait cycle (whose phase-end terminal costs would otherwise ask for torques that saturate and
+            feet swung high to get there). While bounding, the speed stays within 0.5 m/s of the target and the
+            reference is the target.
     """
 
     horizon: float | None = None
@@ -134,6 +146,8 @@ class MPCOptions:
     recovery_handover: bool = False
     recovery_after: float = 0.5
     recovery_max_wait: float | None = None
+    lost_stance_steps: int = 2
+    speed_ramp: float | None = 0.5
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -146,12 +160,15 @@ class MPCOptions:
         check_int(self.recovery_iterations, "recovery_iterations", minimum=1)
         check_int(self.latency_steps, "latency_steps", minimum=0)
         check_int(self.debounce_steps, "debounce_steps", minimum=1)
+        check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
         check_positive(self.reb_delta, "reb_delta")
         check_positive(self.reb_eps, "reb_eps")
         if self.time_budget is not None:
             check_positive(self.time_budget, "time_budget")
+        if self.speed_ramp is not None:
+            check_positive(self.speed_ramp, "speed_ramp")
         if self.durations is not None and (len(self.durations) != 4 or any(not (d > 0) for d in self.durations)):
             raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
         if self.method not in ("ddp", "al", "al-reb"):
@@ -164,8 +181,12 @@ class GaitClock:
 
     The phase changes on time, except that a flight ends when its landing foot has touched for
     ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or ``max_wait``
-    after its nominal end (late touchdown); grazes of other feet are ignored. The first observation picks
-    the phase from the contacts (and, in flight, the sign of the pitch rate).
+    after its nominal end (late touchdown); grazes of other feet are ignored. A stance is *lost* when its
+    foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
+    half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
+    foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
+    re-plans at once). The first observation picks the phase from the contacts (and, in flight, the sign of
+    the pitch rate).
 
     Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
     (``2 pi t / gait_period``): on seed 0 of the default env the MPC's phase slips by about 0.2 cycles per
@@ -175,10 +196,11 @@ class GaitClock:
     Args:
         durations: nominal (back stance, flight, front stance, flight) durations [s].
         dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
+        debounce_steps, min_flight, max_wait, lost_stance_steps: the rules above (see :class:`MPCOptions`).
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
-                 max_wait: float = 0.03) -> None:
+                 max_wait: float = 0.03, lost_stance_steps: int = 0) -> None:
         if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
             raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
         self.durations = tuple(float(d) for d in durations)
@@ -186,22 +208,32 @@ class GaitClock:
         self.debounce_steps = check_int(debounce_steps, "debounce_steps", minimum=1)
         self.min_flight = float(min_flight)
         self.max_wait = float(max_wait)
+        self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
         self.reset()
 
     def reset(self) -> None:
         self.phase: int | None = None
         self.tau = 0.0
         self._contact_steps = [0, 0]
+        self._air_steps = [0, 0]
+        self._stance_touched = False
+        self.resynced = False
+        """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
 
     def copy(self) -> GaitClock:
-        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait)
+        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait,
+                         self.lost_stance_steps)
         twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
+        twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
+            self._stance_touched
         return twin
 
     def update(self, mode: Mode, pitch_rate: float) -> Mode:
         """Advance by the observed contact ``mode``; return the mode of the current gait phase."""
+        self.resynced = False
         for foot in (FRONT, BACK):
             self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
+            self._air_steps[foot] = 0 if mode.in_contact(foot) else self._air_steps[foot] + 1
         if self.phase is None:
             if mode == Mode.FLIGHT:
                 self.phase = 1 if pitch_rate > 0 else 3
@@ -212,16 +244,30 @@ class GaitClock:
             return _CYCLE[self.phase]
         j = self.phase
         nominal = self.durations[j]
-        advance = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
             touched = self._contact_steps[landing] >= self.debounce_steps
             advance = (touched and self.tau >= self.min_flight * nominal) or self.tau >= nominal + self.max_wait
-        elif self.tau >= nominal - 1e-9:
-            advance = True
+        else:
+            stance_foot = BACK if j == 0 else FRONT
+            advance = self.tau >= nominal - 1e-9
+            self._stance_touched |= mode.in_contact(stance_foot)
+            if (not advance and self.lost_stance_steps and self._stance_touched
+                    and self._air_steps[stance_foot] >= self.lost_stance_steps):
+                # the stance foot left the ground (a push, a slip): late in the stance, the stance is over;
+                # early in it, the foot has to land again, so the clock goes back to the flight that lands
+                # it, with half of that flight still to come
+                if self.tau >= 0.5 * nominal:
+                    advance = True
+                else:
+                    self.phase = (j - 1) % 4
+                    self.tau = 0.5 * self.durations[self.phase]
+                    self._stance_touched = False
+                    self.resynced = True
         if advance:
             self.phase = (j + 1) % 4
             self.tau = 0.0
+            self._stance_touched = False
         return _CYCLE[self.phase]
 
     def tick(self) -> None:
@@ -285,7 +331,7 @@ class MPCPolicy(Policy):
         self._problem = None
         self._cs: ConstraintState | None = None
         self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
-                               self.options.min_flight, self.options.max_wait)
+                               self.options.min_flight, self.options.max_wait, self.options.lost_stance_steps)
         self._since_replan = np.inf
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
@@ -400,12 +446,22 @@ class MPCPolicy(Policy):
         d[2] *= self._pitch_length
         return float(np.linalg.norm(d))
 
+    def plan_speed(self, x: np.ndarray) -> float:
+        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): the target speed, moved at most
+        ``speed_ramp`` from the measured speed (None: the target)."""
+        target = self.interface.target_speed
+        ramp = self.options.speed_ramp
+        if ramp is None:
+            return float(target)
+        vx = float(x[NQ])
+        return float(min(max(target, vx - ramp), vx + ramp))
+
     def replan(self, x: np.ndarray, mode: Mode) -> bool:
         """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
         o = self.options
         t0 = time.perf_counter()
         schedule = self._schedule()
-        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.interface.target_speed,
+        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, z_velocity=o.z_velocity)
         first = self.last_solution is None
         recovering = self.recovering
@@ -492,6 +548,8 @@ class MPCPolicy(Policy):
             u_fallback = self._fallback.gait.torque(x, (mode.in_contact(FRONT), mode.in_contact(BACK)))
         if self._use_fallback and not self.recovering:
             self._use_fallback = False  # the window closed: back to the (last successful) plan
+        if self.clock.resynced:
+            self._since_replan = np.inf  # the schedule changed against the cycle: re-plan now
         if self._since_replan >= self.options.replan_period - 1e-9:
             self._since_replan = 0.0
             if self.replan(x, eff) and (self.tracker is None or self._pending[4] == 0):

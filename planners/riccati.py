@@ -32,7 +32,7 @@ def _cholesky_solve_4(A, B, L, out):
             for p in range(j):
                 s -= L[i, p] * L[j, p]
             if i == j:
-                if s <= 1e-12:
+                if not 1e-12 < s < np.inf:  # also False for NaN and inf (non-finite Q_uu is not PD)
                     return False
                 L[i, i] = np.sqrt(s)
             else:

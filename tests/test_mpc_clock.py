@@ -44,6 +44,50 @@ def test_clock_rules():
         GaitClock((0.1, 0.1, 0.1), 0.005)
 
 
+def _stance_then(clock, mode_before, steps_on, mode_after, steps_off):
+    for _ in range(steps_on):
+        clock.tick()
+        clock.update(mode_before, 0.0)
+    for _ in range(steps_off):
+        clock.tick()
+        clock.update(mode_after, 0.0)
+
+
+def test_lost_stance_rule():
+    durs = (0.04, 0.03, 0.04, 0.03)
+    # early in the back stance the back foot leaves the ground: back to the flight that lands it
+    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, Mode.BACK_STANCE, 1, Mode.FLIGHT, 1)
+    assert c.phase == 0 and not c.resynced  # one step in the air is not enough
+    c.tick()
+    assert c.update(Mode.FLIGHT, 0.0) == Mode.FLIGHT
+    assert c.phase == 3 and c.resynced and c.tau == pytest.approx(0.5 * durs[3])
+    c.tick()
+    c.update(Mode.FLIGHT, 0.0)
+    assert not c.resynced  # set for one update only
+    # ... which ends when the back foot lands again (debounced)
+    _stance_then(c, Mode.BACK_STANCE, 2, Mode.BACK_STANCE, 0)
+    assert c.phase == 0
+    # late in the front stance (tau >= half of it): the stance simply ends
+    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c.update(Mode.FRONT_STANCE, 0.0)
+    _stance_then(c, Mode.FRONT_STANCE, 4, Mode.FLIGHT, 2)
+    assert c.phase == 3 and c.tau == 0.0 and not c.resynced
+    # a stance entered on time whose foot has not touched yet is not lost; nor with the rule off
+    c = GaitClock(durs, 0.005, lost_stance_steps=2, max_wait=0.0)
+    c.update(Mode.FLIGHT, -1.0)  # flight 3 (lands the back foot)
+    _stance_then(c, Mode.FLIGHT, 6, Mode.FLIGHT, 3)
+    assert c.phase == 0 and c.tau < durs[0]
+    c = GaitClock(durs, 0.005, lost_stance_steps=0)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, Mode.BACK_STANCE, 1, Mode.FLIGHT, 3)
+    assert c.phase == 0 and not c.resynced
+    assert c.copy().lost_stance_steps == 0 and GaitClock(durs, 0.005, lost_stance_steps=3).copy().lost_stance_steps == 3
+    with pytest.raises(ValueError, match="lost_stance_steps"):
+        GaitClock(durs, 0.005, lost_stance_steps=-1)
+
+
 @pytest.mark.slow
 def test_features_rebuilt_from_observations_match_the_mpc_clock():
     env = gym.make("hsddp_gym/Bounding-v0")

@@ -91,13 +91,37 @@ def test_failed_recovery_replans_hand_over_to_the_heuristic(monkeypatch):
     assert policy.stats["fallback_steps"] >= 9  # the heuristic acts, the episode goes on
 
 
-def test_recovery_survives_a_push_the_plain_mpc_falls_after():
-    """Seed 100, ``[+1.5, 0, 0]`` at t = 1 s: the plain MPC falls at 1.255 s, the recovering one bounds on
-    (it also survives the whole 2.5 s episode of ``experiments/push_robustness.py``)."""
-    push = {"push": {"delta_v": [1.5, 0.0, 0.0], "time": 1.0}}
+def test_speed_governor_and_lost_stance_rule_survive_a_push_the_mpc_without_them_falls_after():
+    """Seed 100, ``[-1.5, 0, 0]`` at t = 1 s: without the speed reference governor (``speed_ramp``) and the
+    lost-stance rule (``lost_stance_steps``) the MPC falls at about 1.3 s; with the defaults it bounds on."""
+    push = {"push": {"delta_v": [-1.5, 0.0, 0.0], "time": 1.0}}
     env = make_env()
-    plain = run_episode(env, MPCPolicy.from_env(env), 100, options=push, max_steps=300)
-    assert plain.fell and plain.length < 260
-    policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
-    rec = run_episode(env, policy, 100, options=push, max_steps=300)
-    assert not rec.fell and policy.stats["recoveries"] >= 1
+    bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0)), 100,
+                       options=push, max_steps=300)
+    assert bare.fell and bare.length < 290
+    default = run_episode(env, MPCPolicy.from_env(env), 100, options=push, max_steps=300)
+    assert not default.fell
+
+
+def test_speed_governor_and_lost_stance_rule_leave_unpushed_bounding_unchanged():
+    """While bounding, the speed stays within ``speed_ramp`` of the target and no stance foot lifts early: the
+    same actions as without either mechanism."""
+    env = make_env()
+    bare = MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0))
+    obs, _ = env.reset(seed=1)
+    _, a_bare = run(env, bare, obs, 200)
+    obs, _ = env.reset(seed=1)
+    _, a_default = run(env, MPCPolicy.from_env(env), obs, 200)
+    np.testing.assert_array_equal(a_bare, a_default)
+
+
+def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_speed():
+    x = np.zeros(14)
+    policy = MPCPolicy()  # target 1.0 m/s, speed_ramp 0.5
+    for vx, expected in ((1.2, 1.0), (0.6, 1.0), (-0.5, 0.0), (2.5, 2.0)):
+        x[7] = vx
+        assert policy.plan_speed(x) == pytest.approx(expected)
+    assert MPCPolicy(options=MPCOptions(speed_ramp=None)).plan_speed(x) == 1.0
+    for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5}):
+        with pytest.raises((ValueError, TypeError), match=next(iter(bad))):
+            MPCOptions(**bad)

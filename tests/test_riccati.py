@@ -471,3 +471,15 @@ def test_nonlinear_reset_v_x_is_the_gradient_of_the_fixed_feedback_policy_cost(r
     d_wrong = dict(d, P_x=np.stack([np.array([[1.0, 0.0], [0.0, -0.6]]), np.full((2, 2), np.nan)]))
     wrong = run_backward(d_wrong, ps)
     assert np.max(np.abs(wrong["V_x"][0] - out["V_x"][0])) > 1e-3 * np.max(np.abs(out["V_x"][0]))
+
+
+def test_cholesky_rejects_non_finite_matrices():
+    """A NaN Q_uu (derivatives that overflowed) is not positive definite: the sweep must fail, not emit NaN gains."""
+    from planners.riccati import _cholesky_solve_4
+
+    L, out, B = np.zeros((4, 4)), np.zeros((4, 1)), np.ones((4, 1))
+    assert _cholesky_solve_4(np.eye(4), B, L, out) and np.allclose(out, 1.0)
+    for bad in (np.nan, np.inf):
+        A = np.eye(4)
+        A[2, 2] = bad
+        assert not _cholesky_solve_4(A, B, L, out)
