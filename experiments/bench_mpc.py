@@ -42,26 +42,33 @@ def main(argv=None) -> int:
     policy = MPCPolicy.from_env(env, options=opts)
     obs, _ = env.reset(seed=args.seed)
     steps = int(round(args.seconds / dt))
+    if steps < 1:
+        parser.error(f"--seconds must cover at least one control step of {dt} s, got {args.seconds}")
     env_time = 0.0
+    done = 0
     t0 = time.perf_counter()
     for _ in range(steps):
         a = policy(obs)
         t1 = time.perf_counter()
         obs, _, terminated, truncated, _ = env.step(a)
         env_time += time.perf_counter() - t1
+        done += 1
         if terminated:
-            print("the robot fell; timings cover the steps before the fall")
+            print(f"the robot fell after {done} steps; timings cover the steps before the fall")
             break
     wall = time.perf_counter() - t0
     ms = np.array(policy.stats["solve_ms"])
+    later = ms[1:] if ms.size > 1 else ms  # the first plan (warm-up iterations) is reported apart
+    sim = done * dt
     print(f"hsddp_gym MPC benchmark -- {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f}")
     print(f"options: {opts}")
-    print(f"simulated {args.seconds:.1f} s ({steps} control steps of {1e3 * dt:.0f} ms) in {wall:.2f} s wall")
-    print(f"  env simulation: {env_time:.2f} s ({1e6 * env_time / steps:.0f} us per control step)")
-    print(f"  re-plans: {policy.stats['replans']} (+{policy.stats['planner_failures']} failed), wall time per "
-          f"re-plan: mean {ms[1:].mean():.1f} ms, median {np.median(ms[1:]):.1f} ms, max {ms[1:].max():.1f} ms "
+    print(f"simulated {sim:.2f} s ({done} control steps of {1e3 * dt:.0f} ms) in {wall:.2f} s wall")
+    print(f"  env simulation: {env_time:.2f} s ({1e6 * env_time / done:.0f} us per control step)")
+    print(f"  re-plans: {policy.stats['replans']} (+{policy.stats['planner_failures']} failed, "
+          f"{policy.stats['time_limit_hits']} stopped by the time budget), wall time per re-plan: "
+          f"mean {later.mean():.1f} ms, median {np.median(later):.1f} ms, max {later.max():.1f} ms "
           f"(first plan {ms[0]:.0f} ms, excluded); budget at real time {1e3 * opts.replan_period:.0f} ms")
-    rtf = args.seconds / wall
+    rtf = sim / wall
     print(f"real-time factor: {rtf:.2f} (goal >= 1: {'met' if rtf >= 1 else 'missed'}, ratio {rtf:.2f})")
     return 0
 

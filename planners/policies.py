@@ -235,6 +235,9 @@ class PlanTrackingExpert(Policy):
         self.fallback = fallback
         self.tracker = None
         self.errors: list[float] = []
+        """Per control step while tracking: :func:`planners.tracking.tracking_error` to the plan."""
+        self.nominal_states: list[np.ndarray] = []
+        """Per control step while tracking: the plan's state (14,) at the cursor the action came from."""
         self.reset()
 
     def _reset_copy_state(self) -> None:
@@ -245,6 +248,7 @@ class PlanTrackingExpert(Policy):
 
         self.tracker = PlanTracker.from_solution(self.solution)
         self.errors = []
+        self.nominal_states = []
         self.fallback.reset()
 
     @property
@@ -266,6 +270,7 @@ class PlanTrackingExpert(Policy):
         self.tracker.sync(mode)
         x_nom, _ = self.tracker.nominal()
         self.errors.append(tracking_error(x, x_nom))
+        self.nominal_states.append(x_nom)
         u = self.tracker.control(x)
         self.tracker.advance(self.interface.control_dt)
         return self.interface.action_from_torque(u)

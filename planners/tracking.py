@@ -127,7 +127,7 @@ class PlanTracker:
 
 
 def tracking_error(x: np.ndarray, x_nominal: np.ndarray) -> float:
-    """Euclidean state error without the trunk x position."""
-    d = np.asarray(x, dtype=np.float64) - np.asarray(x_nominal, dtype=np.float64)
-    d[0] = 0.0
-    return float(np.linalg.norm(d[:NQ]) + 0.0 * np.linalg.norm(d[NQ:]))
+    """Euclidean distance of the generalized positions ``q`` (7,) of ``x`` (14,) from those of ``x_nominal``
+    (14,), the trunk x position excluded (it is not observed) [m and rad mixed, as in ``q``]."""
+    d = np.asarray(x, dtype=np.float64)[1:NQ] - np.asarray(x_nominal, dtype=np.float64)[1:NQ]
+    return float(np.linalg.norm(d))

@@ -233,6 +233,12 @@ def test_expert_tracks_its_plan_in_the_env(plan):
     assert not res.fell and res.length == steps
     assert abs(res.states[-1, 0] - plan.X[-1, 0]) < 0.05  # within 5 cm of the plan after 2 cycles
     assert np.mean(expert.errors) < 0.1
+    # the recorded nominal states are the plan's, one per tracked step, and the errors are their distances
+    nominal = np.array(expert.nominal_states)
+    assert nominal.shape == (len(expert.errors), 14)
+    assert np.all(np.isin(nominal[:, 1], plan.X[:, 1]))
+    err = np.linalg.norm(res.states[:len(nominal), 1:7] - nominal[:, 1:7], axis=1)
+    np.testing.assert_allclose(expert.errors, err, rtol=1e-5, atol=1e-6)  # observations are float32
 
 
 def test_expert_hands_over_to_its_fallback_after_the_plan(plan):
@@ -275,6 +281,22 @@ def test_mpc_survives_planner_failures(monkeypatch):
         assert not terminated
     assert calls["n"] >= 2 and policy.stats["planner_failures"] >= 2
     assert policy.tracker is not None  # the last valid plan keeps acting
+
+
+def test_mpc_counts_replans_stopped_by_the_time_budget():
+    """A re-plan that hits ``time_budget`` uses its best iterate (any-time MPC) and is counted, not hidden."""
+    env = make_env()
+    policy = MPCPolicy.from_env(env, options=MPCOptions(time_budget=1e-6))
+    res = run_episode(env, policy, 0, max_steps=20)
+    assert res.length == 20
+    assert policy.stats["time_limit_hits"] >= 1
+    assert policy.stats["time_limit_hits"] <= policy.stats["replans"]
+    # an exception other than the solver's numerical ones is a bug and propagates
+    policy.reset()
+    policy._solver.solve = lambda *a, **k: (_ for _ in ()).throw(KeyError("bug"))
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(KeyError):
+        policy(obs)
 
 
 def test_mpc_latency_delays_the_new_plan():
