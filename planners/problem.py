@@ -33,6 +33,13 @@ _QF_BASE = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01], dtype=float)
 _QF_RATES = {Mode.BACK_STANCE: (500, 500, 1, 1), Mode.FLIGHT: (500, 500, 500, 500), Mode.FRONT_STANCE: (1, 1, 500, 500)}
 _R = {Mode.BACK_STANCE: (5, 5, 1, 1), Mode.FLIGHT: (1, 1, 1, 1), Mode.FRONT_STANCE: (1, 1, 5, 5)}
 _S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0}
+# The authors' later weights (original_code_facts §3.5 "later version": MH HEAD / HM, used there with their
+# 1.5 m/s gait): Q with more weight on the joints and less on the forward speed, R halved, Q_f with less weight
+# on the forward speed (x weight 0 as in HM).
+_Q_LATER = 0.01 * np.array([0, 10, 5, 4, 4, 4, 4, 2, 1, 0.01, 6, 6, 6, 6], dtype=float)
+_QF_BASE_LATER = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 3, 2, 0.01], dtype=float)
+BOUNDING_WEIGHTS = ("paper", "later")
+"""``"paper"``: the authors' code closest to the paper (MH@0b6ca76), the default; ``"later"``: their later code."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,8 +64,8 @@ class PhaseCost:
 
 
 def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
-                        running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper"
-                        ) -> PhaseCost:
+                        running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper",
+                        weights: str = "paper") -> PhaseCost:
     """The bounding cost of one phase (original_code_facts §3.4-§3.5).
 
     Args:
@@ -69,8 +76,12 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
             posture) or ``"code"`` (the authors' early code: a neutral posture, z = 0.254 m, legs straight).
         grf_tracking: include the authors' ground-force tracking term (full weight on the stance foot).
         z_velocity: terminal vertical-velocity reference, ``"code"`` (+-1 m/s) or ``"paper"`` (0).
+        weights: ``"paper"`` (the authors' code closest to the paper, §3.5) or ``"later"`` (their later code,
+            which they ran at 1.5 m/s), see :data:`BOUNDING_WEIGHTS`.
     """
     params = params if params is not None else RobotParams()
+    if weights not in BOUNDING_WEIGHTS:
+        raise ValueError(f"weights must be one of {BOUNDING_WEIGHTS}, got {weights!r}")
     mode = Mode(mode)
     if mode not in _R:
         raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT and FRONT_STANCE, got {mode!r}")
@@ -91,8 +102,10 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
             sl = grf_slice(foot)
             grf_ref[sl] = (0.0, weight)
             s[sl] = _S[mode]
-    qf = np.concatenate([_QF_BASE, _QF_RATES[mode]])
-    return PhaseCost(x_ref=x_ref, q=_Q.copy(), r=np.array(_R[mode], dtype=float), grf_ref=grf_ref, s=s,
+    later = weights == "later"
+    qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]])
+    r = np.array(_R[mode], dtype=float) * (0.5 if later else 1.0)
+    return PhaseCost(x_ref=x_ref, q=(_Q_LATER if later else _Q).copy(), r=r, grf_ref=grf_ref, s=s,
                      x_final=x_final, qf=qf)
 
 
@@ -191,9 +204,9 @@ class HybridProblem:
     def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
-                 z_velocity: str = "paper") -> HybridProblem:
+                 z_velocity: str = "paper", weights: str = "paper") -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
-        v_d = 1 m/s, the paper's initial state (Sec. V-B)."""
+        v_d = 1 m/s, the paper's initial state (Sec. V-B); ``weights`` see :func:`bounding_phase_cost`."""
         from hsddp_gym.references import paper_initial_state
         from hsddp_gym.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -202,7 +215,7 @@ class HybridProblem:
             schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
         params = dynamics.robot.params
         costs = [bounding_phase_cost(m, schedule.bounding_touchdown_foot(i), speed, params, running_reference,
-                                     grf_tracking, z_velocity) for i, m in enumerate(schedule.modes)]
+                                     grf_tracking, z_velocity, weights) for i, m in enumerate(schedule.modes)]
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0

@@ -11,6 +11,7 @@ import pytest
 import hsddp_gym  # noqa: F401
 from planners.evaluation import run_episode
 from planners.mpc import MPCOptions, MPCPolicy
+from planners.policies import EnvInterface
 
 ARMED = 110
 """Control steps (0.55 s) after which the recovery is armed (``recovery_after`` = 0.5 s)."""
@@ -122,6 +123,10 @@ def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_spe
         x[7] = vx
         assert policy.plan_speed(x) == pytest.approx(expected)
     assert MPCPolicy(options=MPCOptions(speed_ramp=None)).plan_speed(x) == 1.0
-    for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5}):
+    assert MPCPolicy().weights == "paper"
+    assert MPCPolicy(EnvInterface(target_speed=1.5)).weights == "later"  # the authors' 1.5 m/s code
+    assert MPCPolicy(EnvInterface(target_speed=1.5), MPCOptions(weights="paper")).weights == "paper"
+    for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5},
+                {"weights": "mine"}):
         with pytest.raises((ValueError, TypeError), match=next(iter(bad))):
             MPCOptions(**bad)

@@ -238,3 +238,25 @@ def test_terminal_and_al_derivatives(use_al):
             _, g_x, _ = problem.dynamics.robot.foot_height_derivatives(tr.X_pre[i, :7], foot)
             slope = 2.0 * (cs.sigma / 2.0) ** 2 * g[i] + lam[i]
             np.testing.assert_allclose(d["Phi_x"][i] - d_off["Phi_x"][i], slope * g_x, rtol=1e-12, atol=1e-12)
+
+
+def test_bounding_weights_are_the_authors():
+    """original_code_facts §3.5: the weights closest to the paper (default) and the later ones (MH HEAD / HM)."""
+    from hsddp_gym.conventions import Mode
+    from planners.problem import bounding_phase_cost
+
+    bs = bounding_phase_cost(Mode.BACK_STANCE, None)
+    np.testing.assert_allclose(bs.q, 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5]))
+    np.testing.assert_allclose(bs.qf, 100 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01, 5, 5, 0.01, 0.01]))
+    np.testing.assert_allclose(bs.r, [5, 5, 1, 1])
+    fl = bounding_phase_cost(Mode.FLIGHT, 0)
+    np.testing.assert_allclose(fl.qf[10:], 100 * np.array([5, 5, 5, 5]))
+    later = bounding_phase_cost(Mode.FRONT_STANCE, None, weights="later")
+    np.testing.assert_allclose(later.q, 0.01 * np.array([0, 10, 5, 4, 4, 4, 4, 2, 1, 0.01, 6, 6, 6, 6]))
+    np.testing.assert_allclose(later.qf, 100 * np.array([0, 20, 8, 3, 3, 3, 3, 3, 2, 0.01, 0.01, 0.01, 5, 5]))
+    np.testing.assert_allclose(later.r, 0.5 * np.array([1, 1, 5, 5]))
+    np.testing.assert_allclose(later.s, bounding_phase_cost(Mode.FRONT_STANCE, None).s)
+    with pytest.raises(ValueError, match="weights"):
+        bounding_phase_cost(Mode.FLIGHT, 0, weights="mine")
+    problem = HybridProblem.bounding(1, weights="later")
+    np.testing.assert_allclose(problem.Qd[0], later.q)  # Q is the same in every mode
