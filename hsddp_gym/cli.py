@@ -89,7 +89,7 @@ def cmd_plan(args) -> int:
                            verbose=not args.quiet)
     summary = dict(result.summary)
     summary["files"] = _plan_outputs(result, out, not args.no_plots)
-    summary["command"] = " ".join(["hsddp-gym", *sys.argv[1:]]) if sys.argv else ""
+    summary["command"] = args.command_line
     write_json(out / "summary.json", summary)
     _print_summary(summary)
     print(f"wrote {out / 'summary.json'}")
@@ -121,7 +121,7 @@ def cmd_sto(args) -> int:
     res, summary = run_sto(args.method, iterations=args.iterations, cycles=args.cycles,
                            second_order=args.second_order, callback=progress)
     res.solution.save(out / "solution.npz")
-    summary["command"] = " ".join(["hsddp-gym", *sys.argv[1:]]) if sys.argv else ""
+    summary["command"] = args.command_line
     write_json(out / "summary.json", summary)
     print(f"{args.method}: total time {summary['initial_total_time']:.4f} s -> {summary['total_time']:.4f} s "
           f"({100 * summary['reduction']:.1f} % reduction) in {summary['iterations']} iterations; "
@@ -561,7 +561,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
+    args.command_line = " ".join(["hsddp-gym", *argv])  # recorded in summaries (the arguments actually parsed)
     return int(args.func(args) or 0)
 
 

@@ -288,6 +288,7 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
     summary = json.loads((out / "summary.json").read_text())
     for key in ("avg_forward_speed", "min_body_height", "max_abs_pitch", "touchdown_foot_heights", "cost"):
         assert key in summary, key
+    assert summary["command"] == f"hsddp-gym plan --method heuristic --cycles 5 --out {out}"  # not pytest's argv
     t = bounding_traj
     assert summary["avg_forward_speed"] == pytest.approx((t.X[-1, IX] - t.X[0, IX]) / 1.48, rel=1e-12)
     assert summary["min_body_height"] == pytest.approx(np.min(t.X[:, IZ]), rel=1e-12)
