@@ -13,39 +13,24 @@ from pathlib import Path
 from hsddp_gym.io import write_json
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return value
+def _number(kind, low: float, high: float = float("inf"), low_open: bool = False, what: str = ""):
+    """An argparse ``type``: ``kind(text)`` within ``[low, high]`` (``(low, high]`` with ``low_open``)."""
+
+    def parse(text: str):
+        value = kind(text)
+        if not ((value > low if low_open else value >= low) and value <= high):
+            raise argparse.ArgumentTypeError(f"must be {what}, got {text}")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in its "invalid ... value" message
+    return parse
 
 
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return value
-
-
-def _nonnegative_int(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {text}")
-    return value
-
-
-def _nonnegative_float(text: str) -> float:
-    value = float(text)
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return value
-
-
-def _fraction(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be in [0, 1], got {text}")
-    return value
+_positive_int = _number(int, 1, what="a positive integer")
+_positive_float = _number(float, 0.0, low_open=True, what="> 0")
+_nonnegative_int = _number(int, 0, what="a non-negative integer")
+_nonnegative_float = _number(float, 0.0, what=">= 0")
+_fraction = _number(float, 0.0, 1.0, what="in [0, 1]")
 
 
 # ----------------------------------------------------------------------------------------------- plan
