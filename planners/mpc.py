@@ -55,6 +55,8 @@ from planners.tracking import PlanTracker
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
 """The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD)."""
+FAST_GAIT_SPEED = 1.2
+"""Above this target speed [m/s] the MPC defaults to the authors' 1.5 m/s gait: its durations and weights."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,7 +71,7 @@ class MPCOptions:
         time_budget: wall-clock limit of one re-plan [s] (None: none).
         latency_steps: control steps between the start of a re-plan and the moment its plan is used.
         durations: nominal (back stance, flight, front stance, flight) durations [s]; None picks them from
-            the target speed: the paper's 80/72/72/72 ms up to 1.2 m/s, the authors' 1.5 m/s gait
+            the target speed: the paper's 80/72/72/72 ms up to FAST_GAIT_SPEED (1.2 m/s), the authors' 1.5 m/s gait
             80/100/80/100 ms above (their MHPC bounding code).
         weights: cost weights (:func:`planners.problem.bounding_phase_cost`); None picks them like the
             durations: ``"paper"`` up to 1.2 m/s, above it ``"later"``, the weights the authors' code runs with
@@ -317,12 +319,12 @@ class MPCPolicy(Policy):
         if not isinstance(options, MPCOptions):
             raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
         self.options = options
+        fast = interface.target_speed > FAST_GAIT_SPEED
         if options.durations is not None:
             self.durations = tuple(float(d) for d in options.durations)
         else:
-            self.durations = PAPER_BOUNDING_DURATIONS if interface.target_speed <= 1.2 else FAST_BOUNDING_DURATIONS
-        self.weights = options.weights if options.weights is not None else (
-            "paper" if interface.target_speed <= 1.2 else "later")
+            self.durations = FAST_BOUNDING_DURATIONS if fast else PAPER_BOUNDING_DURATIONS
+        self.weights = options.weights if options.weights is not None else ("later" if fast else "paper")
         self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
         self._fallback = HeuristicPolicy(interface)
