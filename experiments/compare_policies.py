@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hsddp_gym.io import write_json
+from hsddp_gym.io import atomic_path, write_json
 
 POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
 TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summary.json"),
@@ -91,13 +91,14 @@ def _read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
-def plot_curves(runs: dict, out: Path) -> bool:
-    try:
-        import matplotlib
+def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bool:
+    """``out/curves.png``: PPO/SAC return against env steps, BC/DAgger against expert labels, and the expert's
+    (MPC's) evaluation return as a dashed line in both; False when matplotlib is missing."""
+    from hsddp_gym.plotting import _plt, _save
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    try:
+        plt = _plt()
+    except ImportError:  # matplotlib is in the viz extra
         return False
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
     any_a = any_b = False
@@ -139,13 +140,14 @@ def plot_curves(runs: dict, out: Path) -> bool:
     b.set_title("BC / DAgger")
     for ax, used in ((a, any_a), (b, any_b)):
         ax.grid(alpha=0.3)
+        if used and expert_return is not None:
+            ax.axhline(expert_return, color="k", ls="--", lw=1, label=f"HS-DDP MPC (expert) {expert_return:.0f}")
         if used:
             ax.legend(fontsize=7)
         else:
             ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
     fig.tight_layout()
-    fig.savefig(out / "curves.png", dpi=120)
-    plt.close(fig)
+    _save(fig, out / "curves.png")  # atomic
     return True
 
 
@@ -206,10 +208,12 @@ def main(argv: list[str] | None = None) -> int:
     lines += ["", "The expert starts every episode at its plan's initial state (no reset noise).",
               "Return per step is at most 1.5 (tracking 1 + healthy 0.5, minus the control cost); 1000 steps."]
     lines += [f"- {n}" for n in notes]
-    plotted = plot_curves({n: d for n, d in runs.items() if d.exists()}, out)
+    expert = next((r["mean_return"] for r in rows if r["policy"] == "mpc"), None)
+    plotted = plot_curves({n: d for n, d in runs.items() if d.exists()}, out, expert)
     if plotted:
         lines += ["", "![curves](curves.png)"]
-    (out / "compare.md").write_text("\n".join(lines) + "\n")
+    with atomic_path(out / "compare.md") as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
     write_json(out / "compare.json", {"episodes": args.episodes, "seeds": list(range(args.episodes)),
                                       "max_episode_steps": args.max_episode_steps, "rows": rows,
                                       "notes": notes, "runs": {n: str(d) for n, d in runs.items()}})
