@@ -596,12 +596,11 @@ def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwar
 def plot_curve(path, x, y, yerr=None, xlabel: str = "", ylabel: str = "mean return", title: str = "",
                reference: dict | None = None) -> bool:
     """A line plot with error bars saved to ``path`` (False when matplotlib is missing)."""
-    try:
-        import matplotlib
+    from hsddp_gym.plotting import _plt, _save
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+    try:
+        plt = _plt()
+    except ImportError:  # the viz extra is optional
         return False
     fig, ax = plt.subplots(figsize=(6, 3.5))
     ax.errorbar(x, y, yerr=yerr, marker="o", ms=4, capsize=3)
@@ -615,8 +614,7 @@ def plot_curve(path, x, y, yerr=None, xlabel: str = "", ylabel: str = "mean retu
     ax.set_title(title)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    _save(fig, path)  # atomic
     return True
 
 

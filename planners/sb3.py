@@ -362,11 +362,10 @@ def write_curves(out: Path, label: str) -> list[str]:
             for s, m, sd in zip(*ev):
                 w.writerow([int(s), f"{m:.6g}", f"{sd:.6g}"])
         written.append("eval_curve.csv")
-    try:
-        import matplotlib
+    from hsddp_gym.plotting import _plt, _save
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+    try:
+        plt = _plt()
     except ImportError:  # the viz extra is optional
         return written
     fig, ax = plt.subplots(figsize=(6, 3.5))
@@ -385,8 +384,7 @@ def write_curves(out: Path, label: str) -> list[str]:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out / "curve.png", dpi=120)
-    plt.close(fig)
+    _save(fig, out / "curve.png")  # atomic
     written.append("curve.png")
     return written
 
