@@ -131,9 +131,13 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
         if not rows:
             continue
         x = [float(r["transitions"]) if name == "bc" else float(r["expert_labels"]) for r in rows]
-        b.errorbar(x, [float(r["mean_return"]) for r in rows], yerr=[float(r["std_return"]) for r in rows],
+        y = [float(r["mean_return"]) for r in rows]
+        b.errorbar(x, y, yerr=[float(r["std_return"]) for r in rows],
                    color=f"C{i + 2}", marker="o", ms=3, capsize=2,
                    label="BC (first n demos)" if name == "bc" else "DAgger (per round)")
+        for r, xi, yi in zip(rows, x, y):  # the number of demonstrations (BC) or the round (DAgger)
+            tag = f"{int(float(r['demonstrations']))} demos" if name == "bc" else f"round {r['round']}"
+            b.annotate(tag, (xi, yi), textcoords="offset points", xytext=(3, 4), fontsize=6, color=f"C{i + 2}")
         any_b = True
     b.set_xlabel("expert-labelled transitions")
     b.set_ylabel("mean return (eval)")
