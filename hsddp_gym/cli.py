@@ -104,7 +104,8 @@ def cmd_sto(args) -> int:
                      if tt is not None else ""), flush=True)
 
     res, summary = run_sto(args.method, iterations=args.iterations, cycles=args.cycles,
-                           second_order=args.second_order, callback=progress)
+                           second_order=args.second_order, callback=progress, min_duration=args.min_duration,
+                           max_duration=args.max_duration)
     res.solution.save(out / "solution.npz")
     summary["command"] = args.command_line
     write_json(out / "summary.json", summary)
@@ -535,6 +536,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: %(default)s)")
     p.add_argument("--iterations", type=_positive_int, default=30, help="STO iterations at most (default: %(default)s)")
     p.add_argument("--cycles", type=_positive_int, default=1, help="gait cycles (default: %(default)s)")
+    p.add_argument("--min-duration", type=_positive_float, default=None,
+                   help="shortest mode duration the optimization may reach [s] (default: STOOptions' 0.02)")
+    p.add_argument("--max-duration", type=_positive_float, default=None,
+                   help="longest mode duration [s] (default: STOOptions' 0.2)")
     p.add_argument("--second-order", action="store_true",
                    help="exact V_zz with the dynamics' second-order terms (slower); default: iLQR's, as the paper")
     p.add_argument("--out", default="runs/sto", help="output directory (default: %(default)s)")

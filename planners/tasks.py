@@ -91,9 +91,13 @@ def finite(x) -> bool:
 
 
 def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durations=None,
-            second_order: bool = False, solver_options: SolverOptions | None = None, callback=None):
+            second_order: bool = False, solver_options: SolverOptions | None = None, callback=None,
+            min_duration=None, max_duration=None):
     """Paper task 2: switching-time optimization of ``cycles`` bounding cycles (default: one, 80/72/72/72 ms,
     the same costs, AL parameters and heuristic warm start as task 1).
+
+    ``min_duration``, ``max_duration``: duration bounds [s] (a number or one per phase; None:
+    :class:`planners.sto.STOOptions`' defaults).
 
     Returns:
         ``(STOResult, summary dict)``; the summary has ``initial_total_time``, ``total_time``, ``reduction``
@@ -103,8 +107,9 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
 
     problem = HybridProblem.bounding(cycles, durations=durations)
     warm = heuristic_warm_start(problem)
+    bounds = {k: v for k, v in (("min_duration", min_duration), ("max_duration", max_duration)) if v is not None}
     opts = STOOptions(method=method, iterations=iterations, second_order=second_order,
-                      solver=solver_options if solver_options is not None else SolverOptions())
+                      solver=solver_options if solver_options is not None else SolverOptions(), **bounds)
     res = optimize_switching_times(problem, warm.U, opts, callback=callback)
     summary = {
         "method": method,
@@ -115,6 +120,8 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
         "mode_durations": res.durations[-1].tolist(),
         "iterations": int(len(res.durations) - 1),
         "iteration_cap": iterations,
+        "min_duration": opts.min_duration,
+        "max_duration": opts.max_duration,
         "stopped": res.records[-1]["status"] if res.records else "no_iterations",
         "final_cost": float(res.costs[-1]),
         "initial_cost": float(res.costs[0]),

@@ -460,6 +460,20 @@ def test_sto_cli_writes_the_summary_keys(method, tmp_path):
     assert (out / "solution.npz").exists()
 
 
+def test_sto_cli_duration_bounds(tmp_path):
+    """``--min-duration`` reaches the optimization: HS-DDP shortens back stance and the second flight the most
+    (to about 22 ms unbounded), so a 60 ms minimum becomes active and is recorded."""
+    from hsddp_gym.cli import main
+
+    out = tmp_path / "bounded"
+    assert main(["sto", "--iterations", "30", "--min-duration", "0.06", "--out", str(out), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["min_duration"] == 0.06 and s["max_duration"] == STOOptions().max_duration
+    d = np.array(s["mode_durations"])
+    assert np.all(d >= 0.06 - 1e-12) and np.isclose(d.min(), 0.06), d
+    assert s["switching_violation"] <= 1e-4
+
+
 def test_sto_zero_iterations_is_algorithm_1(solved):
     problem = HybridProblem.bounding(1)
     res = optimize_switching_times(problem, solved.warm.U, STOOptions(iterations=0))
