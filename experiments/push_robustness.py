@@ -1,16 +1,20 @@
 """Push robustness of the policies on hsddp_gym/Bounding-v0: falls after a body-velocity change mid-episode.
 
 Every push ``[dvx, dvz, dpitch_rate]`` (m/s, m/s, rad/s; positive pitch rate is nose-down) is applied through
-the env's documented reset option ``{"push": {"delta_v": ..., "time": T}}`` at ``T`` seconds of episode time
-(default 1 s, mid-gait); each (policy, push) pair runs ``--seeds`` seeded episodes of ``--steps`` control
-steps (default reset noise). An episode counts as a fall when it terminates (unhealthy) before its last step.
+the env's documented reset option ``{"push": {"delta_v": ..., "time": T}}`` at each of the ``--times`` (env
+time, default 1 s; several times spread over a gait cycle push at different gait phases); each (policy,
+push, time) runs ``--seeds`` seeded episodes of ``--steps`` control steps (default reset noise). An episode
+counts as a fall when it terminates (unhealthy) before its last step.
 
-Writes ``OUT/push_robustness.json`` (per policy and push: falls, seeds, fall times) and ``push_robustness.md``
-(a table of falls / episodes). The default grid holds pushes along each axis of growing size.
+Writes ``OUT/push_robustness.json`` (per policy and push: falls, episodes, and per episode the seed, push
+time, fall, fall time and, for the MPC policies, the control steps acted by the heuristic fallback and the
+planner failures) and ``push_robustness.md`` (a table of falls / episodes). The default grid holds pushes
+along each axis of growing size. Episodes are independent: ``--workers`` runs them in parallel processes
+with the same results.
 
 Usage::
 
-    python experiments/push_robustness.py --out runs/push [--policies mpc heuristic] [--seeds 3] [--time 1.0]
+    python experiments/push_robustness.py --out runs/push [--policies mpc heuristic] [--seeds 3] [--times 1.0]
 """
 
 from __future__ import annotations
@@ -49,44 +53,76 @@ def make_policy(name: str, env):
     return factories[name].from_env(env)
 
 
-def run_grid(policies, pushes, seeds: int, first_seed: int, push_time: float, steps: int, progress: bool = True
-             ) -> dict:
-    """``{policy: {push label: {"falls", "episodes", "fall_times_s"}}}``."""
+def push_label(dv) -> str:
+    return "[" + ", ".join(f"{v:+g}" for v in dv) + "]"
+
+
+def run_one(task: tuple) -> dict:
+    """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps)``."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
     from planners.evaluation import run_episode
 
-    results: dict = {}
+    name, dv, seed, push_time, steps = task
+    env = gym.make("hsddp_gym/Bounding-v0")
+    try:
+        policy = make_policy(name, env)
+        res = run_episode(env, policy, seed, options={"push": {"delta_v": list(dv), "time": push_time}},
+                          max_steps=steps)
+        stats = getattr(policy, "stats", {})
+        return {"seed": seed, "push_time_s": push_time, "fell": bool(res.fell),
+                "fall_time_s": res.length * env.unwrapped.dt if res.fell else None,
+                "fallback_steps": int(stats.get("fallback_steps", 0)),
+                "planner_failures": int(stats.get("planner_failures", 0))}
+    finally:
+        env.close()
+
+
+def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: int, workers: int = 1,
+             progress: bool = True) -> dict:
+    """``{policy: {push label: {"delta_v", "falls", "episodes", "fallback_episodes", "runs": [per episode]}}}``
+    (``fallback_episodes``: survived episodes in which the heuristic fallback acted)."""
+    tasks = [(name, tuple(dv), seed, float(t), steps) for name in policies for dv in pushes for t in push_times
+             for seed in range(first_seed, first_seed + seeds)]
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            runs = list(pool.map(run_one, tasks))
+    else:
+        runs = [run_one(task) for task in tasks]
+    results: dict = {name: {} for name in policies}
+    for task, run in zip(tasks, runs):
+        cell = results[task[0]].setdefault(push_label(task[1]), {"delta_v": list(task[1]), "runs": []})
+        cell["runs"].append(run)
     for name in policies:
-        results[name] = {}
-        for dv in pushes:
-            falls, times = 0, []
-            for seed in range(first_seed, first_seed + seeds):
-                env = gym.make("hsddp_gym/Bounding-v0")
-                policy = make_policy(name, env)
-                res = run_episode(env, policy, seed, options={"push": {"delta_v": list(dv), "time": push_time}},
-                                  max_steps=steps)
-                if res.fell:
-                    falls += 1
-                    times.append(res.length * env.unwrapped.dt)
-                env.close()
-            label = "[" + ", ".join(f"{v:+g}" for v in dv) + "]"
-            results[name][label] = {"delta_v": list(dv), "falls": falls, "episodes": seeds, "fall_times_s": times}
+        for label, cell in results[name].items():
+            cell["episodes"] = len(cell["runs"])
+            cell["falls"] = sum(r["fell"] for r in cell["runs"])
+            cell["fallback_episodes"] = sum(1 for r in cell["runs"] if r["fallback_steps"] and not r["fell"])
             if progress:
-                print(f"{name:<10} push {label:<18} falls {falls}/{seeds}", flush=True)
+                print(f"{name:<13} push {label:<18} falls {cell['falls']}/{cell['episodes']}", flush=True)
     return results
 
 
-def markdown(results: dict, push_time: float, steps: int, dt: float) -> str:
+def markdown(results: dict, push_times, steps: int, dt: float) -> str:
     policies = list(results)
     labels = list(results[policies[0]])
-    lines = [f"Falls / episodes after a push at t = {push_time:g} s ({steps} steps = {steps * dt:g} s per episode)",
+    times = ", ".join(f"{t:g}" for t in push_times)
+    lines = [f"Falls / episodes after a push at t = {times} s ({steps} steps = {steps * dt:g} s per episode)",
              "", "| push [dvx, dvz, dpitch_rate] | " + " | ".join(policies) + " |",
              "|---|" + "---|" * len(policies)]
     for label in labels:
         cells = [f"{results[p][label]['falls']}/{results[p][label]['episodes']}" for p in policies]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    totals = [f"{sum(c['falls'] for c in results[p].values())}/{sum(c['episodes'] for c in results[p].values())}"
+              for p in policies]
+    lines.append("| total | " + " | ".join(totals) + " |")
+    helped = {p: sum(c["fallback_episodes"] for c in results[p].values()) for p in policies if p.startswith("mpc")}
+    if any(helped.values()):
+        lines += ["", "Survived episodes in which the heuristic fallback acted: "
+                  + ", ".join(f"{p} {n}" for p, n in helped.items())]
     return "\n".join(lines) + "\n"
 
 
@@ -97,9 +133,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="policies to test (default: %(default)s)")
     p.add_argument("--seeds", type=int, default=3, help="episodes per policy and push (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=100, help="seed of the first episode (default: %(default)s)")
-    p.add_argument("--time", type=float, default=1.0, help="push time [s] (default: %(default)s)")
+    p.add_argument("--times", type=float, nargs="+", default=[1.0],
+                   help="push times [s] of env time; each is run with every seed (default: %(default)s)")
     p.add_argument("--steps", type=int, default=500,
                    help="control steps per episode, push included (default: %(default)s = 2.5 s)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="parallel worker processes; the results do not depend on it (default: %(default)s)")
     p.add_argument("--push", type=float, nargs=3, action="append", metavar=("DVX", "DVZ", "DPITCH"),
                    help="a push to test (repeatable; default: the built-in grid)")
     args = p.parse_args(argv)
@@ -107,16 +146,18 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--seeds must be >= 1")
     if args.steps < 1:
         p.error("--steps must be >= 1")
-    if not args.time >= 0:
-        p.error("--time must be >= 0")
+    if not all(t >= 0 for t in args.times):
+        p.error("--times must be >= 0")
+    if args.workers < 1:
+        p.error("--workers must be >= 1")
     pushes = [tuple(v) for v in args.push] if args.push else DEFAULT_PUSHES
-    results = run_grid(args.policies, pushes, args.seeds, args.first_seed, args.time, args.steps)
+    results = run_grid(args.policies, pushes, args.seeds, args.first_seed, args.times, args.steps, args.workers)
     out = Path(args.out)
     dt = DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP  # the env's default control period
-    write_json(out / "push_robustness.json", {"push_time_s": args.time, "steps": args.steps,
+    write_json(out / "push_robustness.json", {"push_times_s": args.times, "steps": args.steps,
                                               "first_seed": args.first_seed, "results": results,
                                               "command": " ".join(["python", *sys.argv])})
-    table = markdown(results, args.time, args.steps, dt)
+    table = markdown(results, args.times, args.steps, dt)
     with atomic_path(out / "push_robustness.md") as tmp:
         tmp.write_text(table)
     print("\n" + table)

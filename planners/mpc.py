@@ -26,9 +26,9 @@ started from the shifted plan no longer converge (costs grow 10-1000x, switching
 re-plans fail or return a plan whose gains failed) while the stale plan's feedback law acts on a state far
 from its nominal. With recovery on, a trunk-velocity deviation from the plan's prediction above
 ``recovery_threshold`` opens a recovery window: an immediate re-plan, ``recovery_iterations`` per re-plan,
-plans whose gains failed rejected, and the contact-event heuristic acting while the latest re-plan has failed
-(``recovery_handover``: for the whole window). Without a push the deviation stays far below the threshold
-and the actions are those of the plain MPC.
+plans whose gains failed rejected, a flight ended by any touchdown of its landing foot, and the contact-event
+heuristic acting while the latest re-plan has failed (``recovery_handover``: for the whole window). Without a
+push the deviation stays far below the threshold and the actions are those of the plain MPC.
 """
 
 from __future__ import annotations
@@ -111,6 +111,10 @@ class MPCOptions:
         recovery_max_wait: the gait clock's ``max_wait`` during a recovery (None: ``max_wait``): a longer
             wait keeps the clock, and so the planned schedule, in flight until the landing foot really touches
             down after a push has lengthened the flight (measured on 6 pushes x 3 seeds: no fewer falls).
+        recovery_min_flight: the gait clock's ``min_flight`` during a recovery (None: ``min_flight``). The
+            default 0 ends a flight as soon as its landing foot touches down: after a nose-down pitch push the
+            front foot hits the ground 5-10 ms after the back foot's lift-off, and a clock that took that for a
+            graze planned flight dynamics for a foot on the ground while the trunk pitched over.
         recovery_after: env time [s] before which no recovery triggers (the start-up transient from the
             reset noise is the warm-up plan's job; its deviations reach those of a push).
         lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
@@ -153,6 +157,7 @@ class MPCOptions:
     recovery_after: float = 0.5
     recovery_max_wait: float | None = None
     lost_stance_steps: int = 2
+    recovery_min_flight: float | None = 0.0
     speed_ramp: float | None = 0.5
     weights: str | None = None
 
@@ -170,6 +175,8 @@ class MPCOptions:
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
+        if self.recovery_min_flight is not None and not (0.0 <= self.recovery_min_flight <= 1.0):
+            raise ValueError(f"recovery_min_flight must be None or in [0, 1], got {self.recovery_min_flight!r}")
         check_positive(self.reb_delta, "reb_delta")
         check_positive(self.reb_eps, "reb_eps")
         if self.time_budget is not None:
@@ -367,6 +374,8 @@ class MPCPolicy(Policy):
         o = self.options
         if o.recovery and o.recovery_max_wait is not None:
             self.clock.max_wait = o.recovery_max_wait if self.recovering else o.max_wait
+        if o.recovery and o.recovery_min_flight is not None:
+            self.clock.min_flight = o.recovery_min_flight if self.recovering else o.min_flight
         return self.clock.update(mode, float(x[NQ + IPITCH]))
 
     def _schedule(self) -> ModeSchedule:

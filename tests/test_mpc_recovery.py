@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 import hsddp_gym  # noqa: F401
+from hsddp_gym.conventions import Mode
 from planners.evaluation import run_episode
 from planners.mpc import MPCOptions, MPCPolicy
-from planners.policies import EnvInterface
+from planners.policies import EnvInterface, HeuristicPolicy
 
 ARMED = 110
 """Control steps (0.55 s) after which the recovery is armed (``recovery_after`` = 0.5 s)."""
@@ -130,3 +131,44 @@ def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_spe
                 {"weights": "mine"}):
         with pytest.raises((ValueError, TypeError), match=next(iter(bad))):
             MPCOptions(**bad)
+
+
+def test_recovery_ends_a_flight_at_any_touchdown_of_its_landing_foot_only_inside_the_window():
+    """``recovery_min_flight`` replaces the clock's ``min_flight`` while recovering, and only then."""
+    env = make_env()
+    policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    x = np.zeros(14)
+    policy._update_clock(Mode.FLIGHT, x)
+    assert policy.clock.min_flight == policy.options.min_flight == 0.3
+    policy._recovery_until = policy._time + 0.1
+    policy._update_clock(Mode.FLIGHT, x)
+    assert policy.recovering and policy.clock.min_flight == 0.0
+    policy._time += 0.2
+    policy._update_clock(Mode.FLIGHT, x)
+    assert not policy.recovering and policy.clock.min_flight == 0.3
+    keep = MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_min_flight=None))
+    keep._recovery_until = 1.0
+    keep._update_clock(Mode.FLIGHT, x)
+    assert keep.recovering and keep.clock.min_flight == 0.3
+    with pytest.raises(ValueError, match="recovery_min_flight"):
+        MPCOptions(recovery_min_flight=1.5)
+
+
+NOSE_DOWN = {"push": {"delta_v": [0.0, 0.0, 10.0], "time": 1.0}}
+"""A +10 rad/s nose-down pitch-rate push at t = 1 s (seed 103: in the back stance)."""
+
+
+def test_a_nose_down_push_the_heuristic_does_not_survive_the_recovering_mpc_does_on_its_own():
+    """Seed 103: the contact-event heuristic falls after the push; the MPC with ``recovery=True`` bounds on
+    without the heuristic fallback ever acting. Without ``recovery_min_flight`` (the clock takes the front
+    foot's touchdown 5-10 ms after the back foot's lift-off for a graze) the MPC falls too."""
+    env = make_env()
+    heuristic = run_episode(env, HeuristicPolicy.from_env(env), 103, options=NOSE_DOWN, max_steps=300)
+    assert heuristic.fell
+    mpc = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    res = run_episode(env, mpc, 103, options=NOSE_DOWN, max_steps=300)
+    assert not res.fell and res.length == 300
+    assert mpc.stats["recoveries"] >= 1 and mpc.stats["fallback_steps"] == 0
+    graze = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_min_flight=None)),
+                        103, options=NOSE_DOWN, max_steps=300)
+    assert graze.fell
