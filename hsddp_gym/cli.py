@@ -143,10 +143,11 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None) -> dict:
+                 max_episode_steps: int | None = None, mpc_recovery: bool = False) -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
-    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it)."""
+    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
+    MPC with its push recovery (``MPCOptions(recovery=True)``)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -157,7 +158,14 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    policy, options = make_policy(policy_name, env, seed)
+    if mpc_recovery and policy_name != "mpc":
+        raise ValueError(f"mpc_recovery applies to the mpc policy only, got policy {policy_name!r}")
+    mpc_options = None
+    if mpc_recovery:
+        from planners.mpc import MPCOptions
+
+        mpc_options = MPCOptions(recovery=True)
+    policy, options = make_policy(policy_name, env, seed, mpc_options=mpc_options)
     if push is not None:
         options = dict(options or {})
         options["push"] = push  # {"delta_v": (3,), "time": t}
@@ -166,7 +174,10 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
     summary = summarize(results)
     summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
-                   max_episode_steps=env.spec.max_episode_steps)
+                   max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
+    if mpc_recovery:
+        summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
+                       fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
     if video and results and results[0].frames:
         from hsddp_gym.render import save_gif
 
@@ -190,8 +201,11 @@ def cmd_rollout(args) -> int:
     if args.push is not None:
         t, dvx, dvz, dw = args.push
         push = {"delta_v": [dvx, dvz, dw], "time": t}
+    if args.mpc_recovery and args.policy != "mpc":
+        raise SystemExit("error: --mpc-recovery needs --policy mpc")
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
-                           push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps)
+                           push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps,
+                           mpc_recovery=args.mpc_recovery)
     for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
               "replans", "planner_failures", "mean_replan_ms"):
         v = summary.get(k)
@@ -520,6 +534,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="push at episode time T [s]: add (DVX, DVZ) [m/s] and DPITCH [rad/s] to the trunk velocity")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit in control steps of 5 ms (default: the env's 1000)")
+    p.add_argument("--mpc-recovery", action="store_true",
+                   help="with --policy mpc: push recovery on (MPCOptions(recovery=True): an immediate re-plan with "
+                        "more iterations when the trunk velocity leaves the plan, a double stance when the trunk "
+                        "sinks, the heuristic while a re-plan has failed); summary.json then also counts "
+                        "recoveries and fallback_steps")
     p.add_argument("--video", action="store_true", help="write episode0.gif (the first episode, rendered off-screen)")
     p.add_argument("--out", default="runs/rollout", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

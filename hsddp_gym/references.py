@@ -49,10 +49,16 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
     Each reference puts exactly the relevant foot on the ground: the stance foot at the end of a stance
     mode, the touching-down foot at the end of a flight mode.
 
+    ``DOUBLE_STANCE`` (not in the authors' gait; the MPC plans one when a swing foot lands before the stance
+    foot has lifted off, e.g. after a downward push) ends when the other foot lifts off: its reference is the
+    touchdown posture of the foot that stays (the ``FLIGHT`` reference landing it) with zero vertical velocity,
+    the trunk's fall stopped.
+
     Args:
-        mode: ``BACK_STANCE``, ``FRONT_STANCE`` or ``FLIGHT``.
+        mode: ``BACK_STANCE``, ``FRONT_STANCE``, ``FLIGHT`` or ``DOUBLE_STANCE``.
         touchdown_foot: for ``FLIGHT``, the foot that touches down at its end (``FRONT`` after back stance,
-            ``BACK`` after front stance); ignored for stance modes.
+            ``BACK`` after front stance); for ``DOUBLE_STANCE``, the foot that stays on the ground after it;
+            ignored for single stance modes.
         speed: desired forward speed [m/s] (paper: 1.0).
         z_velocity: ``"paper"`` (default) uses 0, as the paper's text says ("all desired joint velocities and
             the desired body vertical velocity are set to zero"); ``"code"`` uses the authors' +1 m/s after
@@ -67,9 +73,9 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         key = "BS"
     elif mode == Mode.FRONT_STANCE:
         key = "FS"
-    elif mode == Mode.FLIGHT and touchdown_foot == FRONT:
+    elif mode in (Mode.FLIGHT, Mode.DOUBLE_STANCE) and touchdown_foot == FRONT:
         key = "FL_front_td"
-    elif mode == Mode.FLIGHT and touchdown_foot == BACK:
+    elif mode in (Mode.FLIGHT, Mode.DOUBLE_STANCE) and touchdown_foot == BACK:
         key = "FL_back_td"
     else:
         raise ValueError(f"no bounding reference for mode={mode!r} with touchdown_foot={touchdown_foot!r}")
@@ -83,5 +89,5 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
     x = np.zeros(NX)
     x[:NQ] = (0.0, z + params.leg_length, pitch, hf, kf, hb, kb)
     x[IVX] = speed
-    x[IVZ] = zdot if z_velocity == "code" else 0.0
+    x[IVZ] = zdot if z_velocity == "code" and mode != Mode.DOUBLE_STANCE else 0.0
     return x

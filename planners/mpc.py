@@ -26,9 +26,10 @@ started from the shifted plan no longer converge (costs grow 10-1000x, switching
 re-plans fail or return a plan whose gains failed) while the stale plan's feedback law acts on a state far
 from its nominal. With recovery on, a trunk-velocity deviation from the plan's prediction above
 ``recovery_threshold`` opens a recovery window: an immediate re-plan, ``recovery_iterations`` per re-plan,
-plans whose gains failed rejected, a flight ended by any touchdown of its landing foot, and the contact-event
-heuristic acting while the latest re-plan has failed (``recovery_handover``: for the whole window). Without a
-push the deviation stays far below the threshold and the actions are those of the plain MPC.
+plans whose gains failed rejected, a flight ended by any touchdown of its landing foot, a double stance planned
+when the trunk sinks or both feet touch, and the contact-event heuristic acting while the latest re-plan has
+failed (``recovery_handover``: for the whole window). Without a push (at 0.5 and 1 m/s) the deviation stays
+below the threshold and the actions are those of the plain MPC; in the 1.5 m/s gait it is crossed.
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ from planners.solution import SolverOptions
 from planners.tracking import PlanTracker
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
+DOUBLE_STANCE_PHASE = 4
+""":attr:`GaitClock.phase` of a double stance (outside the bounding cycle's phases 0-3)."""
 FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
 """The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD)."""
 FAST_GAIT_SPEED = 1.2
@@ -104,7 +107,8 @@ class MPCOptions:
             successful re-plan. See :meth:`MPCPolicy.act`.
         recovery_threshold: trigger of the recovery: the deviation [m/s] of
             ``(vx, vz, pitch_length * pitch_rate)`` from the plan.
-        recovery_iterations: DDP iterations per re-plan during a recovery. recovery_window: its length [s].
+        recovery_iterations: DDP iterations per re-plan during a recovery. recovery_window: its length [s]
+            (0.3 s: with 0.2 s the window closed in the middle of the double stance that caught a downward push).
         recovery_fallback: act with the contact-event heuristic while a recovery re-plan has failed.
         recovery_handover: act with the contact-event heuristic for the whole recovery window (the MPC keeps
             re-planning from the measured states and takes over when the window closes).
@@ -115,6 +119,13 @@ class MPCOptions:
             default 0 ends a flight as soon as its landing foot touches down: after a nose-down pitch push the
             front foot hits the ground 5-10 ms after the back foot's lift-off, and a clock that took that for a
             graze planned flight dynamics for a foot on the ground while the trunk pitched over.
+        recovery_double_stance: during a recovery, the duration [s] of a double stance (None: never plan one;
+            the authors' bounding gait has none). The gait clock enters one when both feet touch down
+            (:class:`GaitClock`), and while the trunk sinks faster than ``recovery_sink_speed`` [m/s] the plan
+            follows the current stance (or, in a flight whose lift-off has not happened, a ``min_phase`` rest of
+            the stance before it) with a double stance instead of a flight: after a downward push one leg
+            cannot stop the fall with 33 N m, and the plan reaches the swing foot down to share the load
+            (:meth:`MPCPolicy._schedule`).
         recovery_after: env time [s] before which no recovery triggers (the start-up transient from the
             reset noise is the warm-up plan's job; its deviations reach those of a push).
         lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
@@ -151,13 +162,15 @@ class MPCOptions:
     recovery: bool = False
     recovery_threshold: float = 0.5
     recovery_iterations: int = 15
-    recovery_window: float = 0.2
+    recovery_window: float = 0.3
     recovery_fallback: bool = True
     recovery_handover: bool = False
     recovery_after: float = 0.5
     recovery_max_wait: float | None = None
     lost_stance_steps: int = 2
     recovery_min_flight: float | None = 0.0
+    recovery_double_stance: float | None = 0.04
+    recovery_sink_speed: float = 0.5
     speed_ramp: float | None = 0.5
     weights: str | None = None
 
@@ -173,6 +186,9 @@ class MPCOptions:
         check_int(self.latency_steps, "latency_steps", minimum=0)
         check_int(self.debounce_steps, "debounce_steps", minimum=1)
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
+        if self.recovery_double_stance is not None:
+            check_positive(self.recovery_double_stance, "recovery_double_stance")
+        check_positive(self.recovery_sink_speed, "recovery_sink_speed")
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
         if self.recovery_min_flight is not None and not (0.0 <= self.recovery_min_flight <= 1.0):
@@ -201,8 +217,12 @@ class GaitClock:
     foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
     half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
     foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
-    re-plans at once). The first observation picks the phase from the contacts (and, in flight, the sign of
-    the pitch rate).
+    re-plans at once). With ``double_stance > 0``, a *double stance* (``phase`` = :data:`DOUBLE_STANCE_PHASE`)
+    starts when both feet touch and the one that was in the air has touched for ``debounce_steps`` (in a
+    flight, once ``min_flight`` of it has passed): it lasts ``double_stance`` seconds or until the other foot
+    has lifted off for ``debounce_steps``, then the stance of the foot that landed follows (:attr:`resynced`
+    is set when it starts). The first observation picks the phase from the contacts (and, in flight, the sign
+    of the pitch rate).
 
     Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
     (``2 pi t / gait_period``): on seed 0 of the default env the MPC's phase slips by about 0.2 cycles per
@@ -213,10 +233,12 @@ class GaitClock:
         durations: nominal (back stance, flight, front stance, flight) durations [s].
         dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
         debounce_steps, min_flight, max_wait, lost_stance_steps: the rules above (see :class:`MPCOptions`).
+        double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC sets it to
+            ``MPCOptions.recovery_double_stance`` during a push recovery).
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
-                 max_wait: float = 0.03, lost_stance_steps: int = 0) -> None:
+                 max_wait: float = 0.03, lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
         if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
             raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
         self.durations = tuple(float(d) for d in durations)
@@ -225,6 +247,8 @@ class GaitClock:
         self.min_flight = float(min_flight)
         self.max_wait = float(max_wait)
         self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
+        self.double_stance = check_positive(double_stance, "double_stance", allow_zero=True)
+        """Duration [s] of a double stance entered now (0: the clock never enters one)."""
         self.reset()
 
     def reset(self) -> None:
@@ -233,12 +257,17 @@ class GaitClock:
         self._contact_steps = [0, 0]
         self._air_steps = [0, 0]
         self._stance_touched = False
+        self.after_double: int | None = None
+        """In a double stance, the phase (0 or 2) of the single stance that follows it."""
+        self.double_duration = 0.0
+        """The duration [s] of the current double stance (``double_stance`` when it started)."""
         self.resynced = False
         """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
 
     def copy(self) -> GaitClock:
         twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait,
-                         self.lost_stance_steps)
+                         self.lost_stance_steps, self.double_stance)
+        twin.after_double, twin.double_duration = self.after_double, self.double_duration
         twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
         twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
             self._stance_touched
@@ -259,7 +288,20 @@ class GaitClock:
             self.tau = 0.0
             return _CYCLE[self.phase]
         j = self.phase
+        if j == DOUBLE_STANCE_PHASE:
+            # ends when the foot that does not stay has lifted off, or after its duration
+            leaving = BACK if self.after_double == 2 else FRONT
+            if self._air_steps[leaving] >= self.debounce_steps or self.tau >= self.double_duration - 1e-9:
+                self.phase, self.tau, self.after_double = self.after_double, 0.0, None
+                self._stance_touched = True
+            return self.mode
         nominal = self.durations[j]
+        if self.double_stance and self._double_starts(j, mode):
+            # a swing foot landed while the stance foot is down (a stance, or a flight whose lift-off is late)
+            self.after_double = 2 if _CYCLE[j] == Mode.BACK_STANCE or j == 1 else 0
+            self.double_duration = self.double_stance
+            self.phase, self.tau, self.resynced = DOUBLE_STANCE_PHASE, 0.0, True
+            return self.mode
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
             touched = self._contact_steps[landing] >= self.debounce_steps
@@ -286,6 +328,24 @@ class GaitClock:
             self._stance_touched = False
         return _CYCLE[self.phase]
 
+    @property
+    def mode(self) -> Mode:
+        """The contact mode of the current phase."""
+        return Mode.DOUBLE_STANCE if self.phase == DOUBLE_STANCE_PHASE else _CYCLE[self.phase]
+
+    def _double_starts(self, j: int, mode: Mode) -> bool:
+        """Whether the observation starts a double stance in phase ``j``: in a stance, the swing foot has
+        touched for ``debounce_steps`` while the stance foot touches; in a flight (once ``min_flight`` of it
+        has passed), the landing foot has while the foot of the stance before it still touches."""
+        if mode != Mode.DOUBLE_STANCE:
+            return False
+        if _CYCLE[j] == Mode.FLIGHT:
+            landing = FRONT if j == 1 else BACK
+            return (self._contact_steps[landing] >= self.debounce_steps
+                    and self.tau >= self.min_flight * self.durations[j])
+        swing = FRONT if j == 0 else BACK
+        return self._contact_steps[swing] >= self.debounce_steps
+
     def tick(self) -> None:
         """One control period has passed."""
         self.tau += self.dt
@@ -299,9 +359,12 @@ class GaitClock:
         if self.phase is None:
             return f
         j = self.phase
+        tau = self.tau
+        if j == DOUBLE_STANCE_PHASE:  # read as the start of the stance that follows
+            j, tau = self.after_double, 0.0
         f[j] = 1.0
-        f[4] = min(self.tau / self.durations[j], 2.0)
-        frac = (sum(self.durations[:j]) + min(self.tau, self.durations[j])) / sum(self.durations)
+        f[4] = min(tau / self.durations[j], 2.0)
+        frac = (sum(self.durations[:j]) + min(tau, self.durations[j])) / sum(self.durations)
         f[5], f[6] = math.sin(2 * math.pi * frac), math.cos(2 * math.pi * frac)
         return f
 
@@ -376,14 +439,40 @@ class MPCPolicy(Policy):
             self.clock.max_wait = o.recovery_max_wait if self.recovering else o.max_wait
         if o.recovery and o.recovery_min_flight is not None:
             self.clock.min_flight = o.recovery_min_flight if self.recovering else o.min_flight
+        if o.recovery and o.recovery_double_stance is not None:
+            self.clock.double_stance = o.recovery_double_stance if self.recovering else 0.0
         return self.clock.update(mode, float(x[NQ + IPITCH]))
 
-    def _schedule(self) -> ModeSchedule:
+    def _schedule(self, sinking: bool = False) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
-        ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance."""
+        ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance.
+
+        ``sinking`` (a recovery with the trunk falling): the stance (or, in a flight whose lift-off has not
+        happened, the stance before it, for ``min_phase``) is followed by a double stance instead of a flight.
+        """
         o = self.options
         j = self._phase_j
-        modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+        if sinking and j != DOUBLE_STANCE_PHASE:
+            if _CYCLE[j] == Mode.FLIGHT:
+                lifting = BACK if j == 1 else FRONT
+                stance_left = o.min_phase if self.clock._contact_steps[lifting] > 0 else None
+                j = j - 1
+            else:
+                stance_left = max(self.durations[j] - self._tau, o.min_phase)
+            if stance_left is not None:
+                after = (j + 2) % 4
+                modes = [_CYCLE[j], Mode.DOUBLE_STANCE, _CYCLE[after]]
+                durs = [stance_left, o.recovery_double_stance, self.durations[after]]
+                j = after
+            else:
+                j = j + 1
+                modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+        elif j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
+            j = self.clock.after_double
+            modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
+            durs = [max(self.clock.double_duration - self._tau, o.min_phase), self.durations[j]]
+        else:
+            modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
@@ -482,7 +571,9 @@ class MPCPolicy(Policy):
         """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
         o = self.options
         t0 = time.perf_counter()
-        schedule = self._schedule()
+        sinking = (self.recovering and o.recovery_double_stance is not None
+                   and float(x[NQ + 1]) < -o.recovery_sink_speed)
+        schedule = self._schedule(sinking)
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, z_velocity=o.z_velocity, weights=self.weights)
         first = self.last_solution is None

@@ -30,9 +30,13 @@ from hsddp_gym.validation import check_array, check_positive
 # [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
 _Q = 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5], dtype=float)
 _QF_BASE = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01], dtype=float)
-_QF_RATES = {Mode.BACK_STANCE: (500, 500, 1, 1), Mode.FLIGHT: (500, 500, 500, 500), Mode.FRONT_STANCE: (1, 1, 500, 500)}
-_R = {Mode.BACK_STANCE: (5, 5, 1, 1), Mode.FLIGHT: (1, 1, 1, 1), Mode.FRONT_STANCE: (1, 1, 5, 5)}
-_S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0}
+_QF_RATES = {Mode.BACK_STANCE: (500, 500, 1, 1), Mode.FLIGHT: (500, 500, 500, 500), Mode.FRONT_STANCE: (1, 1, 500, 500),
+             Mode.DOUBLE_STANCE: (1, 1, 1, 1)}
+_R = {Mode.BACK_STANCE: (5, 5, 1, 1), Mode.FLIGHT: (1, 1, 1, 1), Mode.FRONT_STANCE: (1, 1, 5, 5),
+      Mode.DOUBLE_STANCE: (1, 1, 1, 1)}
+_S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0, Mode.DOUBLE_STANCE: 0.15}
+# Double stance is not in the authors' gait (the MPC plans one when a swing foot lands before the stance foot
+# has lifted off): the stance-leg weights on both legs, the weight shared by the two feet.
 # The authors' later weights (original_code_facts §3.5 "later version": MH HEAD / HM, used there with their
 # 1.5 m/s gait): Q with more weight on the joints and less on the forward speed, R halved, Q_f with less weight
 # on the forward speed (x weight 0 as in HM).
@@ -69,8 +73,9 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
     """The bounding cost of one phase (original_code_facts §3.4-§3.5).
 
     Args:
-        mode: phase mode (BACK_STANCE, FLIGHT or FRONT_STANCE).
-        touchdown_foot: the foot landing at the end of a flight phase.
+        mode: phase mode (BACK_STANCE, FLIGHT, FRONT_STANCE or DOUBLE_STANCE).
+        touchdown_foot: the foot landing at the end of a flight phase; for DOUBLE_STANCE the foot that stays on
+            the ground after it (see :func:`hsddp_gym.references.end_of_mode_reference`).
         speed: desired forward speed [m/s].
         running_reference: ``"terminal"`` (paper eq. 32-33: the running cost tracks the mode's reference
             posture) or ``"code"`` (the authors' early code: a neutral posture, z = 0.254 m, legs straight).
@@ -84,7 +89,7 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
         raise ValueError(f"weights must be one of {BOUNDING_WEIGHTS}, got {weights!r}")
     mode = Mode(mode)
     if mode not in _R:
-        raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT and FRONT_STANCE, got {mode!r}")
+        raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT, FRONT_STANCE and DOUBLE_STANCE, got {mode!r}")
     if running_reference not in ("terminal", "code"):
         raise ValueError(f"running_reference must be 'terminal' or 'code', got {running_reference!r}")
     x_final = end_of_mode_reference(mode, touchdown_foot, speed, z_velocity=z_velocity, params=params)
@@ -100,7 +105,7 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
     if grf_tracking:
         for foot in mode.feet:
             sl = grf_slice(foot)
-            grf_ref[sl] = (0.0, weight)
+            grf_ref[sl] = (0.0, weight / len(mode.feet))
             s[sl] = _S[mode]
     later = weights == "later"
     qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]])
@@ -126,6 +131,18 @@ class ConstraintSpec:
     def __post_init__(self) -> None:
         check_positive(self.torque_limit, "torque_limit")
         check_positive(self.friction, "friction")
+
+
+def _reference_foot(schedule: ModeSchedule, phase: int) -> int | None:
+    """The ``touchdown_foot`` argument of :func:`bounding_phase_cost` for ``phase``: the landing foot of a
+    flight, the foot that stays on the ground after a double stance."""
+    if schedule.modes[phase] == Mode.DOUBLE_STANCE:
+        feet = schedule.next_mode(phase).feet
+        if len(feet) != 1:
+            raise ValueError(f"phase {phase}: a double stance must be followed by a single stance, got "
+                             f"{schedule.next_mode(phase)!r}")
+        return feet[0]
+    return schedule.bounding_touchdown_foot(phase)
 
 
 class HybridProblem:
@@ -214,8 +231,8 @@ class HybridProblem:
         if schedule is None:
             schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
         params = dynamics.robot.params
-        costs = [bounding_phase_cost(m, schedule.bounding_touchdown_foot(i), speed, params, running_reference,
-                                     grf_tracking, z_velocity, weights) for i, m in enumerate(schedule.modes)]
+        costs = [bounding_phase_cost(m, _reference_foot(schedule, i), speed, params, running_reference, grf_tracking,
+                                     z_velocity, weights) for i, m in enumerate(schedule.modes)]
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0

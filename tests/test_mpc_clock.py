@@ -9,7 +9,7 @@ import pytest
 import hsddp_gym  # noqa: F401
 from hsddp_gym.conventions import Mode
 from planners.imitation import gait_clock_features, make_gait_clock
-from planners.mpc import GaitClock, MPCOptions, MPCPolicy
+from planners.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
 from planners.policies import EnvInterface
 
 
@@ -110,3 +110,47 @@ def test_features_rebuilt_from_observations_match_the_mpc_clock():
     np.testing.assert_array_equal(feats[:, :4].argmax(axis=1), phases)
     taus = np.array([t for _, t in live])
     np.testing.assert_allclose(feats[:, 4], np.minimum(taus / np.array(clock.durations)[phases], 2.0), atol=1e-9)
+
+
+def test_double_stance_rule():
+    durs = (0.04, 0.03, 0.04, 0.03)
+    ds = Mode.DOUBLE_STANCE
+    # off (the default): a swing foot landing in a stance does not change the phase
+    c = GaitClock(durs, 0.005)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, ds, 3, ds, 0)
+    assert c.phase == 0 and c.mode == Mode.BACK_STANCE
+    # on: the front foot lands in the back stance (debounced) -> double stance, then front stance
+    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, ds, 1, ds, 0)
+    assert c.phase == 0  # one contact step of the front foot is not enough
+    c.tick()
+    assert c.update(ds, 0.0) == ds
+    assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2 and c.resynced and c.tau == 0.0
+    twin = c.copy()
+    assert twin.phase == DOUBLE_STANCE_PHASE and twin.after_double == 2 and twin.double_duration == 0.02
+    f = c.features()  # read as the start of the front stance
+    assert f[2] == 1.0 and f[4] == 0.0
+    # ... which ends when the back foot has lifted off (debounced)
+    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)
+    assert c.phase == DOUBLE_STANCE_PHASE
+    c.tick()
+    assert c.update(Mode.FRONT_STANCE, 0.0) == Mode.FRONT_STANCE and c.phase == 2 and c.tau == 0.0
+    # ... or after its duration, both feet still down; the duration is the one set when it started
+    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c.update(Mode.FRONT_STANCE, 0.0)
+    _stance_then(c, ds, 2, ds, 0)
+    assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 0
+    c.double_stance = 0.0
+    _stance_then(c, ds, 3, ds, 0)
+    assert c.phase == DOUBLE_STANCE_PHASE
+    _stance_then(c, ds, 1, ds, 0)
+    assert c.phase == 0 and c.mode == Mode.BACK_STANCE
+    # in a flight whose lift-off is late: the landing foot touches while the other foot is still down
+    c = GaitClock(durs, 0.005, double_stance=0.02, min_flight=0.0)
+    c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
+    _stance_then(c, Mode.BACK_STANCE, 1, ds, 2)
+    assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
+    with pytest.raises(ValueError, match="double_stance"):
+        GaitClock(durs, 0.005, double_stance=-0.01)

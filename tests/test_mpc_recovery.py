@@ -172,3 +172,31 @@ def test_a_nose_down_push_the_heuristic_does_not_survive_the_recovering_mpc_does
     graze = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_min_flight=None)),
                         103, options=NOSE_DOWN, max_steps=300)
     assert graze.fell
+
+
+def test_a_downward_push_in_the_back_stance_is_caught_by_a_planned_double_stance():
+    """Seed 100, ``[0, -1.5, 0]`` at t = 1 s (mid back stance): the trunk sinks at 1.4 m/s; the recovering MPC
+    plans back stance -> double stance -> front stance, reaches the front foot down and bounds on by itself.
+    Without the double stance (``recovery_double_stance=None``) it plans a flight, the front foot stays up and
+    the trunk falls below the healthy height at about 1.1 s."""
+    push = {"push": {"delta_v": [0.0, -1.5, 0.0], "time": 1.0}}
+    env = make_env()
+    mpc = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    modes = []
+    solve = mpc.replan
+
+    def replan(x, mode):
+        ok = solve(x, mode)
+        if ok:
+            modes.append(tuple(mpc._pending[1].schedule.modes[:3]))
+        return ok
+
+    mpc.replan = replan
+    res = run_episode(env, mpc, 100, options=push, max_steps=300)
+    assert not res.fell and mpc.stats["fallback_steps"] == 0
+    assert (Mode.BACK_STANCE, Mode.DOUBLE_STANCE, Mode.FRONT_STANCE) in modes
+    single = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_double_stance=None)),
+                         100, options=push, max_steps=300)
+    assert single.fell and single.length < 250
+    with pytest.raises(ValueError, match="recovery_double_stance"):
+        MPCOptions(recovery_double_stance=0.0)

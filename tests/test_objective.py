@@ -260,3 +260,36 @@ def test_bounding_weights_are_the_authors():
         bounding_phase_cost(Mode.FLIGHT, 0, weights="mine")
     problem = HybridProblem.bounding(1, weights="later")
     np.testing.assert_allclose(problem.Qd[0], later.q)  # Q is the same in every mode
+
+
+def test_double_stance_cost_and_reference():
+    """Double stance (the recovering MPC's, not the authors' gait): the touchdown posture of the foot that stays
+    with zero vertical velocity, stance weights on both legs, the weight shared by the two feet."""
+    from hsddp_gym.conventions import BACK, FRONT, NQ, Mode, grf_slice
+    from hsddp_gym.references import end_of_mode_reference
+    from hsddp_gym.schedule import ModeSchedule
+    from planners.problem import bounding_phase_cost
+
+    for foot in (FRONT, BACK):
+        for z_velocity in ("code", "paper"):
+            ds = end_of_mode_reference(Mode.DOUBLE_STANCE, foot, 0.8, z_velocity=z_velocity)
+            fl = end_of_mode_reference(Mode.FLIGHT, foot, 0.8, z_velocity=z_velocity)
+            np.testing.assert_array_equal(ds[:NQ], fl[:NQ])
+            assert ds[NQ] == 0.8 and ds[NQ + 1] == 0.0
+    with pytest.raises(ValueError, match="touchdown_foot"):
+        end_of_mode_reference(Mode.DOUBLE_STANCE, None)
+    c = bounding_phase_cost(Mode.DOUBLE_STANCE, FRONT)
+    weight = c.grf_ref[grf_slice(FRONT)][1]
+    assert weight == pytest.approx(0.5 * bounding_phase_cost(Mode.FRONT_STANCE, None).grf_ref[grf_slice(FRONT)][1])
+    np.testing.assert_allclose(c.grf_ref[grf_slice(BACK)], [0.0, weight])
+    assert np.all(c.s > 0) and np.all(c.r == 1.0)
+    np.testing.assert_allclose(c.qf[10:], [1, 1, 1, 1])
+    # in a schedule the cost's foot is the one that stays on the ground after the double stance
+    sched = ModeSchedule([Mode.BACK_STANCE, Mode.DOUBLE_STANCE, Mode.FRONT_STANCE, Mode.FLIGHT],
+                         [0.02, 0.04, 0.07, 0.07], final_mode=Mode.BACK_STANCE)
+    problem = HybridProblem.bounding(schedule=sched)
+    np.testing.assert_array_equal(problem.XF[1], end_of_mode_reference(Mode.DOUBLE_STANCE, FRONT))
+    assert list(problem.touchdown) == [FRONT, -1, -1, BACK]  # the front foot lands into the double stance
+    with pytest.raises(ValueError, match="double stance must be followed by a single stance"):
+        HybridProblem.bounding(schedule=ModeSchedule([Mode.DOUBLE_STANCE, Mode.FLIGHT], [0.04, 0.07],
+                                                     final_mode=Mode.BACK_STANCE))

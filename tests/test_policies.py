@@ -354,6 +354,20 @@ def test_cli_rollout_writes_the_summary_and_the_gif(name, tmp_path, capsys):
         assert not (out / "episode0.gif").exists()
 
 
+def test_cli_rollout_with_mpc_recovery_after_a_push(tmp_path):
+    """``--mpc-recovery --push``: the recovery triggers after the push and the summary counts it; the flag
+    needs the MPC."""
+    out = tmp_path / "rec"
+    argv = ["rollout", "--policy", "mpc", "--mpc-recovery", "--episodes", "1", "--seed", "103",
+            "--push", "1.0", "0", "0", "10", "--max-episode-steps", "260", "--out", str(out), "--quiet"]
+    assert cli.main(argv) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["mpc_recovery"] is True and s["recoveries"] >= 1 and s["fallback_steps"] == 0
+    assert s["falls"] == 0 and s["push"] == {"delta_v": [0.0, 0.0, 10.0], "time": 1.0}
+    with pytest.raises(SystemExit):
+        cli.main(["rollout", "--policy", "heuristic", "--mpc-recovery", "--out", str(tmp_path / "h"), "--quiet"])
+
+
 def test_cli_demo_plans_with_hsddp_and_runs_the_mpc(tmp_path):
     out = tmp_path / "demo"
     assert cli.main(["demo", "--cycles", "1", "--episodes", "1", "--max-episode-steps", "20", "--no-video",
