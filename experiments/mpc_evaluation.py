@@ -4,7 +4,9 @@ the MPC with push recovery does; other target speeds.
 
 * policies: ``--episodes`` episodes each from seed 0 (the MPC's with a GIF);
 * push: ``--push T DVX DVZ DPITCH`` (default: +10 rad/s nose-down pitch rate at t = 1 s) for the heuristic, the
-  MPC and the MPC with push recovery (``MPCOptions(recovery=True)``), ``--episodes`` episodes from seed 100;
+  MPC, the MPC with ``MPCOptions(recovery=True)`` and with its push-robust settings
+  (``MPCOptions.push_recovery()``), ``--episodes`` episodes from seed 100; the push-robust MPC also without a
+  push;
 * target speeds 0.5 and 1.5 m/s: the MPC, ``--episodes`` episodes from seed 0.
 
 The expert's tracking of the 5-cycle plan is ``experiments/expert_tracking.py``; the push grid over directions
@@ -43,10 +45,16 @@ def main(argv=None) -> int:
         summary[policy] = run_rollouts(policy, n, 0, out / policy, video=policy == "mpc")
     t, dvx, dvz, dw = args.push
     push = {"delta_v": [dvx, dvz, dw], "time": t}
-    for name, policy, recovery in (("heuristic", "heuristic", False), ("mpc", "mpc", False),
-                                   ("mpc_recovery", "mpc", True)):
+    from planners.mpc import MPCOptions
+
+    for name, policy, recovery, options in (("heuristic", "heuristic", False, None), ("mpc", "mpc", False, None),
+                                            ("mpc_recovery_5ms", "mpc", False, MPCOptions(recovery=True)),
+                                            ("mpc_recovery", "mpc", True, None)):
         print(f"== push {push} with {name}", flush=True)
-        summary[f"push_{name}"] = run_rollouts(policy, n, 100, out / f"push_{name}", push=push, mpc_recovery=recovery)
+        summary[f"push_{name}"] = run_rollouts(policy, n, 100, out / f"push_{name}", push=push,
+                                               mpc_recovery=recovery, mpc_options=options)
+    print("== mpc with the push-robust settings, no push", flush=True)
+    summary["mpc_recovery"] = run_rollouts("mpc", n, 0, out / "mpc_recovery", mpc_recovery=True)
     for speed in (0.5, 1.5):
         print(f"== mpc at target speed {speed}", flush=True)
         summary[f"mpc_speed_{speed}"] = run_rollouts("mpc", n, 0, out / f"mpc_speed_{speed}",

@@ -33,7 +33,7 @@ def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple
     if policy_name == "heuristic":
         policy = HeuristicPolicy.from_env(env)
     else:
-        policy = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+        policy = MPCPolicy.from_env(env, options=MPCOptions.push_recovery())
     res = run_episode(env, policy, seed, options={"push": push}, max_steps=steps)
     dt = env.unwrapped.dt
     env.close()

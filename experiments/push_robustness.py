@@ -33,10 +33,10 @@ DEFAULT_PUSHES = [
 ]
 
 
-POLICIES = ("mpc", "mpc-recovery", "mpc-handover", "heuristic", "random")
-"""``mpc-recovery``: the MPC with ``MPCOptions(recovery=True)`` (immediate re-plan, more iterations, the
-heuristic only after a failed re-plan); ``mpc-handover``: also ``recovery_handover=True`` (the heuristic acts
-for the whole recovery window)."""
+POLICIES = ("mpc", "mpc-recovery", "mpc-recovery-5ms", "mpc-handover", "heuristic", "random")
+"""``mpc-recovery``: the MPC with its push-robust settings ``MPCOptions.push_recovery()`` (recovery on, 2.5 ms
+planner grid); ``mpc-recovery-5ms``: ``MPCOptions(recovery=True)`` at the default 5 ms grid; ``mpc-handover``:
+the push-robust settings with ``recovery_handover=True`` (the heuristic acts for the whole recovery window)."""
 
 
 def make_policy(name: str, env):
@@ -44,9 +44,11 @@ def make_policy(name: str, env):
     from planners.policies import HeuristicPolicy, RandomPolicy
 
     if name == "mpc-recovery":
+        return MPCPolicy.from_env(env, options=MPCOptions.push_recovery())
+    if name == "mpc-recovery-5ms":
         return MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
     if name == "mpc-handover":
-        return MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_handover=True))
+        return MPCPolicy.from_env(env, options=MPCOptions.push_recovery(recovery_handover=True))
     factories = {"mpc": MPCPolicy, "heuristic": HeuristicPolicy, "random": RandomPolicy}
     if name not in factories:
         raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
@@ -85,13 +87,16 @@ def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: i
     (``fallback_episodes``: survived episodes in which the heuristic fallback acted)."""
     tasks = [(name, tuple(dv), seed, float(t), steps) for name in policies for dv in pushes for t in push_times
              for seed in range(first_seed, first_seed + seeds)]
+    from tqdm import tqdm
+
+    bar = {"total": len(tasks), "desc": "pushed episodes", "disable": not progress}
     if workers > 1:
         from concurrent.futures import ProcessPoolExecutor
 
         with ProcessPoolExecutor(max_workers=workers) as pool:
-            runs = list(pool.map(run_one, tasks))
+            runs = list(tqdm(pool.map(run_one, tasks), **bar))
     else:
-        runs = [run_one(task) for task in tasks]
+        runs = [run_one(task) for task in tqdm(tasks, **bar)]
     results: dict = {name: {} for name in policies}
     for task, run in zip(tasks, runs):
         cell = results[task[0]].setdefault(push_label(task[1]), {"delta_v": list(task[1]), "runs": []})

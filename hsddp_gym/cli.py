@@ -143,11 +143,12 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None, mpc_recovery: bool = False) -> dict:
+                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None) -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
     ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
-    MPC with its push recovery (``MPCOptions(recovery=True)``)."""
+    MPC with its push-robust settings (:meth:`planners.mpc.MPCOptions.push_recovery`), ``mpc_options`` with any
+    :class:`planners.mpc.MPCOptions` (not both)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -158,13 +159,14 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    if mpc_recovery and policy_name != "mpc":
-        raise ValueError(f"mpc_recovery applies to the mpc policy only, got policy {policy_name!r}")
-    mpc_options = None
+    if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
+        raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
+    if mpc_recovery and mpc_options is not None:
+        raise ValueError("give mpc_recovery or mpc_options, not both")
     if mpc_recovery:
         from planners.mpc import MPCOptions
 
-        mpc_options = MPCOptions(recovery=True)
+        mpc_options = MPCOptions.push_recovery()
     policy, options = make_policy(policy_name, env, seed, mpc_options=mpc_options)
     if push is not None:
         options = dict(options or {})
@@ -175,7 +177,11 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     summary = summarize(results)
     summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
                    max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
-    if mpc_recovery:
+    if mpc_options is not None:
+        import dataclasses
+
+        summary["mpc_options"] = dataclasses.asdict(mpc_options)
+    if mpc_options is not None or mpc_recovery:
         summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
                        fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
     if video and results and results[0].frames:
@@ -535,10 +541,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit in control steps of 5 ms (default: the env's 1000)")
     p.add_argument("--mpc-recovery", action="store_true",
-                   help="with --policy mpc: push recovery on (MPCOptions(recovery=True): an immediate re-plan with "
-                        "more iterations when the trunk velocity leaves the plan, a double stance when the trunk "
-                        "sinks, the heuristic while a re-plan has failed); summary.json then also counts "
-                        "recoveries and fallback_steps")
+                   help="with --policy mpc: the push-robust settings (MPCOptions.push_recovery(): a 2.5 ms planner "
+                        "grid and the push recovery: an immediate re-plan with more iterations when the trunk velocity "
+                        "leaves the plan, a double stance when the trunk sinks, the heuristic while a re-plan has "
+                        "failed); summary.json then also counts recoveries and fallback_steps")
     p.add_argument("--video", action="store_true", help="write episode0.gif (the first episode, rendered off-screen)")
     p.add_argument("--out", default="runs/rollout", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -174,6 +174,21 @@ class MPCOptions:
     speed_ramp: float | None = 0.5
     weights: str | None = None
 
+    PUSH_RECOVERY_PLANNER_DT = 0.0025
+    """The planner step of :meth:`push_recovery` [s]."""
+
+    @classmethod
+    def push_recovery(cls, **changes) -> MPCOptions:
+        """The push-robust settings: ``recovery=True`` and a 2.5 ms planner grid (``planner_dt``), with any
+        other field given in ``changes``.
+
+        Measured (README, "Pushes"): over 13 pushes x 6 gait phases x 2 seeds the recovery took the falls from
+        95 to 60 of 156 on the default 5 ms grid, and to 43 on the 2.5 ms grid (the heuristic: 32); the finer
+        grid alone barely helps (the plain MPC fell on 49 of the 60 episodes of the five hardest pushes, 53 on
+        5 ms). Unpushed bounding is as good (10 seeds: return 1447.5) with re-plans twice as long (real-time
+        factor 1.8 instead of 2.9)."""
+        return cls(**{"recovery": True, "planner_dt": cls.PUSH_RECOVERY_PLANNER_DT, **changes})
+
     def __post_init__(self) -> None:
         if self.horizon is not None:
             check_positive(self.horizon, "horizon")
@@ -346,6 +361,10 @@ class GaitClock:
         swing = FRONT if j == 0 else BACK
         return self._contact_steps[swing] >= self.debounce_steps
 
+    def touching(self, foot: int) -> bool:
+        """Whether ``foot`` touched the ground in the last observation."""
+        return self._contact_steps[foot] > 0
+
     def tick(self) -> None:
         """One control period has passed."""
         self.tau += self.dt
@@ -452,21 +471,12 @@ class MPCPolicy(Policy):
         """
         o = self.options
         j = self._phase_j
-        if sinking and j != DOUBLE_STANCE_PHASE:
-            if _CYCLE[j] == Mode.FLIGHT:
-                lifting = BACK if j == 1 else FRONT
-                stance_left = o.min_phase if self.clock._contact_steps[lifting] > 0 else None
-                j = j - 1
-            else:
-                stance_left = max(self.durations[j] - self._tau, o.min_phase)
-            if stance_left is not None:
-                after = (j + 2) % 4
-                modes = [_CYCLE[j], Mode.DOUBLE_STANCE, _CYCLE[after]]
-                durs = [stance_left, o.recovery_double_stance, self.durations[after]]
-                j = after
-            else:
-                j = j + 1
-                modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+        stance = self._stance_before_double(j) if sinking else None
+        if stance is not None:  # the stance, a double stance, then the cycle from the other stance
+            s, left = stance
+            j = (s + 2) % 4
+            modes = [_CYCLE[s], Mode.DOUBLE_STANCE, _CYCLE[j]]
+            durs = [left, o.recovery_double_stance, self.durations[j]]
         elif j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
             j = self.clock.after_double
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
@@ -480,6 +490,18 @@ class MPCPolicy(Policy):
         h = o.planner_dt
         durs = [max(1, round(d / h)) * h for d in durs]
         return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
+
+    def _stance_before_double(self, j: int) -> tuple[int, float] | None:
+        """For a sinking trunk in phase ``j``: ``(stance phase, time left in it)`` to follow with a double
+        stance: the current stance, or, in a flight whose lift-off foot still touches, the stance before it for
+        ``min_phase``; None in a flight with both feet up and in a double stance."""
+        o = self.options
+        if j == DOUBLE_STANCE_PHASE:
+            return None
+        if _CYCLE[j] != Mode.FLIGHT:
+            return j, max(self.durations[j] - self._tau, o.min_phase)
+        lifting = BACK if j == 1 else FRONT
+        return (j - 1, o.min_phase) if self.clock.touching(lifting) else None
 
     # ------------------------------------------------------------------ warm start
     def _warm_start(self, problem: HybridProblem, x: np.ndarray):

@@ -86,3 +86,21 @@ def tools() -> types.SimpleNamespace:
     return types.SimpleNamespace(random_state=random_state, random_control=random_control, fd_jacobian=fd_jacobian,
                                  max_rel_err=max_rel_err, FD_EPS=FD_EPS, FD_TOL=FD_TOL, SEED=SEED, MODES=MODES,
                                  CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS)
+
+
+@pytest.fixture(scope="session")
+def experiment():
+    """Load a script of ``experiments/`` as a module: ``experiment("push_gif").main([...])``."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    def load(name: str):
+        path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # so that its functions pickle into worker processes
+        spec.loader.exec_module(module)
+        return module
+
+    return load

@@ -35,6 +35,9 @@ def run(env, policy, obs, steps):
 def test_recovery_is_off_by_default_and_validated():
     o = MPCOptions()
     assert o.recovery is False and o.recovery_fallback and not o.recovery_handover
+    robust = MPCOptions.push_recovery()
+    assert robust.recovery and robust.planner_dt == 0.0025 and robust.max_iterations == o.max_iterations
+    assert MPCOptions.push_recovery(recovery_window=0.4).recovery_window == 0.4
     with pytest.raises(ValueError, match="recovery_iterations"):
         MPCOptions(recovery_iterations=0)
     with pytest.raises(ValueError, match="recovery_threshold"):
@@ -200,3 +203,25 @@ def test_a_downward_push_in_the_back_stance_is_caught_by_a_planned_double_stance
     assert single.fell and single.length < 250
     with pytest.raises(ValueError, match="recovery_double_stance"):
         MPCOptions(recovery_double_stance=0.0)
+
+
+def test_push_robustness_experiment_records_every_episode(tmp_path, experiment):
+    """``experiments/push_robustness.py``: per-episode records, totals, the same results with 2 workers."""
+    import json
+
+    push = experiment("push_robustness")
+    argv = ["--policies", "heuristic", "mpc-recovery", "--push", "0", "0", "10", "--seeds", "1", "--first-seed",
+            "103", "--times", "1.0", "--steps", "240"]
+    assert push.main(argv + ["--out", str(tmp_path / "a")]) == 0
+    assert push.main(argv + ["--out", str(tmp_path / "b"), "--workers", "2"]) == 0
+    a = json.loads((tmp_path / "a" / "push_robustness.json").read_text())
+    b = json.loads((tmp_path / "b" / "push_robustness.json").read_text())
+    assert a["results"] == b["results"] and a["push_times_s"] == [1.0]
+    cells = {p: a["results"][p]["[+0, +0, +10]"] for p in ("heuristic", "mpc-recovery")}
+    assert cells["heuristic"]["falls"] == 1 and cells["mpc-recovery"]["falls"] == 0
+    run = cells["mpc-recovery"]["runs"][0]
+    assert run["seed"] == 103 and run["fall_time_s"] is None and run["fallback_steps"] == 0
+    table = (tmp_path / "a" / "push_robustness.md").read_text()
+    assert "| [+0, +0, +10] | 1/1 | 0/1 |" in table and "| total | 1/1 | 0/1 |" in table
+    with pytest.raises(SystemExit):
+        push.main(["--workers", "0", "--out", str(tmp_path / "c")])

@@ -110,20 +110,9 @@ def test_env_rgb_array_and_headless_human_rendering():
     env.close()
 
 
-def _experiment(name):
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "experiments" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_push_gif_shows_both_policies_side_by_side(tmp_path):
+def test_push_gif_shows_both_policies_side_by_side(tmp_path, experiment):
     out = tmp_path / "push.gif"
-    push_gif = _experiment("push_gif")
+    push_gif = experiment("push_gif")
     assert push_gif.main(["--out", str(out), "--after", "0.1", "--before", "0.05", "--stride", "5"]) == 0
     with PIL.Image.open(out) as gif:
         assert gif.n_frames == 7 and gif.size == (720, 240)
