@@ -33,16 +33,19 @@ DEFAULT_PUSHES = [
 ]
 
 
-POLICIES = ("mpc", "mpc-recovery", "mpc-recovery-5ms", "mpc-handover", "heuristic", "random")
+POLICIES = ("mpc", "mpc-recovery", "mpc-recovery-5ms", "mpc-handover", "mpc-options", "heuristic", "random")
 """``mpc-recovery``: the MPC with its push-robust settings ``MPCOptions.push_recovery()`` (recovery on, 2.5 ms
 planner grid); ``mpc-recovery-5ms``: ``MPCOptions(recovery=True)`` at the default 5 ms grid; ``mpc-handover``:
-the push-robust settings with ``recovery_handover=True`` (the heuristic acts for the whole recovery window)."""
+the push-robust settings with ``recovery_handover=True`` (the heuristic acts for the whole recovery window);
+``mpc-options``: ``MPCOptions(**OPTIONS)`` from ``--mpc-options`` (ablations)."""
 
 
-def make_policy(name: str, env):
+def make_policy(name: str, env, mpc_options: dict | None = None):
     from planners.mpc import MPCOptions, MPCPolicy
     from planners.policies import HeuristicPolicy, RandomPolicy
 
+    if name == "mpc-options":
+        return MPCPolicy.from_env(env, options=MPCOptions(**(mpc_options or {})))
     if name == "mpc-recovery":
         return MPCPolicy.from_env(env, options=MPCOptions.push_recovery())
     if name == "mpc-recovery-5ms":
@@ -60,16 +63,16 @@ def push_label(dv) -> str:
 
 
 def run_one(task: tuple) -> dict:
-    """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps)``."""
+    """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps, mpc_options)``."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
     from planners.evaluation import run_episode
 
-    name, dv, seed, push_time, steps = task
+    name, dv, seed, push_time, steps, mpc_options = task
     env = gym.make("hsddp_gym/Bounding-v0")
     try:
-        policy = make_policy(name, env)
+        policy = make_policy(name, env, mpc_options)
         res = run_episode(env, policy, seed, options={"push": {"delta_v": list(dv), "time": push_time}},
                           max_steps=steps)
         stats = getattr(policy, "stats", {})
@@ -82,11 +85,12 @@ def run_one(task: tuple) -> dict:
 
 
 def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: int, workers: int = 1,
-             progress: bool = True) -> dict:
+             progress: bool = True, mpc_options: dict | None = None) -> dict:
     """``{policy: {push label: {"delta_v", "falls", "episodes", "fallback_episodes", "runs": [per episode]}}}``
-    (``fallback_episodes``: survived episodes in which the heuristic fallback acted)."""
-    tasks = [(name, tuple(dv), seed, float(t), steps) for name in policies for dv in pushes for t in push_times
-             for seed in range(first_seed, first_seed + seeds)]
+    (``fallback_episodes``: survived episodes in which the heuristic fallback acted; ``mpc_options``: the
+    fields of the ``mpc-options`` policy)."""
+    tasks = [(name, tuple(dv), seed, float(t), steps, mpc_options) for name in policies for dv in pushes
+             for t in push_times for seed in range(first_seed, first_seed + seeds)]
     from tqdm import tqdm
 
     bar = {"total": len(tasks), "desc": "pushed episodes", "disable": not progress}
@@ -142,6 +146,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="push times [s] of env time; each is run with every seed (default: %(default)s)")
     p.add_argument("--steps", type=int, default=500,
                    help="control steps per episode, push included (default: %(default)s = 2.5 s)")
+    p.add_argument("--mpc-options", default=None, metavar="JSON",
+                   help='MPCOptions fields of the mpc-options policy as a JSON object, e.g. '
+                        '\'{"recovery": true, "recovery_double_stance": null}\' (default: none)')
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes; the results do not depend on it (default: %(default)s)")
     p.add_argument("--push", type=float, nargs=3, action="append", metavar=("DVX", "DVZ", "DPITCH"),
@@ -155,11 +162,26 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--times must be >= 0")
     if args.workers < 1:
         p.error("--workers must be >= 1")
+    mpc_options = None
+    if args.mpc_options is not None:
+        import json
+
+        from planners.mpc import MPCOptions
+
+        try:
+            mpc_options = json.loads(args.mpc_options)
+            MPCOptions(**mpc_options)
+        except (ValueError, TypeError) as exc:
+            p.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
+    if "mpc-options" in args.policies and mpc_options is None:
+        p.error("the mpc-options policy needs --mpc-options")
     pushes = [tuple(v) for v in args.push] if args.push else DEFAULT_PUSHES
-    results = run_grid(args.policies, pushes, args.seeds, args.first_seed, args.times, args.steps, args.workers)
+    results = run_grid(args.policies, pushes, args.seeds, args.first_seed, args.times, args.steps, args.workers,
+                       mpc_options=mpc_options)
     out = Path(args.out)
     dt = DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP  # the env's default control period
     write_json(out / "push_robustness.json", {"push_times_s": args.times, "steps": args.steps,
+                                              "mpc_options": mpc_options,
                                               "first_seed": args.first_seed, "results": results,
                                               "command": " ".join(["python", *sys.argv])})
     table = markdown(results, args.times, args.steps, dt)

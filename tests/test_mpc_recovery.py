@@ -225,3 +225,11 @@ def test_push_robustness_experiment_records_every_episode(tmp_path, experiment):
     assert "| [+0, +0, +10] | 1/1 | 0/1 |" in table and "| total | 1/1 | 0/1 |" in table
     with pytest.raises(SystemExit):
         push.main(["--workers", "0", "--out", str(tmp_path / "c")])
+    # an ablation: any MPCOptions through --mpc-options, recorded in the JSON
+    assert push.main(argv[:1] + ["mpc-options"] + argv[3:] + ["--mpc-options", '{"recovery": true}', "--out",
+                                                              str(tmp_path / "d")]) == 0
+    d = json.loads((tmp_path / "d" / "push_robustness.json").read_text())
+    assert d["mpc_options"] == {"recovery": True} and d["results"]["mpc-options"]["[+0, +0, +10]"]["falls"] == 0
+    for bad in ([], ["--mpc-options", '{"no_such_field": 1}']):
+        with pytest.raises(SystemExit):
+            push.main(["--policies", "mpc-options", "--out", str(tmp_path / "e"), *bad])
