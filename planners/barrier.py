@@ -29,8 +29,9 @@ def relaxed_barrier(c: np.ndarray, delta) -> tuple[np.ndarray, np.ndarray, np.nd
     delta = np.broadcast_to(delta, c.shape)
     inner = c > delta
     safe = np.where(inner, c, 1.0)
-    t = (c - 2.0 * delta) / delta
+    t = (np.minimum(c, delta) - 2.0 * delta) / delta  # used in the relaxed branch only: no overflow for c >> delta
     value = np.where(inner, -np.log(safe), 0.5 * (t * t - 1.0) - np.log(delta))
     slope = np.where(inner, -1.0 / safe, t / delta)
-    curvature = np.where(inner, 1.0 / (safe * safe), 1.0 / (delta * delta))
+    with np.errstate(over="ignore"):  # c > 1e154: safe * safe overflows to inf and the curvature is its limit, 0
+        curvature = np.where(inner, 1.0 / (safe * safe), 1.0 / (delta * delta))
     return value, slope, curvature

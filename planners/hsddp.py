@@ -260,7 +260,9 @@ class HSDDP:
         timings = {"linearize": 0.0, "cost_derivatives": 0.0, "backward": 0.0, "line_search": 0.0,
                    "reset_jacobians": 0.0, "line_search_trials": 0}
         t0 = time.perf_counter()
-        ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init, lin=ws.lin)
+        # a diverging rollout overflows on its way to the non-finite state it is rejected for
+        with np.errstate(over="ignore", invalid="ignore"):
+            ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init, lin=ws.lin)
         ws.lin_valid = ok
         if not ok:
             raise ValueError("the warm start (U_init, X_init, K_init) produces a non-finite rollout")
@@ -279,7 +281,11 @@ class HSDDP:
                 cb(r)
             return r
 
-        costs = self._evaluate(objective, ws.nominal, cs)
+        with np.errstate(over="ignore", invalid="ignore"):
+            costs = self._evaluate(objective, ws.nominal, cs)
+        if not np.isfinite(costs.total):
+            raise ValueError(f"the warm start (U_init, X_init, K_init) has a non-finite objective ({costs.total}): "
+                             "its torques or ground forces overflow the barrier terms")
         record("init", costs)
         converged = False
         for al_iter in range(opt.max_al_iterations):
@@ -408,8 +414,9 @@ class HSDDP:
                     timings["line_search_trials"] += 1
                     # the full step is usually accepted: linearize along it on the way (speculative)
                     cand_linearized = eps == 1.0
-                    ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
-                                        ws.lam6, ws.lin_candidate if cand_linearized else None)
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
+                                            ws.lam6, ws.lin_candidate if cand_linearized else None)
                     if ok:
                         # a trial far off the nominal may overflow the barrier: an inf cost is a failed trial
                         with np.errstate(over="ignore", invalid="ignore"):

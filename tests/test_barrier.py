@@ -96,3 +96,16 @@ def test_broadcasting_and_per_element_delta(rng):
 def test_bad_delta_raises(delta):
     with pytest.raises(ValueError, match="delta"):
         relaxed_barrier(np.array([0.1, 0.5]), delta)
+
+
+def test_far_inside_the_constraint_no_overflow_far_outside_an_infinite_barrier():
+    """The relaxed branch is not evaluated where it is not used: c = 1e200 gives -log(c) without an overflow
+    warning; c = -1e200 (a huge violation) gives an infinite value, which the solver rejects."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        value, slope, curvature = relaxed_barrier(np.array([1e200, 2.0]), 0.2)
+    np.testing.assert_allclose(value, -np.log([1e200, 2.0]))
+    with np.errstate(over="ignore"):
+        assert relaxed_barrier(np.array([-1e200]), 0.2)[0][0] == np.inf

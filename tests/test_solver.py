@@ -143,6 +143,28 @@ def test_non_finite_trials_are_failed_trials(failure, warm_start, monkeypatch):
     assert np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.GRF)) and np.isfinite(sol.objective)
 
 
+def test_a_warm_start_with_a_non_finite_objective_is_refused(warm_start, monkeypatch):
+    """A warm start whose rollout is finite but whose barrier terms overflow (the back foot pulling the ground
+    with 1e200 N in the back stance) is refused with a ValueError naming the warm start, not optimized from an
+    infinite objective."""
+    import warnings
+
+    import planners.hsddp as hsddp_module
+
+    original = hsddp_module.rollout_policy
+
+    def huge_force(problem, out, U_ref, X_ref=None, K=None, k_ff=None, eps=0.0, lam6=None, lin=None):
+        ok = original(problem, out, U_ref, X_ref, K, k_ff, eps, lam6, lin)
+        out.GRF[3, 3] = -1e200
+        return ok
+
+    monkeypatch.setattr(hsddp_module, "rollout_policy", huge_force)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the overflow on the way is expected, not printed
+        with pytest.raises(ValueError, match="warm start .* non-finite objective"):
+            HSDDP(SolverOptions(method="al-reb", max_ddp_iterations=2)).solve(fresh_problem(), warm_start)
+
+
 def test_callbacks_see_every_record(warm_start):
     seen: list[IterationRecord] = []
     calls = []
