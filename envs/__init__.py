@@ -1,21 +1,13 @@
-"""Gymnasium environments for the planar Mini Cheetah.
+"""Installed as ``hsddp_gym.envs``: Gymnasium environments for the planar Mini Cheetah.
 
-* :mod:`envs.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
-* :mod:`envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
+* :mod:`hsddp_gym.envs.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
+* :mod:`hsddp_gym.envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
 
-Classes are imported lazily so that ``import envs`` stays cheap.
+Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 """
 
-__all__ = ["BoundingEnv", "ContactSimulator"]
+from hsddp_gym.util.lazy import lazy_exports
 
-
-def __getattr__(name):
-    if name == "BoundingEnv":
-        from envs.bounding import BoundingEnv
-
-        return BoundingEnv
-    if name == "ContactSimulator":
-        from envs.contact import ContactSimulator
-
-        return ContactSimulator
-    raise AttributeError(f"module 'envs' has no attribute {name!r}")
+_EXPORTS = {"BoundingEnv": "bounding", "ContactSimulator": "contact"}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(_EXPORTS)

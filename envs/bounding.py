@@ -8,14 +8,14 @@ import numbers
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from hsddp_gym.envs.contact import ContactSimulator, check_motor_speed_limits
 
-from envs.contact import ContactSimulator, check_motor_speed_limits
-from hsddp_gym.conventions import IPITCH, IX, IZ, NGRF, NQ, NU, NX
-from hsddp_gym.model import CheetahModel
-from hsddp_gym.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
-from hsddp_gym.params import DEFAULT_PARAMS
-from hsddp_gym.references import paper_initial_state
-from hsddp_gym.validation import check_in_range, check_int, check_positive, check_vector
+from hsddp_gym.core.conventions import IPITCH, IX, IZ, NGRF, NQ, NU, NX
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
+from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 DEFAULT_FRAME_SKIP = 5
 DEFAULT_SIM_TIMESTEP = 1e-3
@@ -50,11 +50,11 @@ class BoundingEnv(gym.Env):
     ## Description
     The planar (sagittal) Mini Cheetah of Li & Wensing (RA-L 2020): a 5.46 kg trunk with a front and a back
     two-link leg (each planar leg stands for a left-right pair), 7 degrees of freedom
-    (``q = [x, z, pitch, hip_front, knee_front, hip_back, knee_back]``, see :mod:`hsddp_gym.conventions`),
+    (``q = [x, z, pitch, hip_front, knee_front, hip_back, knee_back]``, see :mod:`hsddp_gym.core.conventions`),
     four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
     each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
     ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`envs.contact`) at a 1 ms step. The motors are ideal torque
+    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step. The motors are ideal torque
     sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
     50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
     modelled) from spinning up without bound under random actions. The task suits bounding (back stance,
@@ -70,7 +70,7 @@ class BoundingEnv(gym.Env):
 
     ## Observation space
     ``Box(low, high, (17,), float32)`` by default (18 with ``exclude_current_positions_from_observation=False``),
-    documented in :mod:`hsddp_gym.observation`:
+    documented in :mod:`hsddp_gym.core.observation`:
 
     | index | observation | unit |
     |---|---|---|
@@ -86,7 +86,7 @@ class BoundingEnv(gym.Env):
     At reset, before any step, a foot is flagged when it is at most 1 mm above the ground.
     The trunk ``x`` is excluded by default (as HalfCheetah-v5) and always reported in ``info``. The bounds
     are finite and generous; values beyond them are clipped. ``env.unwrapped.observation_structure`` gives
-    the block sizes and :func:`hsddp_gym.observation.state_from_observation` with
+    the block sizes and :func:`hsddp_gym.core.observation.state_from_observation` with
     ``env.unwrapped.observation_layout`` maps an observation back to ``(state (14,), contact Mode, phase)``.
 
     ## Rewards
@@ -99,7 +99,7 @@ class BoundingEnv(gym.Env):
     ``reward_healthy``).
 
     ## Starting state
-    The paper's initial state (:func:`hsddp_gym.references.paper_initial_state`: mid back stance, back foot
+    The paper's initial state (:func:`hsddp_gym.core.references.paper_initial_state`: mid back stance, back foot
     0.2 mm above the ground, 0.9 m/s forward) plus uniform noise ``U(-s, s)`` on ``q`` and Gaussian noise
     ``s N(0, 1)`` on ``v`` (``s = reset_noise_scale``), drawn from ``self.np_random``; if the noise puts a
     foot below the ground, the trunk is raised until the lowest foot is at height 0.
@@ -463,7 +463,7 @@ class BoundingEnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'human' "
                             "to gym.make / BoundingEnv")
             return None
-        from hsddp_gym.render import render_state
+        from hsddp_gym.viz.render import render_state
 
         x = self.sim.x
         if not np.all(np.isfinite(x)):

@@ -46,7 +46,7 @@ makes every combination fail the checks, the least-violating one is used and cou
 :attr:`ContactSimulator.lcp_fallbacks`.
 
 Relation to the planner's model: a sticking stance foot gives ``J_c(q_k) v_k+1 = 0``, whereas the KKT
-model of :mod:`hsddp_gym.dynamics` imposes ``J_c a + dJ_c v = 0``. Since ``v_k`` satisfies the constraint
+model of :mod:`hsddp_gym.core.dynamics` imposes ``J_c a + dJ_c v = 0``. Since ``v_k`` satisfies the constraint
 with the previous Jacobian, ``J_c(q_k) v_k = h dJ_c v + O(h^2)`` and the implied acceleration is the KKT
 one: sticking stance trajectories of the two agree to O(h) (tested: halving ``h`` halves the gap).
 
@@ -56,7 +56,7 @@ capped at ``torque_limit`` up to ``w_full`` and linearly down to zero at ``w_zer
 Cost per 1 ms step: one ABA, joint Jacobians and two frame Jacobians; with contacts also ``M^-1`` and three
 small products; the LCP is pure Python (an unrolled 4x4 Cholesky for two sticking feet).
 
-Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.conventions`
+Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.core.conventions`
 (``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``, the force of the ground on the robot).
 """
 
@@ -67,9 +67,9 @@ import itertools
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.conventions import FEET, NQ, NU, NV, NX
-from hsddp_gym.model import CheetahModel
-from hsddp_gym.validation import check_in_range, check_positive, check_vector
+from hsddp_gym.core.conventions import FEET, NQ, NU, NV, NX
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.util.validation import check_in_range, check_positive, check_vector
 
 SEPARATE = 0
 """Foot state: no impulse; the foot leaves or stays above the ground."""

@@ -3,7 +3,7 @@
 Usage: python experiments/bench_datasets.py [--heuristic-episodes 200] [--mpc-episodes 6] [--mpc-steps 300]
        [--workers 1 2] [--skip-mpc]
 
-For each policy and worker count it runs ``hsddp_gym.datasets.generate_dataset`` into a temporary directory
+For each policy and worker count it runs ``hsddp_gym.datasets.generation.generate_dataset`` into a temporary directory
 and prints: episodes, transitions, the episode-generation wall time (worker start-up included: spawn-started
 processes import numpy, Pinocchio, numba and gymnasium), transitions/s, the start-up time alone (measured
 separately as W one-step episodes on a fresh pool) and the rate without it, and the total time including the
@@ -22,7 +22,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from hsddp_gym.datasets import PolicySpec, collect_episodes, generate_dataset
+from hsddp_gym.datasets.collection import collect_episodes
+from hsddp_gym.datasets.generation import generate_dataset
+from hsddp_gym.datasets.recording import PolicySpec
 
 
 def startup_time(policy: str, workers: int) -> float:

@@ -25,13 +25,13 @@ import timeit
 
 import numpy as np
 import pinocchio as pin
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
-from hsddp_gym.conventions import NGRF, NQ, NX, Mode
-from hsddp_gym.dynamics import INTEGRATORS, HybridDynamics, Linearization
-from hsddp_gym.references import paper_initial_state
-from hsddp_gym.rollout import Trajectory, rollout
-from hsddp_gym.schedule import ModeSchedule
-from planners.heuristic import HeuristicBoundingController
+from hsddp_gym.core.conventions import NGRF, NQ, NX, Mode
+from hsddp_gym.core.dynamics import INTEGRATORS, HybridDynamics, Linearization
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.core.rollout import Trajectory, rollout
+from hsddp_gym.core.schedule import ModeSchedule
 
 TARGET_US_PER_KNOT = 30.0
 MODES = (Mode.FLIGHT, Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)
@@ -121,10 +121,11 @@ def bench_trajectory(dyn: HybridDynamics, traj: Trajectory, args) -> dict[str, f
 
 def bench_fused(dyn: HybridDynamics, traj: Trajectory, args) -> float:
     """µs per knot of the solver's own step + all derivatives: one policy rollout that linearizes every knot
-    on the way (``planners.hsddp.rollout_policy`` with ``lin``, the full-step line-search trial), here with
+    on the way (``hsddp_gym.planners.optimizer.hsddp.rollout_policy`` with ``lin``, the full-step line-search trial),
+    here with
     the open-loop controls of ``traj`` (no feedback), including the resets."""
-    from planners.hsddp import _Traj, rollout_policy
-    from planners.problem import HybridProblem
+    from hsddp_gym.planners.optimizer.hsddp import _Traj, rollout_policy
+    from hsddp_gym.planners.optimizer.problem import HybridProblem
 
     n = traj.U.shape[0]
     problem = HybridProblem.bounding(args.cycles, dynamics=dyn)

@@ -19,9 +19,9 @@ import time
 
 import gymnasium as gym
 import numpy as np
+from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, BoundingEnv
 
 import hsddp_gym  # noqa: F401  (registers the env)
-from envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, BoundingEnv
 
 GOAL_SIM_STEPS_PER_S = 20_000
 

@@ -36,21 +36,21 @@ import pstats
 import statistics
 import time
 
+import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 import numpy as np
 import pinocchio as pin
-
-import planners.hsddp as hsddp_module
-from planners.hsddp import HSDDP
-from planners.problem import HybridProblem
-from planners.solution import SolverOptions
-from planners.tasks import heuristic_warm_start
+from hsddp_gym.planners.optimizer.hsddp import HSDDP
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.solution import SolverOptions
+from hsddp_gym.planners.tasks import heuristic_warm_start
 
 GOAL_MS_PER_DDP_ITERATION = 50.0
 GOAL_SOLVE_S = 5.0
 
 
 class RolloutMeter:
-    """Wraps ``planners.hsddp.rollout_policy`` (the solver looks it up at call time) to time every rollout,
+    """Wraps ``hsddp_gym.planners.optimizer.hsddp.rollout_policy`` (the solver looks it up at call time) to time every
+    rollout,
     split into plain rollouts and rollouts that also linearize (``lin`` given)."""
 
     def __init__(self) -> None:
@@ -133,9 +133,10 @@ def calibrate(problem: HybridProblem, sol, cs, repeat: int = 5) -> dict:
     """Best-of-``repeat`` times [s] of the pieces of a line-search trial around the solved trajectory (the
     feedback policy with ``eps = 1``): a plain rollout, a rollout with fused linearization, a separate
     linearization pass, an objective evaluation. Measured outside the solve (warm caches): a lower bound."""
-    from hsddp_gym.dynamics import Linearization
-    from planners.hsddp import _Traj
-    from planners.objective import Objective
+    from hsddp_gym.planners.optimizer.hsddp import _Traj
+    from hsddp_gym.planners.optimizer.objective import Objective
+
+    from hsddp_gym.core.dynamics import Linearization
 
     rollout = hsddp_module.rollout_policy
     tr = _Traj(problem.n_knots, problem.n_phases)

@@ -1,8 +1,8 @@
 """One comparison of every available policy on hsddp_gym/Bounding-v0 with the same protocol.
 
 Protocol: ``--episodes`` (default 10) episodes seeded 0, 1, ..., default env (reset noise 0.01, 1000-step
-limit), deterministic actions, via ``planners.imitation.evaluate_policy_episodes`` (which runs
-``planners.evaluation.run_episode``). The plan-tracking expert is reset to its plan's initial state
+limit), deterministic actions, via ``hsddp_gym.learning.reporting.evaluate_policy_episodes`` (which runs
+``hsddp_gym.planners.policies.evaluation.run_episode``). The plan-tracking expert is reset to its plan's initial state
 (``options={"state": plan.X[0]}``: no reset noise, so its episodes are identical whatever the seed).
 
 Policies: ``mpc`` (HS-DDP MPC, default options), ``expert`` (tracks the 5-cycle al-reb plan), ``heuristic``,
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hsddp_gym.io import atomic_path, write_json
+from hsddp_gym.util.io import atomic_path, write_json
 
 POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
 TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summary.json"),
@@ -42,18 +42,21 @@ TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summa
 def build(name: str, run_dir: Path | None):
     """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
     import gymnasium as gym
+    from hsddp_gym.planners.policies.base import EnvInterface
+    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+    from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
     import hsddp_gym  # noqa: F401
-    from planners.policies import EnvInterface, HeuristicPolicy, PlanTrackingExpert, RandomPolicy
 
     env = gym.make("hsddp_gym/Bounding-v0")  # only its public settings are read (the default env)
     interface = EnvInterface.from_env(env)
     if name == "mpc":
-        from planners.mpc import MPCOptions, MPCPolicy
+        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
         return MPCPolicy(interface, MPCOptions()), None, {"samples": "-", "train_time_s": None}
     if name == "expert":
-        from planners.tasks import plan_bounding
+        from hsddp_gym.planners.tasks import plan_bounding
 
         t = time.perf_counter()
         sol = plan_bounding("al-reb", cycles=5).solution
@@ -68,7 +71,7 @@ def build(name: str, run_dir: Path | None):
         raise FileNotFoundError(f"{name}: missing {', '.join(missing)} in {run_dir}")
     summary = json.loads((run_dir / "summary.json").read_text())
     if name in ("bc", "dagger"):
-        from planners.imitation import MLPPolicy
+        from hsddp_gym.learning.bc import MLPPolicy
 
         policy = MLPPolicy.load(run_dir / "policy.npz", interface)
         if name == "bc":
@@ -77,7 +80,7 @@ def build(name: str, run_dir: Path | None):
         else:
             samples = f"{summary['expert_labels']} expert labels ({summary['expert']['name']} expert)"
     else:
-        from planners.sb3 import load_trained_policy
+        from hsddp_gym.learning.sb3 import load_trained_policy
 
         policy = load_trained_policy(run_dir, env)
         samples = f"{summary['steps']} env steps"
@@ -94,7 +97,7 @@ def _read_csv(path: Path) -> list[dict]:
 def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bool:
     """``out/curves.png``: PPO/SAC return against env steps, BC/DAgger against expert labels, and the expert's
     (MPC's) evaluation return as a dashed line in both; False when matplotlib is missing."""
-    from hsddp_gym.plotting import _plt, _save
+    from hsddp_gym.viz.plotting import _plt, _save
 
     try:
         plt = _plt()
@@ -173,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    from planners.imitation import evaluate_policy_episodes
+    from hsddp_gym.learning.reporting import evaluate_policy_episodes
 
     runs = {n: Path(getattr(args, n) or Path(args.runs) / n) for n in TRAINED}
     rows, notes = [], []

@@ -1,7 +1,8 @@
 """How well the plan-tracking expert reproduces the 5-cycle ``al-reb`` HS-DDP plan in hsddp_gym/Bounding-v0.
 
 The plan (paper task 1, 1480 knots of 1 ms) is computed, the env is reset to its initial state
-(``options={"state": X[0]}``) and :class:`planners.policies.PlanTrackingExpert` acts with the plan's feedback
+(``options={"state": X[0]}``) and :class:`hsddp_gym.planners.policies.expert.PlanTrackingExpert` acts with the plan's
+feedback
 law at the env's control rate while the env's own contacts decide the touchdowns. Over the tracked part
 (until the touchdown that ends the plan) the state of the env is compared, step by step, with the plan's state
 at the cursor that produced the action. Printed and written to ``OUT/expert_tracking.json``: the maximum and
@@ -21,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hsddp_gym.conventions import IPITCH, IZ, NQ
-from hsddp_gym.io import write_json
+from hsddp_gym.core.conventions import IPITCH, IZ, NQ
+from hsddp_gym.util.io import write_json
 
 
 def main(argv=None) -> int:
@@ -35,10 +36,10 @@ def main(argv=None) -> int:
         parser.error(f"--steps must be >= 1, got {args.steps}")
 
     import gymnasium as gym
+    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.tasks import plan_bounding
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from planners.policies import PlanTrackingExpert
-    from planners.tasks import plan_bounding
 
     sol = plan_bounding("al-reb", cycles=5).solution
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=args.steps)

@@ -22,8 +22,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from hsddp_gym.cli import run_rollouts
-from hsddp_gym.io import write_json
+from hsddp_gym.util.io import write_json
+from hsddp_gym.workflows import run_rollouts
 
 
 def main(argv=None) -> int:
@@ -45,7 +45,7 @@ def main(argv=None) -> int:
         summary[policy] = run_rollouts(policy, n, 0, out / policy, video=policy == "mpc")
     t, dvx, dvz, dw = args.push
     push = {"delta_v": [dvx, dvz, dw], "time": t}
-    from planners.mpc import MPCOptions
+    from hsddp_gym.planners.policies.mpc import MPCOptions
 
     for name, policy, recovery, options in (("heuristic", "heuristic", False, None), ("mpc", "mpc", False, None),
                                             ("mpc_recovery_5ms", "mpc", False, MPCOptions(recovery=True)),

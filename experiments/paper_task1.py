@@ -11,9 +11,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from hsddp_gym import plotting
-from hsddp_gym.io import write_json
-from planners.tasks import PLAN_METHODS, plan_bounding
+from hsddp_gym.planners.tasks import PLAN_METHODS, plan_bounding
+
+from hsddp_gym.util.io import write_json
+from hsddp_gym.viz import plotting
 
 PAPER = {"al": {"al_iterations": 3}, "al-reb": {"al_iterations": 4}}
 

@@ -12,12 +12,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.tasks import fig8_study, run_sto
 
-from hsddp_gym.io import write_json
-from hsddp_gym.plotting import _plt, _save
-from planners.problem import HybridProblem
-from planners.sto import fig8_study
-from planners.tasks import run_sto
+from hsddp_gym.util.io import write_json
+from hsddp_gym.viz.plotting import _plt, _save
 
 PAPER = {"initial_total_time": 0.296, "hsddp": {"total_time": 0.2335, "reduction": 0.211},
          "open-loop": {"reduction": 0.063}}

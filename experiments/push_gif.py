@@ -1,7 +1,7 @@
 """A side-by-side GIF of one push: the contact-event heuristic (left) and the MPC with push recovery (right),
 same seed, same push, from shortly before the push until ``--after`` seconds after it (or the fall).
 
-Each panel is :func:`hsddp_gym.render.render_state` of the episode's states, captioned with the policy, the
+Each panel is :func:`hsddp_gym.viz.render.render_state` of the episode's states, captioned with the policy, the
 env time and, once it has happened, "FELL". Every ``--stride``-th control step is drawn and the GIF plays in
 real time. The default is the +10 rad/s nose-down push of the README on seed 103 (the heuristic falls, the
 recovering MPC bounds on with its own actions, tested in ``tests/test_mpc_recovery.py``).
@@ -23,11 +23,11 @@ import numpy as np
 def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple[np.ndarray, bool, float]:
     """``(states (T+1, 14), fell, control period [s])`` of one pushed episode."""
     import gymnasium as gym
+    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from planners.evaluation import run_episode
-    from planners.mpc import MPCOptions, MPCPolicy
-    from planners.policies import HeuristicPolicy
 
     env = gym.make("hsddp_gym/Bounding-v0")
     if policy_name == "heuristic":
@@ -57,8 +57,9 @@ def main(argv=None) -> int:
         p.error(f"--after must be > 0, got {args.after}")
     if args.stride < 1:
         p.error(f"--stride must be >= 1, got {args.stride}")
-    from envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
-    from hsddp_gym.render import render_state, save_gif
+    from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
+
+    from hsddp_gym.viz.render import render_state, save_gif
 
     push = {"delta_v": list(args.push[1:]), "time": t_push}
     panels = []

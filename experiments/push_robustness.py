@@ -23,8 +23,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
-from hsddp_gym.io import atomic_path, write_json
+from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
+
+from hsddp_gym.util.io import atomic_path, write_json
 
 DEFAULT_PUSHES = [
     (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (-1.5, 0.0, 0.0), (1.5, 0.0, 0.0), (3.0, 0.0, 0.0),
@@ -41,8 +42,9 @@ the push-robust settings with ``recovery_handover=True`` (the heuristic acts for
 
 
 def make_policy(name: str, env, mpc_options: dict | None = None):
-    from planners.mpc import MPCOptions, MPCPolicy
-    from planners.policies import HeuristicPolicy, RandomPolicy
+    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+    from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
     if name == "mpc-options":
         return MPCPolicy.from_env(env, options=MPCOptions(**(mpc_options or {})))
@@ -65,9 +67,9 @@ def push_label(dv) -> str:
 def run_one(task: tuple) -> dict:
     """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps, mpc_options)``."""
     import gymnasium as gym
+    from hsddp_gym.planners.policies.evaluation import run_episode
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from planners.evaluation import run_episode
 
     name, dv, seed, push_time, steps, mpc_options = task
     env = gym.make("hsddp_gym/Bounding-v0")
@@ -166,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.mpc_options is not None:
         import json
 
-        from planners.mpc import MPCOptions
+        from hsddp_gym.planners.policies.mpc import MPCOptions
 
         try:
             mpc_options = json.loads(args.mpc_options)

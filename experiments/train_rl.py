@@ -1,6 +1,6 @@
 """RL baselines on hsddp_gym/Bounding-v0: PPO and SAC with the RL-Zoo HalfCheetah-v3 hyperparameters.
 
-Hyperparameters (planners.sb3.PPO_HYPERPARAMS / SAC_HYPERPARAMS, from rl-baselines3-zoo hyperparams/*.yml):
+Hyperparameters (hsddp_gym.learning.sb3.PPO_HYPERPARAMS / SAC_HYPERPARAMS, from rl-baselines3-zoo hyperparams/*.yml):
 
 * PPO: VecNormalize (obs + reward), 1 env, n_steps 512, batch 64, gamma 0.98, gae_lambda 0.92,
   lr 2.0633e-5, clip 0.1, n_epochs 20, ent_coef 4e-4, max_grad_norm 0.8, vf_coef 0.58,
@@ -27,7 +27,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from planners.sb3 import ALGOS, train_sb3
+from hsddp_gym.learning.sb3 import ALGOS, train_sb3
 
 
 def main(argv: list[str] | None = None) -> int:

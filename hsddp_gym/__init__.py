@@ -1,7 +1,8 @@
 """hsddp_gym: HS-DDP for the planar MIT Mini Cheetah, and a Gymnasium bounding benchmark.
 
 Importing the package registers the Gymnasium environment ``hsddp_gym/Bounding-v0`` (entry point
-``envs.bounding:BoundingEnv``, imported lazily), so both ``import hsddp_gym; gym.make("hsddp_gym/Bounding-v0")``
+``hsddp_gym.envs.bounding:BoundingEnv``, imported lazily), so both ``import hsddp_gym;
+gym.make("hsddp_gym/Bounding-v0")``
 and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work.
 """
 
@@ -16,7 +17,7 @@ def _register_envs() -> None:
     import gymnasium as gym
 
     if BOUNDING_ENV_ID not in gym.registry:
-        gym.register(id=BOUNDING_ENV_ID, entry_point="envs.bounding:BoundingEnv",
+        gym.register(id=BOUNDING_ENV_ID, entry_point="hsddp_gym.envs.bounding:BoundingEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
 
 

@@ -10,7 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from hsddp_gym.io import write_json
+from hsddp_gym.util.io import write_json
+from hsddp_gym.workflows import ROLLOUT_POLICIES, run_rollouts, write_plan_outputs
 
 
 def _number(kind, low: float, high: float = float("inf"), low_open: bool = False, what: str = ""):
@@ -33,47 +34,16 @@ _nonnegative_float = _number(float, 0.0, what=">= 0")
 _fraction = _number(float, 0.0, 1.0, what="in [0, 1]")
 
 
-# ----------------------------------------------------------------------------------------------- plan
-def _plan_outputs(result, out: Path, plots: bool) -> dict:
-    files = {}
-    pr = result.problem
-    if result.solution is not None:
-        result.solution.save(out / "solution.npz")
-        files["solution"] = "solution.npz"
-    else:
-        from hsddp_gym.io import write_npz
-
-        write_npz(out / "trajectory.npz", X=result.X, X_pre=result.X_pre, U=result.U, GRF=result.GRF)
-        files["trajectory"] = "trajectory.npz"
-    if plots:
-        from hsddp_gym import plotting
-
-        robot = pr.dynamics.robot
-        td = [tuple(float(c) for c in robot.foot_positions(result.X_pre[i, :7])[f])
-              for i, f in enumerate(pr.touchdown) if f >= 0]
-        plotting.plot_motion_strips(robot, {result.method: result.X}, out / "motion.png",
-                                    touchdowns={result.method: td})
-        plotting.plot_states({result.method: result.X}, pr.dt, out / "states.png", target_speed=None)
-        plotting.plot_forces_torques(pr.dt, result.U, result.GRF, pr.constraints.torque_limit,
-                                     pr.constraints.friction, out / "forces_torques.png", stance=pr.stance, foot=0,
-                                     title=f"{result.method}: front foot GRF and joint torques")
-        files.update(motion="motion.png", states="states.png", forces_torques="forces_torques.png")
-        if result.solution is not None:
-            plotting.plot_convergence({result.method: result.solution}, out / "convergence.png")
-            files["convergence"] = "convergence.png"
-    return files
-
-
 def cmd_plan(args) -> int:
-    from planners.solution import SolverOptions
-    from planners.tasks import plan_bounding
+    from hsddp_gym.planners.optimizer.solution import SolverOptions
+    from hsddp_gym.planners.tasks import plan_bounding
 
     out = Path(args.out)
     options = SolverOptions(max_al_iterations=args.max_al_iterations, max_ddp_iterations=args.max_ddp_iterations)
     result = plan_bounding(args.method, cycles=args.cycles, speed=args.speed, options=options,
                            verbose=not args.quiet)
     summary = dict(result.summary)
-    summary["files"] = _plan_outputs(result, out, not args.no_plots)
+    summary["files"] = write_plan_outputs(result, out, not args.no_plots)
     summary["command"] = args.command_line
     write_json(out / "summary.json", summary)
     _print_summary(summary)
@@ -92,7 +62,7 @@ def _print_summary(summary: dict) -> None:
 
 # ----------------------------------------------------------------------------------------------- sto
 def cmd_sto(args) -> int:
-    from planners.tasks import run_sto
+    from hsddp_gym.planners.tasks import run_sto
 
     out = Path(args.out)
 
@@ -114,88 +84,6 @@ def cmd_sto(args) -> int:
           f"durations [ms] {[round(1e3 * d, 1) for d in summary['mode_durations']]}")
     print(f"wrote {out / 'summary.json'}")
     return 0
-
-
-# ----------------------------------------------------------------------------------------------- rollout
-ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
-
-
-def make_policy(name: str, env, seed: int = 0, mpc_options=None):
-    """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic`` or ``random``) and the reset
-    options it needs (the expert starts from its plan's initial state)."""
-    from planners.policies import HeuristicPolicy, PlanTrackingExpert, RandomPolicy
-
-    if name == "mpc":
-        from planners.mpc import MPCOptions, MPCPolicy
-
-        return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
-    if name == "expert":
-        from planners.tasks import plan_bounding
-
-        sol = plan_bounding("al-reb", cycles=5).solution
-        return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0]}
-    if name == "heuristic":
-        return HeuristicPolicy.from_env(env), None
-    if name == "random":
-        return RandomPolicy.from_env(env, seed=seed), None
-    raise ValueError(f"policy must be one of {ROLLOUT_POLICIES}, got {name!r}")
-
-
-def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
-                 env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None) -> dict:
-    """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
-
-    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
-    MPC with its push-robust settings (:meth:`planners.mpc.MPCOptions.push_recovery`), ``mpc_options`` with any
-    :class:`planners.mpc.MPCOptions` (not both)."""
-    import gymnasium as gym
-    from tqdm import tqdm
-
-    import hsddp_gym  # noqa: F401  (registers the env)
-    from planners.evaluation import run_episode, summarize
-
-    out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = dict(env_kwargs or {})
-    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
-        raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
-    if mpc_recovery and mpc_options is not None:
-        raise ValueError("give mpc_recovery or mpc_options, not both")
-    if mpc_recovery:
-        from planners.mpc import MPCOptions
-
-        mpc_options = MPCOptions.push_recovery()
-    policy, options = make_policy(policy_name, env, seed, mpc_options=mpc_options)
-    if push is not None:
-        options = dict(options or {})
-        options["push"] = push  # {"delta_v": (3,), "time": t}
-    results = []
-    for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
-        results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
-    summary = summarize(results)
-    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
-                   max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
-    if mpc_options is not None:
-        import dataclasses
-
-        summary["mpc_options"] = dataclasses.asdict(mpc_options)
-    if mpc_options is not None or mpc_recovery:
-        summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
-                       fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
-    if video and results and results[0].frames:
-        from hsddp_gym.render import save_gif
-
-        save_gif(results[0].frames, out / "episode0.gif", fps=env.metadata.get("render_fps", 30))
-        summary["video"] = "episode0.gif"
-    from hsddp_gym.io import write_npz
-
-    write_npz(out / "episode0.npz", states=results[0].states, actions=results[0].actions,
-              rewards=results[0].rewards)
-    write_json(out / "summary.json", summary)
-    env.close()
-    return summary
 
 
 def cmd_rollout(args) -> int:
@@ -222,42 +110,23 @@ def cmd_rollout(args) -> int:
 
 # ----------------------------------------------------------------------------------------------- demo
 def cmd_demo(args) -> int:
-    from planners.tasks import plan_bounding
+    from hsddp_gym.workflows import run_demo
 
-    out = Path(args.out)
-    print("[1/3] heuristic bounding controller (the warm start), 5 cycles of 80/72/72/72 ms ...")
-    heur = plan_bounding("heuristic", cycles=args.cycles)
-    print("[2/3] HS-DDP plan (impact-aware DDP + AL switching constraints + relaxed barriers) ...")
-    plan = plan_bounding("al-reb", cycles=args.cycles, verbose=not args.quiet)
-    from hsddp_gym import plotting
-
-    robot = plan.problem.dynamics.robot
-    plotting.plot_motion_strips(robot, {"heuristic warm start": heur.X, "HS-DDP (al-reb)": plan.X},
-                                out / "motion.png")
-    plotting.plot_states({"heuristic": heur.X, "HS-DDP": plan.X}, plan.problem.dt, out / "states.png",
-                         target_speed=1.0)
-    plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")
-    plan.solution.save(out / "solution.npz")
-    print(f"[3/3] HS-DDP MPC in hsddp_gym/Bounding-v0: {args.episodes} seeded episode(s) ...")
-    mpc = run_rollouts("mpc", args.episodes, 0, out / "mpc", video=not args.no_video, quiet=args.quiet,
-                       max_episode_steps=args.max_episode_steps)
-    summary = {"heuristic_plan": heur.summary, "hsddp_plan": plan.summary, "mpc_in_env": mpc,
-               "files": ["motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"]
-               + ([] if args.no_video else ["mpc/episode0.gif"])}
-    write_json(out / "summary.json", summary)
+    summary = run_demo(Path(args.out), cycles=args.cycles, episodes=args.episodes, video=not args.no_video,
+                       quiet=args.quiet, max_episode_steps=args.max_episode_steps)
     for name in ("heuristic_plan", "hsddp_plan"):
         print(f"{name}:")
         _print_summary(summary[name])
     print("mpc_in_env:")
     for k in ("mean_return", "falls", "mean_forward_speed", "real_time_factor", "mean_replan_ms"):
-        v = mpc.get(k)
+        v = summary["mpc_in_env"].get(k)
         print(f"  {k:<24} {v:.4g}" if isinstance(v, float) else f"  {k:<24} {v}")
-    print(f"wrote {out}/summary.json and figures")
+    print(f"wrote {args.out}/summary.json and figures")
     return 0
 
 
 # ----------------------------------------------------------------------------------------------- dataset, train
-# (demonstration datasets and learning baselines: hsddp_gym.datasets, planners.imitation, planners.sb3)
+# (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
@@ -273,7 +142,7 @@ def _int_list(text: str) -> list[int]:
 
 
 def cmd_dataset(args) -> int:
-    from hsddp_gym.datasets import generate_dataset, partial_dir
+    from hsddp_gym.datasets.generation import generate_dataset, partial_dir
 
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     try:
@@ -316,7 +185,7 @@ def cmd_train(args) -> int:
     out = Path(args.out)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.algo in ("ppo", "sac"):
-        from planners.sb3 import train_sb3
+        from hsddp_gym.learning.sb3 import train_sb3
 
         if args.steps is None:
             print("error: --steps is required for ppo and sac", file=sys.stderr)
@@ -331,7 +200,7 @@ def cmd_train(args) -> int:
                         time_limit=args.time_limit)
         summary = res.summary
     elif args.algo == "bc":
-        from planners.imitation import BCConfig, run_bc
+        from hsddp_gym.learning.bc import BCConfig, run_bc
 
         if args.dataset is None:
             print("error: --dataset is required for bc", file=sys.stderr)
@@ -343,7 +212,8 @@ def cmd_train(args) -> int:
                          env_kwargs=env_kwargs or None, max_episode_steps=args.max_episode_steps,
                          progress=not args.quiet)
     else:
-        from planners.imitation import BCConfig, DAggerConfig, run_dagger
+        from hsddp_gym.learning.bc import BCConfig
+        from hsddp_gym.learning.dagger import DAggerConfig, run_dagger
 
         config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
@@ -407,7 +277,8 @@ def _add_learning_parsers(sub) -> None:
     p = sub.add_parser("train", help="train a baseline: behaviour cloning, DAgger, PPO or SAC",
                        description="bc: MLP 2x256 ReLU, Adam 1e-3, MSE on normalized actions, on --dataset; dagger: "
                                    "BC + relabelling rounds by --expert with beta = BETA_DECAY**round; ppo / sac: "
-                                   "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters (planners.sb3). "
+                                   "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters "
+                                   "(hsddp_gym.learning.sb3). "
                                    "Writes the model, summary.json (with training wall time and a 10-episode "
                                    "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
     p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,

@@ -1,1 +1,2 @@
-"""Trajectory optimization (impact-aware DDP, HS-DDP, STO) and the policies built on it."""
+"""Installed as ``hsddp_gym.planners``: the optimizer (:mod:`hsddp_gym.planners.optimizer`), the policies built
+on it (:mod:`hsddp_gym.planners.policies`) and the paper's planning tasks (:mod:`hsddp_gym.planners.tasks`)."""

@@ -6,14 +6,21 @@ import dataclasses
 import time
 
 import numpy as np
+from hsddp_gym.planners.optimizer.callbacks import Callback
+from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj
+from hsddp_gym.planners.optimizer.metrics import trajectory_summary
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.solution import Solution, SolverOptions
+from hsddp_gym.planners.optimizer.sto import (
+    STOOptions,
+    duration_step,
+    rollout_time_policy,
+    step_size_study,
+    time_derivatives,
+)
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
-from hsddp_gym.rollout import Trajectory, rollout
-from planners.callbacks import Callback
-from planners.heuristic import HeuristicBoundingController
-from planners.hsddp import HSDDP
-from planners.metrics import trajectory_summary
-from planners.problem import HybridProblem
-from planners.solution import Solution, SolverOptions
+from hsddp_gym.core.rollout import Trajectory, rollout
 
 PLAN_METHODS = ("heuristic", "ddp", "al", "al-reb")
 
@@ -97,13 +104,13 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
     the same costs, AL parameters and heuristic warm start as task 1).
 
     ``min_duration``, ``max_duration``: duration bounds [s] (a number or one per phase; None:
-    :class:`planners.sto.STOOptions`' defaults).
+    :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' defaults).
 
     Returns:
         ``(STOResult, summary dict)``; the summary has ``initial_total_time``, ``total_time``, ``reduction``
         (fraction), ``mode_durations``, ``iterations``, ``final_cost``, ``switching_violation``.
     """
-    from planners.sto import STOOptions, optimize_switching_times
+    from hsddp_gym.planners.optimizer.sto import STOOptions, optimize_switching_times
 
     problem = HybridProblem.bounding(cycles, durations=durations)
     warm = heuristic_warm_start(problem)
@@ -133,3 +140,35 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
         "second_order": second_order,
     }
     return res, summary
+
+
+def fig8_study(problem: HybridProblem, steps, fraction: float = 0.1, solver_options: SolverOptions | None = None,
+               U_warm: np.ndarray | None = None, options: STOOptions | None = None) -> dict:
+    """The point and the study of paper Fig. 8 (:func:`step_size_study`): Algorithm 1 solves ``problem`` (from
+    ``U_warm (N, 4)``; default the heuristic warm start), then ``fraction`` of Algorithm 2's first Newton step
+    on the durations is rolled out with the feedback policy, the way Algorithm 2 moves the durations before
+    Algorithm 1 re-optimizes the controls. The default tenth is about the step that Algorithm 2's line search
+    accepts first on the paper's task 2; there both the control and the duration step change the objective.
+
+    Returns :func:`step_size_study`'s dict plus ``"z0"``, ``"z1"`` (the durations before and at the point).
+    """
+    from hsddp_gym.planners.tasks import heuristic_warm_start
+
+    if not 0.0 < fraction <= 1.0:
+        raise ValueError(f"fraction must be in (0, 1], got {fraction!r}")
+    options = options if options is not None else STOOptions()
+    solver = HSDDP(solver_options if solver_options is not None else SolverOptions())
+    U0 = heuristic_warm_start(problem).U if U_warm is None else U_warm
+    solver.solve(problem, U0)
+    d = time_derivatives(solver, problem)
+    z0 = np.asarray(problem.schedule.durations, dtype=np.float64)
+    lower, upper = options.bounds(problem.n_phases)
+    dz, _, _ = duration_step(d.V_z, d.V_zz, z0, lower, upper)
+    z1 = np.clip(z0 + fraction * dz, lower, upper)
+    pr1 = problem.with_durations(z1)
+    cand = _Traj(pr1.n_knots, pr1.n_phases)
+    if not rollout_time_policy(pr1, solver._ws.nominal, d, z1 - z0, True, cand):
+        raise RuntimeError("the feedback rollout to the Fig. 8 point is not finite")
+    study = step_size_study(solver, pr1, cand.U.copy(), steps)
+    study["z0"], study["z1"] = z0.tolist(), z1.tolist()
+    return study

@@ -12,10 +12,10 @@ import types
 import numpy as np
 import pytest
 
-from hsddp_gym.conventions import NQ, NU, NX, Mode
-from hsddp_gym.dynamics import HybridDynamics
-from hsddp_gym.model import CheetahModel
-from hsddp_gym.references import paper_initial_state
+from hsddp_gym.core.conventions import NQ, NU, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.references import paper_initial_state
 
 SEED = 20200601
 """Seed of the ``rng`` fixture (every test gets its own generator with this seed)."""

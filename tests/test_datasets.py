@@ -14,19 +14,10 @@ import pytest
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
-from hsddp_gym.datasets import (
-    DECISION_SCHEMA,
-    GAIN_KEY,
-    NONDETERMINISTIC_INFOS,
-    PolicySpec,
-    collect_episodes,
-    generate_dataset,
-    load_minari,
-    load_npz,
-    minari_root,
-    partial_dir,
-    read_metadata,
-)
+from hsddp_gym.datasets.collection import collect_episodes
+from hsddp_gym.datasets.generation import generate_dataset, partial_dir
+from hsddp_gym.datasets.recording import DECISION_SCHEMA, GAIN_KEY, NONDETERMINISTIC_INFOS, PolicySpec
+from hsddp_gym.datasets.storage import load_minari, load_npz, minari_root, read_metadata
 
 STEPS = 50
 EPISODES = 3
@@ -229,7 +220,7 @@ def test_interrupted_run_resumes_with_the_same_data(tmp_path, monkeypatch, worke
 
 def _interrupt_while_writing(monkeypatch):
     """Make the final write raise KeyboardInterrupt (Ctrl-C after every episode is checkpointed)."""
-    import hsddp_gym.datasets as D
+    import hsddp_gym.datasets.generation as D
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
@@ -271,7 +262,7 @@ def test_rerun_resumes_or_refuses_on_the_command_line(tmp_path, monkeypatch, cap
 
 
 def test_checkpoints_of_other_code_are_not_resumed(tmp_path, monkeypatch):
-    import hsddp_gym.datasets as D
+    import hsddp_gym.datasets.generation as D
 
     out = tmp_path / "code"
     with monkeypatch.context() as m:
@@ -347,7 +338,7 @@ def test_mpc_fields_and_feedback_law(tmp_path):
 def test_action_noise_executes_noisy_actions_and_stores_clean_labels(tmp_path):
     import json
 
-    from hsddp_gym.datasets import load_npz
+    from hsddp_gym.datasets.storage import load_npz
 
     out = tmp_path / "dart"
     generate_dataset("heuristic", 2, out, seed=5, max_episode_steps=25, progress=False, action_noise=0.05)

@@ -12,12 +12,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
+from hsddp_gym.envs.bounding import BoundingEnv
 
 import hsddp_gym
-from envs.bounding import BoundingEnv
-from hsddp_gym.conventions import NX, Mode
-from hsddp_gym.observation import ObservationLayout, state_from_observation
-from hsddp_gym.references import paper_initial_state
+from hsddp_gym.core.conventions import NX, Mode
+from hsddp_gym.core.observation import ObservationLayout, state_from_observation
+from hsddp_gym.core.references import paper_initial_state
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 INFO_KEYS = {"x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
@@ -67,7 +67,7 @@ def test_sb3_env_checker_passes():
 def test_registration_spec_and_time_limit():
     assert ENV_ID in gym.registry
     spec = gym.spec(ENV_ID)
-    assert spec.entry_point == "envs.bounding:BoundingEnv"
+    assert spec.entry_point == "hsddp_gym.envs.bounding:BoundingEnv"
     assert spec.max_episode_steps == hsddp_gym.BOUNDING_MAX_EPISODE_STEPS
     assert hsddp_gym.__version__ == "0.1.0"
     env = gym.make(ENV_ID, max_episode_steps=3, reset_noise_scale=0.0)
@@ -80,7 +80,7 @@ def test_registration_spec_and_time_limit():
 def test_make_without_prior_import_in_a_fresh_interpreter():
     code = ("import sys, gymnasium as gym; env = gym.make('hsddp_gym:hsddp_gym/Bounding-v0'); "
             "obs, info = env.reset(seed=0); env.step(env.action_space.sample()); "
-            "assert 'hsddp_gym' in sys.modules and 'envs.bounding' in sys.modules; print(obs.shape)")
+            "assert 'hsddp_gym' in sys.modules and 'hsddp_gym.envs.bounding' in sys.modules; print(obs.shape)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "(17,)"

@@ -1,9 +1,11 @@
 """The heuristic bounding controller, driven by the env's own contact events, bounds in ``Bounding-v0``.
 
 ``HeuristicPolicy`` acts from the observation only (state and contact flags, see
-:func:`hsddp_gym.observation.state_from_observation`) plus its own memory: a per-leg stance/swing state
-machine started by the observed touchdowns (:class:`planners.heuristic.ContactEventBoundingController`).
-The schedule-driven warm-start controller (:class:`planners.heuristic.HeuristicBoundingController`), fed the
+:func:`hsddp_gym.core.observation.state_from_observation`) plus its own memory: a per-leg stance/swing state
+machine started by the observed touchdowns
+(:class:`hsddp_gym.planners.policies.heuristic.ContactEventBoundingController`).
+The schedule-driven warm-start controller (:class:`hsddp_gym.planners.policies.heuristic.HeuristicBoundingController`),
+fed the
 contact mode from the flags, falls within about a second: with state-based contacts a stance lasts until
 the leg force vanishes (~140 ms instead of 80 ms) and the trunk pitches over. The fixed stance time with an
 active lift-off is what makes the difference (a 140 ms stance falls too, see below).
@@ -17,12 +19,16 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from hsddp_gym.planners.policies.heuristic import (
+    ContactEventBoundingController,
+    ContactEventGains,
+    HeuristicGains,
+    HeuristicPolicy,
+)
 
 import hsddp_gym  # noqa: F401
-from hsddp_gym.conventions import BACK, FRONT, Mode, mode_from_contacts
-from hsddp_gym.observation import state_from_observation
-from planners.heuristic import ContactEventBoundingController, ContactEventGains, HeuristicGains
-from planners.policies import HeuristicPolicy
+from hsddp_gym.core.conventions import BACK, FRONT, Mode, mode_from_contacts
+from hsddp_gym.core.observation import state_from_observation
 
 STEPS = 400  # 2 s at the default 5 ms control period, about 12 bounding cycles
 

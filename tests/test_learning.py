@@ -7,21 +7,17 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
+from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
-from hsddp_gym.datasets import PolicySpec, generate_dataset
-from planners.imitation import (
-    BCConfig,
-    DAggerConfig,
-    MLPPolicy,
-    dagger_rollout,
-    load_demonstrations,
-    train_bc,
-    train_dagger,
-)
-from planners.policies import HeuristicPolicy, RandomPolicy
-from planners.sb3 import as_sb3_policy
+from hsddp_gym.datasets.generation import generate_dataset
+from hsddp_gym.datasets.recording import PolicySpec
+from hsddp_gym.learning.bc import BCConfig, MLPPolicy, train_bc
+from hsddp_gym.learning.dagger import DAggerConfig, dagger_rollout, train_dagger
+from hsddp_gym.learning.demonstrations import load_demonstrations
+from hsddp_gym.learning.sb3 import as_sb3_policy
 
 torch = pytest.importorskip("torch")
 torch.set_num_threads(1)
@@ -258,7 +254,7 @@ def test_cli_bc_writes_policy_and_evaluation(dataset, tmp_path):
 def test_cli_ppo_sac_smoke(algo, tmp_path):
     import json
 
-    from planners.sb3 import load_trained_policy
+    from hsddp_gym.learning.sb3 import load_trained_policy
 
     out = tmp_path / algo
     argv = ["train", "--algo", algo, "--steps", "300", "--seed", "1", "--out", str(out), "--max-episode-steps",
@@ -288,7 +284,7 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
 
 
 def test_bc_with_gait_clock_features_has_memory_and_round_trips(dataset, tmp_path):
-    from planners.imitation import build_inputs, gait_clock_features, make_gait_clock
+    from hsddp_gym.learning.features import build_inputs, gait_clock_features, make_gait_clock
 
     demos = load_demonstrations(dataset)
     cfg = BCConfig(hidden=(32,), epochs=3, batch_size=64, features="gait_clock", lr_decay=True)
@@ -335,8 +331,9 @@ def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
     the MPC expert's action there (a fresh MPC replaying those observations gives the same labels)."""
     import json
 
-    from hsddp_gym.io import read_npz
-    from planners.mpc import MPCPolicy
+    from hsddp_gym.planners.policies.mpc import MPCPolicy
+
+    from hsddp_gym.util.io import read_npz
 
     out = tmp_path / "dagger"
     rc = cli.main(["train", "--algo", "dagger", "--expert", "mpc", "--rounds", "1", "--episodes-per-round", "1",

@@ -8,10 +8,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from hsddp_gym.conventions import BACK, FEET, FOOT_JOINTS, FOOT_SIGN, FRONT, IPITCH, IX, IZ, NQ, NX, Mode
-from hsddp_gym.model import CheetahModel
-from hsddp_gym.params import DEFAULT_PARAMS, RobotParams
-from hsddp_gym.references import end_of_mode_reference, paper_initial_state
+from hsddp_gym.core.conventions import BACK, FEET, FOOT_JOINTS, FOOT_SIGN, FRONT, IPITCH, IX, IZ, NQ, NX, Mode
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
+from hsddp_gym.core.references import end_of_mode_reference, paper_initial_state
 
 MM = 1e-3
 

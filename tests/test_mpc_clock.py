@@ -1,16 +1,17 @@
-"""The MPC's gait clock (planners.mpc.GaitClock): its rules and that a learner can rebuild it from observations."""
+"""The MPC's gait clock (hsddp_gym.planners.policies.mpc.GaitClock): its rules and that a learner can rebuild it
+from observations."""
 
 from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
 
 import hsddp_gym  # noqa: F401
-from hsddp_gym.conventions import Mode
-from planners.imitation import gait_clock_features, make_gait_clock
-from planners.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
-from planners.policies import EnvInterface
+from hsddp_gym.core.conventions import Mode
+from hsddp_gym.learning.features import gait_clock_features, make_gait_clock
 
 
 def test_clock_rules():

@@ -10,15 +10,18 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+from hsddp_gym.planners.policies.random_policy import RandomPolicy
+from hsddp_gym.planners.policies.tracking import PlanTracker
+from hsddp_gym.planners.tasks import plan_bounding
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
-from hsddp_gym.conventions import Mode
-from planners.evaluation import run_episode, summarize
-from planners.mpc import MPCOptions, MPCPolicy
-from planners.policies import EnvInterface, HeuristicPolicy, PlanTrackingExpert, RandomPolicy
-from planners.tasks import plan_bounding
-from planners.tracking import PlanTracker
+from hsddp_gym.core.conventions import Mode
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +90,7 @@ def _build(name, interface, plan):
 def test_sb3_base_policy_adapter_returns_the_callables_actions(name, plan):
     from stable_baselines3.common.policies import BasePolicy
 
-    from planners.sb3 import as_sb3_policy
+    from hsddp_gym.learning.sb3 import as_sb3_policy
 
     env = make_env(max_episode_steps=40)
     interface = EnvInterface.from_env(env)

@@ -7,10 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
+from hsddp_gym.envs.bounding import BoundingEnv
 
-from envs.bounding import BoundingEnv
-from hsddp_gym.references import paper_initial_state
-from hsddp_gym.render import render_state, render_trajectory, save_gif
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.viz.render import render_state, render_trajectory, save_gif
 
 PIL = pytest.importorskip("PIL")
 

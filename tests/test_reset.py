@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hsddp_gym.conventions import NQ, NX, Mode
-from hsddp_gym.dynamics import HybridDynamics
-from hsddp_gym.model import CheetahModel
-from hsddp_gym.references import paper_initial_state
+from hsddp_gym.core.conventions import NQ, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.references import paper_initial_state
 
 MODES = tuple(Mode)
 CONTACT_MODES = (Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)

@@ -18,8 +18,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from planners.riccati import backward_pass
+from hsddp_gym.planners.optimizer.riccati import backward_pass
 
 # ----------------------------------------------------------------------------------------- LQ machinery
 
@@ -475,7 +474,7 @@ def test_nonlinear_reset_v_x_is_the_gradient_of_the_fixed_feedback_policy_cost(r
 
 def test_cholesky_rejects_non_finite_matrices():
     """A NaN Q_uu (derivatives that overflowed) is not positive definite: the sweep must fail, not emit NaN gains."""
-    from planners.riccati import _cholesky_solve_4
+    from hsddp_gym.planners.optimizer.riccati import _cholesky_solve_4
 
     L, out, B = np.zeros((4, 4)), np.zeros((4, 1)), np.ones((4, 1))
     assert _cholesky_solve_4(np.eye(4), B, L, out) and np.allclose(out, 1.0)

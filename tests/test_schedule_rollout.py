@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
-from hsddp_gym.conventions import BACK, FRONT, IPITCH, IX, IZ, NGRF, NU, NX, Mode
-from hsddp_gym.dynamics import HybridDynamics, Linearization
-from hsddp_gym.references import paper_initial_state
-from hsddp_gym.rollout import Trajectory, knot_layout, rollout
-from hsddp_gym.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
-from planners.heuristic import HeuristicBoundingController
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IX, IZ, NGRF, NU, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics, Linearization
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.core.rollout import Trajectory, knot_layout, rollout
+from hsddp_gym.core.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
 
 BS, FL, FS, DS = Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.DOUBLE_STANCE
 
@@ -257,7 +257,7 @@ _S_PAPER = {BS: np.array([0, 0, 0.3, 0.3]), FL: np.zeros(4), FS: np.array([0.15,
 def _paper_cost(schedule: ModeSchedule, X, X_pre, U, GRF, dt: float = 1e-3) -> float:
     """sum_k h [(x-xr)'Q(x-xr) + u'Ru + (y-yd)'S(y-yd)] + sum_i 1/2 (x_i^- - xf_i)'Qf_i(x_i^- - xf_i), with
     x_r = x_f = the mode's reference posture (§3.4, v_d = 1 m/s) and y_d = body weight on each stance foot."""
-    from hsddp_gym.references import end_of_mode_reference
+    from hsddp_gym.core.references import end_of_mode_reference
 
     weight = 8.252 * 9.81
     y_ref = np.array([0.0, weight, 0.0, weight])
@@ -281,7 +281,7 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
     import json
 
     from hsddp_gym import cli
-    from hsddp_gym.io import read_npz
+    from hsddp_gym.util.io import read_npz
 
     out = tmp_path / "plan"
     assert cli.main(["plan", "--method", "heuristic", "--cycles", "5", "--out", str(out)]) == 0
@@ -299,8 +299,8 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
     assert isinstance(summary["touchdown_foot_heights"], list) and len(expected_td) == 10
     np.testing.assert_allclose(summary["touchdown_foot_heights"], expected_td, rtol=0, atol=1e-12)
     # the cost is the task cost of the written trajectory (its weights: test_summary_cost_uses_the_section_3_5_weights)
-    from planners.metrics import task_cost
-    from planners.problem import HybridProblem
+    from hsddp_gym.planners.optimizer.metrics import task_cost
+    from hsddp_gym.planners.optimizer.problem import HybridProblem
 
     assert isinstance(summary["cost"], float) and np.isfinite(summary["cost"]) and summary["cost"] > 0.0
     assert summary["cost"] == pytest.approx(task_cost(HybridProblem.bounding(5), t.X, t.X_pre, t.U, t.GRF), rel=1e-12)
@@ -316,7 +316,7 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
 
 def test_summary_cost_uses_the_section_3_5_weights(bounding_traj):
     """Issue 2: ``cost`` is the paper's eq. 32-33 cost with the weights of §3.5, recomputed here independently."""
-    from planners.tasks import plan_bounding
+    from hsddp_gym.planners.tasks import plan_bounding
 
     t = bounding_traj
     summary = plan_bounding("heuristic", cycles=5).summary

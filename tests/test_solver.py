@@ -13,14 +13,14 @@ import os
 
 import numpy as np
 import pytest
+from hsddp_gym.planners.optimizer.callbacks import VerbosePrinter
+from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, rollout_policy, solve
+from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.solution import LOG_FIELDS, IterationRecord, Solution, SolverOptions
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
-from hsddp_gym.rollout import rollout
-from planners.callbacks import VerbosePrinter
-from planners.heuristic import HeuristicBoundingController
-from planners.hsddp import HSDDP, _Traj, rollout_policy, solve
-from planners.objective import ConstraintState, Objective
-from planners.problem import HybridProblem
-from planners.solution import LOG_FIELDS, IterationRecord, Solution, SolverOptions
+from hsddp_gym.core.rollout import rollout
 
 METHODS = ("ddp", "al", "al-reb")
 
@@ -119,7 +119,7 @@ def test_non_finite_trials_are_failed_trials(failure, warm_start, monkeypatch):
     """Every full-step (eps = 1) line-search trial is made non-finite -- the rollout reports a non-finite
     state, or it "succeeds" with a NaN force (so the cost is NaN): the line search rejects them all and
     backtracks, and still never accepts an increase."""
-    import planners.hsddp as hsddp_module
+    import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 
     original = hsddp_module.rollout_policy
     spoiled = []
@@ -149,7 +149,7 @@ def test_a_warm_start_with_a_non_finite_objective_is_refused(warm_start, monkeyp
     infinite objective."""
     import warnings
 
-    import planners.hsddp as hsddp_module
+    import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 
     original = hsddp_module.rollout_policy
 

@@ -19,24 +19,23 @@ from __future__ import annotations
 import json
 import types
 
+import hsddp_gym.planners.optimizer.sto as sto_module
 import numpy as np
 import pytest
-
-import planners.sto as sto_module
-from hsddp_gym.dynamics import HybridDynamics
-from planners.hsddp import HSDDP, _Traj, constraint_metrics, rollout_policy
-from planners.objective import Objective
-from planners.problem import HybridProblem
-from planners.solution import SolverOptions
-from planners.sto import (
+from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, constraint_metrics, rollout_policy
+from hsddp_gym.planners.optimizer.objective import Objective
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.solution import SolverOptions
+from hsddp_gym.planners.optimizer.sto import (
     STOOptions,
     duration_step,
-    fig8_study,
     optimize_switching_times,
     rollout_time_policy,
     time_derivatives,
 )
-from planners.tasks import heuristic_warm_start
+from hsddp_gym.planners.tasks import fig8_study, heuristic_warm_start
+
+from hsddp_gym.core.dynamics import HybridDynamics
 
 FD_STEP_GRAD = 1e-5
 """Central-difference step for V_z [s]."""

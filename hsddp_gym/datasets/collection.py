@@ -1,0 +1,179 @@
+"""Running many seeded episodes, in this process or in spawn-started workers, with per-episode checkpoints."""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import dataclasses
+import multiprocessing
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.datasets.recording import ENV_ID, Episode, record_episode
+from hsddp_gym.util.io import read_npz
+
+
+@dataclasses.dataclass(frozen=True)
+class EpisodeTask:
+    """Everything a worker needs for one episode (picklable)."""
+
+    index: int
+    seed: int
+    policy_factory: Callable
+    env_kwargs: dict
+    max_episode_steps: int | None
+    include_gains: bool = False
+    action_noise: float = 0.0
+
+
+def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None):
+    """``gym.make("hsddp_gym/Bounding-v0", **env_kwargs)`` with an optional time-limit override."""
+    import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401  (registers the env)
+
+    kw = dict(env_kwargs or {})
+    if max_episode_steps is not None:
+        kw["max_episode_steps"] = int(max_episode_steps)
+    return gym.make(ENV_ID, **kw)
+
+
+def run_episode_task(task: EpisodeTask) -> Episode:
+    """Worker entry point (top level, spawn-safe): a fresh env and policy, one recorded episode."""
+    env = make_env(task.env_kwargs, task.max_episode_steps)
+    try:
+        policy, options = task.policy_factory(env, task.seed)
+        return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains,
+                              action_noise=task.action_noise)
+    finally:
+        env.close()
+
+
+THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def _child_threads(threads: int):
+    """Set the BLAS/OpenMP/numba thread counts in ``os.environ`` while worker processes are started.
+
+    A spawned worker imports NumPy (hence OpenBLAS) while it unpickles its first task -- before any pool
+    initializer runs -- so the limit must already be in the environment it inherits. Values the user set are
+    kept; the parent's own (already loaded) libraries are unaffected.
+    """
+    old = {v: os.environ.get(v) for v in THREAD_VARS}
+    for v in THREAD_VARS:
+        os.environ.setdefault(v, str(int(threads)))
+    try:
+        yield
+    finally:
+        for v, value in old.items():
+            if value is None:
+                os.environ.pop(v, None)
+            else:
+                os.environ[v] = value
+
+
+def checkpoint_path(directory, index: int, prefix: str = "episode") -> Path:
+    """``directory/<prefix>-<index:06d>.npz``: the checkpoint of one finished episode."""
+    return Path(directory) / f"{prefix}-{int(index):06d}.npz"
+
+
+def save_episode(path, episode: Episode) -> Path:
+    """Write one :class:`Episode` to ``.npz`` atomically (uncompressed, no pickle)."""
+    from hsddp_gym.util.io import atomic_path
+
+    arrays = {"index": np.array(episode.index), "seed": np.array(episode.seed),
+              "wall_time": np.array(episode.wall_time), "observations": episode.observations,
+              "actions": episode.actions, "rewards": episode.rewards, "terminations": episode.terminations,
+              "truncations": episode.truncations, **{f"infos/{k}": v for k, v in episode.infos.items()}}
+    with atomic_path(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+    return Path(path)
+
+
+def load_episode(path) -> Episode:
+    """Read an :class:`Episode` written by :func:`save_episode` (never unpickles)."""
+    d = read_npz(path)
+    return Episode(index=int(d["index"]), seed=int(d["seed"]), observations=d["observations"],
+                   actions=d["actions"], rewards=d["rewards"], terminations=d["terminations"],
+                   truncations=d["truncations"],
+                   infos={k[len("infos/"):]: v for k, v in d.items() if k.startswith("infos/")},
+                   wall_time=float(d["wall_time"]))
+
+
+def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, workers: int = 1,
+                     env_kwargs: dict | None = None, max_episode_steps: int | None = None,
+                     include_gains: bool = False, progress: bool = True, desc: str = "episodes",
+                     action_noise: float = 0.0, checkpoint_dir=None, checkpoint_prefix: str = "episode"
+                     ) -> list[Episode]:
+    """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` processes.
+
+    Args:
+        policy_factory: picklable ``(env, episode_seed) -> (policy, reset_options or None)`` (e.g. a
+            :class:`PolicySpec`); called once per episode, in the worker.
+        workers: 1 runs in this process; more use ``spawn``-started worker processes (one BLAS/OpenMP
+            thread each).
+        action_noise: DART noise on the executed actions (see :func:`record_episode`).
+        checkpoint_dir: if given, every finished episode is saved there (:func:`checkpoint_path`, written
+            atomically as it arrives) and episodes already saved there are loaded instead of being run again
+            (the caller makes sure they were recorded with the same settings; :func:`generate_dataset` does).
+        checkpoint_prefix: file-name prefix of the checkpoints.
+    Returns:
+        The episodes in index order (identical for any ``workers``, and whether loaded or recorded).
+    """
+    episodes, workers = int(episodes), int(workers)
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    from tqdm import tqdm
+
+    tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
+                         float(action_noise)) for i in range(episodes)]
+    results: list[Episode | None] = [None] * episodes
+    if checkpoint_dir is not None:
+        Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
+        for t in tasks:
+            path = checkpoint_path(checkpoint_dir, t.index, checkpoint_prefix)
+            if path.exists():
+                ep = load_episode(path)
+                if ep.seed != t.seed or ep.index != t.index:
+                    raise ValueError(f"checkpoint {path} holds episode {ep.index} (seed {ep.seed}), expected "
+                                     f"episode {t.index} (seed {t.seed})")
+                results[t.index] = ep
+    todo = [t for t in tasks if results[t.index] is None]
+    steps = sum(ep.length for ep in results if ep is not None)
+    bar = tqdm(total=episodes, initial=episodes - len(todo), desc=desc, unit="ep", disable=not progress)
+
+    def done(ep: Episode) -> None:
+        nonlocal steps
+        if checkpoint_dir is not None:
+            save_episode(checkpoint_path(checkpoint_dir, ep.index, checkpoint_prefix), ep)
+        results[ep.index] = ep
+        steps += ep.length
+        bar.update(1)
+        bar.set_postfix(steps=steps)
+
+    try:
+        if workers == 1:
+            for t in todo:
+                done(run_episode_task(t))
+        elif todo:
+            ctx = multiprocessing.get_context("spawn")
+            pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx)
+            try:
+                with _child_threads(1):  # the workers are started by the submits
+                    futures = [pool.submit(run_episode_task, t) for t in todo]
+                for fut in cf.as_completed(futures):
+                    done(fut.result())
+            except BaseException:
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown(wait=True)
+    finally:
+        bar.close()
+    return results  # type: ignore[return-value]

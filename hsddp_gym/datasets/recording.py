@@ -1,0 +1,312 @@
+"""Recording one episode: the policies by name, the expert's plan, per-step decisions (the dataset schema)."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import time
+
+import numpy as np
+
+from hsddp_gym.core.conventions import NU, NX
+from hsddp_gym.util.validation import check_positive
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+POLICIES = ("mpc", "expert", "heuristic", "random")
+EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
+"""The expert's plan: ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
+NOISE_STREAM = 7919
+"""First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
+NONDETERMINISTIC_INFOS = ("solve_ms",)
+"""``infos`` keys that hold wall-clock times: the only data that differ between runs with the same seed."""
+
+DECISION_SCHEMA: dict[str, tuple[tuple, str]] = {
+    "expert_state_nominal": ((NX,), "float64"),
+    "expert_action_nominal": ((NU,), "float64"),
+    "expert_tracking": ((), "bool"),
+    "solver_iterations": ((), "int64"),
+    "solver_converged": ((), "bool"),
+    "max_violation": ((), "float64"),
+    "solve_ms": ((), "float64"),
+    "replanned": ((), "bool"),
+    "planner_failed": ((), "bool"),
+}
+"""Shape and dtype of the policy-decision keys of ``infos`` (see the module docstring)."""
+GAIN_KEY = "expert_feedback_gain"
+
+
+# ================================================================================================ policies
+@dataclasses.dataclass(frozen=True)
+class PolicySpec:
+    """A picklable recipe for the policy of one episode (the default ``policy_factory``).
+
+    Args:
+        name: one of :data:`POLICIES`.
+        options: ``MPCOptions`` fields for ``mpc`` (JSON-serializable values); unused otherwise.
+        plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
+        ``expert`` only.
+    """
+
+    name: str
+    options: dict = dataclasses.field(default_factory=dict)
+    plan_path: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.name not in POLICIES:
+            raise ValueError(f"policy name must be one of {POLICIES}, got {self.name!r}")
+        if self.name == "expert" and self.plan_path is None:
+            raise ValueError("the expert policy needs plan_path (its plan, saved with Solution.save)")
+
+    def __call__(self, env, episode_seed: int):
+        """``(policy, reset_options)`` for an episode of ``env`` seeded ``episode_seed``."""
+        from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+        from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+        from hsddp_gym.planners.policies.random_policy import RandomPolicy
+
+        if self.name == "mpc":
+            from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+            return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options))), None
+        if self.name == "expert":
+            sol = _load_plan(str(self.plan_path))
+            return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
+        if self.name == "heuristic":
+            return HeuristicPolicy.from_env(env), None
+        return RandomPolicy.from_env(env, seed=int(episode_seed)), None
+
+    def describe(self) -> dict:
+        """JSON description (name and the full options in effect)."""
+        policies = "hsddp_gym.planners.policies"
+        d = {"name": self.name, "class": {"mpc": f"{policies}.mpc.MPCPolicy",
+                                          "expert": f"{policies}.expert.PlanTrackingExpert",
+                                          "heuristic": f"{policies}.heuristic.HeuristicPolicy",
+                                          "random": f"{policies}.random_policy.RandomPolicy"}[self.name]}
+        if self.name == "mpc":
+            from hsddp_gym.planners.policies.mpc import MPCOptions
+
+            d["options"] = dataclasses.asdict(MPCOptions(**_mpc_options(self.options)))
+        elif self.name == "expert":
+            d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
+                            "reset_options": "{'state': plan.X[0]} (no reset noise)",
+                            "fallback_after_plan": "hsddp_gym.planners.policies.mpc.MPCPolicy (default options)"}
+        elif self.name == "random":
+            d["options"] = {"seed": "episode seed"}
+        else:
+            d["options"] = {}
+        return d
+
+
+def _mpc_options(options: dict) -> dict:
+    opts = dict(options)
+    if opts.get("durations") is not None:
+        opts["durations"] = tuple(opts["durations"])
+    return opts
+
+
+@functools.lru_cache(maxsize=4)
+def _load_plan(path: str):
+    from hsddp_gym.planners.optimizer.solution import Solution
+
+    return Solution.load(path)
+
+
+def solve_expert_plan(path) -> dict:
+    """Solve the expert's plan (:data:`EXPERT_PLAN`), save it to ``path`` and return its summary."""
+    from hsddp_gym.planners.tasks import plan_bounding
+
+    result = plan_bounding(EXPERT_PLAN["method"], cycles=EXPERT_PLAN["cycles"])
+    result.solution.save(path)
+    keep = ("status", "converged", "al_iterations", "ddp_iterations", "switching_violation", "cost",
+            "avg_forward_speed", "solve_time_s")
+    return {k: result.summary[k] for k in keep if k in result.summary}
+
+
+# ================================================================================================ episodes
+@dataclasses.dataclass
+class Episode:
+    """One recorded episode (Minari layout): ``observations (T+1, d)``, ``actions (T, 4)``, ``rewards (T,)``,
+    ``terminations (T,)``, ``truncations (T,)``, ``infos`` {key: (T+1, ...)}."""
+
+    index: int
+    seed: int
+    observations: np.ndarray
+    actions: np.ndarray
+    rewards: np.ndarray
+    terminations: np.ndarray
+    truncations: np.ndarray
+    infos: dict
+    wall_time: float = 0.0
+
+    @property
+    def length(self) -> int:
+        return int(len(self.actions))
+
+    @property
+    def episode_return(self) -> float:
+        return float(np.sum(self.rewards))
+
+
+_CAPTURE: dict = {}
+
+
+@contextlib.contextmanager
+def capture_plan_controls():
+    """While active, every :meth:`hsddp_gym.planners.policies.tracking.PlanTracker.control` call records the knot it
+    used in
+    the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot).
+
+    The trackers of :class:`~hsddp_gym.planners.policies.expert.PlanTrackingExpert` and
+    :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`
+    advance their cursor right after computing the control, so the knot cannot be read afterwards; this
+    wraps the method (class level, restored on exit) for the duration of one episode in this process.
+    """
+    from hsddp_gym.planners.policies.tracking import PlanTracker
+
+    original = PlanTracker.control
+    slot: dict = {}
+
+    def control(self, x):
+        k = self.knot
+        slot["X"], slot["U"], slot["K"] = self.X[k], self.U[k], self.K[k]
+        return original(self, x)
+
+    PlanTracker.control = control
+    try:
+        yield slot
+    finally:
+        PlanTracker.control = original
+
+
+def _max_violation(sol) -> float:
+    vals = [float(np.max(np.abs(sol.switching))) if np.size(sol.switching) else 0.0]
+    if sol.log:
+        rec = sol.log[-1]
+        vals += [rec.max_torque_violation, rec.max_friction_violation, -rec.min_normal_grf]
+    vals = [v for v in vals if np.isfinite(v)]
+    return float(max([0.0, *vals]))
+
+
+class DecisionRecorder:
+    """Builds the policy-decision ``infos`` (:data:`DECISION_SCHEMA`) around ``policy(obs)`` calls."""
+
+    def __init__(self, policy, torque_limit: float, include_gains: bool = False) -> None:
+        self.policy = policy
+        self.torque_limit = float(torque_limit)
+        self.include_gains = include_gains
+        self.last = {k: np.zeros(shape, dtype=dtype) for k, (shape, dtype) in DECISION_SCHEMA.items()}
+        if include_gains:
+            self.last[GAIN_KEY] = np.zeros((NU, NX))
+        sol = getattr(policy, "solution", None)
+        if sol is not None and hasattr(sol, "ddp_iterations"):  # a plan solved offline (the expert)
+            self.last["solver_iterations"] = np.array(int(sol.ddp_iterations))
+            self.last["solver_converged"] = np.array(bool(sol.converged))
+            self.last["max_violation"] = np.array(_max_violation(sol))
+            self.last["solve_ms"] = np.array(1e3 * float(sol.solve_time))
+
+    def act(self, obs, slot: dict) -> tuple[np.ndarray, dict]:
+        """``(action (4,) float32, decision info)`` for one observation."""
+        stats = getattr(self.policy, "stats", None)
+        planner = isinstance(stats, dict) and "solve_ms" in stats and "replans" in stats
+        n_solves = len(stats["solve_ms"]) if planner else 0
+        n_ok = stats["replans"] if planner else 0
+        slot.clear()
+        action = np.asarray(self.policy(obs), dtype=np.float32)
+        d = {k: v.copy() for k, v in self.last.items()}
+        d["replanned"] = np.array(False)
+        d["planner_failed"] = np.array(False)
+        d["expert_tracking"] = np.array("U" in slot)
+        if "U" in slot:
+            d["expert_state_nominal"] = np.array(slot["X"], dtype=np.float64)
+            d["expert_action_nominal"] = np.array(slot["U"], dtype=np.float64) / self.torque_limit
+            if self.include_gains:
+                K = np.array(slot["K"], dtype=np.float64) / self.torque_limit
+                K[:, 0] = 0.0
+                d[GAIN_KEY] = K
+        if planner and len(stats["solve_ms"]) > n_solves:
+            d["replanned"] = np.array(True)
+            d["solve_ms"] = np.array(float(stats["solve_ms"][-1]))
+            if stats["replans"] > n_ok:
+                sol = self.policy.last_solution
+                d["solver_iterations"] = np.array(int(stats["iterations"][-1]))
+                d["solver_converged"] = np.array(bool(getattr(sol, "converged", False)))
+                d["max_violation"] = np.array(_max_violation(sol) if sol is not None else 0.0)
+            else:
+                d["planner_failed"] = np.array(True)
+                d["solver_iterations"] = np.array(0)
+                d["solver_converged"] = np.array(False)
+        self.last = d
+        return action, d
+
+    def final(self) -> dict:
+        """The last row's decision values (no action at the final observation)."""
+        d = {k: v.copy() for k, v in self.last.items()}
+        d["replanned"] = np.array(False)
+        d["planner_failed"] = np.array(False)
+        return d
+
+
+def _info_schema(info: dict) -> dict:
+    return {k: (np.asarray(v).shape, np.asarray(v).dtype) for k, v in info.items()}
+
+
+def _check_info(info: dict, schema: dict, step: int) -> None:
+    if set(info) != set(schema):
+        raise ValueError(f"env info keys changed at step {step}: expected {sorted(schema)}, got {sorted(info)}")
+    for k, (shape, _) in schema.items():
+        if np.asarray(info[k]).shape != shape:
+            raise ValueError(f"env info[{k!r}] changed shape at step {step}: {shape} -> {np.asarray(info[k]).shape}")
+
+
+def record_episode(env, policy, seed: int, options: dict | None = None, index: int = 0,
+                   include_gains: bool = False, action_noise: float = 0.0) -> Episode:
+    """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)``.
+
+    ``policy`` is any callable ``obs -> action`` with an optional ``reset()``; planner statistics and the
+    tracked plan knot are recorded when it has them (see the module docstring).
+
+    ``action_noise > 0`` (DART noise injection): the executed (and recorded) action is
+    ``clip(a + action_noise * N(0, I), -1, 1)`` with ``a`` the policy's action, the noise drawn from
+    ``np.random.default_rng([NOISE_STREAM, seed])``; ``a`` itself is stored in ``infos["expert_action"]``
+    (row t: the clean action at observation t; the last row repeats the last one) -- the label for imitation.
+    """
+    action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
+    noise_rng = np.random.default_rng([NOISE_STREAM, int(seed)]) if action_noise > 0 else None
+    t0 = time.perf_counter()
+    obs, info = env.reset(seed=int(seed), options=options)
+    if hasattr(policy, "reset"):
+        policy.reset()
+    schema = _info_schema(info)
+    torque_limit = float(getattr(env.unwrapped, "torque_limit", 1.0))
+    rec = DecisionRecorder(policy, torque_limit, include_gains)
+    observations, actions, rewards, terms, truncs, rows = [obs], [], [], [], [], []
+    with capture_plan_controls() as slot:
+        while True:
+            action, decision = rec.act(obs, slot)
+            if noise_rng is not None:
+                decision = {**decision, "expert_action": action.copy()}
+                action = np.clip(action + action_noise * noise_rng.standard_normal(action.shape), -1.0,
+                                 1.0).astype(np.float32)
+            rows.append({**info, **decision})
+            obs, reward, terminated, truncated, info = env.step(action)
+            _check_info(info, schema, len(actions))
+            observations.append(obs)
+            actions.append(action)
+            rewards.append(float(reward))
+            terms.append(bool(terminated))
+            truncs.append(bool(truncated))
+            if terminated or truncated:
+                break
+    final = rec.final()
+    if noise_rng is not None:
+        final["expert_action"] = rows[-1]["expert_action"].copy()
+    rows.append({**info, **final})
+    infos = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
+    if noise_rng is not None:
+        infos["expert_action"] = infos["expert_action"].astype(np.float32)
+    for k, (shape, dtype) in DECISION_SCHEMA.items():
+        infos[k] = infos[k].astype(dtype, copy=False).reshape(len(rows), *shape)
+    return Episode(index=int(index), seed=int(seed), observations=np.asarray(observations, dtype=np.float32),
+                   actions=np.asarray(actions, dtype=np.float32), rewards=np.asarray(rewards, dtype=np.float64),
+                   terminations=np.asarray(terms, dtype=bool), truncations=np.asarray(truncs, dtype=bool),
+                   infos=infos, wall_time=time.perf_counter() - t0)

@@ -1,0 +1,241 @@
+"""DAgger (Ross et al. 2011) with an expert that runs alongside the learner; see :mod:`hsddp_gym.learning`."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.learning.bc import BCConfig, MLPPolicy, train_bc
+from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
+from hsddp_gym.learning.features import make_gait_clock
+from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.util.io import write_npz
+
+
+# ================================================================================================ DAgger
+@dataclasses.dataclass(frozen=True)
+class DAggerConfig:
+    """DAgger settings.
+
+    Attributes:
+        rounds: relabelling rounds after round 0. episodes_per_round: learner/mixture episodes per round
+            (and expert episodes of round 0 when no initial demonstrations are given).
+        beta_decay: ``beta_i = beta_decay ** i`` (round 0: 1, pure expert). 0 gives pure learner rollouts.
+        bc: the BC settings used in every round (retrained from scratch on the aggregate data).
+        seed: episode ``j`` of round ``i`` is reset with seed ``seed + 1000 * i + j``; the mixture draws come
+            from ``np.random.default_rng([seed, i, j])``.
+        max_episode_steps: time-limit override of the rollouts (None: the env's 1000).
+        rollout_noise: DART-style noise in rounds >= 1: the executed action (expert's or learner's) gets
+            i.i.d. Gaussian noise of this std (normalized units, clipped to [-1, 1]) drawn from the round's
+            generator, so the aggregate data covers the recoveries from perturbed states; the label stays the
+            expert's clean action (0: none).
+        warm_start: rounds >= 1 start training from the previous round's network and input standardization
+            (``epochs`` per round, lr schedule restarted) instead of a fresh initialization.
+        rollout_steps: truncate the relabelling rollouts of rounds >= 1 after this many steps (None: run to
+            the end of the episode). The learner's falls happen in the first ~150 steps (the start transient
+            from the reset noise), so short rollouts spend the label budget on many initial states instead of
+            on steady bounding. Only the labelled steps count; the evaluation is not truncated.
+    """
+
+    rounds: int = 4
+    episodes_per_round: int = 5
+    beta_decay: float = 0.5
+    bc: BCConfig = BCConfig()
+    seed: int = 0
+    max_episode_steps: int | None = None
+    rollout_noise: float = 0.0
+    warm_start: bool = False
+    rollout_steps: int | None = None
+
+    def __post_init__(self) -> None:
+        if int(self.rounds) < 0:
+            raise ValueError(f"rounds must be >= 0, got {self.rounds!r}")
+        if int(self.episodes_per_round) < 1:
+            raise ValueError(f"episodes_per_round must be >= 1, got {self.episodes_per_round!r}")
+        if not 0.0 <= float(self.beta_decay) <= 1.0:
+            raise ValueError(f"beta_decay must be in [0, 1], got {self.beta_decay!r}")
+        if self.rollout_steps is not None and int(self.rollout_steps) < 1:
+            raise ValueError(f"rollout_steps must be >= 1 or None, got {self.rollout_steps!r}")
+        if not float(self.rollout_noise) >= 0.0:
+            raise ValueError(f"rollout_noise must be >= 0, got {self.rollout_noise!r}")
+
+    def beta(self, round_index: int) -> float:
+        return 1.0 if round_index == 0 else float(self.beta_decay) ** int(round_index)
+
+
+@dataclasses.dataclass
+class DAggerResult:
+    """``policy`` (the last round's learner), ``data`` (aggregate labels), ``history`` (one dict per round:
+    ``round, beta, episodes, new_labels, expert_labels, transitions, rollout_mean_return, expert_actions_fraction,
+    final_loss, eval`` (if evaluated)), ``expert_labels`` (total) and ``wall_time_s``."""
+
+    policy: MLPPolicy
+    data: Demonstrations
+    history: list
+    expert_labels: int
+    wall_time_s: float
+
+
+def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
+                   options: dict | None = None, noise: float = 0.0, max_steps: int | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
+    observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
+    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). Returns ``(obs (T, d),
+    expert actions (T, 4), return, expert acts)``."""
+    obs, _ = env.reset(seed=int(seed), options=options)
+    expert.reset()
+    if learner is not None:
+        learner.reset()
+    O, A, ret, n_expert = [], [], 0.0, 0
+    while True:
+        label = np.asarray(expert(obs), dtype=np.float32)
+        O.append(np.asarray(obs, dtype=np.float32))
+        A.append(label)
+        use_expert = learner is None or rng.random() < beta
+        n_expert += int(use_expert)
+        action = label if use_expert else np.asarray(learner(obs), dtype=np.float32)
+        if noise > 0:
+            action = np.clip(action + noise * rng.standard_normal(action.shape), -1.0, 1.0).astype(np.float32)
+        obs, reward, terminated, truncated, _ = env.step(action)
+        ret += float(reward)
+        if terminated or truncated or (max_steps is not None and len(O) >= int(max_steps)):
+            break
+    return np.array(O), np.array(A), ret, n_expert
+
+
+def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig(),
+                 initial: Demonstrations | None = None, env_kwargs: dict | None = None,
+                 evaluate: Callable | None = None, progress: bool = True, clock=None) -> DAggerResult:
+    """DAgger with any expert (see the module docstring).
+
+    Args:
+        expert_factory: ``(env, episode_seed) -> (expert Policy, reset_options or None)``, e.g.
+            :class:`hsddp_gym.datasets.recording.PolicySpec`; one expert is built per rollout.
+        initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
+        evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
+        clock: the gait clock of ``gait_clock`` features (default: the default MPC's, :func:`make_gait_clock`).
+    """
+    from tqdm import tqdm
+
+    from hsddp_gym.datasets.collection import make_env
+
+    t0 = time.perf_counter()
+    env = make_env(env_kwargs, config.max_episode_steps)
+    interface = EnvInterface.from_env(env)
+    history = []
+    data = initial
+    expert_labels = 0
+    bar = tqdm(total=config.rounds + 1, desc="DAgger rounds", unit="round", disable=not progress)
+    learner = None
+    for r in range(config.rounds + 1):
+        beta = config.beta(r)
+        new, returns, expert_acts, n_eps = None, [], 0, 0
+        if r > 0 or data is None:
+            parts = []
+            for j in range(config.episodes_per_round):
+                seed = config.seed + 1000 * r + j
+                expert, options = expert_factory(env, seed)
+                O, A, ret, ne = dagger_rollout(env, learner if r > 0 else None, expert, beta, seed,
+                                               np.random.default_rng([config.seed, r, j]), options,
+                                               noise=float(config.rollout_noise) if r > 0 else 0.0,
+                                               max_steps=config.rollout_steps if r > 0 else None)
+                parts.append(Demonstrations(O, A, np.full(len(O), j)))
+                returns.append(ret)
+                expert_acts += ne
+            new = parts[0]
+            for p in parts[1:]:
+                new = new.concat(p)
+            n_eps = len(parts)
+            data = new if data is None else data.concat(new)
+            expert_labels += len(new)
+        else:
+            expert_labels += len(data)  # the initial demonstrations' actions are expert labels too
+        learner, hist = train_bc(data, dataclasses.replace(config.bc, seed=config.bc.seed + r), interface,
+                                 clock=clock, init=learner if config.warm_start else None)
+        rec = {"round": r, "beta": beta, "episodes": n_eps, "new_labels": int(len(new)) if new is not None else
+               int(len(data)), "expert_labels": int(expert_labels), "transitions": int(len(data)),
+               "rollout_mean_return": float(np.mean(returns)) if returns else None,
+               "expert_actions_fraction": (expert_acts / len(new)) if new is not None and len(new) else 1.0,
+               "final_loss": hist["loss"][-1], "bc_wall_time_s": hist["wall_time_s"]}
+        if evaluate is not None:
+            rec["eval"] = evaluate(learner)
+        history.append(rec)
+        bar.update(1)
+        bar.set_postfix(labels=expert_labels)
+    bar.close()
+    env.close()
+    learner.info.update(expert_labels=int(expert_labels), dagger_rounds=int(config.rounds))
+    return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0)
+
+
+def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
+               demos: int | None = None, fmt: str = "minari", eval_episodes: int = 10,
+               env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True) -> dict:
+    """DAgger with a built-in expert (``heuristic``, ``mpc`` or ``expert``) and write into ``out``:
+    ``policy.npz``, ``dagger_data.npz`` (aggregate labels), ``summary.json``, ``curve.csv`` / ``curve.png``
+    (evaluation return after each round vs expert labels).
+
+    Args:
+        dataset: optional dataset directory whose first ``demos`` episodes are the round-0 demonstrations.
+    """
+    from hsddp_gym.datasets.recording import PolicySpec, solve_expert_plan
+    from hsddp_gym.util.io import write_json
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = dataclasses.replace(config or DAggerConfig(), seed=int(seed),
+                                 bc=dataclasses.replace((config or DAggerConfig()).bc, seed=int(seed)))
+    env_kwargs = dict(env_kwargs or {})
+    files = ["policy.npz", "dagger_data.npz", "summary.json", "curve.csv"]
+    plan = None
+    if expert == "expert":
+        plan = solve_expert_plan(out / "expert_plan.npz")
+        spec = PolicySpec("expert", plan_path=str(out / "expert_plan.npz"))
+        files.append("expert_plan.npz")
+    else:
+        spec = PolicySpec(expert, options=dict(mpc_options or {}))
+    initial = load_demonstrations(dataset, episodes=demos, fmt=fmt) if dataset is not None else None
+
+    def evaluate(p):
+        if eval_episodes <= 0:
+            return None
+        return eval_brief(evaluate_policy_episodes(p, eval_episodes, 0, env_kwargs, config.max_episode_steps))
+
+    clock = None
+    if config.bc.features == "gait_clock":
+        from hsddp_gym.datasets.collection import make_env
+
+        env = make_env(env_kwargs, config.max_episode_steps)
+        clock = make_gait_clock(EnvInterface.from_env(env), mpc_options if expert == "mpc" else None)
+        env.close()
+    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock)
+    res.policy.save(out / "policy.npz")
+    write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode)
+    rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],
+             f"{h['eval']['mean_return']:.6g}" if h.get("eval") else "", f"{h['eval']['std_return']:.6g}"
+             if h.get("eval") else "", h["eval"]["falls"] if h.get("eval") else ""] for h in res.history]
+    write_csv(out / "curve.csv", ["round", "beta", "expert_labels", "transitions", "mean_return", "std_return",
+                                   "falls"], rows)
+    evals = [h for h in res.history if h.get("eval")]
+    if evals and plot_curve(out / "curve.png", [h["expert_labels"] for h in evals],
+                            [h["eval"]["mean_return"] for h in evals], [h["eval"]["std_return"] for h in evals],
+                            "expert labels", title=f"DAgger ({expert} expert) vs expert labels"):
+        files.append("curve.png")
+    summary = {"algo": "dagger", "expert": spec.describe(), "seed": int(seed), "config": {
+        **{k: v for k, v in dataclasses.asdict(config).items() if k != "bc"}, "bc": config.bc.to_dict()},
+        "initial_dataset": None if dataset is None else str(dataset), "initial_demonstrations":
+        None if initial is None else initial.n_episodes, "expert_labels": res.expert_labels,
+        "transitions": len(res.data), "history": res.history, "wall_time_s": res.wall_time_s,
+        "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files}
+    if plan is not None:
+        summary["expert_plan"] = plan
+    if res.history and res.history[-1].get("eval"):
+        summary["eval"] = res.history[-1]["eval"]
+    write_json(out / "summary.json", summary)
+    return summary

@@ -1,0 +1,88 @@
+"""Learner inputs: the observation, optionally with the MPC's gait-clock features replayed from the observation
+history."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hsddp_gym.learning.demonstrations import Demonstrations
+from hsddp_gym.planners.policies.base import EnvInterface
+
+FEATURES = ("obs", "gait_clock")
+"""Inputs of the MLP: ``obs`` (the observation) or ``gait_clock`` (the observation plus the 7
+:meth:`hsddp_gym.planners.policies.mpc.GaitClock.features` of the MPC's gait clock, rebuilt from the observation
+history)."""
+
+
+# ================================================================================================ features
+def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict | None = None):
+    """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of an :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
+    built for ``interface``
+    with ``MPCOptions(**mpc_options)`` (default options)."""
+    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+    o = MPCOptions(**dict(mpc_options or {}))
+    return MPCPolicy(interface, o).clock.copy()
+
+
+_CLOCK_EXTRA = ("lost_stance_steps",)
+"""Optional :class:`hsddp_gym.planners.policies.mpc.GaitClock` settings, saved (and passed back) only when the clock
+has them."""
+
+
+def clock_params(clock) -> dict:
+    params = {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
+              "min_flight": clock.min_flight, "max_wait": clock.max_wait}
+    params.update({k: getattr(clock, k) for k in _CLOCK_EXTRA if getattr(clock, k, None)})
+    return params
+
+
+def clock_from_params(params: dict):
+    from hsddp_gym.planners.policies.mpc import GaitClock
+
+    extra = {k: params[k] for k in _CLOCK_EXTRA if params.get(k)}
+    return GaitClock(tuple(params["durations"]), params["dt"], params["debounce_steps"], params["min_flight"],
+                     params["max_wait"], **extra)
+
+
+def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
+    """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
+    reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
+    (exactly what :class:`MLPPolicy` and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy` do while acting)."""
+    from hsddp_gym.core.conventions import IPITCH, NQ
+    from hsddp_gym.core.observation import DEFAULT_LAYOUT, state_from_observation
+
+    layout = layout if layout is not None else DEFAULT_LAYOUT
+    clock = clock.copy()
+    clock.reset()
+    out = np.zeros((len(obs), clock.N_FEATURES))
+    for t, o in enumerate(np.asarray(obs)):
+        x, mode, _ = state_from_observation(o, layout)
+        clock.update(mode, float(x[NQ + IPITCH]))
+        out[t] = clock.features()
+        clock.tick()
+    return out
+
+
+def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
+    """``[(start, stop), ...]`` of the contiguous runs of equal episode ids."""
+    episode = np.asarray(episode)
+    if len(episode) == 0:
+        return []
+    cuts = np.flatnonzero(np.diff(episode) != 0) + 1
+    edges = [0, *cuts.tolist(), len(episode)]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def build_inputs(demos: Demonstrations, config, clock=None, layout=None) -> np.ndarray:
+    """The MLP inputs (float64) of ``demos`` for ``config.features`` (``clock``: a GaitClock for
+    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock)."""
+    obs = np.asarray(demos.obs, dtype=np.float64)
+    if config.features == "obs":
+        return obs
+    if clock is None:
+        raise ValueError("features='gait_clock' needs a gait clock")
+    feats = np.zeros((len(obs), clock.N_FEATURES))
+    for a, b in _episode_runs(demos.episode):
+        feats[a:b] = gait_clock_features(obs[a:b], clock, layout)
+    return np.concatenate([obs, feats], axis=1)

@@ -1,0 +1,449 @@
+"""Stable-Baselines3 glue: any policy as an SB3 ``BasePolicy``, and the PPO / SAC baselines on ``Bounding-v0``.
+
+**Adapter.** :func:`as_sb3_policy` wraps a :class:`~hsddp_gym.planners.policies.base.Policy` (or any callable
+``obs (obs_dim,) -> action (act_dim,)``) into a ``stable_baselines3.common.policies.BasePolicy`` whose
+``predict(observation, state, episode_start, deterministic)`` and ``_predict(obs_tensor)`` return exactly the
+callable's actions (float32, clipped to the action box, which leaves a policy's in-box actions unchanged).
+A :class:`Policy` keeps one independent copy per vectorized env and resets the copy whose ``episode_start``
+is true, so planners with memory (gait clock, plan cursor, MPC warm start) work with ``evaluate_policy``
+and with ``imitation``'s rollout / DAgger tooling. A plain callable is applied row by row and has no memory.
+
+**Baselines.** :func:`train_sb3` trains PPO or SAC with the RL-Zoo HalfCheetah-v3 hyperparameters
+(:data:`PPO_HYPERPARAMS`, :data:`SAC_HYPERPARAMS`; ``user_needs.md`` §2.2) and writes into ``out``:
+
+* ``model.zip``: the SB3 model (``PPO.load`` / ``SAC.load``, or :func:`load_trained_policy`, which reads only
+  the weights, never unpickles);
+* ``vecnormalize.pkl`` (SB3's format, PPO only) and ``vecnormalize.npz`` (the same running statistics as
+  plain arrays);
+* ``train.monitor.csv`` (SB3 ``Monitor``: return, length, time of every training episode),
+  ``evaluations.npz`` (``EvalCallback``: deterministic evaluations during training);
+* ``curve.csv`` (training episodes: ``env_step, episode_return, episode_length``), ``eval_curve.csv``
+  (``env_step, mean_return, std_return``) and ``curve.png`` (needs matplotlib);
+* ``summary.json``: algorithm, hyperparameters, seed, steps, wall time, final evaluation.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.util.io import read_npz, write_json, write_npz
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+ALGOS = ("ppo", "sac")
+
+PPO_HYPERPARAMS: dict = {
+    "normalize": True,
+    "n_envs": 1,
+    "n_steps": 512,
+    "batch_size": 64,
+    "gamma": 0.98,
+    "gae_lambda": 0.92,
+    "learning_rate": 2.0633e-5,
+    "clip_range": 0.1,
+    "n_epochs": 20,
+    "ent_coef": 4.0e-4,
+    "max_grad_norm": 0.8,
+    "vf_coef": 0.58,
+    "policy_kwargs": {"log_std_init": -2.0, "ortho_init": False, "activation_fn": "ReLU",
+                      "net_arch": {"pi": [256, 256], "vf": [256, 256]}},
+}
+"""RL-Zoo ``hyperparams/ppo.yml`` HalfCheetah-v3 (tuned): VecNormalize on observations and rewards, one env."""
+
+SAC_HYPERPARAMS: dict = {
+    "normalize": False,
+    "n_envs": 1,
+    "learning_starts": 10_000,
+}
+"""RL-Zoo ``hyperparams/sac.yml`` HalfCheetah-v3: SB3 defaults (lr 3e-4, buffer 1e6, batch 256, tau 0.005,
+gamma 0.99, train_freq 1, auto entropy, [256, 256] ReLU) plus ``learning_starts`` 10000."""
+
+
+# ================================================================================================ adapter
+def _as_batch_fn(policy) -> Callable:
+    """``(obs (n, d) float32, episode_start (n,) bool or None) -> actions (n, m)``."""
+    if isinstance(policy, Policy):
+        def batch(obs, episode_start):
+            acts, _ = policy.predict(obs, episode_start=episode_start, deterministic=True)
+            return np.asarray(acts, dtype=np.float32)
+        return batch
+    if not callable(policy):
+        raise TypeError(f"policy must be a hsddp_gym.planners.policies.base.Policy or a callable obs -> action, "
+                        f"got {type(policy).__name__}")
+
+    def batch(obs, episode_start):
+        return np.stack([np.asarray(policy(o), dtype=np.float32) for o in obs])
+    return batch
+
+
+def as_sb3_policy(policy, observation_space, action_space):
+    """Wrap ``policy`` into an SB3 ``BasePolicy`` (see the module docstring).
+
+    Args:
+        policy: a :class:`~hsddp_gym.planners.policies.base.Policy` (memory handled per env through ``episode_start``)
+        or a
+            callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
+        observation_space, action_space: the env's ``gymnasium.spaces.Box`` spaces.
+    Returns:
+        A ``CallableSB3Policy`` (an ``stable_baselines3.common.policies.BasePolicy``) with no parameters; it
+        runs on the CPU and cannot be saved (the callable is arbitrary Python).
+    """
+    from gymnasium import spaces
+
+    if not isinstance(observation_space, spaces.Box) or not isinstance(action_space, spaces.Box):
+        raise TypeError(f"observation_space and action_space must be gymnasium Box spaces, got "
+                        f"{type(observation_space).__name__} and {type(action_space).__name__}")
+    return _adapter_class()(policy, observation_space, action_space)
+
+
+_ADAPTER = None
+
+
+def _adapter_class():
+    """The adapter class, defined on first use so that importing this module does not import torch."""
+    global _ADAPTER
+    if _ADAPTER is not None:
+        return _ADAPTER
+    import torch as th
+    from stable_baselines3.common.policies import BasePolicy
+
+    class CallableSB3Policy(BasePolicy):
+        """An SB3 ``BasePolicy`` that delegates to a planner policy or callable (see :func:`as_sb3_policy`)."""
+
+        def __init__(self, policy, observation_space, action_space) -> None:
+            super().__init__(observation_space, action_space)
+            self.wrapped = policy
+            self._batch = _as_batch_fn(policy)
+
+        def _predict(self, observation, deterministic: bool = False):
+            obs = observation.detach().cpu().numpy().astype(np.float32, copy=False)
+            return th.as_tensor(self._batch(obs.reshape(len(obs), -1), None))
+
+        def predict(self, observation, state=None, episode_start=None, deterministic: bool = False):
+            """SB3 protocol; unlike ``BasePolicy.predict`` it passes ``episode_start`` to the wrapped policy
+            so that each env's copy is reset at the start of its episode."""
+            obs = np.asarray(observation, dtype=np.float32)
+            shape = self.observation_space.shape
+            single = obs.shape == shape
+            if not single and obs.shape[1:] != shape:
+                raise ValueError(f"observation must have shape {shape} or (n_envs, *{shape}), got {obs.shape}")
+            batch = obs[None] if single else obs
+            starts = None if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(len(batch))
+            acts = self._batch(batch, starts).reshape((-1, *self.action_space.shape))
+            acts = np.clip(acts, self.action_space.low, self.action_space.high)
+            return (acts[0] if single else acts), state
+
+        def forward(self, obs, deterministic: bool = False):
+            return self._predict(obs, deterministic)
+
+        def save(self, path) -> None:  # noqa: D102
+            raise NotImplementedError("a CallableSB3Policy wraps arbitrary Python and cannot be saved; save the "
+                                      "underlying planner (e.g. its Solution) instead")
+
+    _ADAPTER = CallableSB3Policy
+    return _ADAPTER
+
+
+# ================================================================================================ training
+@dataclasses.dataclass
+class TrainResult:
+    """What :func:`train_sb3` wrote: ``out`` and the ``summary`` dict (also in ``out/summary.json``)."""
+
+    out: Path
+    summary: dict
+
+
+def _policy_kwargs(kwargs: dict) -> dict:
+    import torch.nn as nn
+
+    kw = dict(kwargs)
+    if isinstance(kw.get("activation_fn"), str):
+        kw["activation_fn"] = getattr(nn, kw["activation_fn"])
+    return kw
+
+
+def hyperparameters(algo: str, overrides: dict | None = None) -> dict:
+    """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) with ``overrides`` applied."""
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    hp = json.loads(json.dumps(PPO_HYPERPARAMS if algo == "ppo" else SAC_HYPERPARAMS))
+    for k, v in (overrides or {}).items():
+        if v is not None:
+            hp[k] = v
+    return hp
+
+
+def _model_kwargs(hp: dict) -> dict:
+    kw = {k: v for k, v in hp.items() if k not in ("normalize", "n_envs")}
+    if "policy_kwargs" in kw:
+        kw["policy_kwargs"] = _policy_kwargs(kw["policy_kwargs"])
+    return kw
+
+
+def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None):
+    import gymnasium as gym
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    import hsddp_gym  # noqa: F401  (registers the env)
+
+    def make(i):
+        def _init():
+            kw = dict(env_kwargs)
+            if max_episode_steps is not None:
+                kw["max_episode_steps"] = int(max_episode_steps)
+            env = gym.make(ENV_ID, **kw)
+            filename = None
+            if monitor_path is not None:
+                filename = str(monitor_path) if n_envs == 1 else str(monitor_path).replace(".monitor.csv",
+                                                                                          f"_{i}.monitor.csv")
+            return Monitor(env, filename=filename)
+        return _init
+
+    venv = DummyVecEnv([make(i) for i in range(n_envs)])
+    venv.seed(seed)
+    return venv
+
+
+def save_vecnormalize_npz(venv, path) -> Path:
+    """The running observation/return statistics of a ``VecNormalize`` as plain arrays (no pickle)."""
+    return write_npz(path, obs_mean=venv.obs_rms.mean, obs_var=venv.obs_rms.var, obs_count=np.array(venv.obs_rms.count),
+                     ret_mean=np.array(venv.ret_rms.mean), ret_var=np.array(venv.ret_rms.var),
+                     clip_obs=np.array(venv.clip_obs), clip_reward=np.array(venv.clip_reward),
+                     epsilon=np.array(venv.epsilon), gamma=np.array(venv.gamma),
+                     norm_obs=np.array(venv.norm_obs), norm_reward=np.array(venv.norm_reward))
+
+
+def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = None,
+              max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
+              eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
+              verbose: int = 0, time_limit: float | None = None) -> TrainResult:
+    """Train PPO or SAC on ``Bounding-v0`` and write the files of the module docstring into ``out``.
+
+    Args:
+        algo: ``"ppo"`` or ``"sac"``. steps: env steps. seed: seeds the model, the env and the evaluation env.
+        env_kwargs: ``gym.make`` keyword arguments. max_episode_steps: time-limit override (None: 1000).
+        overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``).
+        eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
+            ``max(steps // 10, 1000)``; 0: none).
+        final_eval_episodes: after training, evaluate the saved policy with the comparison protocol
+            (:func:`hsddp_gym.learning.reporting.evaluate_policy_episodes`: seeds 0, 1, ..., deterministic) into
+            ``summary["eval"]`` (0: skip).
+        threads: ``torch.set_num_threads`` (1 by default: the machines are shared).
+        time_limit: wall-clock budget of the training [s] (None: none). Training stops at the first env step
+            after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
+            Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
+    """
+    import torch
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    if int(steps) < 1:
+        raise ValueError(f"steps must be >= 1, got {steps!r}")
+    if time_limit is not None and not float(time_limit) > 0:
+        raise ValueError(f"time_limit must be > 0 seconds or None, got {time_limit!r}")
+    torch.set_num_threads(int(threads))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = dict(env_kwargs or {})
+    hp = hyperparameters(algo, overrides)
+    venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv")
+    eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None)
+    if hp["normalize"]:
+        gamma = hp.get("gamma", 0.99)
+        venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=gamma)
+        eval_venv = VecNormalize(eval_venv, norm_obs=True, norm_reward=False, gamma=gamma, training=False)
+    cls = PPO if algo == "ppo" else SAC
+    model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **_model_kwargs(hp))
+    eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
+    callbacks = []
+    if eval_freq > 0:
+        callbacks.append(EvalCallback(eval_venv, n_eval_episodes=eval_episodes, eval_freq=eval_freq,
+                                      log_path=str(out), deterministic=True, verbose=0))
+    t0 = time.perf_counter()
+    timer = None
+    if time_limit is not None:
+        timer = _wall_clock_limit(float(time_limit), t0)
+        callbacks.append(timer)
+    model.learn(total_timesteps=int(steps), callback=CallbackList(callbacks) if callbacks else None,
+                progress_bar=progress)
+    wall = time.perf_counter() - t0
+    model.save(out / "model.zip")
+    files = ["model.zip", "train.monitor.csv"]
+    if hp["normalize"]:
+        venv.save(str(out / "vecnormalize.pkl"))
+        save_vecnormalize_npz(venv, out / "vecnormalize.npz")
+        files += ["vecnormalize.pkl", "vecnormalize.npz"]
+    if (out / "evaluations.npz").exists():
+        files.append("evaluations.npz")
+    files += write_curves(out, algo)
+    summary = {
+        "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
+        "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
+        "hyperparameters": hp, "wall_time_s": wall, "threads": int(threads), "eval_freq": eval_freq,
+        "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),
+        "eval_episodes": eval_episodes, "files": files,
+        "training_episodes": _count_monitor_episodes(out / "train.monitor.csv"),
+    }
+    venv.close()
+    eval_venv.close()
+    write_json(out / "summary.json", summary)
+    if final_eval_episodes > 0:
+        from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes
+
+        summary["eval"] = eval_brief(evaluate_policy_episodes(load_trained_policy(out), final_eval_episodes, 0,
+                                                               env_kwargs, max_episode_steps))
+        write_json(out / "summary.json", summary)
+    return TrainResult(out, summary)
+
+
+def _wall_clock_limit(seconds: float, start: float):
+    """An SB3 callback that stops ``learn`` once ``seconds`` have passed since ``start`` (``perf_counter``)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class WallClockLimit(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.stopped = False
+
+        def _on_step(self) -> bool:
+            if time.perf_counter() - start >= seconds:
+                self.stopped = True
+            return not self.stopped
+
+    return WallClockLimit()
+
+
+def _read_monitor(path: Path) -> np.ndarray:
+    """``(n, 3)`` rows ``[return, length, time]`` of an SB3 monitor file (empty if none)."""
+    if not path.exists():
+        return np.zeros((0, 3))
+    rows = []
+    with open(path) as fh:
+        fh.readline()  # the JSON header line
+        for row in csv.DictReader(fh):
+            rows.append([float(row["r"]), float(row["l"]), float(row["t"])])
+    return np.array(rows).reshape(-1, 3)
+
+
+def _count_monitor_episodes(path: Path) -> int:
+    return int(len(_read_monitor(path)))
+
+
+def write_curves(out: Path, label: str) -> list[str]:
+    """``curve.csv`` (training episodes vs env steps), ``eval_curve.csv`` (from ``evaluations.npz``) and
+    ``curve.png`` from the files of a training run in ``out``; returns the names written."""
+    out = Path(out)
+    mon = _read_monitor(out / "train.monitor.csv")
+    written = []
+    steps = np.cumsum(mon[:, 1]) if len(mon) else np.zeros(0)
+    with open(out / "curve.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["env_step", "episode_return", "episode_length"])
+        for s, (r, n, _) in zip(steps, mon):
+            w.writerow([int(s), f"{r:.6g}", int(n)])
+    written.append("curve.csv")
+    ev = None
+    if (out / "evaluations.npz").exists():
+        d = read_npz(out / "evaluations.npz")
+        ev = (d["timesteps"], d["results"].mean(axis=1), d["results"].std(axis=1))
+        with open(out / "eval_curve.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["env_step", "mean_return", "std_return"])
+            for s, m, sd in zip(*ev):
+                w.writerow([int(s), f"{m:.6g}", f"{sd:.6g}"])
+        written.append("eval_curve.csv")
+    from hsddp_gym.viz.plotting import _plt, _save
+
+    try:
+        plt = _plt()
+    except ImportError:  # the viz extra is optional
+        return written
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    if len(mon):
+        ax.plot(steps, mon[:, 0], ".", ms=2, alpha=0.3, color="C0", label="training episodes")
+        k = max(1, len(mon) // 50)
+        if len(mon) >= k and k > 1:
+            smooth = np.convolve(mon[:, 0], np.ones(k) / k, mode="valid")
+            ax.plot(steps[k - 1:], smooth, color="C0", label=f"training (mean of {k})")
+    if ev is not None:
+        ax.errorbar(ev[0], ev[1], yerr=ev[2], color="C1", marker="o", ms=3, capsize=2,
+                    label="deterministic evaluation")
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("episode return")
+    ax.set_title(f"{label} on {ENV_ID}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    _save(fig, out / "curve.png")  # atomic
+    written.append("curve.png")
+    return written
+
+
+# ================================================================================================ loading
+class SB3ModelPolicy(Policy):
+    """A trained SB3 model as a :class:`Policy`: normalizes the observation with the saved ``VecNormalize``
+    statistics (if any) and returns ``model.predict(obs, deterministic=True)``.
+
+    Build it with :func:`load_trained_policy`.
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), model=None, obs_stats: dict | None = None,
+                 deterministic: bool = True) -> None:
+        super().__init__(interface)
+        if model is None:
+            raise ValueError("model must be a trained SB3 model")
+        self.model = model
+        self.obs_stats = obs_stats
+        self.deterministic = deterministic
+
+    def normalize(self, obs: np.ndarray) -> np.ndarray:
+        if not self.obs_stats:
+            return np.asarray(obs, dtype=np.float32)
+        s = self.obs_stats
+        z = (np.asarray(obs, dtype=np.float64) - s["obs_mean"]) / np.sqrt(s["obs_var"] + float(s["epsilon"]))
+        return np.clip(z, -float(s["clip_obs"]), float(s["clip_obs"])).astype(np.float32)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        a, _ = self.model.predict(self.normalize(obs), deterministic=self.deterministic)
+        return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
+
+
+def load_trained_policy(run_dir, env=None) -> SB3ModelPolicy:
+    """The policy of a :func:`train_sb3` run in ``run_dir``, read without unpickling: the model is rebuilt
+    from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
+    (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
+
+    Args:
+        env: the env to act in (None: ``gym.make`` with the run's env kwargs).
+    """
+    import gymnasium as gym
+    from stable_baselines3 import PPO, SAC
+
+    import hsddp_gym  # noqa: F401
+
+    run_dir = Path(run_dir)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    algo = summary["algo"]
+    if env is None:
+        env = gym.make(ENV_ID, **summary.get("env_kwargs", {}))
+    hp = dict(summary["hyperparameters"])
+    kw = _model_kwargs(hp)
+    kw.pop("learning_starts", None)
+    kw.pop("buffer_size", None)
+    cls = PPO if algo == "ppo" else SAC
+    extra = {"buffer_size": 1} if algo == "sac" else {}
+    model = cls("MlpPolicy", env, device="cpu", **kw, **extra)
+    model.set_parameters(str(run_dir / "model.zip"), exact_match=True, device="cpu")
+    stats = read_npz(run_dir / "vecnormalize.npz") if (run_dir / "vecnormalize.npz").exists() else None
+    return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats)

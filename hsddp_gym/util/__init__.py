@@ -1,0 +1,1 @@
+"""Utilities every layer may use: argument validation and atomic, pickle-free file I/O."""

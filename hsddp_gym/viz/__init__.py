@@ -1,0 +1,1 @@
+"""Figures and frames: matplotlib plots of plans and learning curves, rendering of states and GIFs."""

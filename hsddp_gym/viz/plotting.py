@@ -1,0 +1,146 @@
+"""Matplotlib figures (off-screen, Agg): motion snapshots, states, solver convergence, forces and torques.
+
+Needs the ``viz`` extra (matplotlib). Every function saves a PNG atomically and returns its path.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.core.conventions import FOOT_NAMES, IPITCH, IVX, IZ, NQ, U_NAMES
+from hsddp_gym.util.io import atomic_path
+
+
+def _plt():
+    try:
+        import matplotlib
+    except ImportError as exc:  # pragma: no cover - depends on the install
+        raise ImportError("plots need matplotlib: pip install 'hsddp_gym[viz]'") from exc
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path) -> Path:
+    plt = _plt()
+    with atomic_path(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
+    plt.close(fig)
+    return Path(path)
+
+
+def draw_robot(ax, robot, q, color="C0", alpha=1.0, lw=2.0) -> None:
+    """Draw the planar robot at configuration ``q`` (7,) as a stick figure on a matplotlib axis."""
+    pts = robot.link_points(np.asarray(q)[:NQ])
+    hips = pts[:, 0]
+    ax.plot(hips[:, 0], hips[:, 1], "-", color=color, lw=lw * 2, alpha=alpha, solid_capstyle="round")
+    for foot in range(2):
+        leg = pts[foot, :3]
+        ax.plot(leg[:, 0], leg[:, 1], "-o", color=color, lw=lw, ms=2.5, alpha=alpha)
+
+
+def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, touchdowns: dict | None = None) -> Path:
+    """Paper Fig. 5: one strip of snapshots per trajectory (``{label: X (N+1, 14)}``).
+
+    ``touchdowns``: ``{label: [(x, height), ...]}`` landing points; where a foot "lands" above or below
+    z = 0 (the switching constraint violated), a red "virtual ground" segment is drawn at that height.
+    """
+    plt = _plt()
+    labels = list(trajectories)
+    fig, axes = plt.subplots(len(labels), 1, figsize=(14, 2.3 * len(labels)), squeeze=False)
+    for ax, label in zip(axes[:, 0], labels):
+        X = trajectories[label]
+        idx = np.linspace(0, X.shape[0] - 1, n_snapshots).astype(int)
+        for j, k in enumerate(idx):
+            draw_robot(ax, robot, X[k], color=plt.cm.viridis(j / max(len(idx) - 1, 1)), alpha=0.9, lw=1.6)
+        xmin, xmax = X[:, 0].min() - 0.4, X[:, 0].max() + 0.4
+        ax.axhline(0.0, color="k", lw=1.5)
+        for x_td, z_td in (touchdowns or {}).get(label, []):
+            if abs(z_td) > 2e-3:
+                ax.plot([x_td - 0.06, x_td + 0.06], [z_td, z_td], "r-", lw=2)
+        ax.set_xlim(xmin, xmax)
+        ax.set_ylim(-0.1, 0.55)
+        ax.set_aspect("equal")
+        ax.set_title(label, fontsize=10, loc="left")
+        ax.set_ylabel("z [m]")
+    axes[-1, 0].set_xlabel("x [m]")
+    fig.subplots_adjust(hspace=0.45)
+    return _save(fig, path)
+
+
+def plot_states(trajectories: dict, dt: float, path, target_speed: float | None = None) -> Path:
+    """Trunk height, pitch and forward speed against time for ``{label: X (N+1, 14)}``."""
+    plt = _plt()
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for label, X in trajectories.items():
+        t = dt * np.arange(X.shape[0])
+        axes[0].plot(t, X[:, IZ], label=label)
+        axes[1].plot(t, X[:, IPITCH], label=label)
+        axes[2].plot(t, X[:, IVX], label=label)
+    if target_speed is not None:
+        axes[2].axhline(target_speed, color="k", ls="--", lw=1, label="target")
+    axes[0].set_ylabel("trunk z [m]")
+    axes[1].set_ylabel("pitch [rad]")
+    axes[2].set_ylabel("dx/dt [m/s]")
+    axes[2].set_xlabel("t [s]")
+    axes[0].legend(fontsize=8, ncol=4)
+    return _save(fig, path)
+
+
+def plot_convergence(solutions: dict, path) -> Path:
+    """Paper Fig. 4: penalty-free cost and sum g^2 per DDP iteration, markers at the AL iterations'
+    starts (``{label: Solution}``)."""
+    plt = _plt()
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    for j, (label, sol) in enumerate(solutions.items()):
+        it = sol.log_array("ddp_iteration")
+        cost = sol.log_array("cost")
+        viol = sol.log_array("switching_violation")
+        ev = np.array([r.event for r in sol.log])
+        color = f"C{j}"
+        axes[0].plot(it, cost, "-", color=color, label=label)
+        axes[1].semilogy(it, np.maximum(viol, 1e-12), "-", color=color, label=label)
+        starts = (ev == "init") | (ev == "al_update")
+        axes[0].plot(it[starts], cost[starts], "s", color=color, ms=6, mfc="none")
+        axes[1].semilogy(it[starts], np.maximum(viol[starts], 1e-12), "o", color=color, ms=6, mfc="none")
+    axes[1].axhline(1e-4, color="k", ls="--", lw=1, label=r"$\epsilon_{AL}$ = 1e-4")
+    axes[0].set_ylabel("cost (eq. 18)")
+    axes[0].set_yscale("log")
+    axes[1].set_ylabel(r"$\sum g^2$ [m$^2$]")
+    axes[1].set_xlabel("DDP iteration (markers: start of an AL iteration)")
+    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_forces_torques(dt: float, U: np.ndarray, GRF: np.ndarray, torque_limit: float, friction: float, path,
+                        stance: np.ndarray | None = None, foot: int = 0, title: str = "") -> Path:
+    """Paper Fig. 6: normal and tangential force of one foot with the friction bound, and the joint torques
+    with their limit."""
+    plt = _plt()
+    t = dt * np.arange(U.shape[0])
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
+    fx, fz = GRF[:, 2 * foot], GRF[:, 2 * foot + 1]
+    if stance is not None:
+        fx = np.where(stance[:, foot], fx, np.nan)
+        fz = np.where(stance[:, foot], fz, np.nan)
+    axes[0].plot(t, fz, label=f"{FOOT_NAMES[foot]} normal $f_z$")
+    axes[0].plot(t, fx, label=f"{FOOT_NAMES[foot]} tangential $f_x$")
+    axes[0].plot(t, friction * fz, "k--", lw=1, label=r"$\pm\mu f_z$")
+    axes[0].plot(t, -friction * fz, "k--", lw=1)
+    axes[0].axhline(0.0, color="grey", lw=0.8)
+    axes[0].set_ylabel("GRF [N]")
+    axes[0].legend(fontsize=8)
+    for j in range(U.shape[1]):
+        axes[1].plot(t, U[:, j], label=U_NAMES[j])
+    axes[1].axhline(torque_limit, color="k", ls="--", lw=1)
+    axes[1].axhline(-torque_limit, color="k", ls="--", lw=1, label="limit")
+    axes[1].set_ylabel("torque [N m]")
+    axes[1].set_xlabel("t [s]")
+    axes[1].legend(fontsize=8, ncol=5)
+    if title:
+        axes[0].set_title(title, fontsize=10)
+    return _save(fig, path)

@@ -1,0 +1,249 @@
+"""The hybrid optimal control problem (paper eq. 17): phases from a mode schedule, each with its
+discrete dynamics, quadratic running and terminal costs (eqs. 32-33), a switching constraint at every
+touchdown (eq. 17d) and inequality constraints (17e-17g).
+
+Running cost of knot k in phase i (``h`` the step; the authors' code adds the ground-force term)::
+
+    L = h [ (x - xr_i)^T Q_i (x - xr_i) + u^T R_i u + (grf - grf_ref_i)^T S_i (grf - grf_ref_i) ]
+
+Terminal cost at the end of phase i (the authors' code has the 1/2)::
+
+    Phi_i = 1/2 (x^- - xf_i)^T Qf_i (x^- - xf_i)
+
+All weight matrices are diagonal and stored as vectors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from hsddp_gym.core.conventions import NGRF, NU, NX, Mode, grf_slice
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.params import RobotParams
+from hsddp_gym.core.references import end_of_mode_reference
+from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.util.validation import check_array, check_positive
+
+# Weights of the authors' code closest to the paper (original_code_facts §3.5, MH@0b6ca76), state order
+# [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
+_Q = 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5], dtype=float)
+_QF_BASE = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01], dtype=float)
+_QF_RATES = {Mode.BACK_STANCE: (500, 500, 1, 1), Mode.FLIGHT: (500, 500, 500, 500), Mode.FRONT_STANCE: (1, 1, 500, 500),
+             Mode.DOUBLE_STANCE: (1, 1, 1, 1)}
+_R = {Mode.BACK_STANCE: (5, 5, 1, 1), Mode.FLIGHT: (1, 1, 1, 1), Mode.FRONT_STANCE: (1, 1, 5, 5),
+      Mode.DOUBLE_STANCE: (1, 1, 1, 1)}
+_S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0, Mode.DOUBLE_STANCE: 0.15}
+# Double stance is not in the authors' gait (the MPC plans one when a swing foot lands before the stance foot
+# has lifted off): the stance-leg weights on both legs, the weight shared by the two feet.
+# The authors' later weights (original_code_facts §3.5 "later version": MH HEAD / HM, used there with their
+# 1.5 m/s gait): Q with more weight on the joints and less on the forward speed, R halved, Q_f with less weight
+# on the forward speed (x weight 0 as in HM).
+_Q_LATER = 0.01 * np.array([0, 10, 5, 4, 4, 4, 4, 2, 1, 0.01, 6, 6, 6, 6], dtype=float)
+_QF_BASE_LATER = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 3, 2, 0.01], dtype=float)
+BOUNDING_WEIGHTS = ("paper", "later")
+"""``"paper"``: the authors' code closest to the paper (MH@0b6ca76), the default; ``"later"``: their later code."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PhaseCost:
+    """Cost of one phase. Shapes: ``x_ref, q, x_final, qf (14,)``, ``r (4,)``, ``grf_ref, s (4,)``."""
+
+    x_ref: np.ndarray
+    q: np.ndarray
+    r: np.ndarray
+    grf_ref: np.ndarray
+    s: np.ndarray
+    x_final: np.ndarray
+    qf: np.ndarray
+
+    def __post_init__(self) -> None:
+        for name, size in (("x_ref", NX), ("q", NX), ("r", NU), ("grf_ref", NGRF), ("s", NGRF), ("x_final", NX),
+                           ("qf", NX)):
+            arr = check_array(getattr(self, name), (size,), f"PhaseCost.{name}")
+            if name in ("q", "r", "s", "qf") and np.any(arr < 0):
+                raise ValueError(f"PhaseCost.{name} must be >= 0 (diagonal weights), got {arr}")
+            object.__setattr__(self, name, arr)
+
+
+def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
+                        running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper",
+                        weights: str = "paper") -> PhaseCost:
+    """The bounding cost of one phase (original_code_facts §3.4-§3.5).
+
+    Args:
+        mode: phase mode (BACK_STANCE, FLIGHT, FRONT_STANCE or DOUBLE_STANCE).
+        touchdown_foot: the foot landing at the end of a flight phase; for DOUBLE_STANCE the foot that stays on
+            the ground after it (see :func:`hsddp_gym.core.references.end_of_mode_reference`).
+        speed: desired forward speed [m/s].
+        running_reference: ``"terminal"`` (paper eq. 32-33: the running cost tracks the mode's reference
+            posture) or ``"code"`` (the authors' early code: a neutral posture, z = 0.254 m, legs straight).
+        grf_tracking: include the authors' ground-force tracking term (full weight on the stance foot).
+        z_velocity: terminal vertical-velocity reference, ``"code"`` (+-1 m/s) or ``"paper"`` (0).
+        weights: ``"paper"`` (the authors' code closest to the paper, §3.5) or ``"later"`` (their later code,
+            which they ran at 1.5 m/s), see :data:`BOUNDING_WEIGHTS`.
+    """
+    params = params if params is not None else RobotParams()
+    if weights not in BOUNDING_WEIGHTS:
+        raise ValueError(f"weights must be one of {BOUNDING_WEIGHTS}, got {weights!r}")
+    mode = Mode(mode)
+    if mode not in _R:
+        raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT, FRONT_STANCE and DOUBLE_STANCE, got {mode!r}")
+    if running_reference not in ("terminal", "code"):
+        raise ValueError(f"running_reference must be 'terminal' or 'code', got {running_reference!r}")
+    x_final = end_of_mode_reference(mode, touchdown_foot, speed, z_velocity=z_velocity, params=params)
+    if running_reference == "terminal":
+        x_ref = x_final.copy()
+    else:
+        x_ref = np.zeros(NX)
+        x_ref[1] = -0.15 + params.leg_length
+        x_ref[7] = speed
+    weight = params.total_mass * params.gravity
+    grf_ref = np.zeros(NGRF)
+    s = np.zeros(NGRF)
+    if grf_tracking:
+        for foot in mode.feet:
+            sl = grf_slice(foot)
+            grf_ref[sl] = (0.0, weight / len(mode.feet))
+            s[sl] = _S[mode]
+    later = weights == "later"
+    qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]])
+    r = np.array(_R[mode], dtype=float) * (0.5 if later else 1.0)
+    return PhaseCost(x_ref=x_ref, q=(_Q_LATER if later else _Q).copy(), r=r, grf_ref=grf_ref, s=s,
+                     x_final=x_final, qf=qf)
+
+
+@dataclasses.dataclass(frozen=True)
+class ConstraintSpec:
+    """Which constraints the problem has (the solver's options decide how they are handled).
+
+    Attributes:
+        torque_limit: |u_j| <= torque_limit (eq. 17e) [N m].
+        friction: mu of the friction cone |f_x| <= mu f_z (eq. 17g); f_z >= 0 (eq. 17f) for stance feet.
+        switching: enforce g_c(x^-) = 0 at every touchdown (eq. 17d).
+    """
+
+    torque_limit: float = 33.0
+    friction: float = 0.6
+    switching: bool = True
+
+    def __post_init__(self) -> None:
+        check_positive(self.torque_limit, "torque_limit")
+        check_positive(self.friction, "friction")
+
+
+def _reference_foot(schedule: ModeSchedule, phase: int) -> int | None:
+    """The ``touchdown_foot`` argument of :func:`bounding_phase_cost` for ``phase``: the landing foot of a
+    flight, the foot that stays on the ground after a double stance."""
+    if schedule.modes[phase] == Mode.DOUBLE_STANCE:
+        feet = schedule.next_mode(phase).feet
+        if len(feet) != 1:
+            raise ValueError(f"phase {phase}: a double stance must be followed by a single stance, got "
+                             f"{schedule.next_mode(phase)!r}")
+        return feet[0]
+    return schedule.bounding_touchdown_foot(phase)
+
+
+class HybridProblem:
+    """A hybrid optimal control problem over a mode schedule.
+
+    Args:
+        dynamics: discrete hybrid dynamics (its ``dt`` is the knot spacing ``h``).
+        schedule: modes and durations (phase i has ``round(T_i / h)`` knots).
+        costs: one :class:`PhaseCost` per phase.
+        x0: initial state (14,).
+        constraints: a :class:`ConstraintSpec`.
+        restitution: of the touchdown reset maps (paper: 0).
+        knots: steps per phase ``(n,)``; default ``round(T_i / dt)``. Given explicitly (time-scaled problems
+            of the switching-time optimization, eq. 28), phase ``i`` steps with ``h_i = T_i / knots[i]``.
+
+    Per-knot arrays (N = total knots): ``modes (N,)``, ``phase_of_knot (N,)``, weights ``Qd (N, 14)``,
+    ``Rd (N, 4)``, ``Sd (N, 4)``, references ``XR (N, 14)``, ``YR (N, 4)``; per phase ``QF (n, 14)``,
+    ``XF (n, 14)``, ``touchdown (n,)`` (the landing foot, or -1), ``next_modes (n,)``.
+    """
+
+    def __init__(self, dynamics: HybridDynamics, schedule: ModeSchedule, costs, x0: np.ndarray,
+                 constraints: ConstraintSpec = ConstraintSpec(), restitution: float = 0.0, knots=None) -> None:
+        if not isinstance(dynamics, HybridDynamics):
+            raise TypeError(f"dynamics must be a HybridDynamics, got {type(dynamics).__name__}")
+        if not isinstance(schedule, ModeSchedule):
+            raise TypeError(f"schedule must be a ModeSchedule, got {type(schedule).__name__}")
+        costs = list(costs)
+        if len(costs) != len(schedule) or not all(isinstance(c, PhaseCost) for c in costs):
+            raise ValueError(f"costs must be {len(schedule)} PhaseCost objects (one per phase), got {len(costs)}")
+        if not isinstance(constraints, ConstraintSpec):
+            raise TypeError(f"constraints must be a ConstraintSpec, got {type(constraints).__name__}")
+        self.dynamics = dynamics
+        self.schedule = schedule
+        self.costs = tuple(costs)
+        self.x0 = check_array(x0, (NX,), "x0").copy()
+        self.constraints = constraints
+        self.restitution = float(restitution)
+        self.dt = dynamics.dt
+        if knots is None:
+            knots = schedule.knots(dynamics.dt)
+        knots = np.asarray(knots)
+        if knots.shape != (len(schedule),) or not np.issubdtype(knots.dtype, np.integer) or np.any(knots < 1):
+            raise ValueError(f"knots must be {len(schedule)} positive integers, got {knots!r}")
+        self.knots = knots.astype(np.int64)
+        self.phase_start = np.concatenate([[0], np.cumsum(self.knots)]).astype(np.int64)
+        self.phase_of_knot = np.repeat(np.arange(len(schedule)), self.knots)
+        self.modes = np.array([int(schedule.modes[i]) for i in self.phase_of_knot], dtype=np.int64)
+        self.n_knots = int(self.modes.shape[0])
+        self.n_phases = len(schedule)
+        self.phase_dt = schedule.durations / self.knots
+        """Step of each phase ``h_i = T_i / N_i`` (n,)."""
+        self.h = self.phase_dt[self.phase_of_knot]
+        """Step of each knot (N,)."""
+        p = self.phase_of_knot
+        self.Qd = np.stack([c.q for c in costs])[p]
+        self.Rd = np.stack([c.r for c in costs])[p]
+        self.Sd = np.stack([c.s for c in costs])[p]
+        self.XR = np.stack([c.x_ref for c in costs])[p]
+        self.YR = np.stack([c.grf_ref for c in costs])[p]
+        self.QF = np.stack([c.qf for c in costs])
+        self.XF = np.stack([c.x_final for c in costs])
+        self.next_modes = np.array([int(schedule.next_mode(i)) for i in range(self.n_phases)])
+        td = []
+        for i in range(self.n_phases):
+            feet = schedule.touchdown_feet(i)
+            if len(feet) > 1:
+                raise ValueError(f"phase {i}: simultaneous touchdown of several feet is not supported by the "
+                                 "switching constraint (one landing foot per switch)")
+            td.append(feet[0] if feet else -1)
+        self.touchdown = np.array(td, dtype=np.int64)
+        # stance feet per knot (for friction-cone constraints): (N, 2) bool
+        self.stance = np.array([[Mode(m).in_contact(f) for f in (0, 1)] for m in self.modes], dtype=bool)
+        self.stance_any = self.stance.any(axis=1)
+
+    @classmethod
+    def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
+                 dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
+                 running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
+                 z_velocity: str = "paper", weights: str = "paper") -> HybridProblem:
+        """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
+        v_d = 1 m/s, the paper's initial state (Sec. V-B); ``weights`` see :func:`bounding_phase_cost`."""
+        from hsddp_gym.core.references import paper_initial_state
+        from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+
+        dynamics = dynamics if dynamics is not None else HybridDynamics()
+        if schedule is None:
+            schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
+        params = dynamics.robot.params
+        costs = [bounding_phase_cost(m, _reference_foot(schedule, i), speed, params, running_reference, grf_tracking,
+                                     z_velocity, weights) for i, m in enumerate(schedule.modes)]
+        if constraints is None:
+            constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
+        x0 = paper_initial_state(params) if x0 is None else x0
+        return cls(dynamics, schedule, costs, x0, constraints)
+
+    def with_durations(self, durations) -> HybridProblem:
+        """The time-scaled problem (eq. 28): the same knots per phase, new durations ``(n,)`` [s]."""
+        return HybridProblem(self.dynamics, self.schedule.with_durations(durations), self.costs, self.x0,
+                             self.constraints, self.restitution, knots=self.knots)
+
+    def with_x0(self, x0: np.ndarray) -> HybridProblem:
+        """The same problem from another initial state (14,)."""
+        return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution,
+                             knots=self.knots)

@@ -1,0 +1,718 @@
+"""HS-DDP model-predictive control: re-plan from the observed state, act with the plan's feedback law.
+
+As in MuJoCo MPC, the planner optimizes and the policy is queried at the control rate from the latest
+plan. At each re-plan (every ``replan_period`` seconds of env time):
+
+1. the observation gives the state, the contact mode and (from the policy's memory) the time already spent
+   in that mode and the last stance foot;
+2. a bounding :class:`~hsddp_gym.core.schedule.ModeSchedule` starts with the current mode for the rest of its
+   nominal duration (at least ``min_phase`` seconds) and continues the bounding cycle to cover at least
+   ``horizon`` seconds (default one gait cycle); the plan's speed reference is the target speed moved at
+   most ``speed_ramp`` from the measured speed (a reference governor for pushes), and a stance whose foot
+   has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`);
+3. the previous plan, aligned by phase with the contact events
+   (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
+   is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
+   rollout, AL multipliers phase by phase, the outer-loop penalty and barrier state); phases beyond the
+   previous plan copy the same mode one cycle earlier;
+4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds);
+5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
+   between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
+
+A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
+feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
+
+**Push recovery** (``MPCOptions(recovery=True)``, off by default). After a push the 3-iteration re-plans warm
+started from the shifted plan no longer converge (costs grow 10-1000x, switching violations reach 0.1-0.4,
+re-plans fail or return a plan whose gains failed) while the stale plan's feedback law acts on a state far
+from its nominal. With recovery on, a trunk-velocity deviation from the plan's prediction above
+``recovery_threshold`` opens a recovery window: an immediate re-plan, ``recovery_iterations`` per re-plan,
+plans whose gains failed rejected, a flight ended by any touchdown of its landing foot, a double stance planned
+when the trunk sinks or both feet touch, and the contact-event heuristic acting while the latest re-plan has
+failed (``recovery_handover``: for the whole window). Without a push (at 0.5 and 1 m/s) the deviation stays
+below the threshold and the actions are those of the plain MPC; in the 1.5 m/s gait it is crossed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+from hsddp_gym.planners.optimizer.hsddp import HSDDP
+from hsddp_gym.planners.optimizer.objective import ConstraintState
+from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, HybridProblem
+from hsddp_gym.planners.optimizer.solution import SolverOptions
+from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains, HeuristicPolicy
+from hsddp_gym.planners.policies.tracking import PlanTracker
+
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.util.validation import check_int, check_positive
+
+_CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
+DOUBLE_STANCE_PHASE = 4
+""":attr:`GaitClock.phase` of a double stance (outside the bounding cycle's phases 0-3)."""
+FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
+"""The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD)."""
+FAST_GAIT_SPEED = 1.2
+"""Above this target speed [m/s] the MPC defaults to the authors' 1.5 m/s gait: its durations and weights."""
+
+
+@dataclasses.dataclass(frozen=True)
+class MPCOptions:
+    """Settings of :class:`MPCPolicy`.
+
+    Attributes:
+        horizon: planned time at least [s] (None: one gait cycle of the durations).
+        planner_dt: knot spacing of the planner [s] (coarser than the simulator's 1 ms is allowed).
+        replan_period: env time between re-plans [s].
+        max_iterations: DDP iterations per re-plan. warmup_iterations: for the first plan of an episode.
+        time_budget: wall-clock limit of one re-plan [s] (None: none).
+        latency_steps: control steps between the start of a re-plan and the moment its plan is used.
+        durations: nominal (back stance, flight, front stance, flight) durations [s]; None picks them from
+            the target speed: the paper's 80/72/72/72 ms up to FAST_GAIT_SPEED (1.2 m/s), the authors' 1.5 m/s gait
+            80/100/80/100 ms above (their MHPC bounding code).
+        weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`); None picks them like
+            the
+            durations: ``"paper"`` up to 1.2 m/s, above it ``"later"``, the weights the authors' code runs with
+            its 1.5 m/s gait (with the paper's weights, whose terminal forward-speed weight is 3x larger, the
+            MPC fell in the start-up transient from the paper's 0.9 m/s initial state on 3 of 3 seeds).
+        min_phase: shortest remaining duration given to the current phase [s].
+        method: HS-DDP constraint handling ("al-reb", "al" or "ddp").
+        sigma_max: cap of the AL penalty carried across re-plans.
+        integrator: the planner's integrator; semi-implicit Euler keeps the light shanks' closed loops
+            stable at a coarse ``planner_dt``.
+        debounce_steps: control steps the landing foot must touch before a flight phase ends.
+        min_flight: fraction of the nominal flight before which a touchdown is taken for a graze.
+        max_wait: how long past its nominal end a flight waits for the touchdown before the gait clock
+            moves on anyway [s].
+        z_velocity: vertical-velocity references at the phase ends (see
+            :func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): "code" (default; the authors' +-1 m/s,
+            real
+            flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
+            flight made 2 of 10 seeded MPC episodes fall).
+        reb_delta, reb_eps: relaxed-barrier relaxation and weight used in every re-plan (kept moderate:
+            the one-shot solve's shrinking delta makes warm-started re-plans needlessly stiff).
+        warm_start_kd: joint damping of the heuristic controller that warm-starts the first plan (the
+            heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
+        recovery: push recovery (default off: the unpushed behaviour is that of the plain MPC, bit for bit).
+            When the measured trunk velocity is far from the plan's prediction at the cursor
+            (:meth:`MPCPolicy.plan_deviation` above ``recovery_threshold``, e.g. after a push), the MPC
+            re-plans at once instead of waiting for ``replan_period``, and for the next ``recovery_window``
+            seconds every re-plan gets ``recovery_iterations`` DDP iterations and rejects plans whose gains
+            failed (their open-loop controls, K = 0, come from a diverged rollout); a rejected or failed
+            re-plan hands the torques to the contact-event heuristic (``recovery_fallback``) until the next
+            successful re-plan. See :meth:`MPCPolicy.act`.
+        recovery_threshold: trigger of the recovery: the deviation [m/s] of
+            ``(vx, vz, pitch_length * pitch_rate)`` from the plan.
+        recovery_iterations: DDP iterations per re-plan during a recovery. recovery_window: its length [s]
+            (0.3 s: with 0.2 s the window closed in the middle of the double stance that caught a downward push).
+        recovery_fallback: act with the contact-event heuristic while a recovery re-plan has failed.
+        recovery_handover: act with the contact-event heuristic for the whole recovery window (the MPC keeps
+            re-planning from the measured states and takes over when the window closes).
+        recovery_max_wait: the gait clock's ``max_wait`` during a recovery (None: ``max_wait``): a longer
+            wait keeps the clock, and so the planned schedule, in flight until the landing foot really touches
+            down after a push has lengthened the flight (measured on 6 pushes x 3 seeds: no fewer falls).
+        recovery_min_flight: the gait clock's ``min_flight`` during a recovery (None: ``min_flight``). The
+            default 0 ends a flight as soon as its landing foot touches down: after a nose-down pitch push the
+            front foot hits the ground 5-10 ms after the back foot's lift-off, and a clock that took that for a
+            graze planned flight dynamics for a foot on the ground while the trunk pitched over.
+        recovery_double_stance: during a recovery, the duration [s] of a double stance (None: never plan one;
+            the authors' bounding gait has none). The gait clock enters one when both feet touch down
+            (:class:`GaitClock`), and while the trunk sinks faster than ``recovery_sink_speed`` [m/s] the plan
+            follows the current stance (or, in a flight whose lift-off has not happened, a ``min_phase`` rest of
+            the stance before it) with a double stance instead of a flight: after a downward push one leg
+            cannot stop the fall with 33 N m, and the plan reaches the swing foot down to share the load
+            (:meth:`MPCPolicy._schedule`).
+        recovery_after: env time [s] before which no recovery triggers (the start-up transient from the
+            reset noise is the warm-up plan's job; its deviations reach those of a push).
+        lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
+            gait clock takes the stance as lost (0: never; see :class:`GaitClock`): after a push that lifts the
+            stance foot early in its stance, the clock goes back to the flight that lands it and the MPC
+            re-plans at once, instead of planning stance dynamics for a foot in the air.
+        speed_ramp: the largest difference [m/s] between a plan's forward-speed reference and the measured
+            forward speed (:meth:`MPCPolicy.plan_speed`; None: always the target). A reference governor: after a
+            push that changes the speed by more than this, the plan does not demand the whole change within
+            one gait cycle (whose phase-end terminal costs would otherwise ask for torques that saturate and
+            feet swung high to get there). While bounding, the speed stays within 0.5 m/s of the target and the
+            reference is the target.
+    """
+
+    horizon: float | None = None
+    planner_dt: float = 0.005
+    replan_period: float = 0.02
+    max_iterations: int = 3
+    warmup_iterations: int = 30
+    time_budget: float | None = None
+    latency_steps: int = 0
+    durations: tuple | None = None
+    min_phase: float = 0.01
+    method: str = "al-reb"
+    sigma_max: float = 500.0
+    integrator: str = "semi_implicit"
+    warm_start_kd: float = 0.1
+    debounce_steps: int = 2
+    min_flight: float = 0.3
+    max_wait: float = 0.03
+    reb_delta: float = 0.2
+    reb_eps: float = 1e-4
+    z_velocity: str = "code"
+    recovery: bool = False
+    recovery_threshold: float = 0.5
+    recovery_iterations: int = 15
+    recovery_window: float = 0.3
+    recovery_fallback: bool = True
+    recovery_handover: bool = False
+    recovery_after: float = 0.5
+    recovery_max_wait: float | None = None
+    lost_stance_steps: int = 2
+    recovery_min_flight: float | None = 0.0
+    recovery_double_stance: float | None = 0.04
+    recovery_sink_speed: float = 0.5
+    speed_ramp: float | None = 0.5
+    weights: str | None = None
+
+    PUSH_RECOVERY_PLANNER_DT = 0.0025
+    """The planner step of :meth:`push_recovery` [s]."""
+
+    @classmethod
+    def push_recovery(cls, **changes) -> MPCOptions:
+        """The push-robust settings: ``recovery=True`` and a 2.5 ms planner grid (``planner_dt``), with any
+        other field given in ``changes``.
+
+        Measured (README, "Pushes"): over 13 pushes x 6 gait phases x 2 seeds the recovery took the falls from
+        95 to 60 of 156 on the default 5 ms grid, and to 43 on the 2.5 ms grid (the heuristic: 32); the finer
+        grid alone barely helps (the plain MPC fell on 49 of the 60 episodes of the five hardest pushes, 53 on
+        5 ms). Unpushed bounding is as good (10 seeds: return 1447.5) with re-plans twice as long (real-time
+        factor 1.8 instead of 2.9)."""
+        return cls(**{"recovery": True, "planner_dt": cls.PUSH_RECOVERY_PLANNER_DT, **changes})
+
+    def __post_init__(self) -> None:
+        if self.horizon is not None:
+            check_positive(self.horizon, "horizon")
+        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait", "recovery_threshold",
+                     "recovery_window"):
+            check_positive(getattr(self, name), name)
+        check_int(self.max_iterations, "max_iterations", minimum=1)
+        check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
+        check_int(self.recovery_iterations, "recovery_iterations", minimum=1)
+        check_int(self.latency_steps, "latency_steps", minimum=0)
+        check_int(self.debounce_steps, "debounce_steps", minimum=1)
+        check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
+        if self.recovery_double_stance is not None:
+            check_positive(self.recovery_double_stance, "recovery_double_stance")
+        check_positive(self.recovery_sink_speed, "recovery_sink_speed")
+        if not (0.0 <= self.min_flight <= 1.0):
+            raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
+        if self.recovery_min_flight is not None and not (0.0 <= self.recovery_min_flight <= 1.0):
+            raise ValueError(f"recovery_min_flight must be None or in [0, 1], got {self.recovery_min_flight!r}")
+        check_positive(self.reb_delta, "reb_delta")
+        check_positive(self.reb_eps, "reb_eps")
+        if self.time_budget is not None:
+            check_positive(self.time_budget, "time_budget")
+        if self.speed_ramp is not None:
+            check_positive(self.speed_ramp, "speed_ramp")
+        if self.durations is not None and (len(self.durations) != 4 or any(not (d > 0) for d in self.durations)):
+            raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
+        if self.weights is not None and self.weights not in BOUNDING_WEIGHTS:
+            raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
+        if self.method not in ("ddp", "al", "al-reb"):
+            raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
+
+
+class GaitClock:
+    """The MPC's gait clock: the bounding phase ``phase`` (index into (back stance, flight, front stance,
+    flight)) and the time ``tau`` spent in it, a deterministic function of the observation history.
+
+    The phase changes on time, except that a flight ends when its landing foot has touched for
+    ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or ``max_wait``
+    after its nominal end (late touchdown); grazes of other feet are ignored. A stance is *lost* when its
+    foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
+    half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
+    foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
+    re-plans at once). With ``double_stance > 0``, a *double stance* (``phase`` = :data:`DOUBLE_STANCE_PHASE`)
+    starts when both feet touch and the one that was in the air has touched for ``debounce_steps`` (in a
+    flight, once ``min_flight`` of it has passed): it lasts ``double_stance`` seconds or until the other foot
+    has lifted off for ``debounce_steps``, then the stance of the foot that landed follows (:attr:`resynced`
+    is set when it starts). The first observation picks the phase from the contacts (and, in flight, the sign
+    of the pitch rate).
+
+    Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
+    (``2 pi t / gait_period``): on seed 0 of the default env the MPC's phase slips by about 0.2 cycles per
+    second, i.e. through a whole cycle in a 5 s episode. A learner that imitates the MPC needs this clock
+    (:meth:`features`), which it can rebuild from the observations alone (:func:`gait_clock_features`).
+
+    Args:
+        durations: nominal (back stance, flight, front stance, flight) durations [s].
+        dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
+        debounce_steps, min_flight, max_wait, lost_stance_steps: the rules above (see :class:`MPCOptions`).
+        double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC sets it to
+            ``MPCOptions.recovery_double_stance`` during a push recovery).
+    """
+
+    def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
+                 max_wait: float = 0.03, lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
+        if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
+            raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
+        self.durations = tuple(float(d) for d in durations)
+        self.dt = check_positive(dt, "dt")
+        self.debounce_steps = check_int(debounce_steps, "debounce_steps", minimum=1)
+        self.min_flight = float(min_flight)
+        self.max_wait = float(max_wait)
+        self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
+        self.double_stance = check_positive(double_stance, "double_stance", allow_zero=True)
+        """Duration [s] of a double stance entered now (0: the clock never enters one)."""
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase: int | None = None
+        self.tau = 0.0
+        self._contact_steps = [0, 0]
+        self._air_steps = [0, 0]
+        self._stance_touched = False
+        self.after_double: int | None = None
+        """In a double stance, the phase (0 or 2) of the single stance that follows it."""
+        self.double_duration = 0.0
+        """The duration [s] of the current double stance (``double_stance`` when it started)."""
+        self.resynced = False
+        """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
+
+    def copy(self) -> GaitClock:
+        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait,
+                         self.lost_stance_steps, self.double_stance)
+        twin.after_double, twin.double_duration = self.after_double, self.double_duration
+        twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
+        twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
+            self._stance_touched
+        return twin
+
+    def update(self, mode: Mode, pitch_rate: float) -> Mode:
+        """Advance by the observed contact ``mode``; return the mode of the current gait phase."""
+        self.resynced = False
+        for foot in (FRONT, BACK):
+            self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
+            self._air_steps[foot] = 0 if mode.in_contact(foot) else self._air_steps[foot] + 1
+        if self.phase is None:
+            if mode == Mode.FLIGHT:
+                self.phase = 1 if pitch_rate > 0 else 3
+            else:
+                self.phase = 0 if mode.in_contact(BACK) and not mode.in_contact(FRONT) else (
+                    2 if not mode.in_contact(BACK) else 0)
+            self.tau = 0.0
+            return _CYCLE[self.phase]
+        j = self.phase
+        if j == DOUBLE_STANCE_PHASE:
+            # ends when the foot that does not stay has lifted off, or after its duration
+            leaving = BACK if self.after_double == 2 else FRONT
+            if self._air_steps[leaving] >= self.debounce_steps or self.tau >= self.double_duration - 1e-9:
+                self.phase, self.tau, self.after_double = self.after_double, 0.0, None
+                self._stance_touched = True
+            return self.mode
+        nominal = self.durations[j]
+        if self.double_stance and self._double_starts(j, mode):
+            # a swing foot landed while the stance foot is down (a stance, or a flight whose lift-off is late)
+            self.after_double = 2 if _CYCLE[j] == Mode.BACK_STANCE or j == 1 else 0
+            self.double_duration = self.double_stance
+            self.phase, self.tau, self.resynced = DOUBLE_STANCE_PHASE, 0.0, True
+            return self.mode
+        if _CYCLE[j] == Mode.FLIGHT:
+            landing = FRONT if j == 1 else BACK
+            touched = self._contact_steps[landing] >= self.debounce_steps
+            advance = (touched and self.tau >= self.min_flight * nominal) or self.tau >= nominal + self.max_wait
+        else:
+            stance_foot = BACK if j == 0 else FRONT
+            advance = self.tau >= nominal - 1e-9
+            self._stance_touched |= mode.in_contact(stance_foot)
+            if (not advance and self.lost_stance_steps and self._stance_touched
+                    and self._air_steps[stance_foot] >= self.lost_stance_steps):
+                # the stance foot left the ground (a push, a slip): late in the stance, the stance is over;
+                # early in it, the foot has to land again, so the clock goes back to the flight that lands
+                # it, with half of that flight still to come
+                if self.tau >= 0.5 * nominal:
+                    advance = True
+                else:
+                    self.phase = (j - 1) % 4
+                    self.tau = 0.5 * self.durations[self.phase]
+                    self._stance_touched = False
+                    self.resynced = True
+        if advance:
+            self.phase = (j + 1) % 4
+            self.tau = 0.0
+            self._stance_touched = False
+        return _CYCLE[self.phase]
+
+    @property
+    def mode(self) -> Mode:
+        """The contact mode of the current phase."""
+        return Mode.DOUBLE_STANCE if self.phase == DOUBLE_STANCE_PHASE else _CYCLE[self.phase]
+
+    def _double_starts(self, j: int, mode: Mode) -> bool:
+        """Whether the observation starts a double stance in phase ``j``: in a stance, the swing foot has
+        touched for ``debounce_steps`` while the stance foot touches; in a flight (once ``min_flight`` of it
+        has passed), the landing foot has while the foot of the stance before it still touches."""
+        if mode != Mode.DOUBLE_STANCE:
+            return False
+        if _CYCLE[j] == Mode.FLIGHT:
+            landing = FRONT if j == 1 else BACK
+            return (self._contact_steps[landing] >= self.debounce_steps
+                    and self.tau >= self.min_flight * self.durations[j])
+        swing = FRONT if j == 0 else BACK
+        return self._contact_steps[swing] >= self.debounce_steps
+
+    def touching(self, foot: int) -> bool:
+        """Whether ``foot`` touched the ground in the last observation."""
+        return self._contact_steps[foot] > 0
+
+    def tick(self) -> None:
+        """One control period has passed."""
+        self.tau += self.dt
+
+    N_FEATURES = 7
+
+    def features(self) -> np.ndarray:
+        """(7,): one-hot of the phase (4), ``tau / nominal duration`` (clipped to [0, 2]) and sin, cos of the
+        cycle fraction ``(start of the phase + tau) / cycle duration``; zeros before the first update."""
+        f = np.zeros(self.N_FEATURES)
+        if self.phase is None:
+            return f
+        j = self.phase
+        tau = self.tau
+        if j == DOUBLE_STANCE_PHASE:  # read as the start of the stance that follows
+            j, tau = self.after_double, 0.0
+        f[j] = 1.0
+        f[4] = min(tau / self.durations[j], 2.0)
+        frac = (sum(self.durations[:j]) + min(tau, self.durations[j])) / sum(self.durations)
+        f[5], f[6] = math.sin(2 * math.pi * frac), math.cos(2 * math.pi * frac)
+        return f
+
+
+class MPCPolicy(Policy):
+    """HS-DDP MPC acting from observations (see the module docstring).
+
+    Args:
+        interface: the env's public settings (``MPCPolicy.from_env(env)``).
+        options: :class:`MPCOptions`.
+
+    Attributes:
+        stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``recoveries``
+            (push recoveries triggered), ``fallback_steps`` (control steps acted by the heuristic fallback),
+            ``time_limit_hits`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
+            MPC does, and counted here rather than as failures).
+        last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
+    """
+
+    def __init__(self, interface: EnvInterface = EnvInterface(), options: MPCOptions = MPCOptions()) -> None:
+        super().__init__(interface)
+        if not isinstance(options, MPCOptions):
+            raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
+        self.options = options
+        fast = interface.target_speed > FAST_GAIT_SPEED
+        if options.durations is not None:
+            self.durations = tuple(float(d) for d in options.durations)
+        else:
+            self.durations = FAST_BOUNDING_DURATIONS if fast else PAPER_BOUNDING_DURATIONS
+        self.weights = options.weights if options.weights is not None else ("later" if fast else "paper")
+        self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
+        self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
+        self._fallback = HeuristicPolicy(interface)
+        self._warm_controller = HeuristicBoundingController(
+            gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
+        self.reset()
+
+    def _reset_copy_state(self) -> None:
+        self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
+        self._fallback = self._fallback.spawn()
+
+    def reset(self) -> None:
+        self._solver = HSDDP(SolverOptions(method=self.options.method))
+        self.tracker: PlanTracker | None = None
+        self._pending: tuple | None = None
+        self.last_solution = None
+        self._problem = None
+        self._cs: ConstraintState | None = None
+        self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
+                               self.options.min_flight, self.options.max_wait, self.options.lost_stance_steps)
+        self._since_replan = np.inf
+        self._fallback.reset()
+        self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
+                      "fallback_steps": 0, "time_limit_hits": 0}
+        self._time = 0.0  # env time since reset [s]
+        self._recovery_until = -np.inf
+        self._use_fallback = False
+
+    # ------------------------------------------------------------------ gait clock
+    @property
+    def _phase_j(self) -> int | None:
+        return self.clock.phase
+
+    @property
+    def _tau(self) -> float:
+        return self.clock.tau
+
+    def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
+        """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
+        o = self.options
+        if o.recovery and o.recovery_max_wait is not None:
+            self.clock.max_wait = o.recovery_max_wait if self.recovering else o.max_wait
+        if o.recovery and o.recovery_min_flight is not None:
+            self.clock.min_flight = o.recovery_min_flight if self.recovering else o.min_flight
+        if o.recovery and o.recovery_double_stance is not None:
+            self.clock.double_stance = o.recovery_double_stance if self.recovering else 0.0
+        return self.clock.update(mode, float(x[NQ + IPITCH]))
+
+    def _schedule(self, sinking: bool = False) -> ModeSchedule:
+        """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
+        ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance.
+
+        ``sinking`` (a recovery with the trunk falling): the stance (or, in a flight whose lift-off has not
+        happened, the stance before it, for ``min_phase``) is followed by a double stance instead of a flight.
+        """
+        o = self.options
+        j = self._phase_j
+        stance = self._stance_before_double(j) if sinking else None
+        if stance is not None:  # the stance, a double stance, then the cycle from the other stance
+            s, left = stance
+            j = (s + 2) % 4
+            modes = [_CYCLE[s], Mode.DOUBLE_STANCE, _CYCLE[j]]
+            durs = [left, o.recovery_double_stance, self.durations[j]]
+        elif j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
+            j = self.clock.after_double
+            modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
+            durs = [max(self.clock.double_duration - self._tau, o.min_phase), self.durations[j]]
+        else:
+            modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+        while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
+            j = (j + 1) % 4
+            modes.append(_CYCLE[j])
+            durs.append(self.durations[j])
+        h = o.planner_dt
+        durs = [max(1, round(d / h)) * h for d in durs]
+        return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
+
+    def _stance_before_double(self, j: int) -> tuple[int, float] | None:
+        """For a sinking trunk in phase ``j``: ``(stance phase, time left in it)`` to follow with a double
+        stance: the current stance, or, in a flight whose lift-off foot still touches, the stance before it for
+        ``min_phase``; None in a flight with both feet up and in a double stance."""
+        o = self.options
+        if j == DOUBLE_STANCE_PHASE:
+            return None
+        if _CYCLE[j] != Mode.FLIGHT:
+            return j, max(self.durations[j] - self._tau, o.min_phase)
+        lifting = BACK if j == 1 else FRONT
+        return (j - 1, o.min_phase) if self.clock.touching(lifting) else None
+
+    # ------------------------------------------------------------------ warm start
+    def _warm_start(self, problem: HybridProblem, x: np.ndarray):
+        """Shift the previous plan onto ``problem`` phase by phase: ``(U, X, K, lam)`` or None."""
+        tr, prev = self.tracker, self.last_solution
+        if tr is None or prev is None:
+            return None
+        N = problem.n_knots
+        U = np.zeros((N, NU))
+        X = np.zeros((N + 1, NX))
+        K = np.zeros((N, NU, NX))
+        lam = np.zeros(problem.n_phases)
+        have = np.zeros(N, dtype=bool)
+        prev_len = np.diff(prev.phase_start)
+        # the previous plan's phase that matches the current one: the cursor's, the one before it (the
+        # contact switch is late) or the one after it
+        first = problem.schedule.modes[0]
+        if tr.modes[tr.phase] == first:
+            p0, offset0 = tr.phase, tr.local_time
+        elif tr.phase > 0 and tr.modes[tr.phase - 1] == first:
+            p0 = tr.phase - 1
+            offset0 = (prev_len[p0] - 1) * tr.phase_dt[p0]
+        elif tr.phase + 1 < tr.n_phases and tr.modes[tr.phase + 1] == first:
+            p0, offset0 = tr.phase + 1, 0.0
+        else:
+            return None
+        for j in range(problem.n_phases):
+            a, b = problem.phase_start[j], problem.phase_start[j + 1]
+            p = p0 + j
+            if p < tr.n_phases and tr.modes[p] == problem.schedule.modes[j]:
+                lam[j] = self._prev_lam[p] if self._prev_lam is not None else 0.0
+                offset = offset0 if j == 0 else 0.0
+                for k in range(a, b):
+                    t_local = offset + (k - a) * problem.phase_dt[j]
+                    kp = prev.phase_start[p] + min(int(t_local / tr.phase_dt[p] + 1e-9), prev_len[p] - 1)
+                    U[k], X[k], K[k] = prev.U[kp], prev.X[kp], prev.K[kp]
+                    have[k] = True
+            elif j >= 4:
+                lam[j] = lam[j - 4]
+                src = problem.phase_start[j - 4]
+                n_src = problem.phase_start[j - 3] - src
+                for k in range(a, b):
+                    ks = src + min(k - a, n_src - 1)
+                    U[k], X[k], K[k] = U[ks], X[ks], K[ks]
+                    have[k] = have[ks]
+        if not have.all():
+            return None
+        X[N] = X[N - 1]
+        X[:, 0] += x[0] - X[0, 0]
+        return U, X, K, lam
+
+    def _heuristic_controls(self, problem: HybridProblem) -> np.ndarray:
+        from hsddp_gym.core.rollout import rollout
+
+        ctrl = self._warm_controller.as_schedule_controller(problem.schedule)
+        traj = rollout(problem.dynamics, problem.schedule, problem.x0, controller=ctrl)
+        if not traj.is_finite:
+            raise RuntimeError("heuristic warm start diverged")
+        return traj.U
+
+    # ------------------------------------------------------------------ re-plan
+    @property
+    def recovering(self) -> bool:
+        """True inside a push recovery window (``MPCOptions.recovery``)."""
+        return self.options.recovery and self._time < self._recovery_until - 1e-9
+
+    def plan_deviation(self, x: np.ndarray) -> float:
+        """Distance [m/s] of the measured trunk velocity ``(vx, vz, pitch_length * pitch_rate)`` from the
+        plan's state at the cursor (0 without a plan); ``pitch_length`` is half the hip spacing, so the
+        pitch term is the hips' vertical speed."""
+        if self.tracker is None:
+            return 0.0
+        xn = self.tracker.X[self.tracker.knot]
+        d = np.asarray(x[NQ:NQ + 3], dtype=np.float64) - xn[NQ:NQ + 3]
+        d[2] *= self._pitch_length
+        return float(np.linalg.norm(d))
+
+    def plan_speed(self, x: np.ndarray) -> float:
+        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): the target speed, moved at most
+        ``speed_ramp`` from the measured speed (None: the target)."""
+        target = self.interface.target_speed
+        ramp = self.options.speed_ramp
+        if ramp is None:
+            return float(target)
+        vx = float(x[NQ])
+        return float(min(max(target, vx - ramp), vx + ramp))
+
+    def replan(self, x: np.ndarray, mode: Mode) -> bool:
+        """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
+        o = self.options
+        t0 = time.perf_counter()
+        sinking = (self.recovering and o.recovery_double_stance is not None
+                   and float(x[NQ + 1]) < -o.recovery_sink_speed)
+        schedule = self._schedule(sinking)
+        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
+                                         dynamics=self.dynamics, z_velocity=o.z_velocity, weights=self.weights)
+        first = self.last_solution is None
+        recovering = self.recovering
+        iters = o.warmup_iterations if first else (o.recovery_iterations if recovering else o.max_iterations)
+        self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
+                                             max_total_ddp_iterations=iters, time_limit=o.time_budget,
+                                             max_al_iterations=4 if first else 2)
+        try:
+            sol = None
+            ws = None if first else self._warm_start(problem, x)
+            if ws is not None:
+                U, X, K, lam = ws
+                cs = self._cs.copy() if self._cs is not None else None
+                if cs is not None:
+                    cs.lam = lam
+                    cs.sigma = min(cs.sigma, o.sigma_max)
+                    cs.delta_torque = cs.delta_grf = o.reb_delta
+                    cs.eps_torque = cs.eps_grf = o.reb_eps
+                U = np.clip(U, -self.interface.torque_limit, self.interface.torque_limit)
+                # warm starts, most informed first: shifted plan with its feedback law, then open loop
+                for X_init, K_init in ((X, K), (None, None)):
+                    try:
+                        sol = self._solver.solve(problem, U, X_init=X_init, K_init=K_init, constraint_state=cs)
+                    except ValueError:
+                        sol = None
+                    if sol is not None and not (recovering and sol.status == "gains_failed"):
+                        break
+                    sol = None
+            if sol is None:
+                sol = self._solver.solve(problem, self._heuristic_controls(problem))
+            if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged" or (
+                    recovering and sol.status == "gains_failed"):
+                raise RuntimeError(f"planner status {sol.status}")
+        except (RuntimeError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            self.last_failure = f"{type(exc).__name__}: {exc}"
+            self.stats["planner_failures"] += 1
+            self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
+            if recovering and o.recovery_fallback:
+                self._use_fallback = True
+            return False
+        cs = self._solver.last_constraint_state
+        if cs is not None and o.method != "ddp" and sol.switching_violation > sol.options.al_tolerance:
+            cs.lam = cs.lam + cs.sigma * sol.switching  # continue the outer loop across re-plans (eq. 24)
+            cs.sigma = min(cs.sigma * sol.options.beta, o.sigma_max)
+        self._cs = cs
+        self._use_fallback = False
+        self.stats["replans"] += 1
+        self.stats["time_limit_hits"] += int(sol.status == "time_limit")
+        self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
+        self.stats["iterations"].append(sol.ddp_iterations)
+        new_tracker = PlanTracker.from_solution(sol, problem)
+        self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
+        return True
+
+    def _activate_pending(self) -> None:
+        tracker, sol, problem, lam, _ = self._pending
+        if self.tracker is not None and self._pending[4] > 0:
+            # the plan was computed latency steps ago: move its cursor to now
+            tracker.advance(self._pending[4] * self.interface.control_dt)
+        self.tracker, self.last_solution, self._problem, self._prev_lam = tracker, sol, problem, lam
+        self._pending = None
+
+    # ------------------------------------------------------------------ act
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        """The plan's feedback law at the cursor, re-planning every ``replan_period``.
+
+        With ``MPCOptions.recovery``: a plan deviation (:meth:`plan_deviation`) above ``recovery_threshold``
+        outside a recovery window opens one and re-plans now; while a recovery re-plan has failed, the
+        contact-event heuristic (fed every observation, so its stance/swing timers follow the real
+        touchdowns) acts instead of the stale plan (``recovery_handover``: for the whole window).
+        """
+        x, mode, _ = self._parse(obs)
+        o = self.options
+        eff = self._update_clock(mode, x)
+        if self.tracker is not None:
+            self.tracker.sync(eff)
+        if (o.recovery and not self.recovering and self._time >= o.recovery_after - 1e-9
+                and self.plan_deviation(x) > o.recovery_threshold):
+            self._recovery_until = self._time + o.recovery_window
+            self._since_replan = np.inf
+            self.stats["recoveries"] += 1
+        u_fallback = None
+        if o.recovery and (o.recovery_fallback or o.recovery_handover):
+            # the heuristic sees every observation so that its stance/swing timers follow the real contacts
+            u_fallback = self._fallback.gait.torque(x, (mode.in_contact(FRONT), mode.in_contact(BACK)))
+        if self._use_fallback and not self.recovering:
+            self._use_fallback = False  # the window closed: back to the (last successful) plan
+        if self.clock.resynced:
+            self._since_replan = np.inf  # the schedule changed against the cycle: re-plan now
+        if self._since_replan >= self.options.replan_period - 1e-9:
+            self._since_replan = 0.0
+            if self.replan(x, eff) and (self.tracker is None or self._pending[4] == 0):
+                self._activate_pending()
+        elif self._pending is not None:
+            tracker, sol, problem, lam, steps = self._pending
+            steps -= 1
+            self._pending = (tracker, sol, problem, lam, steps)
+            if steps <= 0:
+                self._pending = (tracker, sol, problem, lam, self.options.latency_steps)
+                self._activate_pending()
+        if self.tracker is None:
+            u = self._fallback.controller.torque(x, eff)
+        else:
+            u = self.tracker.control(x)
+            self.tracker.advance(self.interface.control_dt)
+        if u_fallback is not None and self.recovering and (self._use_fallback or o.recovery_handover):
+            u = u_fallback
+            self.stats["fallback_steps"] += 1
+        self.clock.tick()
+        self._since_replan += self.interface.control_dt
+        self._time += self.interface.control_dt
+        return self.interface.action_from_torque(u)
+
+    _prev_lam = None
+    _pitch_length = DEFAULT_PARAMS.hip_offset
+    """Half the hip spacing of the planar Mini Cheetah [m] (``plan_deviation``'s pitch-rate scale)."""
