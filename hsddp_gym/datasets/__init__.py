@@ -9,19 +9,19 @@ and played by a *fresh* policy built for it (:class:`PolicySpec`, or any picklab
 ``spawn``-started processes (:class:`concurrent.futures.ProcessPoolExecutor`; ``workers=1`` runs in this
 process); a tqdm bar counts finished episodes.
 
-Built-in policies (:data:`POLICIES`): ``mpc`` (:class:`planners.mpc.MPCPolicy`, options = ``MPCOptions``
-fields), ``expert`` (:class:`planners.policies.PlanTrackingExpert` tracking the HS-DDP plan
-``planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as ``expert_plan.npz``
-in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without* reset noise,
-so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's 1.48 s the
-default MPC takes over), ``heuristic``
-(:class:`planners.policies.HeuristicPolicy`) and ``random`` (:class:`planners.policies.RandomPolicy`
-seeded with the episode seed).
+Built-in policies (:data:`~hsddp_gym.datasets.recording.POLICIES`): ``mpc``
+(:class:`hsddp_gym.planners.policies.mpc.MPCPolicy`, options = ``MPCOptions`` fields), ``expert``
+(:class:`hsddp_gym.planners.policies.expert.PlanTrackingExpert` tracking the HS-DDP plan
+``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as
+``expert_plan.npz`` in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without*
+reset noise, so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's
+1.48 s the default MPC takes over), ``heuristic`` (:class:`hsddp_gym.planners.policies.heuristic.HeuristicPolicy`)
+and ``random`` (:class:`hsddp_gym.planners.policies.random_policy.RandomPolicy` seeded with the episode seed).
 
 DART noise injection (``action_noise > 0``, Laskey et al. 2017): the executed actions are the policy's plus
 Gaussian noise (seeded by the episode seed), so the episodes visit the states around the policy's
 trajectory from which it recovers; the policy's clean actions are stored in ``infos["expert_action"]``
-and are the labels :func:`planners.imitation.load_demonstrations` uses.
+and are the labels :func:`hsddp_gym.learning.demonstrations.load_demonstrations` uses.
 
 Output (``out`` is one directory, created atomically)
 ----------------------------------------------------
@@ -30,7 +30,7 @@ Output (``out`` is one directory, created atomically)
     out/minari/<dataset_id>/data/{main_data.hdf5, metadata.json}   a Minari dataset (MINARI_DATASETS_PATH=out/minari)
     out/episodes.npz       the same data as flat arrays (see :func:`load_npz`), no pickle
     out/metadata.json      the dataset metadata (also stored in Minari's metadata under "hsddp_gym")
-    out/expert_plan.npz    the tracked plan (``expert`` only; :meth:`planners.solution.Solution.load`)
+    out/expert_plan.npz    the tracked plan (``expert`` only; ``Solution.load``, hsddp_gym.planners.optimizer.solution)
 
 Load it with ``load_minari(out)`` (sets ``MINARI_DATASETS_PATH`` for the call) or
 ``MINARI_DATASETS_PATH=out/minari python -c "import minari; minari.load_dataset('<dataset_id>')"``, and
@@ -56,7 +56,7 @@ env's info for it (the reset info for t = 0, the info returned by step t-1 after
 taken at it (for t < T; the last row, where no action is taken, repeats the last decision's values with
 ``replanned = planner_failed = False``). Keys:
 
-* from the env (:class:`envs.bounding.BoundingEnv`): ``qpos (7,)``, ``qvel (7,)``, ``contact (2,)`` bool
+* from the env (:class:`hsddp_gym.envs.bounding.BoundingEnv`): ``qpos (7,)``, ``qvel (7,)``, ``contact (2,)`` bool
   ``[front, back]``, ``x_position``, ``x_velocity``, ``reward_forward``, ``reward_ctrl``, ``reward_healthy``,
   ``foot_heights (2,)``, ``grf (4,)``, ``time`` (whatever keys the env's reset info has; every step is
   checked against them);
