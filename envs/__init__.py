@@ -8,6 +8,6 @@ Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {"BoundingEnv": "bounding", "ContactSimulator": "contact"}
+_EXPORTS = {"bounding": ("BoundingEnv",), "contact": ("ContactSimulator",)}
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__all__ = ["BoundingEnv", "ContactSimulator"]

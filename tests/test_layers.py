@@ -182,3 +182,17 @@ def test_relative_and_function_level_imports_are_seen(tmp_path):
     e = import_edges(mods)
     assert e["pkg.a"] == {"pkg.b"} and e["pkg.b"] == {"pkg.a"}
     assert find_cycle(e) is not None
+
+
+@pytest.mark.parametrize("package", ["hsddp_gym.planners.policies", "hsddp_gym.datasets", "hsddp_gym.learning",
+                                     "hsddp_gym.envs"])
+def test_lazy_reexports_resolve_to_their_defining_modules(package):
+    import importlib
+
+    pkg = importlib.import_module(package)
+    for module, names in pkg._EXPORTS.items():
+        defining = importlib.import_module(f"{package}.{module}")
+        for name in names:
+            assert getattr(pkg, name) is getattr(defining, name)
+    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
+        pkg.nothing_here  # noqa: B018

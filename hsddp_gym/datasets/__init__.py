@@ -75,42 +75,23 @@ taken at it (for t < T; the last row, where no action is taken, repeats the last
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {
-    "CHECKPOINT_FORMAT": "generation",
-    "DatasetResult": "generation",
-    "DecisionRecorder": "recording",
-    "ENV_ID": "recording",
-    "EXPERT_PLAN": "recording",
-    "Episode": "recording",
-    "EpisodeTask": "collection",
-    "FlatDataset": "storage",
-    "GAIN_KEY": "recording",
-    "NOISE_STREAM": "recording",
-    "NONDETERMINISTIC_INFOS": "recording",
-    "POLICIES": "recording",
-    "PolicySpec": "recording",
-    "REF_MAX_EPISODES": "generation",
-    "REF_MIN_EPISODES": "generation",
-    "THREAD_VARS": "collection",
-    "capture_plan_controls": "recording",
-    "checkpoint_path": "collection",
-    "collect_episodes": "collection",
-    "default_dataset_id": "storage",
-    "episodes_to_arrays": "storage",
-    "generate_dataset": "generation",
-    "load_episode": "collection",
-    "load_minari": "storage",
-    "load_npz": "storage",
-    "make_env": "collection",
-    "mean_random_return": "generation",
-    "minari_root": "storage",
-    "partial_dir": "generation",
-    "read_metadata": "storage",
-    "record_episode": "recording",
-    "run_episode_task": "collection",
-    "save_episode": "collection",
-    "solve_expert_plan": "recording",
-    "write_dataset": "storage",
+_EXPORTS = {  # module: the public names it defines
+    "collection": (
+        "EpisodeTask", "THREAD_VARS", "checkpoint_path", "collect_episodes", "load_episode", "make_env",
+        "run_episode_task", "save_episode",
+    ),
+    "generation": (
+        "CHECKPOINT_FORMAT", "DatasetResult", "REF_MAX_EPISODES", "REF_MIN_EPISODES", "generate_dataset",
+        "mean_random_return", "partial_dir",
+    ),
+    "recording": (
+        "DecisionRecorder", "ENV_ID", "EXPERT_PLAN", "Episode", "GAIN_KEY", "NOISE_STREAM", "NONDETERMINISTIC_INFOS",
+        "POLICIES", "PolicySpec", "capture_plan_controls", "record_episode", "solve_expert_plan",
+    ),
+    "storage": (
+        "FlatDataset", "default_dataset_id", "episodes_to_arrays", "load_minari", "load_npz", "minari_root",
+        "read_metadata", "write_dataset",
+    ),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -44,35 +44,16 @@ expert label used for training (the initial demonstrations' actions included).
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {
-    "ACTIVATIONS": "bc",
-    "ALGOS": "sb3",
-    "BCConfig": "bc",
-    "DAggerConfig": "dagger",
-    "DAggerResult": "dagger",
-    "Demonstrations": "demonstrations",
-    "ENV_ID": "sb3",
-    "FEATURES": "features",
-    "MLPPolicy": "bc",
-    "SB3ModelPolicy": "sb3",
-    "TrainResult": "sb3",
-    "as_sb3_policy": "sb3",
-    "build_inputs": "features",
-    "dagger_rollout": "dagger",
-    "evaluate_policy_episodes": "reporting",
-    "gait_clock_features": "features",
-    "hyperparameters": "sb3",
-    "load_demonstrations": "demonstrations",
-    "load_trained_policy": "sb3",
-    "make_gait_clock": "features",
-    "plot_curve": "reporting",
-    "run_bc": "bc",
-    "run_dagger": "dagger",
-    "save_vecnormalize_npz": "sb3",
-    "train_bc": "bc",
-    "train_dagger": "dagger",
-    "train_sb3": "sb3",
-    "write_curves": "sb3",
+_EXPORTS = {  # module: the public names it defines
+    "bc": ("ACTIVATIONS", "BCConfig", "MLPPolicy", "run_bc", "train_bc",),
+    "dagger": ("DAggerConfig", "DAggerResult", "dagger_rollout", "run_dagger", "train_dagger",),
+    "demonstrations": ("Demonstrations", "load_demonstrations",),
+    "features": ("FEATURES", "build_inputs", "gait_clock_features", "make_gait_clock",),
+    "reporting": ("evaluate_policy_episodes", "plot_curve",),
+    "sb3": (
+        "ALGOS", "ENV_ID", "SB3ModelPolicy", "TrainResult", "as_sb3_policy", "hyperparameters",
+        "load_trained_policy", "save_vecnormalize_npz", "train_sb3", "write_curves",
+    ),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -16,27 +16,19 @@ period, torque limit, observation layout) given at construction (``Policy.from_e
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {
-    "ContactEventBoundingController": "heuristic",
-    "ContactEventGains": "heuristic",
-    "DOUBLE_STANCE_PHASE": "mpc",
-    "EnvInterface": "base",
-    "EpisodeResult": "evaluation",
-    "FAST_BOUNDING_DURATIONS": "mpc",
-    "FAST_GAIT_SPEED": "mpc",
-    "GaitClock": "mpc",
-    "HeuristicBoundingController": "heuristic",
-    "HeuristicGains": "heuristic",
-    "HeuristicPolicy": "heuristic",
-    "MPCOptions": "mpc",
-    "MPCPolicy": "mpc",
-    "PlanTracker": "tracking",
-    "PlanTrackingExpert": "expert",
-    "Policy": "base",
-    "RandomPolicy": "random_policy",
-    "run_episode": "evaluation",
-    "summarize": "evaluation",
-    "tracking_error": "tracking",
+_EXPORTS = {  # module: the public names it defines
+    "base": ("EnvInterface", "Policy",),
+    "evaluation": ("EpisodeResult", "run_episode", "summarize",),
+    "expert": ("PlanTrackingExpert",),
+    "heuristic": (
+        "ContactEventBoundingController", "ContactEventGains", "HeuristicBoundingController", "HeuristicGains",
+        "HeuristicPolicy",
+    ),
+    "mpc": (
+        "DOUBLE_STANCE_PHASE", "FAST_BOUNDING_DURATIONS", "FAST_GAIT_SPEED", "GaitClock", "MPCOptions", "MPCPolicy",
+    ),
+    "random_policy": ("RandomPolicy",),
+    "tracking": ("PlanTracker", "tracking_error",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = sorted(_EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)
