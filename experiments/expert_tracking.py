@@ -2,8 +2,7 @@
 
 The plan (paper task 1, 1480 knots of 1 ms) is computed, the env is reset to its initial state
 (``options={"state": X[0]}``) and :class:`hsddp_gym.planners.policies.expert.PlanTrackingExpert` acts with the plan's
-feedback
-law at the env's control rate while the env's own contacts decide the touchdowns. Over the tracked part
+feedback law at the env's control rate while the env's own contacts decide the touchdowns. Over the tracked part
 (until the touchdown that ends the plan) the state of the env is compared, step by step, with the plan's state
 at the cursor that produced the action. Printed and written to ``OUT/expert_tracking.json``: the maximum and
 RMS error of the trunk height, pitch, joint angles and trunk velocities, the trunk x at the end of the plan

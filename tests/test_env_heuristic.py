@@ -5,8 +5,7 @@
 machine started by the observed touchdowns
 (:class:`hsddp_gym.planners.policies.heuristic.ContactEventBoundingController`).
 The schedule-driven warm-start controller (:class:`hsddp_gym.planners.policies.heuristic.HeuristicBoundingController`),
-fed the
-contact mode from the flags, falls within about a second: with state-based contacts a stance lasts until
+fed the contact mode from the flags, falls within about a second: with state-based contacts a stance lasts until
 the leg force vanishes (~140 ms instead of 80 ms) and the trunk pitches over. The fixed stance time with an
 active lift-off is what makes the difference (a 140 ms stance falls too, see below).
 

@@ -153,8 +153,7 @@ _CAPTURE: dict = {}
 @contextlib.contextmanager
 def capture_plan_controls():
     """While active, every :meth:`hsddp_gym.planners.policies.tracking.PlanTracker.control` call records the knot it
-    used in
-    the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot).
+    used in the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot).
 
     The trackers of :class:`~hsddp_gym.planners.policies.expert.PlanTrackingExpert` and
     :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`

@@ -11,14 +11,12 @@ VecNormalize). ``lr_decay`` anneals the step with a cosine schedule to 0 over th
 minibatch order, one CPU thread, so a run is reproducible.
 
 The trained policy is an :class:`MLPPolicy`, a :class:`~hsddp_gym.planners.policies.base.Policy` whose inference is
-NumPy
-only (no torch at evaluation), saved as ``.npz`` (weights + normalization + config as JSON; loading never
+NumPy only (no torch at evaluation), saved as ``.npz`` (weights + normalization + config as JSON; loading never
 unpickles).
 
 **Inputs** (``BCConfig.features``): ``"obs"`` (default) feeds the observation; ``"gait_clock"`` appends the
 7 features of the MPC's gait clock (:class:`hsddp_gym.planners.policies.mpc.GaitClock`: phase one-hot, time in phase,
-cycle
-sin/cos). The MPC's phase is advanced by the observed touchdowns and drifts from the observation's clock
+cycle sin/cos). The MPC's phase is advanced by the observed touchdowns and drifts from the observation's clock
 ``2 pi t / gait_period`` (about 0.2 cycles per second, a whole cycle over a 5 s episode), so its action is
 not a function of the observation alone; the clock, however, is a deterministic function of the observation
 history (contact flags, pitch rate, step count), which :class:`MLPPolicy` replays while acting (it then has

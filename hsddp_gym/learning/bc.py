@@ -68,8 +68,7 @@ class MLPPolicy(Policy):
         obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features).
         config: the :class:`BCConfig` it was trained with.
         clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
-        features;
-            the policy then has memory (the clock), reset by :meth:`reset`.
+        features; the policy then has memory (the clock), reset by :meth:`reset`.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), weights=None, obs_mean=None, obs_std=None,

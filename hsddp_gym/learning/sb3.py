@@ -88,8 +88,7 @@ def as_sb3_policy(policy, observation_space, action_space):
 
     Args:
         policy: a :class:`~hsddp_gym.planners.policies.base.Policy` (memory handled per env through ``episode_start``)
-        or a
-            callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
+        or a callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
         observation_space, action_space: the env's ``gymnasium.spaces.Box`` spaces.
     Returns:
         A ``CallableSB3Policy`` (an ``stable_baselines3.common.policies.BasePolicy``) with no parameters; it

@@ -6,8 +6,7 @@
 2. DDP to convergence on the current objective: linearize the dynamics along the nominal trajectory
    (Pinocchio analytical derivatives), differentiate the objective (vectorized over the horizon),
    run the impact-aware backward pass (:mod:`hsddp_gym.planners.optimizer.riccati`), and a backtracking line search on
-   the
-   policy ``u = u_hat + eps k + K (x - x_hat)`` (eq. 8) that accepts a step only if the actual decrease
+   the policy ``u = u_hat + eps k + K (x - x_hat)`` (eq. 8) that accepts a step only if the actual decrease
    is at least ``armijo`` times the expected one; non-finite rollouts are failed trials;
 3. update the AL multipliers and penalty (eq. 24: ``lam <- lam + sigma g``, then ``sigma <- beta sigma``),
    shrink the barrier relaxations (``delta <- delta_factor delta``) and grow their weights, until

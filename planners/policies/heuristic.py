@@ -373,8 +373,7 @@ class HeuristicPolicy(Policy):
     """The heuristic bounding controller driven by the env's contact flags.
 
     It acts with :class:`hsddp_gym.planners.policies.heuristic.ContactEventBoundingController` (``self.gait``): a
-    per-leg
-    stance/swing state machine started by the observed touchdowns, with a fixed stance time after which the
+    per-leg stance/swing state machine started by the observed touchdowns, with a fixed stance time after which the
     leg is actively folded, a wrench-based stance force (height, speed, bounding pitch rate) and Raibert
     foot placement. The observation's contact flags and the policy's own timers are its only gait inputs
     (the gait clock is not used).
