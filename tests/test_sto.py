@@ -32,10 +32,11 @@ from hsddp_gym.planners.optimizer.sto import (
     optimize_switching_times,
     rollout_time_policy,
     time_derivatives,
+    time_scaled_jacobians,
 )
 from hsddp_gym.planners.tasks import fig8_study, heuristic_warm_start
 
-from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 
 FD_STEP_GRAD = 1e-5
 """Central-difference step for V_z [s]."""
@@ -317,6 +318,90 @@ def test_open_loop_baseline_is_the_same_update_without_feedback(solved):
     # the feedback keeps the landing feet nearer the ground (the switching constraint, eq. 29)
     g = Objective(p_new).switching_values
     assert np.sum(g(out_fb.X_pre) ** 2) < np.sum(g(out_ol.X_pre) ** 2)
+
+
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+def test_time_scaled_step_jacobians_match_finite_differences(integrator):
+    """f_z = d x+/d T_i and f_xz = d f_x/d T_i, f_uz = d f_u/d T_i (h_i = T_i / N_i) against central differences
+    of the discrete step with the step built from T_i +- s, at knots of every mode (flight, back and front
+    stance). x+ and the step Jacobians are polynomials of degree <= 2 in h, so the central difference is exact up
+    to round-off. The semi-implicit branch (``q+ = q + h v + h^2 a``) is not the paper's integrator and is
+    used by no other test of the STO derivatives."""
+    dynamics = HybridDynamics(integrator=integrator)
+    problem = HybridProblem.bounding(1, dynamics=dynamics).with_durations((0.07, 0.08, 0.065, 0.075))
+    warm = heuristic_warm_start(HybridProblem.bounding(1, dynamics=dynamics))
+    N = problem.n_knots
+    out = _Traj(N, problem.n_phases)
+    assert rollout_policy(problem, out, warm.U)
+    lin = Linearization(N)
+    dynamics.linearize(out.X, out.U, problem.modes, lin, problem.h)
+    f_z, f_xz, f_uz = time_scaled_jacobians(problem, out.X, lin)
+    assert f_z.shape == (N, 14) and f_xz.shape == (N, 14, 14) and f_uz.shape == (N, 14, 4)
+    s = 1e-4  # [s] on T_i; the steps become (T_i +- s) / N_i
+    for k in (3, problem.phase_start[1] + 10, problem.phase_start[2] + 30, problem.phase_start[3] + 5, N - 1):
+        i = int(problem.phase_of_knot[k])
+        Ni, Ti = int(problem.knots[i]), float(problem.schedule.durations[i])
+        mode = int(problem.modes[k])
+        plus = HybridDynamics(dynamics.robot, dt=(Ti + s) / Ni, integrator=integrator)
+        minus = HybridDynamics(dynamics.robot, dt=(Ti - s) / Ni, integrator=integrator)
+        xp, _, Ap, Bp, _, _ = plus.step_derivatives(out.X[k], out.U[k], mode)
+        xm, _, Am, Bm, _, _ = minus.step_derivatives(out.X[k], out.U[k], mode)
+        assert rel_err(f_z[k], (xp - xm) / (2 * s)) <= 1e-7, (k, f_z[k], (xp - xm) / (2 * s))
+        assert rel_err(f_xz[k], (Ap - Am) / (2 * s)) <= 1e-7, k
+        assert rel_err(f_uz[k], (Bp - Bm) / (2 * s)) <= 1e-7, k
+        # the position rows differ between the integrators: f_z's q-part is v / N_i (Euler) or (v + 2 h a) / N_i
+        h = Ti / Ni
+        extra = 2.0 * h * lin.acc[k] / Ni if integrator == "semi_implicit" else 0.0
+        np.testing.assert_allclose(f_z[k, :7], out.X[k, 7:] / Ni + extra, rtol=1e-12, atol=1e-15)
+
+
+def test_open_loop_line_search_is_recorded_and_starts_with_the_full_step(solved, sto_runs):
+    """The line search of both methods is recorded trial by trial: eps_z = 1, then ``step_factor`` times the
+    previous, up to the first trial whose rollout decreases the objective (Armijo), which is the accepted one.
+    For the open-loop baseline's first iteration everything is recomputed independently from the same
+    Algorithm-1 solution (the ``solved`` fixture): its V_z, V_zz are those of the open-loop objective (finite
+    differences of the cost of the controls held fixed on the rescaled durations), its first trial is the full
+    projected Newton step of those derivatives, with the objective of that rollout, and when the full step
+    decreases the objective it is the step taken. (A baseline whose line search started at eps_z = 0.25 passed
+    every other test of this module.)"""
+    options = STOOptions()
+    for method in ("hsddp", "open-loop"):
+        _, res = sto_runs[method]
+        for rec in res.records:
+            trials = rec["line_search"]
+            eps = [t["eps"] for t in trials]
+            assert eps == [options.step_factor ** j for j in range(len(eps))], (method, rec["iteration"], eps)
+            if rec["status"] == "accepted":
+                assert rec["step"] == eps[-1] and trials[-1]["objective"] == rec["objective_rollout"]
+                assert trials[-1]["objective"] < rec["objective_before"]
+                for t in trials[:-1]:  # every rejected trial failed the decrease test
+                    assert not (t["objective"] < rec["objective_before"] + options.armijo * min(t["predicted"], 0.0)
+                                and t["objective"] < rec["objective_before"]), (method, rec["iteration"], t)
+            elif rec["status"] == "no_decrease":
+                assert len(trials) >= 1 and all(not t["objective"] < rec["objective_before"] for t in trials
+                                                if np.isfinite(t["objective"]))
+    s = solved
+    _, ol = sto_runs["open-loop"]
+    rec = ol.records[0]
+    assert rec["objective_before"] == pytest.approx(s.sol.objective, rel=1e-12)
+    d = s.deriv(False, False)
+    n = s.problem.n_phases
+    J = lambda dz: closed_loop_objective(s, d, dz, False)  # noqa: E731  (controls held: the open-loop cost)
+    np.testing.assert_allclose(rec["V_z"], fd_gradient(J, n, FD_STEP_GRAD, fourth_order=True), rtol=1e-6,
+                               atol=1e-6 * np.max(np.abs(rec["V_z"])))
+    assert rel_err(np.array(rec["V_zz"]), fd_hessian(J, n, FD_STEP_HESS)) <= 0.10
+    lower, upper = options.bounds(n)
+    dz, _, _ = duration_step(d.V_z, d.V_zz, s.z0, lower, upper)
+    np.testing.assert_allclose(rec["direction"], dz, rtol=1e-9, atol=1e-12)
+    full = np.clip(s.z0 + dz, lower, upper) - s.z0
+    J_full = J(full)
+    first = rec["line_search"][0]
+    assert first["eps"] == 1.0 and first["objective"] == pytest.approx(J_full, rel=1e-9)
+    if J_full < rec["objective_before"] + options.armijo * min(first["predicted"], 0.0):
+        assert rec["step"] == 1.0 and rec["durations"] == pytest.approx((s.z0 + full).tolist(), rel=1e-12)
+    # the measured run: the open-loop step is accepted in full in every iteration (README)
+    print(f"\nopen-loop accepted steps: {[r['step'] for r in ol.records]}")
+    assert all(r["step"] == 1.0 for r in ol.records if r["status"] == "accepted")
 
 
 # ----------------------------------------------------------------------- duration step: bounds, fallback
