@@ -107,7 +107,7 @@ def run_variants(args) -> int:
     rows = []
     for k, v in enumerate(variants):
         hs, ol = results[2 * k], results[2 * k + 1]
-        ratio = hs["reduction"] / ol["reduction"] if ol["reduction"] > 0 else float("inf")
+        ratio = hs["reduction"] / ol["reduction"] if ol["reduction"] > 0 else None  # None: open loop lengthened
         rows.append({"variant": v, "label": _label(v), "hsddp": hs, "open-loop": ol, "reduction_ratio": ratio})
     out = Path(args.out)
     write_json(out / "variants.json", {"rows": rows, "paper": PAPER, "iterations": args.iterations,
@@ -119,7 +119,8 @@ def run_variants(args) -> int:
     for r in rows:
         hs, ol = r["hsddp"], r["open-loop"]
         print(f"| {r['label']} | {hs['total_time']:.4f} | {100 * hs['reduction']:.1f} % | {ol['total_time']:.4f} | "
-              f"{100 * ol['reduction']:.1f} % | {r['reduction_ratio']:.1f}x | "
+              f"{100 * ol['reduction']:.1f} % | "
+              f"{'n/a' if r['reduction_ratio'] is None else format(r['reduction_ratio'], '.1f') + 'x'} | "
               f"{' / '.join(f'{1e3 * d:.1f}' for d in hs['mode_durations'])} | {hs['iterations']} ({hs['stopped']}) "
               f"| {1e3 * hs['max_touchdown_error']:.2f} / {1e3 * ol['max_touchdown_error']:.2f} |", flush=True)
     print(f"wrote {out / 'variants.json'}")

@@ -253,7 +253,8 @@ def test_sto_hsddp_decreases_objective_and_total_time(sto_runs):
     assert np.all(np.diff(res.costs) <= 1e-6 * res.costs[:-1]), res.costs
     # it stops because the durations converged (a full Newton step below the tolerance), not at the cap
     assert res.records[-1]["status"] == "converged"
-    # measured 41.3 % (0.296 -> 0.174 s); the paper reports 21.1 %
+    # measured 51.9 % (0.296 -> 0.1425 s) with the zero vertical-velocity references; the paper reports 21.1 %,
+    # which the authors' +-1 m/s references reproduce (test_paper_closest_variant_matches_the_paper)
     assert res.reduction >= 0.15, res.durations[-1]
 
 
