@@ -758,3 +758,21 @@ def test_sto_cli_variants_are_recorded_and_validated(tmp_path, capsys):
     for argv, name in ((["--periodic", "--cycles", "2"], "--cycles"), (["--periodic-weight", "10"], "--periodic")):
         with pytest.raises(SystemExit, match=name):
             main(["sto", *argv, "--out", str(tmp_path / "bad")])
+
+
+def test_experiment_scripts_validate_their_options(experiment, capsys):
+    task2 = experiment("paper_task2_sto")
+    for argv, name in ((["--workers", "0"], "--workers"), (["--iterations", "-1"], "--iterations"),
+                       (["--max-touchdown-error", "0"], "--max-touchdown-error"),
+                       (["--z-velocity", "up"], "--z-velocity"), (["--terminal-half", "yes"], "--terminal-half")):
+        with pytest.raises(SystemExit):
+            task2.main(argv)
+        assert name in capsys.readouterr().err, argv
+    al = experiment("al_iterations")
+    for argv, name in ((["--set", "sigma=3"], "--set"), (["--set", "beta=big"], "--set beta"),
+                       (["--cycles", "0"], "--cycles")):
+        with pytest.raises(SystemExit):
+            al.main(argv)
+        assert name in capsys.readouterr().err, argv
+    assert al.parse_set("max_ddp_iterations=30") == ("max_ddp_iterations", 30)
+    assert al.parse_set("sigma0=35.355") == ("sigma0", 35.355)
