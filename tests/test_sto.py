@@ -776,3 +776,21 @@ def test_experiment_scripts_validate_their_options(experiment, capsys):
         assert name in capsys.readouterr().err, argv
     assert al.parse_set("max_ddp_iterations=30") == ("max_ddp_iterations", 30)
     assert al.parse_set("sigma0=35.355") == ("sigma0", 35.355)
+
+
+def test_task_2_variant_arguments_are_validated():
+    from hsddp_gym.planners.optimizer.metrics import trajectory_summary
+    from hsddp_gym.planners.tasks import sto_problem
+
+    with pytest.raises(ValueError, match="z_velocity"):
+        sto_problem(z_velocity="zero")
+    with pytest.raises(ValueError, match="cycles"):
+        sto_problem(cycles=2, periodic=True)
+    for name in ("grf_tracking", "terminal_half", "periodic"):
+        with pytest.raises(TypeError, match=name):
+            sto_problem(**{name: "on"})
+    # the plan summaries carry max |g| too
+    problem = HybridProblem.bounding(1)
+    warm = heuristic_warm_start(problem)
+    s = trajectory_summary(problem, warm.X, warm.X_pre, warm.U, warm.GRF)
+    assert s["max_touchdown_error"] == max(abs(g) for g in s["touchdown_foot_heights"]) > 0
