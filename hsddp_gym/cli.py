@@ -62,9 +62,14 @@ def _print_summary(summary: dict) -> None:
 
 # ----------------------------------------------------------------------------------------------- sto
 def cmd_sto(args) -> int:
+    from hsddp_gym.planners.optimizer.solution import SolverOptions
     from hsddp_gym.planners.tasks import run_sto
 
     out = Path(args.out)
+    if args.periodic and args.cycles != 1:
+        raise SystemExit(f"error: --periodic optimizes one cycle, got --cycles {args.cycles}")
+    if args.periodic_weight is not None and not args.periodic:
+        raise SystemExit("error: --periodic-weight needs --periodic")
 
     def progress(rec):
         if not args.quiet:
@@ -73,15 +78,21 @@ def cmd_sto(args) -> int:
                   + (f"total time {tt:.4f} s, cost {rec['cost']:.4g}, sum g^2 {rec['switching_violation']:.2e}"
                      if tt is not None else ""), flush=True)
 
+    periodic = {"periodic": True} if args.periodic else {}
+    if args.periodic_weight is not None:
+        periodic["periodic_weight"] = args.periodic_weight
     res, summary = run_sto(args.method, iterations=args.iterations, cycles=args.cycles,
                            second_order=args.second_order, callback=progress, min_duration=args.min_duration,
-                           max_duration=args.max_duration)
+                           max_duration=args.max_duration, z_velocity=args.z_velocity,
+                           grf_tracking=args.grf_tracking == "on", terminal_half=args.terminal_half == "on",
+                           solver_options=SolverOptions(al_max_abs_tolerance=args.max_touchdown_error), **periodic)
     res.solution.save(out / "solution.npz")
     summary["command"] = args.command_line
     write_json(out / "summary.json", summary)
     print(f"{args.method}: total time {summary['initial_total_time']:.4f} s -> {summary['total_time']:.4f} s "
           f"({100 * summary['reduction']:.1f} % reduction) in {summary['iterations']} iterations; "
-          f"durations [ms] {[round(1e3 * d, 1) for d in summary['mode_durations']]}")
+          f"durations [ms] {[round(1e3 * d, 1) for d in summary['mode_durations']]}; max |g| "
+          f"{1e3 * summary['max_touchdown_error']:.2f} mm")
     print(f"wrote {out / 'summary.json'}")
     return 0
 
@@ -438,6 +449,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="longest mode duration [s] (default: STOOptions' 0.2)")
     p.add_argument("--second-order", action="store_true",
                    help="exact V_zz with the dynamics' second-order terms (slower); default: iLQR's, as the paper")
+    p.add_argument("--z-velocity", choices=("paper", "code"), default="paper",
+                   help="vertical-velocity references at the phase ends: paper = 0 (the paper's text), code = the "
+                        "authors' +1 m/s after a stance, -1 m/s before a touchdown (default: %(default)s)")
+    p.add_argument("--grf-tracking", choices=("on", "off"), default="on",
+                   help="the authors' ground-force tracking term in the running cost; the paper has none "
+                        "(default: %(default)s)")
+    p.add_argument("--terminal-half", choices=("on", "off"), default="on",
+                   help="the authors' 1/2 in the terminal costs; the paper's eq. 33 has none (default: %(default)s)")
+    p.add_argument("--max-touchdown-error", type=_positive_float, default=None, metavar="METRES",
+                   help="Algorithm 1 also stops only when every landing foot is within this height of the ground "
+                        "(max |g|; the authors' later code: 0.001); default: sum g^2 <= 1e-4 only, as the paper")
+    p.add_argument("--periodic", action="store_true",
+                   help="the periodic task: back stance, flight, front stance, flight, back stance, ending in the "
+                        "start state up to x (a gait that can be repeated); needs --cycles 1")
+    p.add_argument("--periodic-weight", type=_positive_float, default=None,
+                   help="scale of the periodic terminal penalty (default: 1e5; needs --periodic)")
     p.add_argument("--out", default="runs/sto", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no per-iteration lines")
     p.set_defaults(func=cmd_sto)

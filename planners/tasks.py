@@ -97,29 +97,110 @@ def finite(x) -> bool:
     return bool(np.all(np.isfinite(x)))
 
 
+Z_VELOCITY_VARIANTS = ("paper", "code")
+"""Vertical-velocity references at the phase ends: 0 (the paper's text) or the authors' +-1 m/s."""
+
+
+def _check_flag(value, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a bool, got {value!r} ({type(value).__name__})")
+    return bool(value)
+
+
+def sto_problem(cycles: int = 1, durations=None, z_velocity: str = "paper", grf_tracking: bool = True,
+                terminal_half: bool = True, periodic: bool = False, periodic_weight: float = 1e5) -> HybridProblem:
+    """The problem of paper task 2 and its variants (see :func:`run_sto`)."""
+    if z_velocity not in Z_VELOCITY_VARIANTS:
+        raise ValueError(f"z_velocity must be one of {Z_VELOCITY_VARIANTS}, got {z_velocity!r}")
+    _check_flag(grf_tracking, "grf_tracking")
+    _check_flag(terminal_half, "terminal_half")
+    if _check_flag(periodic, "periodic"):
+        if cycles != 1:
+            raise ValueError(f"cycles must be 1 for the periodic task, got {cycles!r}")
+        kw = {} if durations is None else {"durations": durations}
+        return HybridProblem.bounding_periodic(periodic_weight=periodic_weight, z_velocity=z_velocity,
+                                               grf_tracking=grf_tracking, terminal_half=terminal_half, **kw)
+    return HybridProblem.bounding(cycles, durations=durations, z_velocity=z_velocity, grf_tracking=grf_tracking,
+                                  terminal_half=terminal_half)
+
+
+def gait_metrics(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, GRF: np.ndarray, periodic: bool = False
+                 ) -> dict:
+    """Whether a cycle can be repeated, from a trajectory on ``problem`` (``X (N+1, 14)``, ``X_pre (n, 14)``,
+    ``GRF (N, 4)``).
+
+    Returns a dict: the vertical velocity at the start and at the end of the last phase (``X[-1]``, before
+    any switch after it) [m/s]; ``mean_normal_grf``, the total normal ground force averaged over the cycle,
+    and ``mean_stance_normal_grf``, averaged over the stance knots only, against the robot's ``weight`` [N];
+    the landing feet's heights ``touchdown_heights`` (the paper's g, one per touchdown) [m] and their largest
+    magnitude ``max_touchdown_error`` [m]; with ``periodic``, ``periodicity_error = X[-1] - x0`` without x
+    (13,) and its largest position (z, pitch, joints [m, rad]) and velocity [m/s, rad/s] entries.
+    """
+    from hsddp_gym.core.conventions import IVZ
+
+    robot = problem.dynamics.robot
+    g = [float(robot.foot_heights(X_pre[i, :7])[foot]) for i, foot in enumerate(problem.touchdown) if foot >= 0]
+    normal = GRF[:, 1] + GRF[:, 3]
+    st = problem.stance_any
+    p = robot.params
+    out = {
+        "initial_vertical_velocity": float(X[0, IVZ]),
+        "final_vertical_velocity": float(X[-1, IVZ]),
+        "mean_normal_grf": float(problem.h @ normal / problem.schedule.total_time),
+        "mean_stance_normal_grf": float(problem.h[st] @ normal[st] / np.sum(problem.h[st])) if st.any() else 0.0,
+        "weight": float(p.total_mass * p.gravity),
+        "touchdown_heights": g,
+        "max_touchdown_error": float(np.max(np.abs(g))) if g else 0.0,
+    }
+    if periodic:
+        err = (X[-1] - problem.x0)[1:]
+        out.update(periodicity_error=err.tolist(), max_periodicity_error_position=float(np.max(np.abs(err[:6]))),
+                   max_periodicity_error_velocity=float(np.max(np.abs(err[6:]))))
+    return out
+
+
 def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durations=None,
             second_order: bool = False, solver_options: SolverOptions | None = None, callback=None,
-            min_duration=None, max_duration=None):
+            min_duration=None, max_duration=None, z_velocity: str = "paper", grf_tracking: bool = True,
+            terminal_half: bool = True, periodic: bool = False, periodic_weight: float = 1e5):
     """Paper task 2: switching-time optimization of ``cycles`` bounding cycles (default: one, 80/72/72/72 ms,
     the same costs, AL parameters and heuristic warm start as task 1).
 
-    ``min_duration``, ``max_duration``: duration bounds [s] (a number or one per phase; None:
-    :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' defaults).
+    Args:
+        min_duration, max_duration: duration bounds [s] (a number or one per phase; None:
+            :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' defaults).
+        z_velocity: vertical-velocity references at the phase ends, ``"paper"`` (0, the paper's text) or
+            ``"code"`` (the authors' code: +1 m/s after a stance, -1 m/s before a touchdown).
+        grf_tracking: the authors' ground-force tracking term in the running cost (the paper has none).
+        terminal_half: the authors' ``1/2`` in the terminal costs (the paper's eq. 33 has none).
+        periodic: the periodic task (:meth:`HybridProblem.bounding_periodic`: five phases ending in the start
+            state up to x, a terminal penalty of scale ``periodic_weight``); ``durations`` then has 5 entries.
+        solver_options: Algorithm 1's options (e.g. ``al_max_abs_tolerance``).
 
     Returns:
         ``(STOResult, summary dict)``; the summary has ``initial_total_time``, ``total_time``, ``reduction``
-        (fraction), ``mode_durations``, ``iterations``, ``final_cost``, ``switching_violation``.
+        (fraction), ``mode_durations``, ``iterations``, ``final_cost``, ``switching_violation``, the variant
+        (``z_velocity``, ``grf_tracking``, ``terminal_half``, ``periodic``), the solver's stopping tolerances,
+        and :func:`gait_metrics` of the final solution (``touchdown_heights``, ``max_touchdown_error``, ...).
     """
     from hsddp_gym.planners.optimizer.sto import STOOptions, optimize_switching_times
 
-    problem = HybridProblem.bounding(cycles, durations=durations)
+    problem = sto_problem(cycles, durations, z_velocity, grf_tracking, terminal_half, periodic, periodic_weight)
     warm = heuristic_warm_start(problem)
     bounds = {k: v for k, v in (("min_duration", min_duration), ("max_duration", max_duration)) if v is not None}
-    opts = STOOptions(method=method, iterations=iterations, second_order=second_order,
-                      solver=solver_options if solver_options is not None else SolverOptions(), **bounds)
+    solver_options = solver_options if solver_options is not None else SolverOptions()
+    opts = STOOptions(method=method, iterations=iterations, second_order=second_order, solver=solver_options,
+                      **bounds)
     res = optimize_switching_times(problem, warm.U, opts, callback=callback)
+    sol = res.solution
+    final_problem = problem.with_durations(res.durations[-1])
     summary = {
         "method": method,
+        "z_velocity": z_velocity,
+        "grf_tracking": bool(grf_tracking),
+        "terminal_half": bool(terminal_half),
+        "periodic": bool(periodic),
+        "periodic_weight": float(periodic_weight) if periodic else None,
         "initial_total_time": float(problem.schedule.total_time),
         "initial_durations": problem.schedule.durations.tolist(),
         "total_time": res.total_time,
@@ -133,12 +214,16 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
         "final_cost": float(res.costs[-1]),
         "initial_cost": float(res.costs[0]),
         "final_objective": float(res.objectives[-1]),
-        "switching_violation": res.solution.switching_violation,
+        "switching_violation": sol.switching_violation,
+        "al_tolerance": solver_options.al_tolerance,
+        "al_max_abs_tolerance": solver_options.al_max_abs_tolerance,
+        "al_iterations_final_solve": sol.al_iterations,
         "total_time_history": res.durations.sum(axis=1).tolist(),
         "cost_history": res.costs.tolist(),
         "solve_time_s": res.solve_time,
         "second_order": second_order,
     }
+    summary.update(gait_metrics(final_problem, sol.X, sol.X_pre, sol.GRF, periodic))
     return res, summary
 
 

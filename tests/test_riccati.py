@@ -472,6 +472,73 @@ def test_nonlinear_reset_v_x_is_the_gradient_of_the_fixed_feedback_policy_cost(r
     assert np.max(np.abs(wrong["V_x"][0] - out["V_x"][0])) > 1e-3 * np.max(np.abs(out["V_x"][0]))
 
 
+def _nl_reset_curvature(x, lam):
+    """``sum_j lam_j d^2 P_j / dx^2`` of :func:`_nl_reset` at ``x`` (analytical)."""
+    z, v = x
+    return lam[0] * np.array([[0.0, 0.1], [0.1, 0.0]]) + lam[1] * np.array([[1.6, 0.0], [0.0, -0.3 * np.sin(v)]])
+
+
+def test_nonlinear_reset_v_xx_is_the_hessian_of_the_fixed_feedback_policy_cost(rng):
+    """V_xx across a nonlinear reset: linear dynamics in both phases (so the knots add no curvature), the
+    nonlinear reset of :func:`_nl_reset` between them. The Hessian of the cost-to-go just before the reset is
+    ``Phi_xx + P_x' V_xx+ P_x + sum_j (V_x+)_j d^2 P_j``; eq. 22 (Gauss-Newton) has the first two terms, so the
+    reset's curvature (analytical, contracted with the V_x+ of a first pass) is added to ``Phi_xx`` of phase 0.
+    Then V_xx at knot 0 and at the knot before the reset are the Hessians of the cost of rolling out the fixed
+    policy ``u = u_hat + K (x - x_hat)`` (4-point central differences), and V_xx after the reset is that of the
+    second phase. A pass that drops P_x from the V_xx update at the reset (but keeps it in V_x) fails here; the
+    V_x test above cannot see it."""
+    h, knots = 0.01, (30, 25)
+    lq = bouncing_mass(h=h, knots=knots)
+    ps = lq.phase_start
+    N = lq.N
+    x0 = np.array([0.8, 0.3])
+    U_hat = rng.normal(0.0, 3.0, (N, 1))
+
+    def simulate(x_start, control, first_knot=0):
+        X = np.full((N + 1, 2), np.nan)
+        X[first_knot] = x_start
+        X_pre = np.full((2, 2), np.nan)
+        cost = 0.0
+        for i in range(2):
+            for k in range(max(ps[i], first_knot), ps[i + 1]):
+                u = control(k, X[k])
+                cost += lq.running(k, X[k], u)
+                X[k + 1] = lq.A[k] @ X[k] + lq.B[k] @ u + lq.c[k]
+            if ps[i + 1] > first_knot:
+                X_pre[i] = X[ps[i + 1]]
+                cost += lq.terminal(i, X_pre[i])
+                if i == 0:
+                    X[ps[1]] = _nl_reset(X_pre[0])
+        return X, X_pre, cost
+
+    X_hat, X_pre, _ = simulate(x0, lambda k, x: U_hat[k])
+    d = lq.derivatives(X_hat, X_pre, U_hat)
+    d["P_x"] = np.stack([_nl_reset_jac(X_pre[0]), np.full((2, 2), np.nan)])
+    first = run_backward(d, ps)
+    assert first["ok"]
+    T = _nl_reset_curvature(X_pre[0], first["V_x"][ps[1]])
+    d_full = dict(d, Phi_xx=d["Phi_xx"] + np.stack([T, np.zeros((2, 2))]))
+    out = run_backward(d_full, ps)
+    assert out["ok"]
+    np.testing.assert_array_equal(out["V_xx"][ps[1]:N], first["V_xx"][ps[1]:N])  # phase 1 does not see Phi_0
+    fb = policy(X_hat, U_hat, out["K"], out["k"], 0.0)
+    np.testing.assert_allclose(simulate(x0, fb)[0], X_hat, rtol=0, atol=1e-13)
+    for k in (0, ps[1] - 1, ps[1]):
+        def J(x, k=k):
+            return simulate(x, fb, k)[2]
+
+        grad, hess = fd_gradient_hessian(J, X_hat[k], 1e-3)
+        assert_rel(out["V_x"][k], grad, 1e-5, f"V_x at knot {k}")
+        assert_rel(out["V_xx"][k], hess, 1e-5, f"V_xx at knot {k}")
+    # without the reset's curvature V_xx before the reset is measurably not the Hessian (the check is sensitive)
+    gn = first["V_xx"][ps[1] - 1]
+    _, hess_gn = fd_gradient_hessian(lambda x: simulate(x, policy(X_hat, U_hat, first["K"], first["k"], 0.0),
+                                                        ps[1] - 1)[2], X_hat[ps[1] - 1], 1e-3)
+    print(f"\nGauss-Newton V_xx before the reset vs the Hessian: relative error "
+          f"{np.max(np.abs(gn - hess_gn)) / np.max(np.abs(hess_gn)):.1e}")
+    assert np.max(np.abs(gn - hess_gn)) > 1e-3 * np.max(np.abs(hess_gn))
+
+
 def test_cholesky_rejects_non_finite_matrices():
     """A NaN Q_uu (derivatives that overflowed) is not positive definite: the sweep must fail, not emit NaN gains."""
     from hsddp_gym.planners.optimizer.riccati import _cholesky_solve_4

@@ -9,9 +9,13 @@
 * the open-loop baseline is the same update without the feedback term; the duration step's bounds
   (projected Newton) and its fallback for a non-positive-definite V_zz; determinism; the summary of
   ``hsddp-gym sto``;
-* ``step_size_study`` (paper Fig. 8) and option validation.
+* ``step_size_study`` (paper Fig. 8) and option validation;
+* the time-scaled step Jacobians (f_z, f_xz, f_uz) of both integrators against finite differences, and the
+  recorded line search of both methods (the open-loop one recomputed independently);
+* the task-2 variants (references, GRF term, terminal 1/2), the max |g| stop, and the periodic task.
 
-The whole module takes ~20 s (most of it the two 30-iteration STO runs and the two exact-V_zz passes).
+The whole module takes ~45 s on a shared machine (most of it the 30-iteration STO runs: default, authors'
+references, periodic, each with both methods).
 """
 
 from __future__ import annotations
@@ -32,10 +36,11 @@ from hsddp_gym.planners.optimizer.sto import (
     optimize_switching_times,
     rollout_time_policy,
     time_derivatives,
+    time_scaled_jacobians,
 )
 from hsddp_gym.planners.tasks import fig8_study, heuristic_warm_start
 
-from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 
 FD_STEP_GRAD = 1e-5
 """Central-difference step for V_z [s]."""
@@ -252,7 +257,8 @@ def test_sto_hsddp_decreases_objective_and_total_time(sto_runs):
     assert np.all(np.diff(res.costs) <= 1e-6 * res.costs[:-1]), res.costs
     # it stops because the durations converged (a full Newton step below the tolerance), not at the cap
     assert res.records[-1]["status"] == "converged"
-    # measured 41.3 % (0.296 -> 0.174 s); the paper reports 21.1 %
+    # measured 51.9 % (0.296 -> 0.1425 s) with the zero vertical-velocity references; the paper reports 21.1 %,
+    # which the authors' +-1 m/s references reproduce (test_paper_closest_variant_matches_the_paper)
     assert res.reduction >= 0.15, res.durations[-1]
 
 
@@ -317,6 +323,90 @@ def test_open_loop_baseline_is_the_same_update_without_feedback(solved):
     # the feedback keeps the landing feet nearer the ground (the switching constraint, eq. 29)
     g = Objective(p_new).switching_values
     assert np.sum(g(out_fb.X_pre) ** 2) < np.sum(g(out_ol.X_pre) ** 2)
+
+
+@pytest.mark.parametrize("integrator", ["euler", "semi_implicit"])
+def test_time_scaled_step_jacobians_match_finite_differences(integrator):
+    """f_z = d x+/d T_i and f_xz = d f_x/d T_i, f_uz = d f_u/d T_i (h_i = T_i / N_i) against central differences
+    of the discrete step with the step built from T_i +- s, at knots of every mode (flight, back and front
+    stance). x+ and the step Jacobians are polynomials of degree <= 2 in h, so the central difference is exact up
+    to round-off. The semi-implicit branch (``q+ = q + h v + h^2 a``) is not the paper's integrator and is
+    used by no other test of the STO derivatives."""
+    dynamics = HybridDynamics(integrator=integrator)
+    problem = HybridProblem.bounding(1, dynamics=dynamics).with_durations((0.07, 0.08, 0.065, 0.075))
+    warm = heuristic_warm_start(HybridProblem.bounding(1, dynamics=dynamics))
+    N = problem.n_knots
+    out = _Traj(N, problem.n_phases)
+    assert rollout_policy(problem, out, warm.U)
+    lin = Linearization(N)
+    dynamics.linearize(out.X, out.U, problem.modes, lin, problem.h)
+    f_z, f_xz, f_uz = time_scaled_jacobians(problem, out.X, lin)
+    assert f_z.shape == (N, 14) and f_xz.shape == (N, 14, 14) and f_uz.shape == (N, 14, 4)
+    s = 1e-4  # [s] on T_i; the steps become (T_i +- s) / N_i
+    for k in (3, problem.phase_start[1] + 10, problem.phase_start[2] + 30, problem.phase_start[3] + 5, N - 1):
+        i = int(problem.phase_of_knot[k])
+        Ni, Ti = int(problem.knots[i]), float(problem.schedule.durations[i])
+        mode = int(problem.modes[k])
+        plus = HybridDynamics(dynamics.robot, dt=(Ti + s) / Ni, integrator=integrator)
+        minus = HybridDynamics(dynamics.robot, dt=(Ti - s) / Ni, integrator=integrator)
+        xp, _, Ap, Bp, _, _ = plus.step_derivatives(out.X[k], out.U[k], mode)
+        xm, _, Am, Bm, _, _ = minus.step_derivatives(out.X[k], out.U[k], mode)
+        assert rel_err(f_z[k], (xp - xm) / (2 * s)) <= 1e-7, (k, f_z[k], (xp - xm) / (2 * s))
+        assert rel_err(f_xz[k], (Ap - Am) / (2 * s)) <= 1e-7, k
+        assert rel_err(f_uz[k], (Bp - Bm) / (2 * s)) <= 1e-7, k
+        # the position rows differ between the integrators: f_z's q-part is v / N_i (Euler) or (v + 2 h a) / N_i
+        h = Ti / Ni
+        extra = 2.0 * h * lin.acc[k] / Ni if integrator == "semi_implicit" else 0.0
+        np.testing.assert_allclose(f_z[k, :7], out.X[k, 7:] / Ni + extra, rtol=1e-12, atol=1e-15)
+
+
+def test_open_loop_line_search_is_recorded_and_starts_with_the_full_step(solved, sto_runs):
+    """The line search of both methods is recorded trial by trial: eps_z = 1, then ``step_factor`` times the
+    previous, up to the first trial whose rollout decreases the objective (Armijo), which is the accepted one.
+    For the open-loop baseline's first iteration everything is recomputed independently from the same
+    Algorithm-1 solution (the ``solved`` fixture): its V_z, V_zz are those of the open-loop objective (finite
+    differences of the cost of the controls held fixed on the rescaled durations), its first trial is the full
+    projected Newton step of those derivatives, with the objective of that rollout, and when the full step
+    decreases the objective it is the step taken. (A baseline whose line search started at eps_z = 0.25 passed
+    every other test of this module.)"""
+    options = STOOptions()
+    for method in ("hsddp", "open-loop"):
+        _, res = sto_runs[method]
+        for rec in res.records:
+            trials = rec["line_search"]
+            eps = [t["eps"] for t in trials]
+            assert eps == [options.step_factor ** j for j in range(len(eps))], (method, rec["iteration"], eps)
+            if rec["status"] == "accepted":
+                assert rec["step"] == eps[-1] and trials[-1]["objective"] == rec["objective_rollout"]
+                assert trials[-1]["objective"] < rec["objective_before"]
+                for t in trials[:-1]:  # every rejected trial failed the decrease test
+                    assert not (t["objective"] < rec["objective_before"] + options.armijo * min(t["predicted"], 0.0)
+                                and t["objective"] < rec["objective_before"]), (method, rec["iteration"], t)
+            elif rec["status"] == "no_decrease":
+                assert len(trials) >= 1 and all(not t["objective"] < rec["objective_before"] for t in trials
+                                                if np.isfinite(t["objective"]))
+    s = solved
+    _, ol = sto_runs["open-loop"]
+    rec = ol.records[0]
+    assert rec["objective_before"] == pytest.approx(s.sol.objective, rel=1e-12)
+    d = s.deriv(False, False)
+    n = s.problem.n_phases
+    J = lambda dz: closed_loop_objective(s, d, dz, False)  # noqa: E731  (controls held: the open-loop cost)
+    np.testing.assert_allclose(rec["V_z"], fd_gradient(J, n, FD_STEP_GRAD, fourth_order=True), rtol=1e-6,
+                               atol=1e-6 * np.max(np.abs(rec["V_z"])))
+    assert rel_err(np.array(rec["V_zz"]), fd_hessian(J, n, FD_STEP_HESS)) <= 0.10
+    lower, upper = options.bounds(n)
+    dz, _, _ = duration_step(d.V_z, d.V_zz, s.z0, lower, upper)
+    np.testing.assert_allclose(rec["direction"], dz, rtol=1e-9, atol=1e-12)
+    full = np.clip(s.z0 + dz, lower, upper) - s.z0
+    J_full = J(full)
+    first = rec["line_search"][0]
+    assert first["eps"] == 1.0 and first["objective"] == pytest.approx(J_full, rel=1e-9)
+    if J_full < rec["objective_before"] + options.armijo * min(first["predicted"], 0.0):
+        assert rec["step"] == 1.0 and rec["durations"] == pytest.approx((s.z0 + full).tolist(), rel=1e-12)
+    # the measured run: the open-loop step is accepted in full in every iteration (README)
+    print(f"\nopen-loop accepted steps: {[r['step'] for r in ol.records]}")
+    assert all(r["step"] == 1.0 for r in ol.records if r["status"] == "accepted")
 
 
 # ----------------------------------------------------------------------- duration step: bounds, fallback
@@ -533,3 +623,178 @@ def test_line_search_options_are_validated(field, value):
     """step_factor >= 1 once made the eps_z backtracking loop endless."""
     with pytest.raises(ValueError, match=field):
         STOOptions(**{field: value})
+
+
+# ------------------------------------------------------------------ task-2 variants (issue 16)
+def test_cost_variants_build_the_paper_form():
+    """terminal_half=False is the paper's eq. 33 (no 1/2): the same objective as doubled weights; grf_tracking
+    False removes the force term; z_velocity='code' puts the authors' +-1 m/s in the phase-end references."""
+    base = HybridProblem.bounding(1)
+    paper = HybridProblem.bounding(1, grf_tracking=False, terminal_half=False, z_velocity="code")
+    np.testing.assert_array_equal(paper.QF, 2.0 * base.QF)
+    np.testing.assert_array_equal(paper.Sd, 0.0)
+    assert np.all(base.Sd.max(axis=1)[base.stance_any] > 0)
+    np.testing.assert_array_equal(paper.XF[:, 8], [1.0, -1.0, 1.0, -1.0])
+    np.testing.assert_array_equal(base.XF[:, 8], 0.0)
+    from hsddp_gym.planners.optimizer.metrics import task_cost
+
+    tr = heuristic_warm_start(base)
+    half_off = HybridProblem.bounding(1, terminal_half=False)
+    run = Objective(base).evaluate(tr.X, tr.X_pre, tr.U, tr.GRF, _no_constraints(base))
+    off = Objective(half_off).evaluate(tr.X, tr.X_pre, tr.U, tr.GRF, _no_constraints(base))
+    assert off.running == run.running and off.terminal == pytest.approx(2.0 * run.terminal, rel=1e-14)
+    assert task_cost(half_off, tr.X, tr.X_pre, tr.U, tr.GRF) == pytest.approx(run.running + 2 * run.terminal)
+    for kwargs, name in (({"grf_tracking": 1}, "grf_tracking"), ({"terminal_half": "no"}, "terminal_half")):
+        with pytest.raises(TypeError, match=name):
+            HybridProblem.bounding(1, **kwargs)
+
+
+def _no_constraints(problem):
+    from hsddp_gym.planners.optimizer.objective import ConstraintState
+
+    return ConstraintState(sigma=0.0, lam=np.zeros(problem.n_phases), use_al=False, use_reb=False, delta_torque=1.0,
+                           delta_grf=1.0, eps_torque=0.0, eps_grf=0.0)
+
+
+@pytest.fixture(scope="module")
+def code_reference_runs() -> dict:
+    """Both methods, 30 iterations, with the authors' vertical-velocity references (the paper-closest
+    variant), ~10 s."""
+    from hsddp_gym.planners.tasks import run_sto
+
+    return {m: run_sto(m, iterations=30, z_velocity="code")[1] for m in ("hsddp", "open-loop")}
+
+
+def test_paper_closest_variant_matches_the_paper(code_reference_runs):
+    """With z_velocity='code' the same solver and weights come close to the paper (21.1 % vs 6.3 %): measured
+    23.3 % vs 4.8 % (README). The issue's bar: HS-DDP >= 15 % and >= 2x the open-loop reduction."""
+    hs, ol = code_reference_runs["hsddp"], code_reference_runs["open-loop"]
+    print(f"\nz_velocity=code: HS-DDP {100 * hs['reduction']:.1f} %, open loop {100 * ol['reduction']:.1f} %")
+    for s in (hs, ol):
+        assert s["z_velocity"] == "code" and s["grf_tracking"] and s["terminal_half"] and not s["periodic"]
+        assert s["switching_violation"] <= 1e-4
+        assert s["max_touchdown_error"] == pytest.approx(max(abs(g) for g in s["touchdown_heights"]), rel=1e-15)
+        assert s["switching_violation"] == pytest.approx(sum(g * g for g in s["touchdown_heights"]), rel=1e-9)
+    assert hs["reduction"] >= 0.15 and hs["reduction"] >= 2.0 * ol["reduction"], (hs["reduction"], ol["reduction"])
+    assert hs["reduction"] <= 0.30  # not the 52 % of the zero-velocity references
+
+
+def test_max_touchdown_error_stop():
+    """al_max_abs_tolerance: Algorithm 1 stops only once every landing foot is within it of the ground. On the
+    paper-closest task-2 start (one cycle, z_velocity='code'), sum g^2 <= 1e-4 alone stops with a foot several
+    mm off the ground; with 1 mm the solve needs another AL iteration and meets it."""
+    problem = HybridProblem.bounding(1, z_velocity="code")
+    U = heuristic_warm_start(problem).U
+    loose = HSDDP(SolverOptions()).solve(problem, U)
+    tight = HSDDP(SolverOptions(al_max_abs_tolerance=1e-3)).solve(problem, U)
+    print(f"\nmax |g|: sum g^2 stop {1e3 * np.max(np.abs(loose.switching)):.2f} mm in {loose.al_iterations} AL "
+          f"iterations, max |g| <= 1 mm stop {1e3 * np.max(np.abs(tight.switching)):.2f} mm in "
+          f"{tight.al_iterations}")
+    assert loose.converged and tight.converged
+    assert np.max(np.abs(loose.switching)) > 1e-3  # the gap the option closes
+    assert np.max(np.abs(tight.switching)) <= 1e-3 and tight.al_iterations > loose.al_iterations
+    for bad in (0.0, -1e-3, float("nan")):
+        with pytest.raises(ValueError, match="al_max_abs_tolerance"):
+            SolverOptions(al_max_abs_tolerance=bad)
+
+
+@pytest.fixture(scope="module")
+def periodic_runs() -> dict:
+    from hsddp_gym.planners.tasks import run_sto
+
+    return {m: run_sto(m, iterations=30, periodic=True) for m in ("hsddp", "open-loop")}
+
+
+def test_periodic_problem_structure():
+    p = HybridProblem.bounding_periodic()
+    assert p.n_phases == 5 and [int(m) for m in p.schedule.modes] == [int(m) for m in p.schedule.modes[:4]] + [
+        int(p.schedule.modes[0])]
+    np.testing.assert_array_equal(p.touchdown >= 0, [False, True, False, True, False])
+    np.testing.assert_array_equal(p.XF[-1, 1:], p.x0[1:])
+    assert p.QF[-1, 0] == 0.0 and np.all(p.QF[-1, 1:] > 0)
+    with pytest.raises(ValueError, match="durations"):
+        HybridProblem.bounding_periodic(durations=(0.08, 0.07, 0.07, 0.07))
+    with pytest.raises(ValueError, match="periodic_weight"):
+        HybridProblem.bounding_periodic(periodic_weight=-1.0)
+
+
+def test_periodic_task_ends_where_it_started_and_repeats(periodic_runs):
+    """The periodic STO result ends within a few mm / cm/s of its start state (up to x), and applying its
+    controls again from its end state repeats the cycle: the second cycle's states stay close to the first's."""
+    for method, (res, s) in periodic_runs.items():
+        assert s["periodic"] and len(s["mode_durations"]) == 5 and s["switching_violation"] <= 1e-4
+        assert s["total_time"] < s["initial_total_time"], method
+        assert s["max_periodicity_error_position"] <= 0.01 and s["max_periodicity_error_velocity"] <= 0.05, s
+        # a sustainable gait: the vertical velocity returns and the mean normal force is near the weight
+        assert abs(s["final_vertical_velocity"] - s["initial_vertical_velocity"]) <= 0.05
+        assert abs(s["mean_normal_grf"] - s["weight"]) <= 0.1 * s["weight"]
+        sol = res.solution
+        problem = HybridProblem.bounding_periodic().with_durations(res.durations[-1])
+        x1 = sol.X[-1].copy()
+        x1[0] = problem.x0[0]
+        again = _Traj(problem.n_knots, problem.n_phases)
+        assert rollout_policy(problem.with_x0(x1), again, sol.U, sol.X, sol.K)
+        dev = np.max(np.abs(again.X[:, 1:] - sol.X[:, 1:]), axis=0)
+        print(f"\n{method}: second cycle's largest deviation, positions {dev[:6].max():.2e}, velocities "
+              f"{dev[6:].max():.2e}")
+        assert dev[:6].max() <= 0.02, dev
+    hs, ol = periodic_runs["hsddp"][1], periodic_runs["open-loop"][1]
+    assert hs["reduction"] > ol["reduction"]
+
+
+def test_sto_cli_variants_are_recorded_and_validated(tmp_path, capsys):
+    from hsddp_gym.cli import main
+
+    out = tmp_path / "v"
+    assert main(["sto", "--iterations", "1", "--z-velocity", "code", "--grf-tracking", "off", "--terminal-half",
+                 "off", "--max-touchdown-error", "0.001", "--out", str(out), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert (s["z_velocity"], s["grf_tracking"], s["terminal_half"], s["periodic"]) == ("code", False, False, False)
+    assert s["al_max_abs_tolerance"] == 0.001 and s["max_touchdown_error"] <= 0.001
+    assert len(s["touchdown_heights"]) == 2
+    for argv, name in ((["--z-velocity", "zero"], "--z-velocity"), (["--grf-tracking", "yes"], "--grf-tracking"),
+                       (["--terminal-half", "1"], "--terminal-half"), (["--max-touchdown-error", "0"],
+                                                                       "--max-touchdown-error"),
+                       (["--periodic-weight", "-2"], "--periodic-weight")):
+        with pytest.raises(SystemExit):
+            main(["sto", *argv, "--out", str(tmp_path / "bad")])
+        assert name in capsys.readouterr().err, argv
+    for argv, name in ((["--periodic", "--cycles", "2"], "--cycles"), (["--periodic-weight", "10"], "--periodic")):
+        with pytest.raises(SystemExit, match=name):
+            main(["sto", *argv, "--out", str(tmp_path / "bad")])
+
+
+def test_experiment_scripts_validate_their_options(experiment, capsys):
+    task2 = experiment("paper_task2_sto")
+    for argv, name in ((["--workers", "0"], "--workers"), (["--iterations", "-1"], "--iterations"),
+                       (["--max-touchdown-error", "0"], "--max-touchdown-error"),
+                       (["--z-velocity", "up"], "--z-velocity"), (["--terminal-half", "yes"], "--terminal-half")):
+        with pytest.raises(SystemExit):
+            task2.main(argv)
+        assert name in capsys.readouterr().err, argv
+    al = experiment("al_iterations")
+    for argv, name in ((["--set", "sigma=3"], "--set"), (["--set", "beta=big"], "--set beta"),
+                       (["--cycles", "0"], "--cycles")):
+        with pytest.raises(SystemExit):
+            al.main(argv)
+        assert name in capsys.readouterr().err, argv
+    assert al.parse_set("max_ddp_iterations=30") == ("max_ddp_iterations", 30)
+    assert al.parse_set("sigma0=35.355") == ("sigma0", 35.355)
+
+
+def test_task_2_variant_arguments_are_validated():
+    from hsddp_gym.planners.optimizer.metrics import trajectory_summary
+    from hsddp_gym.planners.tasks import sto_problem
+
+    with pytest.raises(ValueError, match="z_velocity"):
+        sto_problem(z_velocity="zero")
+    with pytest.raises(ValueError, match="cycles"):
+        sto_problem(cycles=2, periodic=True)
+    for name in ("grf_tracking", "terminal_half", "periodic"):
+        with pytest.raises(TypeError, match=name):
+            sto_problem(**{name: "on"})
+    # the plan summaries carry max |g| too
+    problem = HybridProblem.bounding(1)
+    warm = heuristic_warm_start(problem)
+    s = trajectory_summary(problem, warm.X, warm.X_pre, warm.U, warm.GRF)
+    assert s["max_touchdown_error"] == max(abs(g) for g in s["touchdown_foot_heights"]) > 0

@@ -10,7 +10,7 @@
    is at least ``armijo`` times the expected one; non-finite rollouts are failed trials;
 3. update the AL multipliers and penalty (eq. 24: ``lam <- lam + sigma g``, then ``sigma <- beta sigma``),
    shrink the barrier relaxations (``delta <- delta_factor delta``) and grow their weights, until
-   ``sum g^2 <= al_tolerance``.
+   ``sum g^2 <= al_tolerance`` (and, with ``al_max_abs_tolerance`` set, ``max |g| <= al_max_abs_tolerance``).
 
 The workspace (Pinocchio data, per-horizon arrays) is allocated once per problem size and reused.
 Solves are deterministic: the same inputs give bit-identical outputs.
@@ -304,7 +304,9 @@ class HSDDP:
             if opt.time_limit is not None and time.perf_counter() - t0 > opt.time_limit:
                 state["status"] = "time_limit"
                 break
-            if not opt.use_al or viol <= opt.al_tolerance:
+            max_g = float(np.max(np.abs(g), initial=0.0))
+            if not opt.use_al or (viol <= opt.al_tolerance and (opt.al_max_abs_tolerance is None
+                                                                or max_g <= opt.al_max_abs_tolerance)):
                 converged = True
                 break
             if al_iter == opt.max_al_iterations - 1:

@@ -22,7 +22,8 @@ def trajectory_summary(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray,
 
     Returns a dict with ``avg_forward_speed`` [m/s], ``min_body_height`` [m], ``max_abs_pitch`` [rad],
     ``touchdown_foot_heights`` (list, one per touchdown: height of the landing foot at the switch,
-    the paper's g), ``switching_violation`` (sum g^2), ``max_abs_torque`` [N m], ``min_normal_grf`` [N],
+    the paper's g), ``switching_violation`` (sum g^2), ``max_touchdown_error`` (max |g|) [m],
+    ``max_abs_torque`` [N m], ``min_normal_grf`` [N],
     ``max_friction_violation`` (max |f_x| - mu f_z over stance knots) [N], ``cost`` (eq. 18).
     """
     robot = problem.dynamics.robot
@@ -38,6 +39,7 @@ def trajectory_summary(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray,
         "max_abs_pitch": float(np.max(np.abs(X[:, IPITCH]))),
         "touchdown_foot_heights": g,
         "switching_violation": float(np.sum(np.square(g))),
+        "max_touchdown_error": float(np.max(np.abs(g))) if g else 0.0,
         "max_abs_torque": float(np.max(np.abs(U))),
         "min_normal_grf": float(np.min(fz)) if fz.size else float("nan"),
         "max_friction_violation": float(np.max(fric)) if fric.size else float("nan"),

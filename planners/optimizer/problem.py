@@ -6,7 +6,8 @@ Running cost of knot k in phase i (``h`` the step; the authors' code adds the gr
 
     L = h [ (x - xr_i)^T Q_i (x - xr_i) + u^T R_i u + (grf - grf_ref_i)^T S_i (grf - grf_ref_i) ]
 
-Terminal cost at the end of phase i (the authors' code has the 1/2)::
+Terminal cost at the end of phase i (the authors' code has the 1/2; the paper's eq. 33 has none, which
+``terminal_half=False`` of :func:`bounding_phase_cost` gives by doubling ``Qf_i``)::
 
     Phi_i = 1/2 (x^- - xf_i)^T Qf_i (x^- - xf_i)
 
@@ -42,6 +43,8 @@ _S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0, Mode.DOU
 # on the forward speed (x weight 0 as in HM).
 _Q_LATER = 0.01 * np.array([0, 10, 5, 4, 4, 4, 4, 2, 1, 0.01, 6, 6, 6, 6], dtype=float)
 _QF_BASE_LATER = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 3, 2, 0.01], dtype=float)
+PERIODIC_BOUNDING_DURATIONS = (0.080, 0.072, 0.072, 0.072, 0.040)
+"""Initial durations of :meth:`HybridProblem.bounding_periodic` (BS, FL, FS, FL, BS) [s]."""
 BOUNDING_WEIGHTS = ("paper", "later")
 """``"paper"``: the authors' code closest to the paper (MH@0b6ca76), the default; ``"later"``: their later code."""
 
@@ -69,7 +72,7 @@ class PhaseCost:
 
 def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
                         running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper",
-                        weights: str = "paper") -> PhaseCost:
+                        weights: str = "paper", terminal_half: bool = True) -> PhaseCost:
     """The bounding cost of one phase (original_code_facts §3.4-§3.5).
 
     Args:
@@ -83,8 +86,13 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
         z_velocity: terminal vertical-velocity reference, ``"code"`` (+-1 m/s) or ``"paper"`` (0).
         weights: ``"paper"`` (the authors' code closest to the paper, §3.5) or ``"later"`` (their later code,
             which they ran at 1.5 m/s), see :data:`BOUNDING_WEIGHTS`.
+        terminal_half: True (default, the authors' code): ``Phi = 1/2 dx' Qf dx``; False: the paper's eq. 33,
+            ``Phi = dx' Qf dx`` (stored as a doubled ``qf``, since the objective always has the 1/2).
     """
     params = params if params is not None else RobotParams()
+    for name, flag in (("grf_tracking", grf_tracking), ("terminal_half", terminal_half)):
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"{name} must be a bool, got {flag!r} ({type(flag).__name__})")
     if weights not in BOUNDING_WEIGHTS:
         raise ValueError(f"weights must be one of {BOUNDING_WEIGHTS}, got {weights!r}")
     mode = Mode(mode)
@@ -108,7 +116,7 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
             grf_ref[sl] = (0.0, weight / len(mode.feet))
             s[sl] = _S[mode]
     later = weights == "later"
-    qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]])
+    qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]]) * (1.0 if terminal_half else 2.0)
     r = np.array(_R[mode], dtype=float) * (0.5 if later else 1.0)
     return PhaseCost(x_ref=x_ref, q=(_Q_LATER if later else _Q).copy(), r=r, grf_ref=grf_ref, s=s,
                      x_final=x_final, qf=qf)
@@ -221,9 +229,10 @@ class HybridProblem:
     def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
-                 z_velocity: str = "paper", weights: str = "paper") -> HybridProblem:
+                 z_velocity: str = "paper", weights: str = "paper", terminal_half: bool = True) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
-        v_d = 1 m/s, the paper's initial state (Sec. V-B); ``weights`` see :func:`bounding_phase_cost`."""
+        v_d = 1 m/s, the paper's initial state (Sec. V-B); ``running_reference``, ``grf_tracking``,
+        ``z_velocity``, ``weights``, ``terminal_half`` see :func:`bounding_phase_cost`."""
         from hsddp_gym.core.references import paper_initial_state
         from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -232,11 +241,52 @@ class HybridProblem:
             schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
         params = dynamics.robot.params
         costs = [bounding_phase_cost(m, _reference_foot(schedule, i), speed, params, running_reference, grf_tracking,
-                                     z_velocity, weights) for i, m in enumerate(schedule.modes)]
+                                     z_velocity, weights, terminal_half) for i, m in enumerate(schedule.modes)]
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0
         return cls(dynamics, schedule, costs, x0, constraints)
+
+    @classmethod
+    def bounding_periodic(cls, durations=PERIODIC_BOUNDING_DURATIONS, periodic_weight: float = 1e5,
+                          dynamics: HybridDynamics | None = None, **cost_options) -> HybridProblem:
+        """One bounding cycle that must end in the state it started from, up to the forward position x.
+
+        The paper's task starts mid back stance (:func:`hsddp_gym.core.references.paper_initial_state`) and
+        ends at the back foot's touchdown, so nothing makes its end state repeatable. Here the cycle is back
+        stance, flight, front stance, flight, back stance again (the back foot lands, a switching constraint as
+        every touchdown), and the last phase ends where the first began: its terminal cost is
+        ``1/2 (x^- - x0)^T W (x^- - x0)`` with ``W = periodic_weight * [0, 1 (z, pitch, 4 joints), 0.1 (7
+        velocities)]`` (x excluded) in place of the back-stance reference. Since the dynamics do not depend
+        on x, a trajectory that meets the condition can be repeated by applying the same controls again: its
+        gait is the sequence of the five phases, the last and the first back stance forming one back stance of
+        ``T_5 + T_1``. The condition is a stiff quadratic penalty, not an equality; its residual is reported
+        by the task (:func:`hsddp_gym.planners.tasks.run_sto`).
+
+        Args:
+            durations: 5 durations [s] (BS, FL, FS, FL, BS); default the paper's 80/72/72/72 ms and a second
+                back stance of 40 ms.
+            periodic_weight: ``W``'s scale (> 0).
+            dynamics: default :class:`HybridDynamics` (h = 1 ms).
+            cost_options: ``speed``, ``running_reference``, ``grf_tracking``, ``z_velocity``, ``weights``,
+                ``terminal_half`` of :meth:`bounding`.
+        """
+        from hsddp_gym.core.schedule import BOUNDING_CYCLE
+
+        check_positive(periodic_weight, "periodic_weight")
+        durations = np.asarray(durations, dtype=np.float64)
+        if durations.shape != (5,):
+            raise ValueError(f"durations must be 5 durations [s] (BS, FL, FS, FL, BS), got {durations.tolist()!r}")
+        modes = tuple(BOUNDING_CYCLE) + (Mode.BACK_STANCE,)
+        schedule = ModeSchedule(modes, durations, final_mode=Mode.BACK_STANCE)
+        base = cls.bounding(1, dynamics=dynamics, schedule=schedule, **cost_options)
+        x0 = base.x0
+        last = base.costs[-1]
+        w = np.concatenate([[0.0], np.ones(6), 0.1 * np.ones(7)]) * float(periodic_weight)
+        x_final = x0.copy()
+        x_final[0] = 0.0
+        costs = list(base.costs[:-1]) + [dataclasses.replace(last, x_final=x_final, qf=w)]
+        return cls(base.dynamics, schedule, costs, x0, base.constraints, base.restitution)
 
     def with_durations(self, durations) -> HybridProblem:
         """The time-scaled problem (eq. 28): the same knots per phase, new durations ``(n,)`` [s]."""

@@ -164,6 +164,49 @@ class TimeDerivatives:
     dV2: float
 
 
+def time_scaled_jacobians(problem: HybridProblem, X: np.ndarray, lin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Derivatives of each knot's discrete step w.r.t. its own phase duration ``T_i`` (eq. 28, ``h_i = T_i / N_i``).
+
+    Forward Euler (``q+ = q + h v``, ``v+ = v + h a``)::
+
+        f_z = [v, a] / N_i,   f_xz = [[0, I], [a_q, a_v]] / N_i,   f_uz = [[0], [a_u]] / N_i
+
+    semi-implicit Euler (``v+ = v + h a``, ``q+ = q + h v + h^2 a``) adds the ``h^2`` terms' derivatives
+    ``2 h a / N_i`` (and ``2 h a_q``, ``2 h a_v``, ``2 h a_u`` over ``N_i``) to the position rows.
+
+    Args:
+        problem: the (time-scaled) problem; its ``knots``, ``h`` and the dynamics' integrator are used.
+        X: states ``(N+1, 14)`` the linearization ``lin`` was taken at.
+        lin: a :class:`hsddp_gym.core.dynamics.Linearization` of ``X`` (``acc``, ``a_q``, ``a_v``, ``a_tau``).
+    Returns:
+        ``(f_z (N, 14), f_xz (N, 14, 14), f_uz (N, 14, 4))``; ``f_xz[k] = d f_x[k] / d T_i``.
+    """
+    N = problem.n_knots
+    ph = problem.phase_of_knot
+    Ni = problem.knots[ph].astype(float)[:, None]
+    h = problem.h[:, None]
+    semi = problem.dynamics.integrator == "semi_implicit"
+    v = X[:N, NQ:]
+    a = lin.acc[:N]
+    f_z = np.empty((N, NX))
+    f_z[:, NQ:] = a / Ni
+    f_z[:, :NQ] = (v + 2.0 * h * a) / Ni if semi else v / Ni
+    f_xz = np.zeros((N, NX, NX))
+    f_uz = np.zeros((N, NX, NU))
+    hh = h[:, :, None]
+    N3 = Ni[:, :, None]
+    f_xz[:, NQ:, :NQ] = lin.a_q[:N] / N3
+    f_xz[:, NQ:, NQ:] = lin.a_v[:N] / N3
+    f_uz[:, NQ:, :] = lin.a_tau[:N, :, 3:] / N3
+    if semi:
+        f_xz[:, :NQ, :NQ] = 2.0 * hh * lin.a_q[:N] / N3
+        f_xz[:, :NQ, NQ:] = (np.eye(NQ) + 2.0 * hh * lin.a_v[:N]) / N3
+        f_uz[:, :NQ, :] = 2.0 * hh * lin.a_tau[:N, :, 3:] / N3
+    else:
+        f_xz[:, :NQ, NQ:] = np.eye(NQ) / N3
+    return f_z, f_xz, f_uz
+
+
 def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = True, mu: float = 0.0,
                      second_order: bool = False, fd_step: float = 1e-6) -> TimeDerivatives:
     """V_z, V_zz at the solver's current nominal trajectory (linearized at it by the last ``solve``).
@@ -187,26 +230,7 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
     ph = problem.phase_of_knot
     Ni = problem.knots[ph].astype(float)[:, None]
     Ti = problem.schedule.durations[ph][:, None]
-    h = problem.h[:, None]
-    semi = problem.dynamics.integrator == "semi_implicit"
-    v = tr.X[:N, NQ:]
-    a = lin.acc[:N]
-    f_z = np.empty((N, NX))
-    f_z[:, NQ:] = a / Ni
-    f_z[:, :NQ] = (v + 2.0 * h * a) / Ni if semi else v / Ni
-    f_xz = np.zeros((N, NX, NX))
-    f_uz = np.zeros((N, NX, NU))
-    hh = h[:, :, None]
-    N3 = Ni[:, :, None]
-    f_xz[:, NQ:, :NQ] = lin.a_q[:N] / N3
-    f_xz[:, NQ:, NQ:] = lin.a_v[:N] / N3
-    f_uz[:, NQ:, :] = lin.a_tau[:N, :, 3:] / N3
-    if semi:
-        f_xz[:, :NQ, :NQ] = 2.0 * hh * lin.a_q[:N] / N3
-        f_xz[:, :NQ, NQ:] = (np.eye(NQ) + 2.0 * hh * lin.a_v[:N]) / N3
-        f_uz[:, :NQ, :] = 2.0 * hh * lin.a_tau[:N, :, 3:] / N3
-    else:
-        f_xz[:, :NQ, NQ:] = np.eye(NQ) / N3
+    f_z, f_xz, f_uz = time_scaled_jacobians(problem, tr.X, lin)
     obj = solver.last_objective
     L_x, L_u = obj.task_running_gradients(tr.X, tr.U, tr.GRF, lin.grf_x[:N], lin.grf_u[:N])
     l_z = obj.running_rates(tr.X, tr.U, tr.GRF) / Ni[:, 0]
@@ -475,8 +499,12 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
         options: an :class:`STOOptions`.
         callback: called with each iteration's record dict.
     Returns:
-        An :class:`STOResult`. Its records have ``iteration``, ``V_z``, ``V_zz_pd``, ``free`` (durations not
-        held at a bound), ``step`` (the accepted eps_z, 0 if none), ``objective_before`` and ``status``:
+        An :class:`STOResult`. Its records have ``iteration``, ``V_z``, ``V_zz``, ``V_zz_pd``, ``free``
+        (durations not held at a bound), ``direction`` (the projected Newton direction ``dz``),
+        ``line_search`` (every trial in order: ``{"eps", "objective", "predicted"}``, the objective of the
+        trial's rollout, NaN if it diverged, and the quadratic model's change; the first trial is
+        ``eps = 1``, each next one ``step_factor`` times the previous), ``step`` (the accepted eps_z, 0 if
+        none), ``objective_before`` and ``status``:
         ``"accepted"`` (then also ``durations``, ``total_time``, ``objective_rollout``, ``predicted``,
         ``objective_after_resolve``, ``cost``, ``switching_violation``), ``"converged"`` (the full projected
         Newton step is below ``tolerance``) or ``"no_decrease"`` (no decrease down to ``min_step``); the
@@ -513,6 +541,7 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
         eps = 1.0
         accepted = None
         stop = "no_decrease"
+        trials = []
         while eps >= options.min_step:
             z_new = np.clip(z + eps * dz, lower, upper)
             step = z_new - z
@@ -522,15 +551,16 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
                 break
             pr_new = pr.with_durations(z_new)
             ok = rollout_time_policy(pr_new, solver._ws.nominal, deriv, step, feedback, cand)
-            if ok:
-                new = Objective(pr_new).evaluate(cand.X, cand.X_pre, cand.U, cand.GRF, cs).total
-                predicted = float(Vz @ step + 0.5 * step @ Vzz @ step)
-                if np.isfinite(new) and new < current + options.armijo * min(predicted, 0.0) and new < current:
-                    accepted = (z_new, pr_new, new, predicted)
-                    break
+            predicted = float(Vz @ step + 0.5 * step @ Vzz @ step)
+            new = Objective(pr_new).evaluate(cand.X, cand.X_pre, cand.U, cand.GRF, cs).total if ok else float("nan")
+            trials.append({"eps": eps, "objective": float(new), "predicted": predicted})
+            if ok and np.isfinite(new) and new < current + options.armijo * min(predicted, 0.0) and new < current:
+                accepted = (z_new, pr_new, new, predicted)
+                break
             eps *= options.step_factor
-        rec = {"iteration": it + 1, "V_z": Vz.tolist(), "V_zz_pd": pd, "free": free.tolist(),
-               "step": eps if accepted else 0.0, "objective_before": current}
+        rec = {"iteration": it + 1, "V_z": Vz.tolist(), "V_zz": Vzz.tolist(), "V_zz_pd": pd, "free": free.tolist(),
+               "direction": dz.tolist(), "line_search": trials, "step": eps if accepted else 0.0,
+               "objective_before": current}
         if accepted is None:
             rec["status"] = stop
             records.append(rec)
