@@ -245,7 +245,7 @@ def test_linearize_is_deterministic(bounding_traj):
 
 # ----------------------------------------------------------------------------------------- the CLI
 # Paper eqs. 32-33 with the weights of original_code_facts §3.5 (MH@0b6ca76), written out here independently of
-# planners/problem.py: state order [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
+# planners/optimizer/problem.py: state order [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
 _Q_PAPER = 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5])
 _QF_PAPER = {BS: 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01, 5, 5, 0.01, 0.01]),
              FL: 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 2, 0.01, 5, 5, 5, 5]),

@@ -491,7 +491,7 @@ def test_sto_with_active_duration_bounds_reaches_a_bounded_stationary_point(min_
     on their bound with the gradient pushing outward, the free ones have V_z = 0. (Clipping the full Newton
     step, as an earlier version did, stalled with 0.06 s bounds at 60/60/64.5/60 ms with V_z(FS) = -517,
     i.e. not stationary, and a higher objective than the projected step's 60/60/101/60 ms; measured with
-    the joint-rate terminal weights 5 / 0.01 that planners/problem.py had before they were scaled by 100.)"""
+    the joint-rate terminal weights 5 / 0.01 that planners/optimizer/problem.py had before they were scaled by 100.)"""
     problem = HybridProblem.bounding(1)
     options = STOOptions(iterations=30, min_duration=min_duration)
     res = optimize_switching_times(problem, heuristic_warm_start(problem).U, options)
