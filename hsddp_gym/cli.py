@@ -275,10 +275,12 @@ def _check_train(args) -> None:
     n = int(read_metadata(args.dataset)["episodes"])
     if args.demos is not None and args.demos > n:
         raise UsageError("--demos", f"{args.demos} episodes, the dataset has {n}", f"1 .. {n}")
-    too_many = [c for c in args.curve or [] if c > n]
+    used = args.demos if args.demos is not None else n
+    too_many = [c for c in args.curve or [] if c > used]
     if too_many:
-        raise UsageError("--curve", f"{','.join(map(str, too_many))} episodes, the dataset has {n}",
-                         f"numbers of demonstration episodes in 1 .. {n}")
+        raise UsageError("--curve", f"{','.join(map(str, too_many))} episodes, "
+                         + (f"--demos is {used}" if args.demos is not None else f"the dataset has {n}"),
+                         f"numbers of demonstration episodes in 1 .. {used}")
 
 
 def cmd_train(args) -> int:
