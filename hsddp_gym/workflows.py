@@ -200,10 +200,19 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
         summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
                        fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
     if video and results and results[0].frames:
-        from hsddp_gym.viz.render import save_gif
+        from hsddp_gym.viz.render import gif_timing, save_gif
 
-        save_gif(results[0].frames, out / "episode0.gif", fps=env.metadata.get("render_fps", 30))
-        summary["video"] = "episode0.gif"
+        fps = env.metadata.get("render_fps", 30)
+        frames = results[0].frames
+        stride, durations = gif_timing(len(frames), fps)
+        caption = (f"real time: every {stride}{'th' if stride > 3 else ('nd' if stride == 2 else 'rd')} of the "
+                   f"{1000.0 / fps:g}-ms frames, {durations[0]} ms each" if stride > 1 else
+                   f"real time, {1000.0 / fps:g} ms per frame")
+        if not quiet:
+            print(f"writing {out / 'episode0.gif'}: {len(durations)} frames, {sum(durations) / 1000:.2f} s, "
+                  f"{caption} ...", flush=True)
+        save_gif(frames, out / "episode0.gif", fps=fps)
+        summary.update(video="episode0.gif", video_playback=caption, video_frames=len(durations))
     from hsddp_gym.util.io import write_npz
 
     write_npz(out / "episode0.npz", states=results[0].states, actions=results[0].actions,
