@@ -224,8 +224,19 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
 
 # ================================================================================================ warm-up
 _READY = False
-ANNOUNCE_AFTER_S = 0.5
-"""The warm-up says that numba compiles when it takes longer than this (loading the cache takes less)."""
+ANNOUNCE_AFTER_S = 5.0
+"""With a cache index on disk, the warm-up still says that numba compiles when it takes longer than this (a
+stale cache; loading a valid one takes well under a second, a few on a loaded machine)."""
+
+
+def _cache_index_exists() -> bool:
+    """Whether numba's cache index of the backward pass is on disk (numba internals: False if they moved)."""
+    import os
+
+    try:
+        return os.path.exists(backward_pass._cache._cache_file._index_path)
+    except AttributeError:  # pragma: no cover (another numba version)
+        return False
 
 
 def warm_up(announce: bool = True) -> float:
@@ -247,7 +258,12 @@ def warm_up(announce: bool = True) -> float:
               f"later runs load it from the cache in {backward_pass.stats.cache_path}) ...", file=sys.stderr,
               flush=True)
 
-    timer = threading.Timer(ANNOUNCE_AFTER_S, say) if announce else None
+    if announce and not _cache_index_exists():
+        say()  # nothing cached: this compiles
+        announce_later = False
+    else:
+        announce_later = announce  # a cache index exists; a stale one (other source, other numba) recompiles
+    timer = threading.Timer(ANNOUNCE_AFTER_S, say) if announce_later else None
     if timer is not None:
         timer.daemon = True
         timer.start()
