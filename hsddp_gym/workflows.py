@@ -33,7 +33,7 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
         td = [tuple(float(c) for c in robot.foot_positions(result.X_pre[i, :7])[f])
               for i, f in enumerate(pr.touchdown) if f >= 0]
         plotting.plot_motion_strips(robot, {result.method: result.X}, out / "motion.png",
-                                    touchdowns={result.method: td})
+                                    touchdowns={result.method: td}, dt=pr.dt)
         plotting.plot_states({result.method: result.X}, pr.dt, out / "states.png", target_speed=None)
         plotting.plot_forces_torques(pr.dt, result.U, result.GRF, pr.constraints.torque_limit,
                                      pr.constraints.friction, out / "forces_torques.png", stance=pr.stance, foot=0,
@@ -242,7 +242,7 @@ def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, 
     plan = plan_bounding("al-reb", cycles=cycles, verbose=not quiet)
     robot = plan.problem.dynamics.robot
     plotting.plot_motion_strips(robot, {"heuristic warm start": heur.X, "HS-DDP (al-reb)": plan.X},
-                                out / "motion.png")
+                                out / "motion.png", dt=plan.problem.dt)
     plotting.plot_states({"heuristic": heur.X, "HS-DDP": plan.X}, plan.problem.dt, out / "states.png",
                          target_speed=1.0)
     plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")
