@@ -241,7 +241,7 @@ def _cache_index_exists() -> bool:
 
 def warm_up(announce: bool = True) -> float:
     """Make the compiled kernels ready before anything is timed: compile them (the first run on a machine,
-    about 20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
+    10-20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
     process, on a 2-knot problem with the dtypes and layouts the solver passes (so its calls reuse this
     specialization). With ``announce``, a line on stderr says when a compile is under way and how long it
     took. Returns the seconds spent (0 when already done). :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP`
@@ -254,7 +254,7 @@ def warm_up(announce: bool = True) -> float:
     import time
 
     def say():
-        print(f"numba: compiling the HS-DDP backward pass, once (the first run on this machine takes about 20 s; "
+        print(f"numba: compiling the HS-DDP backward pass, once (the first run on this machine takes 10-20 s; "
               f"later runs load it from the cache in {backward_pass.stats.cache_path}) ...", file=sys.stderr,
               flush=True)
 
