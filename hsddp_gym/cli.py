@@ -125,11 +125,11 @@ def _check_duration_bounds(args) -> None:
 
 
 def _check_push(push, max_episode_steps) -> None:
-    import hsddp_gym
+    from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_MAX_EPISODE_STEPS, DEFAULT_SIM_TIMESTEP
 
     t = push[0]
-    steps = max_episode_steps or hsddp_gym.BOUNDING_MAX_EPISODE_STEPS
-    duration = steps * 0.005  # the env's default control period (5 x 1 ms)
+    steps = max_episode_steps or DEFAULT_MAX_EPISODE_STEPS
+    duration = steps * DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP  # the CLI's env keeps the default control period
     if not 0.0 <= t < duration:
         raise UsageError("--push", f"T = {t} s", f"a push time 0 <= T < {duration:g} s, the episode length")
     for label, v in zip(("DVX", "DVZ", "DPITCH"), push[1:]):

@@ -106,6 +106,8 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["train", "--algo", "bc", "--out", out], "--dataset"),
         (["train", "--algo", "bc", "--dataset", str(ds / "minari"), "--demos", "10", "--out", out], "--demos"),
         (["train", "--algo", "bc", "--dataset", str(ds), "--curve", "1,2,8", "--out", out], "--curve"),
+        (["train", "--algo", "dagger", "--dataset", str(ds), "--demos", "3", "--out", out], "--demos"),
+        (["train", "--algo", "dagger", "--curve", "1", "--out", out], "--curve"),
         (["train", "--algo", "bc", "--dataset", str(ds), "--demos", "1", "--curve", "2", "--out", out], "--curve"),
         (["train", "--algo", "ppo", "--out", out], "--steps"),
         (["train", "--algo", "ppo", "--steps", "10", "--learning-starts", "5", "--out", out], "--learning-starts"),
@@ -194,6 +196,11 @@ def test_run_bc_refuses_more_demos_or_curve_points_than_the_dataset_has(dataset,
         run_bc(dataset, tmp_path / "bc", demos=EPISODES + 1, eval_episodes=0, progress=False)
     with pytest.raises(ValueError, match="curve"):
         run_bc(dataset, tmp_path / "bc", curve=[1, EPISODES + 5], eval_episodes=0, progress=False)
+    from hsddp_gym.learning.demonstrations import load_demonstrations
+
+    for fmt in ("npz", "minari"):  # DAgger's --demos goes through here
+        with pytest.raises(ValueError, match=f"episodes must be in 1 .. {EPISODES}"):
+            load_demonstrations(dataset, episodes=EPISODES + 1, fmt=fmt)
 
 
 def test_dataset_reports_the_wall_time_with_the_reference_episodes(tmp_path, capsys):
