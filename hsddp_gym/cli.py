@@ -285,6 +285,12 @@ def _check_train(args) -> None:
 
 def cmd_train(args) -> int:
     _check_train(args)
+    if args.algo != "bc" or args.curve:
+        from hsddp_gym.util.extras import EXTRAS, is_installed
+
+        if not is_installed("matplotlib"):
+            print(f"note: matplotlib is not installed, so curve.png will not be drawn (curve.csv will); "
+                  f"{EXTRAS['matplotlib'][1]}", file=sys.stderr)
     out = Path(args.out)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.algo in ("ppo", "sac"):

@@ -274,3 +274,22 @@ def test_check_output_dir_refuses_an_unwritable_parent(tmp_path):
     locked.mkdir(mode=0o500)
     with pytest.raises(UsageError, match="not writable"):
         check_output_dir(locked / "x", "--out")
+
+
+def test_train_says_when_curve_png_cannot_be_drawn(monkeypatch, tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    import hsddp_gym.learning.sb3 as sb3
+    import hsddp_gym.util.extras as extras
+
+    real = extras.is_installed
+    monkeypatch.setattr(extras, "is_installed", lambda m: m != "matplotlib" and real(m))
+
+    def stop(*args, **kwargs):
+        raise RuntimeError("stopped before training")
+
+    monkeypatch.setattr(sb3, "train_sb3", stop)
+    with pytest.raises(RuntimeError, match="stopped before training"):
+        cli.main(["train", "--algo", "sac", "--steps", "10", "--out", str(tmp_path / "t"), "--quiet"])
+    err = capsys.readouterr().err
+    assert "matplotlib is not installed, so curve.png will not be drawn" in err and "'viz'" not in err
+    assert "hsddp_gym[viz]" in err
