@@ -122,6 +122,14 @@ def _check_duration_bounds(args) -> None:
         raise UsageError(option, f"min duration {lo} s >= max duration {hi} s"
                          + ("" if args.min_duration is not None and args.max_duration is not None
                             else " (the other bound is the default)"), "--min-duration < --max-duration")
+    from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+
+    start = getattr(args, "durations", None) or PAPER_BOUNDING_DURATIONS  # the optimization starts from them
+    allowed = f"--min-duration <= {min(start):g} s and --max-duration >= {max(start):g} s (the initial durations)"
+    if lo > min(start):
+        raise UsageError("--min-duration", f"{lo} s is above the initial mode duration {min(start):g} s", allowed)
+    if hi < max(start):
+        raise UsageError("--max-duration", f"{hi} s is below the initial mode duration {max(start):g} s", allowed)
 
 
 def _check_push(push, max_episode_steps) -> None:

@@ -98,6 +98,8 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["sto", "--min-duration", "0.3", "--max-duration", "0.1", "--out", out], "--min-duration"),
         (["sto", "--min-duration", "0.3", "--out", out], "--min-duration"),  # above the default max 0.2
         (["sto", "--max-duration", "0.01", "--out", out], "--max-duration"),  # below the default min 0.02
+        (["sto", "--min-duration", "0.1", "--out", out], "--min-duration"),  # above the initial 72 ms
+        (["sto", "--max-duration", "0.05", "--out", out], "--max-duration"),  # below the initial 80 ms
         # datasets
         (["dataset", "--dataset-id", "no version", "--out", out], "--dataset-id"),
         (["dataset", "--dataset-id", "hsddp_gym/bounding/mpc", "--out", out], "--dataset-id"),
