@@ -31,7 +31,7 @@ def _number(kind, low: float, high: float = float("inf"), low_open: bool = False
 
 
 _positive_int = _number(int, 1, what="an integer >= 1")
-_positive_float = _number(float, 0.0, low_open=True, what="a finite number > 0")
+_positive_float = _number(float, 0.0, high=1e300, low_open=True, what="a finite number > 0")
 _nonnegative_int = _number(int, 0, what="an integer >= 0")
 _nonnegative_float = _number(float, 0.0, high=1e300, what="a finite number >= 0")
 _fraction = _number(float, 0.0, 1.0, what="a number in [0, 1]")

@@ -95,6 +95,8 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["rollout", "--push", "6", "0", "0", "0", "--out", out], "--push"),  # after the 5 s episode
         (["rollout", "--push", "1", "0", "0", "0", "--max-episode-steps", "100", "--out", out], "--push"),
         (["rollout", "--episodes", "0", "--out", out], "--episodes"),
+        (["plan", "--speed", "inf", "--out", out], "--speed"),
+        (["dataset", "--out", ""], "--out"),
         (["sto", "--min-duration", "0.3", "--max-duration", "0.1", "--out", out], "--min-duration"),
         (["sto", "--min-duration", "0.3", "--out", out], "--min-duration"),  # above the default max 0.2
         (["sto", "--max-duration", "0.01", "--out", out], "--max-duration"),  # below the default min 0.02

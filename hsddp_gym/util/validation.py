@@ -86,6 +86,8 @@ def check_output_dir(path, name: str = "out"):
     import os
     from pathlib import Path
 
+    if str(path).strip() == "":
+        raise UsageError(name, "an empty path", "a directory to write into, existing or new")
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise UsageError(name, f"{str(path)!r} is an existing file",
