@@ -74,6 +74,9 @@ def core_only(tmp_path_factory):
     MLPPolicy(weights=weights, obs_mean=np.zeros(n_in), obs_std=np.ones(n_in),
               config=BCConfig(hidden=(8,))).save(bc / "policy.npz")
     write_json(bc / "summary.json", {"algo": "bc"})
+    sac = tmp / "sac"  # a SAC run directory's layout (its weights are never read: the check comes first)
+    write_json(sac / "summary.json", {"algo": "sac"})
+    (sac / "model.zip").write_bytes(b"")
     cases = {
         "dataset": ["dataset", "--policy", "heuristic", "--episodes", "1", "--out", str(tmp / "d")],
         "train-bc": ["train", "--algo", "bc", "--dataset", str(ds), "--out", str(tmp / "t")],
@@ -83,6 +86,7 @@ def core_only(tmp_path_factory):
         "demo-no-video": ["demo", "--no-video", "--out", str(tmp / "demo")],
         "plan": ["plan", "--method", "heuristic", "--cycles", "1", "--out", str(tmp / "plan")],
         "rollout-video": ["rollout", "--policy", "heuristic", "--video", "--out", str(tmp / "rv")],
+        "rollout-sb3": ["rollout", "--policy", f"sb3:{sac}", "--out", str(tmp / "rs")],
         "plan-no-plots": ["plan", "--method", "heuristic", "--cycles", "1", "--no-plots", "--quiet", "--out",
                           str(tmp / "plan_ok")],
         "rollout": ["rollout", "--policy", "heuristic", "--episodes", "1", "--max-episode-steps", "5", "--quiet",
@@ -111,6 +115,7 @@ def test_the_blocker_really_removes_the_extras(core_only):
     ("demo-no-video", ["matplotlib"], "'viz' extra"),
     ("plan", ["matplotlib"], "--no-plots"),
     ("rollout-video", ["pillow"], "'viz' extra"),
+    ("rollout-sb3", ["stable-baselines3", "torch"], "'rl' extra"),
 ])
 def test_a_missing_extra_is_named_before_the_command_starts(core_only, case, names, extra):
     _, runs, tmp = core_only
@@ -122,7 +127,7 @@ def test_a_missing_extra_is_named_before_the_command_starts(core_only, case, nam
     if case == "train-bc-npz":
         assert "minari" not in err
     # nothing was written: no half-finished output (plan used to leave trajectory.npz behind)
-    for name in ("d", "t", "demo", "plan", "rv"):
+    for name in ("d", "t", "demo", "plan", "rv", "rs"):
         assert not (tmp / name).exists(), name
     assert not (tmp / ".d.partial").exists()
 
