@@ -65,7 +65,7 @@ def main(argv=None) -> int:
     print(f"simulated {sim:.2f} s ({done} control steps of {1e3 * dt:.0f} ms) in {wall:.2f} s wall")
     print(f"  env simulation: {env_time:.2f} s ({1e6 * env_time / done:.0f} us per control step)")
     print(f"  re-plans: {policy.stats['replans']} (+{policy.stats['planner_failures']} failed, "
-          f"{policy.stats['time_limit_hits']} stopped by the time budget), wall time per re-plan: "
+          f"{policy.stats['time_budget_stops']} stopped by the time budget), wall time per re-plan: "
           f"mean {later.mean():.1f} ms, median {np.median(later):.1f} ms, max {later.max():.1f} ms "
           f"(first plan {ms[0]:.0f} ms, excluded); budget at real time {1e3 * opts.replan_period:.0f} ms")
     rtf = sim / wall

@@ -46,7 +46,7 @@ def main(argv=None) -> int:
     labels = {"heuristic": "heuristic controller (warm start)", "ddp": "DDP, switching constraints ignored",
               "al": "AL, switching constraints enforced"}
     plotting.plot_motion_strips(robot, {labels[m]: results[m].X for m in labels}, out / "fig5_motion.png",
-                                touchdowns={labels[m]: touchdowns(results[m]) for m in labels})
+                                touchdowns={labels[m]: touchdowns(results[m]) for m in labels}, dt=pr.dt)
     plotting.plot_convergence({m: results[m].solution for m in ("ddp", "al", "al-reb")}, out / "fig4_convergence.png")
     r = results["al-reb"]
     plotting.plot_forces_torques(pr.dt, r.U, r.GRF, pr.constraints.torque_limit, pr.constraints.friction,

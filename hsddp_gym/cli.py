@@ -7,38 +7,59 @@ Run ``hsddp-gym SUBCOMMAND --help`` for the options of each.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
+from hsddp_gym.util.extras import MissingExtraError, require
 from hsddp_gym.util.io import write_json
-from hsddp_gym.workflows import ROLLOUT_POLICIES, run_rollouts, write_plan_outputs
+from hsddp_gym.util.validation import UsageError, check_output_dir
+from hsddp_gym.workflows import parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
 
 
 def _number(kind, low: float, high: float = float("inf"), low_open: bool = False, what: str = ""):
-    """An argparse ``type``: ``kind(text)`` within ``[low, high]`` (``(low, high]`` with ``low_open``)."""
+    """An argparse ``type``: a finite ``kind(text)`` within ``[low, high]`` (``(low, high]`` with ``low_open``)."""
 
     def parse(text: str):
         value = kind(text)
-        if not ((value > low if low_open else value >= low) and value <= high):
-            raise argparse.ArgumentTypeError(f"must be {what}, got {text}")
+        if not ((value > low if low_open else value >= low) and value <= high):  # NaN fails every comparison
+            raise argparse.ArgumentTypeError(f"{text} (allowed: {what})")
         return value
 
     parse.__name__ = kind.__name__  # argparse names the type in its "invalid ... value" message
     return parse
 
 
-_positive_int = _number(int, 1, what="a positive integer")
-_positive_float = _number(float, 0.0, low_open=True, what="> 0")
-_nonnegative_int = _number(int, 0, what="a non-negative integer")
-_nonnegative_float = _number(float, 0.0, what=">= 0")
-_fraction = _number(float, 0.0, 1.0, what="in [0, 1]")
+_positive_int = _number(int, 1, what="an integer >= 1")
+_positive_float = _number(float, 0.0, high=1e300, low_open=True, what="a finite number > 0")
+_nonnegative_int = _number(int, 0, what="an integer >= 0")
+_nonnegative_float = _number(float, 0.0, high=1e300, what="a finite number >= 0")
+_fraction = _number(float, 0.0, 1.0, what="a number in [0, 1]")
+_finite_float = _number(float, -1e300, 1e300, what="a finite number")
+_seed = _number(int, 0, what="an integer >= 0 (a seed)")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``error: --option: value (allowed: ...)`` on stderr, exit code 2."""
+
+    def error(self, message: str):
+        message = message[len("argument "):] if message.startswith("argument ") else message
+        self.exit(2, f"error: {message} (see {self.prog} --help)\n")
+
+
+def _version() -> str:
+    import hsddp_gym
+
+    return hsddp_gym.__version__
 
 
 def cmd_plan(args) -> int:
     from hsddp_gym.planners.optimizer.solution import SolverOptions
     from hsddp_gym.planners.tasks import plan_bounding
 
-    out = Path(args.out)
+    out = check_output_dir(args.out, "--out")
+    if not args.no_plots:
+        require(["matplotlib"], "hsddp-gym plan (its figures; or pass --no-plots)")
     options = SolverOptions(max_al_iterations=args.max_al_iterations, max_ddp_iterations=args.max_ddp_iterations)
     result = plan_bounding(args.method, cycles=args.cycles, speed=args.speed, options=options,
                            verbose=not args.quiet)
@@ -65,11 +86,12 @@ def cmd_sto(args) -> int:
     from hsddp_gym.planners.optimizer.solution import SolverOptions
     from hsddp_gym.planners.tasks import run_sto
 
-    out = Path(args.out)
+    out = check_output_dir(args.out, "--out")
+    _check_duration_bounds(args)
     if args.periodic and args.cycles != 1:
-        raise SystemExit(f"error: --periodic optimizes one cycle, got --cycles {args.cycles}")
+        raise UsageError("--cycles", f"{args.cycles} with --periodic", "1: the periodic task optimizes one cycle")
     if args.periodic_weight is not None and not args.periodic:
-        raise SystemExit("error: --periodic-weight needs --periodic")
+        raise UsageError("--periodic-weight", "given without --periodic", "only with --periodic")
 
     def progress(rec):
         if not args.quiet:
@@ -97,17 +119,58 @@ def cmd_sto(args) -> int:
     return 0
 
 
+def _check_duration_bounds(args) -> None:
+    """``--min-duration`` < ``--max-duration`` (an omitted one is STOOptions' default)."""
+    import dataclasses
+
+    from hsddp_gym.planners.optimizer.sto import STOOptions
+
+    defaults = {f.name: f.default for f in dataclasses.fields(STOOptions)}
+    lo = args.min_duration if args.min_duration is not None else defaults["min_duration"]
+    hi = args.max_duration if args.max_duration is not None else defaults["max_duration"]
+    if not lo < hi:
+        option = "--min-duration" if args.min_duration is not None else "--max-duration"
+        raise UsageError(option, f"min duration {lo} s >= max duration {hi} s"
+                         + ("" if args.min_duration is not None and args.max_duration is not None
+                            else " (the other bound is the default)"), "--min-duration < --max-duration")
+    from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+
+    start = getattr(args, "durations", None) or PAPER_BOUNDING_DURATIONS  # the optimization starts from them
+    allowed = f"--min-duration <= {min(start):g} s and --max-duration >= {max(start):g} s (the initial durations)"
+    if lo > min(start):
+        raise UsageError("--min-duration", f"{lo} s is above the initial mode duration {min(start):g} s", allowed)
+    if hi < max(start):
+        raise UsageError("--max-duration", f"{hi} s is below the initial mode duration {max(start):g} s", allowed)
+
+
+def _check_push(push, max_episode_steps) -> None:
+    from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_MAX_EPISODE_STEPS, DEFAULT_SIM_TIMESTEP
+
+    t = push[0]
+    steps = max_episode_steps or DEFAULT_MAX_EPISODE_STEPS
+    duration = steps * DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP  # the CLI's env keeps the default control period
+    if not 0.0 <= t < duration:
+        raise UsageError("--push", f"T = {t} s", f"a push time 0 <= T < {duration:g} s, the episode length")
+    for label, v in zip(("DVX", "DVZ", "DPITCH"), push[1:]):
+        if not abs(v) < 1e300:
+            raise UsageError("--push", f"{label} = {v}", "finite velocity changes [m/s, m/s, rad/s]")
+
+
 def cmd_rollout(args) -> int:
-    out = Path(args.out)
+    out = check_output_dir(args.out, "--out")
+    parse_policy_spec(args.policy, "--policy")
+    require(required_modules(args.policy) + (["PIL"] if args.video else []),
+            f"hsddp-gym rollout --policy {args.policy}" + (" --video" if args.video else ""))
     env_kwargs = {}
     if args.target_speed is not None:
         env_kwargs["target_speed"] = args.target_speed
     push = None
     if args.push is not None:
+        _check_push(args.push, args.max_episode_steps)
         t, dvx, dvz, dw = args.push
         push = {"delta_v": [dvx, dvz, dw], "time": t}
     if args.mpc_recovery and args.policy != "mpc":
-        raise SystemExit("error: --mpc-recovery needs --policy mpc")
+        raise UsageError("--mpc-recovery", f"given with --policy {args.policy}", "--policy mpc")
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
                            push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps,
                            mpc_recovery=args.mpc_recovery)
@@ -123,6 +186,9 @@ def cmd_rollout(args) -> int:
 def cmd_demo(args) -> int:
     from hsddp_gym.workflows import run_demo
 
+    check_output_dir(args.out, "--out")
+    require(["matplotlib"] + ([] if args.no_video else ["PIL"]),
+            "hsddp-gym demo (its figures" + (")" if args.no_video else " and GIF; or pass --no-video)"))
     summary = run_demo(Path(args.out), cycles=args.cycles, episodes=args.episodes, video=not args.no_video,
                        quiet=args.quiet, max_episode_steps=args.max_episode_steps)
     for name in ("heuristic_plan", "hsddp_plan"):
@@ -154,7 +220,14 @@ def _int_list(text: str) -> list[int]:
 
 def cmd_dataset(args) -> int:
     from hsddp_gym.datasets.generation import generate_dataset, partial_dir
+    from hsddp_gym.datasets.storage import check_dataset_id
 
+    out = check_output_dir(args.out, "--out")
+    if out.exists() and not args.overwrite:
+        raise UsageError("--out", f"{args.out!r} already exists", "a new directory, or --overwrite to replace it")
+    if args.dataset_id is not None:
+        check_dataset_id(args.dataset_id, "--dataset-id")
+    require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     try:
         res = generate_dataset(args.policy, args.episodes, args.out, seed=args.seed, workers=args.workers,
@@ -176,7 +249,9 @@ def cmd_dataset(args) -> int:
           + (f"{res.resumed_episodes} episode(s) resumed from an interrupted run, " if res.resumed_episodes else "")
           + f"{recorded} generated in {res.generation_time_s:.1f} s with {args.workers} worker(s)"
           + (f" ({res.total_steps / max(res.generation_time_s, 1e-9):.0f} transitions/s)"
-             if not res.resumed_episodes else ""))
+             if not res.resumed_episodes else "")
+          + f"; {res.total_time_s:.1f} s in all (reference-score episodes {m['reference_time_s']:.1f} s"
+          + (f", expert plan {m['plan_time_s']:.1f} s" if m.get("plan_time_s") else "") + ", writing)")
     print(f"  ref_max_score {m['ref_max_score']:.4g} ({m['ref_max_score_source']}), ref_min_score "
           f"{m['ref_min_score']:.4g} (random policy)")
     print(f"wrote {res.path}/ (minari/, episodes.npz, metadata.json); load with "
@@ -192,19 +267,55 @@ def _bc_extra(args) -> dict:
     return extra
 
 
+def _check_train(args) -> None:
+    """Everything about ``train``'s options that can be checked before training (UsageError / MissingExtraError)."""
+    check_output_dir(args.out, "--out")
+    if args.algo in ("ppo", "sac"):
+        if args.steps is None:
+            raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
+        if args.learning_starts is not None and args.algo == "ppo":
+            raise UsageError("--learning-starts", "given with --algo ppo", "--algo sac")
+        require(["stable_baselines3", "torch"], f"hsddp-gym train --algo {args.algo}")
+        return
+    if args.algo == "bc" and args.dataset is None:
+        raise UsageError("--dataset", "missing", "a dataset directory written by `hsddp-gym dataset` (required "
+                                                 "for --algo bc)")
+    if args.curve and args.algo != "bc":
+        raise UsageError("--curve", f"given with --algo {args.algo}", "--algo bc")
+    needs = ["torch"] + (["minari", "h5py"] if args.dataset is not None and args.format == "minari" else [])
+    require(needs, f"hsddp-gym train --algo {args.algo}" + (" --format minari" if "minari" in needs else ""))
+    if args.dataset is None:
+        if args.demos is not None:
+            raise UsageError("--demos", "given without --dataset", "--demos with --dataset")
+        return
+    from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
+
+    args.dataset = str(resolve_dataset_dir(args.dataset, "--dataset"))
+    n = int(read_metadata(args.dataset)["episodes"])
+    if args.demos is not None and args.demos > n:
+        raise UsageError("--demos", f"{args.demos} episodes, the dataset has {n}", f"1 .. {n}")
+    used = args.demos if args.demos is not None else n
+    too_many = [c for c in args.curve or [] if c > used]
+    if too_many:
+        raise UsageError("--curve", f"{','.join(map(str, too_many))} episodes, "
+                         + (f"--demos is {used}" if args.demos is not None else f"the dataset has {n}"),
+                         f"numbers of demonstration episodes in 1 .. {used}")
+
+
 def cmd_train(args) -> int:
+    _check_train(args)
+    if args.algo != "bc" or args.curve:
+        from hsddp_gym.util.extras import EXTRAS, is_installed
+
+        if not is_installed("matplotlib"):
+            print(f"note: matplotlib is not installed, so curve.png will not be drawn (curve.csv will); "
+                  f"{EXTRAS['matplotlib'][1]}", file=sys.stderr)
     out = Path(args.out)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.algo in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import train_sb3
 
-        if args.steps is None:
-            print("error: --steps is required for ppo and sac", file=sys.stderr)
-            return 2
         overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else None
-        if args.learning_starts is not None and args.algo == "ppo":
-            print("error: --learning-starts applies to sac only", file=sys.stderr)
-            return 2
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides, eval_freq=args.eval_freq,
                         final_eval_episodes=args.eval_episodes, progress=not args.quiet,
@@ -213,9 +324,6 @@ def cmd_train(args) -> int:
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
 
-        if args.dataset is None:
-            print("error: --dataset is required for bc", file=sys.stderr)
-            return 2
         config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                           **_bc_extra(args))
         summary = run_bc(args.dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
@@ -263,7 +371,7 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--workers", type=_positive_int, default=1,
                    help="worker processes (1: in this process); the data do not depend on it (default: "
                         "%(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of episode 0 (default: %(default)s)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of episode 0 (default: %(default)s)")
     p.add_argument("--out", required=True, help="dataset directory (must not exist unless --overwrite)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing --out (the old dataset stays until the new one is complete) and "
@@ -275,7 +383,8 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--dataset-id", default=None, help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override (default: the env's 1000)")
-    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--target-speed", type=_finite_float, default=None,
+                   help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--gains", action="store_true", help="also store the plan's feedback gains (4x14 per step)")
     p.add_argument("--action-noise", type=_nonnegative_float, default=0.0,
                    help="DART noise injection: execute the policy's action plus Gaussian noise of this std "
@@ -295,7 +404,7 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,
                    help="bc: behaviour cloning on --dataset; dagger: DAgger relabelled by --expert; ppo / sac: "
                         "Stable-Baselines3 RL on hsddp_gym/Bounding-v0")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the network initialization and minibatch order (bc/dagger), of the DAgger "
                         "rollouts, or of the model and training env (ppo/sac); the final evaluation always uses "
                         "episode seeds 0.. (default: %(default)s)")
@@ -356,7 +465,8 @@ def _add_learning_parsers(sub) -> None:
                         "(default: %(default)s; 0: none)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override for training/evaluation episodes (default: the env's 1000)")
-    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--target-speed", type=_finite_float, default=None,
+                   help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_train)
 # ----------------------------------------------------------------------------------------------- end dataset, train
@@ -364,10 +474,11 @@ def _add_learning_parsers(sub) -> None:
 
 # ----------------------------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hsddp-gym",
         description="HS-DDP (Li & Wensing, RA-L 2020) for the planar MIT Mini Cheetah: plan bounding gaits, "
                     "optimize switching times, run the planner as MPC in the Gymnasium env.")
+    parser.add_argument("--version", action="version", version=f"hsddp-gym {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("demo", help="plan a 5-cycle bound with HS-DDP from the heuristic warm start; write "
@@ -411,13 +522,15 @@ def build_parser() -> argparse.ArgumentParser:
                                    "--max-episode-steps); write summary.json (mean/std return, falls, forward "
                                    "speed, episode length, real-time factor, replans, planner failures, mean "
                                    "replan ms), episode0.npz and, with --video, episode0.gif.")
-    p.add_argument("--policy", choices=ROLLOUT_POLICIES, default="mpc",
+    p.add_argument("--policy", default="mpc", metavar="{mpc,expert,heuristic,random,bc:DIR,dagger:DIR,sb3:DIR}",
                    help="mpc: HS-DDP model-predictive control; expert: tracks a 5-cycle al-reb plan (episodes "
                         "start at the plan's initial state); heuristic: the warm-start controller; random: uniform "
-                        "actions (default: %(default)s)")
+                        "actions; bc:DIR / dagger:DIR / sb3:DIR (or ppo:DIR, sac:DIR): the policy trained by "
+                        "`hsddp-gym train ... --out DIR` (default: %(default)s)")
     p.add_argument("--episodes", type=_positive_int, default=10, help="episodes (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: %(default)s)")
-    p.add_argument("--target-speed", type=float, default=None, help="env target_speed [m/s] (default: the env's)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the first episode (default: %(default)s)")
+    p.add_argument("--target-speed", type=_finite_float, default=None,
+                   help="env target_speed [m/s] (default: the env's)")
     p.add_argument("--push", type=float, nargs=4, metavar=("T", "DVX", "DVZ", "DPITCH"), default=None,
                    help="push at episode time T [s]: add (DVX, DVZ) [m/s] and DPITCH [rad/s] to the trunk velocity")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
@@ -473,11 +586,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the CLI. A user error (a bad option value, a missing extra) prints one line ``error: ...`` on
+    stderr and returns 2; options are checked before any long work starts."""
+    with contextlib.suppress(AttributeError, ValueError):  # progress lines as they happen when piped
+        sys.stdout.reconfigure(line_buffering=True)
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
     args.command_line = " ".join(["hsddp-gym", *argv])  # recorded in summaries (the arguments actually parsed)
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except (UsageError, MissingExtraError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,6 +9,13 @@ from hsddp_gym.util.io import write_json
 
 # ----------------------------------------------------------------------------------------------- plan
 def write_plan_outputs(result, out: Path, plots: bool) -> dict:
+    """Write a :class:`~hsddp_gym.planners.tasks.PlanResult` into ``out``: ``solution.npz`` (or
+    ``trajectory.npz`` for the heuristic) and, with ``plots``, the figures (needs matplotlib, checked before
+    anything is written). Returns ``{kind: file name}``."""
+    if plots:
+        from hsddp_gym.util.extras import require
+
+        require(["matplotlib"], "the plan's figures (plots=True; CLI: drop them with --no-plots)")
     files = {}
     pr = result.problem
     if result.solution is not None:
@@ -26,7 +33,7 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
         td = [tuple(float(c) for c in robot.foot_positions(result.X_pre[i, :7])[f])
               for i, f in enumerate(pr.touchdown) if f >= 0]
         plotting.plot_motion_strips(robot, {result.method: result.X}, out / "motion.png",
-                                    touchdowns={result.method: td})
+                                    touchdowns={result.method: td}, dt=pr.dt)
         plotting.plot_states({result.method: result.X}, pr.dt, out / "states.png", target_speed=None)
         plotting.plot_forces_torques(pr.dt, result.U, result.GRF, pr.constraints.torque_limit,
                                      pr.constraints.friction, out / "forces_torques.png", stance=pr.stance, foot=0,
@@ -40,15 +47,93 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 
 # ----------------------------------------------------------------------------------------------- rollout
 ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
+LEARNED_POLICIES = ("bc", "dagger", "sb3", "ppo", "sac")
+"""Prefixes of learned policies, ``KIND:DIR`` with ``DIR`` the ``--out`` of ``hsddp-gym train``: ``bc`` and
+``dagger`` load its ``policy.npz`` (an :class:`~hsddp_gym.learning.bc.MLPPolicy`, NumPy inference, no torch),
+``sb3`` (or ``ppo`` / ``sac``) its ``model.zip`` + ``vecnormalize.npz`` (needs stable-baselines3)."""
+_POLICY_ALLOWED = ("mpc, expert, heuristic, random, or bc:DIR, dagger:DIR, sb3:DIR (also ppo:DIR, sac:DIR) with "
+                   "DIR the --out of `hsddp-gym train`")
+_RUN_FILES = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
+_KIND_ALGOS = {"bc": ("bc", "dagger"), "dagger": ("bc", "dagger"), "sb3": ("ppo", "sac"), "ppo": ("ppo",),
+               "sac": ("sac",)}
+
+
+def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None]:
+    """``(kind, run_dir)`` of a policy name: one of :data:`ROLLOUT_POLICIES` (``run_dir`` None) or
+    ``KIND:DIR`` with ``KIND`` in :data:`LEARNED_POLICIES` and ``DIR`` a finished ``hsddp-gym train`` run of
+    a matching algorithm (``sb3`` matches ppo and sac, ``bc`` and ``dagger`` both MLP runs).
+
+    Raises:
+        UsageError (a ValueError naming ``name``): an unknown name, a missing or unfinished run directory,
+        or a run of another algorithm.
+    """
+    import json
+
+    from hsddp_gym.util.validation import UsageError
+
+    if not isinstance(spec, str):
+        raise UsageError(name, f"{spec!r} is not a policy name", _POLICY_ALLOWED)
+    if spec in ROLLOUT_POLICIES:
+        return spec, None
+    kind, sep, path = spec.partition(":")
+    if not sep or kind not in LEARNED_POLICIES or not path:
+        raise UsageError(name, f"unknown policy {spec!r}", _POLICY_ALLOWED)
+    run = Path(path)
+    summary_file = run / "summary.json"
+    if not summary_file.is_file():
+        problem = "does not exist" if not run.exists() else "has no summary.json (not a finished training run)"
+        raise UsageError(name, f"{kind}:{path}: {str(run)!r} {problem}", _POLICY_ALLOWED)
+    try:
+        algo = json.loads(summary_file.read_text()).get("algo")
+    except (ValueError, AttributeError):
+        algo = None
+    if algo not in _KIND_ALGOS[kind]:
+        raise UsageError(name, f"{kind}:{path}: the run in {str(run)!r} is a {algo!r} run",
+                         f"{kind}: runs of {' or '.join(_KIND_ALGOS[kind])}")
+    if not (run / _RUN_FILES[algo]).is_file():
+        raise UsageError(name, f"{kind}:{path}: {str(run / _RUN_FILES[algo])!r} is missing",
+                         f"a finished `hsddp-gym train --algo {algo}` run directory")
+    return kind, run
+
+
+def required_modules(policy: str) -> list[str]:
+    """The optional packages a policy name needs (see :func:`hsddp_gym.util.extras.require`)."""
+    kind = policy.partition(":")[0]
+    return ["stable_baselines3", "torch"] if kind in ("sb3", "ppo", "sac") else []
+
+
+def load_policy(spec: str, env=None):
+    """A trained policy from a ``hsddp-gym train`` run: ``"bc:DIR"``, ``"dagger:DIR"`` or ``"sb3:DIR"``
+    (``"ppo:DIR"``, ``"sac:DIR"``); ``env``: the env it will act in (None: the env of the run's settings)."""
+    kind, run = parse_policy_spec(spec, "spec")
+    if run is None:
+        raise ValueError(f"spec must name a trained policy ({', '.join(f'{k}:DIR' for k in LEARNED_POLICIES)}), "
+                         f"got {spec!r}; use make_policy for {spec!r}")
+    return make_policy(spec, env)[0]
 
 
 def make_policy(name: str, env, seed: int = 0, mpc_options=None):
-    """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic`` or ``random``) and the reset
-    options it needs (the expert starts from its plan's initial state)."""
+    """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
+    ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
+    (the expert starts from its plan's initial state)."""
+    from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
+    kind, run = parse_policy_spec(name, "policy")
+    if run is not None:
+        if kind in ("bc", "dagger"):
+            from hsddp_gym.learning.bc import MLPPolicy
+
+            interface = EnvInterface.from_env(env) if env is not None else EnvInterface()
+            return MLPPolicy.load(run / "policy.npz", interface), None
+        from hsddp_gym.util.extras import require
+
+        require(required_modules(name), f"the policy {name}")
+        from hsddp_gym.learning.sb3 import load_trained_policy
+
+        return load_trained_policy(run, env), None
     if name == "mpc":
         from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
@@ -60,9 +145,7 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
         return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0]}
     if name == "heuristic":
         return HeuristicPolicy.from_env(env), None
-    if name == "random":
-        return RandomPolicy.from_env(env, seed=seed), None
-    raise ValueError(f"policy must be one of {ROLLOUT_POLICIES}, got {name!r}")
+    return RandomPolicy.from_env(env, seed=seed), None
 
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
@@ -79,15 +162,22 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
 
     import hsddp_gym  # noqa: F401  (registers the env)
     from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+    from hsddp_gym.util.extras import require
+    from hsddp_gym.util.validation import check_output_dir
 
-    out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = dict(env_kwargs or {})
-    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
+    parse_policy_spec(policy_name, "policy_name")
+    out = check_output_dir(out, "out")
     if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
         raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
     if mpc_recovery and mpc_options is not None:
         raise ValueError("give mpc_recovery or mpc_options, not both")
+    require(required_modules(policy_name) + (["PIL"] if video else []), f"rollouts of {policy_name}"
+            + (" with a video" if video else ""))
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "episode0.gif").unlink(missing_ok=True)  # a GIF of an earlier run must not pass for this one's
+    env_kwargs = dict(env_kwargs or {})
+    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
+    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
     if mpc_recovery:
         from hsddp_gym.planners.policies.mpc import MPCOptions
 
@@ -110,10 +200,19 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
         summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
                        fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
     if video and results and results[0].frames:
-        from hsddp_gym.viz.render import save_gif
+        from hsddp_gym.viz.render import gif_timing, save_gif
 
-        save_gif(results[0].frames, out / "episode0.gif", fps=env.metadata.get("render_fps", 30))
-        summary["video"] = "episode0.gif"
+        fps = env.metadata.get("render_fps", 30)
+        frames = results[0].frames
+        stride, durations = gif_timing(len(frames), fps)
+        caption = (f"real time: every {stride}{'th' if stride > 3 else ('nd' if stride == 2 else 'rd')} of the "
+                   f"{1000.0 / fps:g}-ms frames, {durations[0]} ms each" if stride > 1 else
+                   f"real time, {1000.0 / fps:g} ms per frame")
+        if not quiet:
+            print(f"writing {out / 'episode0.gif'}: {len(durations)} frames, {sum(durations) / 1000:.2f} s, "
+                  f"{caption} ...", flush=True)
+        save_gif(frames, out / "episode0.gif", fps=fps)
+        summary.update(video="episode0.gif", video_playback=caption, video_frames=len(durations))
     from hsddp_gym.util.io import write_npz
 
     write_npz(out / "episode0.npz", states=results[0].states, actions=results[0].actions,
@@ -130,6 +229,11 @@ def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, 
     ``hsddp_gym/Bounding-v0`` (``out/mpc``, a GIF of the first with ``video``). Returns the summary written to
     ``out/summary.json``."""
     from hsddp_gym.planners.tasks import plan_bounding
+    from hsddp_gym.util.extras import require
+    from hsddp_gym.util.validation import check_output_dir
+
+    out = check_output_dir(out, "out")
+    require(["matplotlib"] + (["PIL"] if video else []), "the demo (figures" + (" and the GIF)" if video else ")"))
     from hsddp_gym.viz import plotting
 
     print(f"[1/3] heuristic bounding controller (the warm start), {cycles} cycles of 80/72/72/72 ms ...")
@@ -138,7 +242,7 @@ def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, 
     plan = plan_bounding("al-reb", cycles=cycles, verbose=not quiet)
     robot = plan.problem.dynamics.robot
     plotting.plot_motion_strips(robot, {"heuristic warm start": heur.X, "HS-DDP (al-reb)": plan.X},
-                                out / "motion.png")
+                                out / "motion.png", dt=plan.problem.dt)
     plotting.plot_states({"heuristic": heur.X, "HS-DDP": plan.X}, plan.problem.dt, out / "states.png",
                          target_speed=1.0)
     plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")

@@ -82,8 +82,9 @@ def plan_bounding(method: str = "al-reb", cycles: int = 5, speed: float = 1.0, o
         return PlanResult(method, problem, warm, None, summary)
     options = options if options is not None else SolverOptions()
     options = dataclasses.replace(options, method=method)
+    solver = HSDDP(options, callbacks, verbose)  # compiles / loads the numba kernels outside the timing
     t = time.perf_counter()
-    sol = HSDDP(options, callbacks, verbose).solve(problem, warm.U)
+    sol = solver.solve(problem, warm.U)
     elapsed = time.perf_counter() - t
     summary = trajectory_summary(problem, sol.X, sol.X_pre, sol.U, sol.GRF)
     summary.update(method=method, al_iterations=sol.al_iterations, ddp_iterations=sol.ddp_iterations,

@@ -118,3 +118,59 @@ def test_push_gif_shows_both_policies_side_by_side(tmp_path, experiment):
         assert gif.n_frames == 7 and gif.size == (720, 240)
     with pytest.raises(SystemExit):
         push_gif.main(["--out", str(out), "--stride", "0"])
+
+
+def _distinct_frames(n, w=40, h=30):
+    """``n`` frames that differ (Pillow merges identical consecutive frames)."""
+    out = []
+    for i in range(n):
+        f = np.zeros((h, w, 3), dtype=np.uint8)
+        f[:, i % w] = 255
+        f[0, 0] = (i * 37) % 256
+        out.append(f)
+    return out
+
+
+def _gif_durations(path):
+    from PIL import Image
+
+    durations = []
+    with Image.open(path) as im:
+        for i in range(im.n_frames):
+            im.seek(i)
+            durations.append(im.info["duration"])
+    return durations
+
+
+@pytest.mark.parametrize("fps, n, stride", [(200, 40, 4), (100, 30, 2), (30, 30, 1), (10, 5, 1)])
+def test_gifs_play_in_real_time_with_delays_viewers_honour(tmp_path, fps, n, stride):
+    """The env's 5-ms frames used to be written at 10 ms (half speed; and many viewers show <= 10 ms as 100
+    ms): now frames are dropped to delays >= 20 ms in whole centiseconds, and the clip lasts its real time."""
+    from hsddp_gym.viz.render import gif_timing
+
+    path = save_gif(_distinct_frames(n), tmp_path / "clip.gif", fps=fps)
+    durations = _gif_durations(path)
+    assert len(durations) == len(range(0, n, stride)) == len(gif_timing(n, fps)[1])
+    assert all(d >= 20 and d % 10 == 0 for d in durations)
+    real_ms = 1000.0 * n / fps
+    assert abs(sum(durations) - real_ms) <= max(10.0, 20.0 - 1000.0 / fps * ((n - 1) % stride + 1)) + 1e-9
+    # the running sum follows real time frame by frame (within 5 ms + the last frame's floor)
+    ends = np.cumsum(durations)[:-1]
+    shown = np.array([min(i + stride, n) * 1000.0 / fps for i in range(0, n, stride)])[:-1]
+    assert np.all(np.abs(ends - shown) <= 5.0 + 1e-9)
+
+
+def test_rollout_video_says_its_playback_speed(tmp_path, capsys):
+    import json
+
+    from hsddp_gym import cli
+
+    out = tmp_path / "r"
+    assert cli.main(["rollout", "--policy", "heuristic", "--episodes", "1", "--max-episode-steps", "12", "--video",
+                     "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    s = json.loads((out / "summary.json").read_text())
+    assert s["video_playback"].startswith("real time: every 4th of the 5-ms frames, 20 ms each")
+    assert f"writing {out / 'episode0.gif'}" in printed and "real time" in printed
+    # 13 frames (the reset and 12 steps): every 4th of them, 0, 4, 8, 12
+    assert _gif_durations(out / "episode0.gif") == [20, 20, 20, 20] and s["video_frames"] == 4

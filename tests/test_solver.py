@@ -380,6 +380,44 @@ def test_save_load_round_trip_is_exact(al_solution, tmp_path):
     np.testing.assert_array_equal(loaded.log_array("objective"), sol.log_array("objective"))
 
 
+def test_load_of_a_foreign_or_garbage_file_says_what_it_is(al_solution, tmp_path):
+    """A new user's mistakes: an npz of something else (it used to raise KeyError: 'meta'), a text file (it used
+    to suggest allow_pickle), object arrays, a missing file."""
+    foreign = tmp_path / "episode.npz"
+    np.savez(foreign, states=np.zeros((3, 14)), actions=np.zeros((2, 4)))
+    with pytest.raises(ValueError, match=r"not a Solution file .*lacks the arrays X, X_pre.*holds actions, states"):
+        Solution.load(foreign)
+    garbage = tmp_path / "notes.npz"
+    garbage.write_text("not an archive")
+    with pytest.raises(ValueError, match="not an .npz archive") as err:
+        Solution.load(garbage)
+    assert "allow_pickle" not in str(err.value)
+    pickled = tmp_path / "pickled.npz"
+    np.savez(pickled, X=np.array([{"a": 1}], dtype=object))
+    with pytest.raises(ValueError, match="nothing is ever unpickled") as err:
+        Solution.load(pickled)
+    assert "allow_pickle" not in str(err.value)
+    with pytest.raises(FileNotFoundError, match="no Solution file"):
+        Solution.load(tmp_path / "missing.npz")
+
+
+def test_control_refuses_out_of_range_knots_and_non_finite_states(al_solution):
+    sol = al_solution
+    x = sol.X[0].copy()
+    np.testing.assert_array_equal(sol.control(len(sol.U) - 1, sol.X[len(sol.U) - 1]), sol.U[-1])
+    for k in (-1, len(sol.U)):
+        with pytest.raises(ValueError, match=r"k must be a knot index in 0 \.\. "):
+            sol.control(k, x)
+    with pytest.raises(TypeError, match="k must be an integer"):
+        sol.control(1.0, x)
+    bad = x.copy()
+    bad[3] = np.nan
+    with pytest.raises(ValueError, match="x must be finite"):
+        sol.control(0, bad)
+    with pytest.raises(ValueError, match=r"x must have shape \(14,\)"):
+        sol.control(0, x[:7])
+
+
 def test_saved_file_needs_no_pickle_and_is_written_atomically(al_solution, tmp_path, monkeypatch):
     path = tmp_path / "out" / "sol.npz"  # the parent directory is created
     al_solution.save(path)
@@ -415,7 +453,7 @@ def test_load_never_unpickles(tmp_path):
     """A file holding a pickled object array is refused (np.load with allow_pickle=False), not executed."""
     path = tmp_path / "pickled.npz"
     np.savez(path, X=np.array([{"payload": 1}], dtype=object), meta=np.array("{}"))
-    with pytest.raises(ValueError, match="allow_pickle"):
+    with pytest.raises(ValueError, match="nothing is ever unpickled"):
         Solution.load(path)
 
 

@@ -14,7 +14,14 @@ import numpy as np
 
 from hsddp_gym.datasets.collection import checkpoint_path, collect_episodes, make_env
 from hsddp_gym.datasets.recording import ENV_ID, NONDETERMINISTIC_INFOS, PolicySpec, solve_expert_plan
-from hsddp_gym.datasets.storage import check_target, default_dataset_id, package_version, parent_dir, write_dataset
+from hsddp_gym.datasets.storage import (
+    check_dataset_id,
+    check_target,
+    default_dataset_id,
+    package_version,
+    parent_dir,
+    write_dataset,
+)
 from hsddp_gym.util.io import json_default, write_json
 from hsddp_gym.util.validation import check_positive
 
@@ -48,6 +55,8 @@ class DatasetResult:
     generation_time_s: float
     metadata: dict
     resumed_episodes: int = 0
+    total_time_s: float = 0.0
+    """Wall time of the whole call: the episodes, the reference-score episodes, the expert's plan, writing."""
 
 
 # ================================================================================================ resume
@@ -195,6 +204,9 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         FileExistsError: ``out`` exists and ``overwrite`` is False; checkpoints with other settings exist
             and neither ``resume=False`` nor ``overwrite``; another run is writing ``out``.
     """
+    from hsddp_gym.util.extras import require
+
+    require(["minari", "h5py"], "generate_dataset (writing a Minari dataset)")  # before any episode is recorded
     action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
     if int(episodes) < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
@@ -214,12 +226,13 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         spec = policy
     name = policy_name or (spec.name if isinstance(spec, PolicySpec) else type(spec).__name__)
     describe = policy_description or (spec.describe() if isinstance(spec, PolicySpec) else {"name": name})
-    dataset_id = dataset_id or default_dataset_id(name)
+    dataset_id = check_dataset_id(dataset_id or default_dataset_id(name), "dataset_id")
     settings = {"checkpoint_format": CHECKPOINT_FORMAT, "dataset_id": dataset_id, "policy": describe,
                 "policy_factory": _factory_id(spec), "seed": int(seed), "env_kwargs": env_kwargs,
                 "max_episode_steps": max_episode_steps, "include_gains": bool(include_gains),
                 "action_noise": action_noise, "code_sha256": _code_fingerprint()}
     parent_dir(out)
+    t_start = time.perf_counter()
     with _exclusive(partial):
         check_target(out, overwrite)  # again, under the lock
         _prepare_checkpoints(partial, settings, resume, overwrite)
@@ -243,7 +256,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                 shutil.rmtree(partial, ignore_errors=True)
             raise
         shutil.rmtree(partial, ignore_errors=True)
-    return DatasetResult(out, dataset_id, len(eps), metadata["total_steps"], gen_time, metadata, resumed)
+    return DatasetResult(out, dataset_id, len(eps), metadata["total_steps"], gen_time, metadata, resumed,
+                         total_time_s=time.perf_counter() - t_start)
 
 
 def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
@@ -264,6 +278,7 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
     eps = collect_episodes(spec, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
                            progress, desc=f"{name} episodes", action_noise=action_noise, checkpoint_dir=partial)
     gen_time = time.perf_counter() - t1
+    t2 = time.perf_counter()
     ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed)
     returns = [e.episode_return for e in eps]
     if action_noise > 0:
@@ -278,6 +293,7 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         ref_returns = returns
         ref_source = f"mean return of the {name} episodes of this dataset"
     ref_max = float(np.mean(ref_returns))
+    reference_time = time.perf_counter() - t2
     env = make_env(env_kwargs, max_episode_steps)
     spec_json, limit, control_dt = env.spec.to_json(), env.spec.max_episode_steps, float(env.unwrapped.dt)
     env.close()
@@ -321,6 +337,9 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
                                 "expert's offline plan excluded: plan_time_s; resumed_episodes were loaded from "
                                 "an interrupted run's checkpoints)",
         "plan_time_s": plan_time if plan_summary is not None else 0.0,
+        "reference_time_s": reference_time,
+        "reference_time_note": "wall time of the reference-score episodes (random policy, and the noise-free "
+                               "policy with action_noise > 0), not in generation_time_s",
         "hsddp_gym_version": package_version(),
     }
     return eps, metadata, extra, gen_time

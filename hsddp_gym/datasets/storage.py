@@ -6,6 +6,7 @@ import contextlib
 import dataclasses
 import json
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
@@ -150,17 +151,64 @@ def package_version() -> str:
 
 
 # ================================================================================================ loading
+DATASET_FILES = ("metadata.json", "episodes.npz", "minari")
+"""What a dataset directory written by :func:`write_dataset` holds."""
+_DATASET_ALLOWED = "a dataset directory written by `hsddp-gym dataset` / generate_dataset (with metadata.json, " \
+                   "episodes.npz and minari/)"
+
+
+def resolve_dataset_dir(path, name: str = "path") -> Path:
+    """The dataset directory that ``path`` names: the directory itself, or one of its parts (``DIR/minari``,
+    ``DIR/episodes.npz``, ``DIR/metadata.json``, or a folder inside ``DIR/minari``), which resolve to ``DIR``.
+
+    Raises:
+        UsageError (a ValueError naming ``name``): ``path`` does not exist or is no dataset directory.
+    """
+    from hsddp_gym.util.validation import UsageError
+
+    path = Path(path)
+    if not path.exists():
+        raise UsageError(name, f"{str(path)!r} does not exist", _DATASET_ALLOWED)
+    for candidate in (path, *path.parents):
+        if (candidate / "metadata.json").is_file() and (candidate / "episodes.npz").is_file():
+            if candidate == path or path.is_relative_to(candidate / "minari") \
+                    or (path.parent == candidate and path.name in DATASET_FILES):
+                return candidate
+            break
+    raise UsageError(name, f"{str(path)!r} is not a dataset directory (no metadata.json and episodes.npz)",
+                     _DATASET_ALLOWED)
+
+
+_DATASET_ID_RE = re.compile(r"(?:[-_\w][-_\w/]*[-_\w]+/)?[-_\w]+?-v\d+")
+
+
+def check_dataset_id(dataset_id: str, name: str = "dataset_id") -> str:
+    """A Minari dataset id ``(namespace/)name-vVERSION`` (the version is required), or :class:`UsageError`."""
+    from hsddp_gym.util.validation import UsageError
+
+    if not isinstance(dataset_id, str) or not _DATASET_ID_RE.fullmatch(dataset_id):
+        raise UsageError(name, f"malformed dataset id {dataset_id!r}",
+                         "(namespace/)name-vVERSION of letters, digits, '-' and '_', e.g. "
+                         "hsddp_gym/bounding/mpc-v0")
+    return dataset_id
+
+
 def read_metadata(path) -> dict:
-    """The ``metadata.json`` of a dataset directory."""
-    return json.loads((Path(path) / "metadata.json").read_text())
+    """The ``metadata.json`` of a dataset directory (or of the dataset ``path`` lies in, see
+    :func:`resolve_dataset_dir`)."""
+    return json.loads((resolve_dataset_dir(path) / "metadata.json").read_text())
 
 
 def load_minari(path, dataset_id: str | None = None):
     """``minari.load_dataset`` of the dataset in directory ``path`` (``MINARI_DATASETS_PATH`` is set to
-    ``path/minari`` for the call only; the returned dataset keeps reading from there)."""
+    ``path/minari`` for the call only; the returned dataset keeps reading from there). ``path`` may also
+    name the dataset's ``minari/`` folder (see :func:`resolve_dataset_dir`)."""
+    from hsddp_gym.util.extras import require
+
+    require(["minari", "h5py"], "load_minari")
     import minari
 
-    path = Path(path)
+    path = resolve_dataset_dir(path)
     dataset_id = dataset_id or read_metadata(path)["dataset_id"]
     with minari_root(path / "minari"):
         return minari.load_dataset(dataset_id)
@@ -208,7 +256,7 @@ class FlatDataset:
 def load_npz(path) -> FlatDataset:
     """Read ``episodes.npz`` (``path`` is the dataset directory or the file itself); never unpickles."""
     path = Path(path)
-    d = read_npz(path / "episodes.npz" if path.is_dir() else path)
+    d = read_npz(resolve_dataset_dir(path) / "episodes.npz" if path.is_dir() else path)
     infos = {k[len("infos/"):]: v for k, v in d.items() if k.startswith("infos/")}
     return FlatDataset(observations=d["observations"], actions=d["actions"], rewards=d["rewards"],
                        terminations=d["terminations"], truncations=d["truncations"],

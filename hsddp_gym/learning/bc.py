@@ -245,13 +245,22 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     noise, the env's 1000-step limit unless ``max_episode_steps``).
     """
     from hsddp_gym.datasets.collection import make_env
-    from hsddp_gym.datasets.storage import read_metadata
+    from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
+    from hsddp_gym.util.extras import require
     from hsddp_gym.util.io import write_json
 
+    require(["torch"] + (["minari", "h5py"] if fmt == "minari" else []), "run_bc")
+    dataset = resolve_dataset_dir(dataset, "dataset")
+    meta = read_metadata(dataset)
+    n_available = int(meta["episodes"])
+    if demos is not None and not 1 <= int(demos) <= n_available:
+        raise ValueError(f"demos must be in 1 .. {n_available} (the episodes of {dataset}), got {demos}")
+    n_used = int(demos) if demos is not None else n_available
+    if curve and any(not 1 <= int(c) <= n_used for c in curve):
+        raise ValueError(f"curve must hold numbers of episodes in 1 .. {n_used} (the episodes used), got {list(curve)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config or BCConfig(), seed=int(seed))
-    meta = read_metadata(dataset)
     env_kwargs = dict(meta.get("env_kwargs", {}) if env_kwargs is None else env_kwargs)
     env = make_env(env_kwargs, max_episode_steps)
     interface = EnvInterface.from_env(env)
@@ -290,7 +299,7 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
                                                                max_episode_steps))
     if curve:
         rows, points = [], []
-        for n in sorted({min(int(c), data.n_episodes) for c in curve if int(c) >= 1}):
+        for n in sorted({int(c) for c in curve}):
             sub = data if n >= data.n_episodes else data.first_episodes(n)
             p, h = (policy, hist) if sub is data else train_bc(sub, config, interface, clock=clock)
             ev = evaluate_policy_episodes(p, max(eval_episodes, 1), 0, env_kwargs, max_episode_steps)

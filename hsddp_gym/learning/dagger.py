@@ -185,8 +185,10 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         dataset: optional dataset directory whose first ``demos`` episodes are the round-0 demonstrations.
     """
     from hsddp_gym.datasets.recording import PolicySpec, solve_expert_plan
+    from hsddp_gym.util.extras import require
     from hsddp_gym.util.io import write_json
 
+    require(["torch"] + (["minari", "h5py"] if dataset is not None and fmt == "minari" else []), "run_dagger")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config or DAggerConfig(), seed=int(seed),

@@ -61,6 +61,9 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         else:
             source = datasets.load_minari(p)
     obs, acts, ep = [], [], []
+    available = source.n_episodes if isinstance(source, datasets.FlatDataset) else source.total_episodes
+    if episodes is not None and not 1 <= int(episodes) <= available:
+        raise ValueError(f"episodes must be in 1 .. {available} (the dataset's episodes), got {episodes}")
     if isinstance(source, datasets.FlatDataset):
         n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
         for i in range(n):

@@ -240,6 +240,9 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
             after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
             Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
     """
+    from hsddp_gym.util.extras import require
+
+    require(["stable_baselines3", "torch"], f"train_sb3 ({algo})")
     import torch
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.callbacks import CallbackList, EvalCallback

@@ -65,3 +65,41 @@ def check_in_range(value, lo: float, hi: float, name: str) -> float:
     if not (np.isfinite(value) and lo <= value <= hi):
         raise ValueError(f"{name} must be in [{lo}, {hi}], got {value!r}")
     return value
+
+
+class UsageError(ValueError):
+    """A user's mistake in one option or argument, caught before any long work starts.
+
+    ``str(err)`` is one line ``"<option>: <what is wrong> (allowed: <what is allowed>)"``; the ``hsddp-gym``
+    CLI prints it as ``error: ...`` and exits with code 2 (no traceback). A ``ValueError``, so Python callers
+    handle it as any other bad argument."""
+
+    def __init__(self, option: str, problem: str, allowed: str) -> None:
+        self.option, self.problem, self.allowed = option, problem, allowed
+        super().__init__(f"{option}: {problem} (allowed: {allowed})")
+
+
+def check_output_dir(path, name: str = "out"):
+    """``path`` as a :class:`~pathlib.Path` that can be a directory to write into: a directory that exists, or
+    a new path whose nearest existing ancestor is a writable directory. Raises :class:`UsageError` naming
+    ``name`` otherwise (an existing file, a path through a file, no write permission)."""
+    import os
+    from pathlib import Path
+
+    if str(path).strip() == "":
+        raise UsageError(name, "an empty path", "a directory to write into, existing or new")
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise UsageError(name, f"{str(path)!r} is an existing file",
+                         "a directory to write into, existing or new")
+    probe = path
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise UsageError(name, f"{str(path)!r} lies inside the file {str(probe)!r}",
+                         "a directory to write into, existing or new")
+    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
+        raise UsageError(name, f"{str(probe)!r} is not writable", "a directory you can write into")
+    return path

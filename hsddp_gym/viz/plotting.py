@@ -42,13 +42,18 @@ def draw_robot(ax, robot, q, color="C0", alpha=1.0, lw=2.0) -> None:
         ax.plot(leg[:, 0], leg[:, 1], "-o", color=color, lw=lw, ms=2.5, alpha=alpha)
 
 
-def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, touchdowns: dict | None = None) -> Path:
-    """Paper Fig. 5: one strip of snapshots per trajectory (``{label: X (N+1, 14)}``).
+def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, touchdowns: dict | None = None,
+                       dt: float | None = None) -> Path:
+    """Paper Fig. 5: one strip of snapshots per trajectory (``{label: X (N+1, 14)}``), coloured by time (the
+    colour bar: time [s] with the knot spacing ``dt``, else the fraction of the motion).
 
     ``touchdowns``: ``{label: [(x, height), ...]}`` landing points; where a foot "lands" above or below
     z = 0 (the switching constraint violated), a red "virtual ground" segment is drawn at that height.
     """
     plt = _plt()
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
     labels = list(trajectories)
     fig, axes = plt.subplots(len(labels), 1, figsize=(14, 2.3 * len(labels)), squeeze=False)
     for ax, label in zip(axes[:, 0], labels):
@@ -68,6 +73,11 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
         ax.set_ylabel("z [m]")
     axes[-1, 0].set_xlabel("x [m]")
     fig.subplots_adjust(hspace=0.45)
+    n_knots = max(X.shape[0] for X in trajectories.values()) - 1
+    span = n_knots * dt if dt is not None else 1.0
+    bar = fig.colorbar(ScalarMappable(norm=Normalize(0.0, span), cmap=plt.cm.viridis), ax=axes[:, 0].tolist(),
+                       fraction=0.02, pad=0.01)
+    bar.set_label("t [s] (snapshot colour)" if dt is not None else "fraction of the motion (snapshot colour)")
     return _save(fig, path)
 
 
@@ -87,6 +97,8 @@ def plot_states(trajectories: dict, dt: float, path, target_speed: float | None 
     axes[2].set_ylabel("dx/dt [m/s]")
     axes[2].set_xlabel("t [s]")
     axes[0].legend(fontsize=8, ncol=4)
+    if target_speed is not None:
+        axes[2].legend(fontsize=8, ncol=4)  # with the dashed target line
     return _save(fig, path)
 
 
@@ -113,7 +125,24 @@ def plot_convergence(solutions: dict, path) -> Path:
     axes[1].set_xlabel("DDP iteration (markers: start of an AL iteration)")
     axes[0].legend(fontsize=8)
     axes[1].legend(fontsize=8)
+    _pad_log_limits(axes[0], [sol.log_array("cost") for sol in solutions.values()])
+    _pad_log_limits(axes[1], [np.maximum(sol.log_array("switching_violation"), 1e-12) for sol in solutions.values()]
+                    + [np.array([1e-4])])
+    n_it = max((sol.log_array("ddp_iteration").max() for sol in solutions.values() if sol.log), default=1)
+    axes[1].set_xlim(-0.04 * n_it - 0.5, 1.04 * n_it + 0.5)  # room for the markers at both ends
     return _save(fig, path)
+
+
+def _pad_log_limits(ax, series, pad_decades: float = 0.08) -> None:
+    """Log-scale y limits spanning every value of ``series`` with ``pad_decades`` of the span on both sides, so
+    markers at the extremes are drawn whole."""
+    values = np.concatenate([np.asarray(v, dtype=float).ravel() for v in series]) if series else np.array([1.0])
+    values = values[np.isfinite(values) & (values > 0)]
+    if values.size == 0:
+        return
+    lo, hi = np.log10(values.min()), np.log10(values.max())
+    pad = max(pad_decades * (hi - lo), 0.05)
+    ax.set_ylim(10 ** (lo - pad), 10 ** (hi + pad))
 
 
 def plot_forces_torques(dt: float, U: np.ndarray, GRF: np.ndarray, torque_limit: float, friction: float, path,
@@ -137,10 +166,10 @@ def plot_forces_torques(dt: float, U: np.ndarray, GRF: np.ndarray, torque_limit:
     for j in range(U.shape[1]):
         axes[1].plot(t, U[:, j], label=U_NAMES[j])
     axes[1].axhline(torque_limit, color="k", ls="--", lw=1)
-    axes[1].axhline(-torque_limit, color="k", ls="--", lw=1, label="limit")
+    axes[1].axhline(-torque_limit, color="k", ls="--", lw=1, label=f"±{torque_limit:g} N m limit")
     axes[1].set_ylabel("torque [N m]")
     axes[1].set_xlabel("t [s]")
-    axes[1].legend(fontsize=8, ncol=5)
+    axes[1].legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))  # outside: clear of the limits
     if title:
         axes[0].set_title(title, fontsize=10)
     return _save(fig, path)

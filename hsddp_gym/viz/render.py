@@ -10,6 +10,7 @@ Pillow is an optional dependency (``pip install hsddp_gym[viz]``); it is importe
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -157,8 +158,37 @@ def render_trajectory(X: np.ndarray, *, every: int = 1, robot: CheetahModel | No
     return [render_state(x, robot=rob, **kwargs) for x in X[::every]]
 
 
-def save_gif(frames, path: str | os.PathLike, fps: float = 30.0) -> str:
+GIF_MIN_DELAY_MS = 20
+"""The shortest frame delay a GIF gets: delays are stored in centiseconds and many viewers (browsers among them)
+replace delays of 10 ms or less by 100 ms, so faster frame rates are written by dropping frames."""
+
+
+def gif_timing(n_frames: int, fps: float, min_delay_ms: float = GIF_MIN_DELAY_MS) -> tuple[int, list[int]]:
+    """``(stride, durations_ms)`` that play ``n_frames`` frames of rate ``fps`` in real time as a GIF: every
+    ``stride``-th frame is kept (the smallest stride with a delay >= ``min_delay_ms``), and the kept frames'
+    delays are whole centiseconds whose running sum follows the frames' real time to within 5 ms (so a
+    30-fps clip alternates 30 and 40 ms). ``len(durations_ms) == ceil(n_frames / stride)``; the sum is the
+    clip's real duration ``n_frames / fps`` to within one delay (the last frame keeps the minimum delay)."""
+    n_frames = check_int(n_frames, "n_frames", minimum=1)
+    fps = check_positive(fps, "fps")
+    min_delay_ms = check_positive(min_delay_ms, "min_delay_ms")
+    period_ms = 1000.0 / fps
+    stride = max(1, math.ceil(min_delay_ms / period_ms - 1e-9))
+    kept = range(0, n_frames, stride)
+    ends = [min(i + stride, n_frames) * period_ms for i in kept]
+    cs = [round(e / 10.0) for e in ends]
+    durations = [10 * (c - p) for c, p in zip(cs, [0, *cs[:-1]])]
+    floor_cs = math.ceil(min_delay_ms / 10.0 - 1e-9)
+    durations = [max(d, 10 * floor_cs) for d in durations]  # rounding may shorten one below the floor
+    return stride, durations
+
+
+def save_gif(frames, path: str | os.PathLike, fps: float = 30.0, min_delay_ms: float = GIF_MIN_DELAY_MS) -> str:
     """Write frames to a GIF (Pillow) or, for a ``.mp4`` path, an MP4 (needs ``imageio-ffmpeg``).
+
+    A GIF plays in **real time**: frames faster than ``min_delay_ms`` (default 20 ms, the shortest delay GIF
+    viewers honour) are dropped, e.g. the env's 5-ms frames are written every 4th at 20 ms each (see
+    :func:`gif_timing`). An MP4 keeps every frame at ``fps``.
 
     The file is written to a temporary name in the same directory and then renamed over ``path``, so a
     reader never sees a half-written file.
@@ -166,11 +196,13 @@ def save_gif(frames, path: str | os.PathLike, fps: float = 30.0) -> str:
     Args:
         frames: sequence of ``(H, W, 3)`` uint8 images of one size (at least one).
         path: output file ending in ``.gif`` or ``.mp4``.
-        fps: frames per second (> 0).
+        fps: frames per second of ``frames`` (> 0).
+        min_delay_ms: GIF only: the shortest frame delay written [ms].
     Returns:
         The path written, as a string.
     """
     fps = check_positive(fps, "fps")
+    min_delay_ms = check_positive(min_delay_ms, "min_delay_ms")
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in (".gif", ".mp4"):
@@ -187,9 +219,10 @@ def save_gif(frames, path: str | os.PathLike, fps: float = 30.0) -> str:
     with atomic_path(path, suffix=ext) as tmp:
         if ext == ".gif":
             Image, _ = _pil()
-            imgs = [Image.fromarray(f) for f in frames]
-            duration = max(10, int(round(1000.0 / fps / 10.0)) * 10)  # GIF stores centiseconds
-            imgs[0].save(tmp, format="GIF", save_all=True, append_images=imgs[1:], duration=duration, loop=0)
+            stride, durations = gif_timing(len(frames), fps, min_delay_ms)
+            imgs = [Image.fromarray(f) for f in frames[::stride]]
+            imgs[0].save(tmp, format="GIF", save_all=True, append_images=imgs[1:],
+                         duration=durations if len(imgs) > 1 else durations[0], loop=0)
         else:
             try:
                 import imageio.v2 as imageio

@@ -25,7 +25,7 @@ import pinocchio as pin
 from hsddp_gym.planners.optimizer.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from hsddp_gym.planners.optimizer.objective import ConstraintState, CostBreakdown, Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
-from hsddp_gym.planners.optimizer.riccati import backward_pass
+from hsddp_gym.planners.optimizer.riccati import backward_pass, warm_up
 from hsddp_gym.planners.optimizer.solution import IterationRecord, Solution, SolverOptions
 
 from hsddp_gym.core.conventions import NGRF, NU, NX
@@ -201,6 +201,7 @@ class HSDDP:
             raise TypeError(f"options must be a SolverOptions, got {type(options).__name__}")
         self.options = options
         self.callbacks = list(callbacks or [])
+        warm_up()  # numba: compile or load the kernels now, not inside a timed solve
         if verbose:
             self.callbacks.append(VerbosePrinter())
         self._ws: Workspace | None = None

@@ -220,3 +220,67 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
                 for b in range(nx):
                     V_xx_out[k, a, b] = Vxx[a, b]
     return True, -1, dV1, dV2
+
+
+# ================================================================================================ warm-up
+_READY = False
+ANNOUNCE_AFTER_S = 5.0
+"""With a cache index on disk, the warm-up still says that numba compiles when it takes longer than this (a
+stale cache; loading a valid one takes well under a second, a few on a loaded machine)."""
+
+
+def _cache_index_exists() -> bool:
+    """Whether numba's cache index of the backward pass is on disk (numba internals: False if they moved)."""
+    import os
+
+    try:
+        return os.path.exists(backward_pass._cache._cache_file._index_path)
+    except AttributeError:  # pragma: no cover (another numba version)
+        return False
+
+
+def warm_up(announce: bool = True) -> float:
+    """Make the compiled kernels ready before anything is timed: compile them (the first run on a machine,
+    10-20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
+    process, on a 2-knot problem with the dtypes and layouts the solver passes (so its calls reuse this
+    specialization). With ``announce``, a line on stderr says when a compile is under way and how long it
+    took. Returns the seconds spent (0 when already done). :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP`
+    calls it before its clock starts, so compile time never lands in ``solve_time_s``."""
+    global _READY
+    if _READY:
+        return 0.0
+    import sys
+    import threading
+    import time
+
+    def say():
+        print(f"numba: compiling the HS-DDP backward pass, once (the first run on this machine takes 10-20 s; "
+              f"later runs load it from the cache in {backward_pass.stats.cache_path}) ...", file=sys.stderr,
+              flush=True)
+
+    if announce and not _cache_index_exists():
+        say()  # nothing cached: this compiles
+        announce_later = False
+    else:
+        announce_later = announce  # a cache index exists; a stale one (other source, other numba) recompiles
+    timer = threading.Timer(ANNOUNCE_AFTER_S, say) if announce_later else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    t0 = time.perf_counter()
+    try:
+        n, nx, nu = 2, 14, 4
+        eye = np.broadcast_to(np.eye(nx), (n, nx, nx)).copy()
+        backward_pass(eye.copy(), np.zeros((n, nx, nu)), np.zeros((n, nx)), np.zeros((n, nu)), eye.copy(),
+                      np.broadcast_to(np.eye(nu), (n, nu, nu)).copy(), np.zeros((n, nu, nx)), np.zeros((1, nx)),
+                      np.eye(nx)[None].copy(), np.eye(nx)[None].copy(), np.array([0, n], dtype=np.int64), 0.0,
+                      np.zeros((n, nu)), np.zeros((n, nu, nx)), np.zeros((n + 1, nx)), np.zeros((n + 1, nx, nx)))
+    finally:
+        if timer is not None:
+            timer.cancel()
+    elapsed = time.perf_counter() - t0
+    if announce and sum(backward_pass.stats.cache_misses.values()):
+        print(f"numba: compiled in {elapsed:.1f} s (not counted in solver timings); cached for later runs",
+              file=sys.stderr, flush=True)
+    _READY = True
+    return elapsed

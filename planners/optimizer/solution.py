@@ -7,10 +7,10 @@ import json
 
 import numpy as np
 
-from hsddp_gym.core.conventions import Mode
+from hsddp_gym.core.conventions import NX, Mode
 from hsddp_gym.core.schedule import ModeSchedule
 from hsddp_gym.util.io import read_npz, write_npz
-from hsddp_gym.util.validation import check_in_range, check_int, check_positive
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 METHODS = ("ddp", "al", "al-reb")
 
@@ -196,7 +196,14 @@ class Solution:
         return np.array([getattr(r, field) for r in self.log])
 
     def control(self, k: int, x: np.ndarray) -> np.ndarray:
-        """The feedback law ``U[k] + K[k] (x - X[k])`` at knot ``k`` (4,)."""
+        """The feedback law ``U[k] + K[k] (x - X[k])`` (4,) at knot ``k`` in ``0 .. N-1`` for a finite state
+        ``x`` (14,); negative or out-of-range knots and non-finite states raise ``ValueError``."""
+        n = len(self.U)
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)):
+            raise TypeError(f"k must be an integer knot index, got {type(k).__name__}")
+        if not 0 <= k < n:
+            raise ValueError(f"k must be a knot index in 0 .. {n - 1}, got {k}")
+        x = check_vector(x, NX, "x")
         return self.U[k] + self.K[k] @ (x - self.X[k])
 
     # ------------------------------------------------------------------ persistence
@@ -225,8 +232,31 @@ class Solution:
 
     @classmethod
     def load(cls, path) -> Solution:
-        """Load a solution written by :meth:`save` (never unpickles)."""
-        d = read_npz(path)
+        """Load a solution written by :meth:`save` (never unpickles).
+
+        Raises:
+            FileNotFoundError: ``path`` does not exist.
+            ValueError: ``path`` is no ``.npz`` file, holds object arrays, or is an npz of something else
+                (the message names the missing arrays).
+        """
+        import os
+        import zipfile
+
+        if not os.path.exists(path):
+            raise FileNotFoundError(f"no Solution file at {path}")
+        if not zipfile.is_zipfile(path):
+            raise ValueError(f"{path} is not a Solution file: it is not an .npz archive (Solution.save writes one)")
+        try:
+            d = read_npz(path)
+        except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:  # e.g. pickled (object) arrays
+            raise ValueError(f"{path} is not a Solution file written by Solution.save (plain arrays; nothing is "
+                             f"ever unpickled): {type(exc).__name__}") from None
+        needed = ("X", "X_pre", "U", "GRF", "K", "k_ff", "modes", "phase_start", "switching", "multipliers", "log",
+                  "log_events", "meta")
+        absent = [k for k in needed if k not in d]
+        if absent:
+            raise ValueError(f"{path} is not a Solution file written by Solution.save: it lacks the arrays "
+                             f"{', '.join(absent)} (it holds {', '.join(sorted(d)) or 'no arrays'})")
         meta = json.loads(str(d["meta"]))
         schedule = ModeSchedule([Mode(m) for m in meta["schedule_modes"]], meta["durations"], meta["final_mode"])
         log = []

