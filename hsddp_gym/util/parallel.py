@@ -128,7 +128,9 @@ def _run_pool(fn, tasks, workers, finished, max_retries) -> None:
             pool.shutdown(wait=False, cancel_futures=True)
             if attempt == max_retries:
                 raise RuntimeError(f"a worker process died {max_retries + 1} times; {len(todo)} task(s) unfinished "
-                                   f"(max_retries={max_retries})") from None
+                                   f"(max_retries={max_retries}). Killed or out of memory, or it could not import "
+                                   f"the task: spawn-started workers import fn by its module name, so a function "
+                                   f"of a script loaded by path must be importable from sys.path") from None
             continue
         except BaseException:
             pool.shutdown(wait=False, cancel_futures=True)
