@@ -26,6 +26,7 @@ from pathlib import Path
 from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
 
 from hsddp_gym.util.io import atomic_path, write_json
+from hsddp_gym.util.parallel import BACKENDS, check_backend, run_parallel
 
 DEFAULT_PUSHES = [
     (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (-1.5, 0.0, 0.0), (1.5, 0.0, 0.0), (3.0, 0.0, 0.0),
@@ -87,22 +88,18 @@ def run_one(task: tuple) -> dict:
 
 
 def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: int, workers: int = 1,
-             progress: bool = True, mpc_options: dict | None = None) -> dict:
+             progress: bool = True, mpc_options: dict | None = None, backend: str = "local",
+             address: str | None = None) -> dict:
     """``{policy: {push label: {"delta_v", "falls", "episodes", "fallback_episodes", "runs": [per episode]}}}``
     (``fallback_episodes``: survived episodes in which the heuristic fallback acted; ``mpc_options``: the
-    fields of the ``mpc-options`` policy)."""
+    fields of the ``mpc-options`` policy; ``backend``/``address``: :func:`hsddp_gym.util.parallel.run_parallel`)."""
     tasks = [(name, tuple(dv), seed, float(t), steps, mpc_options) for name in policies for dv in pushes
              for t in push_times for seed in range(first_seed, first_seed + seeds)]
     from tqdm import tqdm
 
-    bar = {"total": len(tasks), "desc": "pushed episodes", "disable": not progress}
-    if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            runs = list(tqdm(pool.map(run_one, tasks), **bar))
-    else:
-        runs = [run_one(task) for task in tqdm(tasks, **bar)]
+    with tqdm(total=len(tasks), desc="pushed episodes", disable=not progress) as bar:
+        runs = run_parallel(run_one, tasks, workers=workers, backend=backend, address=address,
+                            on_result=lambda i, r: bar.update(1))
     results: dict = {name: {} for name in policies}
     for task, run in zip(tasks, runs):
         cell = results[task[0]].setdefault(push_label(task[1]), {"delta_v": list(task[1]), "runs": []})
@@ -152,7 +149,13 @@ def main(argv: list[str] | None = None) -> int:
                    help='MPCOptions fields of the mpc-options policy as a JSON object, e.g. '
                         '\'{"recovery": true, "recovery_double_stance": null}\' (default: none)')
     p.add_argument("--workers", type=int, default=1,
-                   help="parallel worker processes; the results do not depend on it (default: %(default)s)")
+                   help="parallel worker processes (or the CPUs of the local Ray instance); the results do not "
+                        "depend on it (default: %(default)s)")
+    p.add_argument("--backend", choices=BACKENDS, default="local",
+                   help="'local' processes or 'ray' (a local Ray instance, or the cluster at --address; the ray "
+                        "extra); same results (default: %(default)s)")
+    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a "
+                                                    "local instance)")
     p.add_argument("--push", type=float, nargs=3, action="append", metavar=("DVX", "DVZ", "DPITCH"),
                    help="a push to test (repeatable; default: the built-in grid)")
     args = p.parse_args(argv)
@@ -164,6 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--times must be >= 0")
     if args.workers < 1:
         p.error("--workers must be >= 1")
+    try:
+        check_backend(args.backend, args.address)
+    except (ImportError, ValueError) as exc:
+        p.error(f"--backend {args.backend}: {exc}")
     mpc_options = None
     if args.mpc_options is not None:
         import json
@@ -179,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error("the mpc-options policy needs --mpc-options")
     pushes = [tuple(v) for v in args.push] if args.push else DEFAULT_PUSHES
     results = run_grid(args.policies, pushes, args.seeds, args.first_seed, args.times, args.steps, args.workers,
-                       mpc_options=mpc_options)
+                       mpc_options=mpc_options, backend=args.backend, address=args.address)
     out = Path(args.out)
     dt = DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP  # the env's default control period
     write_json(out / "push_robustness.json", {"push_times_s": args.times, "steps": args.steps,

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from hsddp_gym.util.extras import MissingExtraError, require
 from hsddp_gym.util.io import write_json
+from hsddp_gym.util.parallel import BACKENDS, check_backend
 from hsddp_gym.util.validation import UsageError, check_output_dir
 from hsddp_gym.workflows import parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
 
@@ -229,8 +230,17 @@ def cmd_dataset(args) -> int:
         check_dataset_id(args.dataset_id, "--dataset-id")
     require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
+    if args.address is not None and args.backend != "ray":
+        raise UsageError("--address", f"{args.address!r} without --backend ray", "only with --backend ray")
+    if args.backend == "ray":
+        require(["ray"], "hsddp-gym dataset --backend ray")
+        try:
+            check_backend("ray", args.address)
+        except ValueError as exc:
+            raise UsageError("--address", str(exc), "'auto', 'ray://host:10001' or 'host:6379'") from None
     try:
         res = generate_dataset(args.policy, args.episodes, args.out, seed=args.seed, workers=args.workers,
+                               backend=args.backend, address=args.address,
                                dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
                                max_episode_steps=args.max_episode_steps, include_gains=args.gains,
                                progress=not args.quiet, action_noise=args.action_noise, resume=not args.no_resume)
@@ -369,8 +379,15 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--episodes", type=_positive_int, default=10,
                    help="episodes; episode i is reset with seed --seed + i (default: %(default)s)")
     p.add_argument("--workers", type=_positive_int, default=1,
-                   help="worker processes (1: in this process); the data do not depend on it (default: "
-                        "%(default)s)")
+                   help="worker processes (1: in this process), or the CPUs of the local Ray instance with "
+                        "--backend ray; the data do not depend on it (default: %(default)s)")
+    p.add_argument("--backend", choices=BACKENDS, default="local",
+                   help="where the episodes run: 'local' (this process or local worker processes) or 'ray' (a "
+                        "local Ray instance, or the cluster at --address; needs the ray extra). Same data either "
+                        "way; an episode whose worker dies is run again (default: %(default)s)")
+    p.add_argument("--address", default=None,
+                   help="with --backend ray: the address of a running Ray cluster ('auto', 'ray://host:10001', "
+                        "'host:6379'); its nodes need hsddp_gym installed (default: start a local Ray instance)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of episode 0 (default: %(default)s)")
     p.add_argument("--out", required=True, help="dataset directory (must not exist unless --overwrite)")
     p.add_argument("--overwrite", action="store_true",

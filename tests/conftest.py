@@ -100,6 +100,8 @@ def experiment():
         spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module  # so that its functions pickle into worker processes
+        if str(path.parent) not in sys.path:  # and spawn-started workers import it by its name
+            sys.path.append(str(path.parent))
         spec.loader.exec_module(module)
         return module
 

@@ -77,7 +77,7 @@ from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {  # module: the public names it defines
     "collection": (
-        "EpisodeTask", "THREAD_VARS", "checkpoint_path", "collect_episodes", "load_episode", "make_env",
+        "EpisodeTask", "checkpoint_path", "collect_episodes", "load_episode", "make_env",
         "run_episode_task", "save_episode",
     ),
     "generation": (

@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import concurrent.futures as cf
-import contextlib
 import dataclasses
-import multiprocessing
-import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,6 +10,7 @@ import numpy as np
 
 from hsddp_gym.datasets.recording import ENV_ID, Episode, record_episode
 from hsddp_gym.util.io import read_npz
+from hsddp_gym.util.parallel import check_backend, run_parallel
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,30 +49,6 @@ def run_episode_task(task: EpisodeTask) -> Episode:
         env.close()
 
 
-THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
-
-
-@contextlib.contextmanager
-def _child_threads(threads: int):
-    """Set the BLAS/OpenMP/numba thread counts in ``os.environ`` while worker processes are started.
-
-    A spawned worker imports NumPy (hence OpenBLAS) while it unpickles its first task -- before any pool
-    initializer runs -- so the limit must already be in the environment it inherits. Values the user set are
-    kept; the parent's own (already loaded) libraries are unaffected.
-    """
-    old = {v: os.environ.get(v) for v in THREAD_VARS}
-    for v in THREAD_VARS:
-        os.environ.setdefault(v, str(int(threads)))
-    try:
-        yield
-    finally:
-        for v, value in old.items():
-            if value is None:
-                os.environ.pop(v, None)
-            else:
-                os.environ[v] = value
-
-
 def checkpoint_path(directory, index: int, prefix: str = "episode") -> Path:
     """``directory/<prefix>-<index:06d>.npz``: the checkpoint of one finished episode."""
     return Path(directory) / f"{prefix}-{int(index):06d}.npz"
@@ -108,15 +81,18 @@ def load_episode(path) -> Episode:
 def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, workers: int = 1,
                      env_kwargs: dict | None = None, max_episode_steps: int | None = None,
                      include_gains: bool = False, progress: bool = True, desc: str = "episodes",
-                     action_noise: float = 0.0, checkpoint_dir=None, checkpoint_prefix: str = "episode"
-                     ) -> list[Episode]:
-    """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` processes.
+                     action_noise: float = 0.0, checkpoint_dir=None, checkpoint_prefix: str = "episode",
+                     backend: str = "local", address: str | None = None) -> list[Episode]:
+    """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` workers.
 
     Args:
         policy_factory: picklable ``(env, episode_seed) -> (policy, reset_options or None)`` (e.g. a
             :class:`PolicySpec`); called once per episode, in the worker.
-        workers: 1 runs in this process; more use ``spawn``-started worker processes (one BLAS/OpenMP
-            thread each).
+        workers: with ``backend="local"``, 1 runs in this process and more use ``spawn``-started worker
+            processes (one BLAS/OpenMP thread each); with ``"ray"``, the CPUs of the local Ray instance.
+        backend, address: where the episodes run (:func:`hsddp_gym.util.parallel.run_parallel`: ``"local"``
+            or ``"ray"``, a local Ray instance or the cluster at ``address``). An episode whose worker dies is
+            run again; the data do not depend on the backend or the number of workers.
         action_noise: DART noise on the executed actions (see :func:`record_episode`).
         checkpoint_dir: if given, every finished episode is saved there (:func:`checkpoint_path`, written
             atomically as it arrives) and episodes already saved there are loaded instead of being run again
@@ -130,6 +106,7 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    check_backend(backend, address)
     from tqdm import tqdm
 
     tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
@@ -149,7 +126,7 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
     steps = sum(ep.length for ep in results if ep is not None)
     bar = tqdm(total=episodes, initial=episodes - len(todo), desc=desc, unit="ep", disable=not progress)
 
-    def done(ep: Episode) -> None:
+    def done(_, ep: Episode) -> None:
         nonlocal steps
         if checkpoint_dir is not None:
             save_episode(checkpoint_path(checkpoint_dir, ep.index, checkpoint_prefix), ep)
@@ -159,21 +136,8 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
         bar.set_postfix(steps=steps)
 
     try:
-        if workers == 1:
-            for t in todo:
-                done(run_episode_task(t))
-        elif todo:
-            ctx = multiprocessing.get_context("spawn")
-            pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=ctx)
-            try:
-                with _child_threads(1):  # the workers are started by the submits
-                    futures = [pool.submit(run_episode_task, t) for t in todo]
-                for fut in cf.as_completed(futures):
-                    done(fut.result())
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
-                raise
-            pool.shutdown(wait=True)
+        run_parallel(run_episode_task, todo, workers=min(workers, max(len(todo), 1)), backend=backend,
+                     address=address, on_result=done)
     finally:
         bar.close()
     return results  # type: ignore[return-value]

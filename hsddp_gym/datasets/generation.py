@@ -23,6 +23,7 @@ from hsddp_gym.datasets.storage import (
     write_dataset,
 )
 from hsddp_gym.util.io import json_default, write_json
+from hsddp_gym.util.parallel import check_backend
 from hsddp_gym.util.validation import check_positive
 
 REF_MIN_EPISODES = 5
@@ -167,7 +168,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                      max_episode_steps: int | None = None, policy_options: dict | None = None,
                      include_gains: bool = False, progress: bool = True, policy_name: str | None = None,
                      policy_description: dict | None = None, action_noise: float = 0.0,
-                     resume: bool = True) -> DatasetResult:
+                     resume: bool = True, backend: str = "local", address: str | None = None) -> DatasetResult:
     """Generate a demonstration dataset into ``out`` (see the module docstring).
 
     **Interrupted runs and reruns.** Every finished episode is checkpointed (atomically) into the hidden
@@ -186,7 +187,11 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         policy: a name of :data:`POLICIES`, a :class:`PolicySpec`, or a picklable factory
             ``(env, episode_seed) -> (policy, reset_options)`` (then give ``policy_name``).
         episodes: number of episodes; episode ``i`` is seeded ``seed + i``.
-        workers: worker processes (the data do not depend on it).
+        workers: worker processes, or the CPUs of a local Ray instance (the data do not depend on it).
+        backend: ``"local"`` (this process or local worker processes) or ``"ray"`` (a local Ray instance,
+            or the running cluster at ``address``); see :func:`hsddp_gym.util.parallel.run_parallel`. The data
+            do not depend on it; an episode whose worker dies is run again.
+        address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
         dataset_id: Minari id (default ``hsddp_gym/bounding/<policy>-v0``).
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
@@ -212,6 +217,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     if int(workers) < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    check_backend(backend, address)
     out = Path(out)
     check_target(out, overwrite)
     env_kwargs = dict(env_kwargs or {})
@@ -242,7 +248,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         try:
             eps, metadata, extra, gen_time = _generate(spec, name, describe, episodes, seed, workers, env_kwargs,
                                                        max_episode_steps, include_gains, progress, action_noise,
-                                                       dataset_id, partial, plan_file, resumed)
+                                                       dataset_id, partial, plan_file, resumed,
+                                                       {"backend": backend, "address": address})
             env = make_env(env_kwargs, max_episode_steps)
             try:
                 write_dataset(eps, out, dataset_id, env, metadata, ref_min_score=metadata["ref_min_score"],
@@ -261,7 +268,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
 
 
 def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
-              progress, action_noise, dataset_id, partial, plan_file, resumed):
+              progress, action_noise, dataset_id, partial, plan_file, resumed, where):
     """The episodes (checkpointed into ``partial``) and the metadata of :func:`generate_dataset`."""
     t0 = time.perf_counter()
     extra, plan_summary = {}, None
@@ -276,7 +283,8 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
     plan_time = time.perf_counter() - t0
     t1 = time.perf_counter()
     eps = collect_episodes(spec, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
-                           progress, desc=f"{name} episodes", action_noise=action_noise, checkpoint_dir=partial)
+                           progress, desc=f"{name} episodes", action_noise=action_noise, checkpoint_dir=partial,
+                           **where)
     gen_time = time.perf_counter() - t1
     t2 = time.perf_counter()
     ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed)
@@ -285,7 +293,7 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         n_ref = min(int(episodes), REF_MAX_EPISODES)
         ref_eps = collect_episodes(spec, n_ref, seed, workers, env_kwargs, max_episode_steps, progress=progress,
                                    desc=f"{name} reference episodes (no noise)", checkpoint_dir=partial,
-                                   checkpoint_prefix="reference")
+                                   checkpoint_prefix="reference", **where)
         ref_returns = [e.episode_return for e in ref_eps]
         ref_source = (f"mean return of the {name} policy without action noise over {n_ref} episodes, seeds "
                       f"{seed}..{seed + n_ref - 1} (not in the dataset)")
@@ -331,6 +339,7 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         "determinism": "the same seed, settings and code give identical data for any number of workers and "
                        f"across resumed runs, except the wall-clock times in infos/{', '.join(NONDETERMINISTIC_INFOS)}",
         "workers": int(workers),
+        "backend": where["backend"],
         "resumed_episodes": int(resumed),
         "generation_time_s": gen_time,
         "generation_time_note": "wall time of the episodes recorded by this run (worker start-up included, the "

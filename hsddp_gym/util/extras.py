@@ -19,6 +19,7 @@ EXTRAS = {
     "matplotlib": ("viz", 'pip install "hsddp_gym[viz]"  (from a clone: pip install -e ".[viz]")'),
     "PIL": ("viz", 'pip install "hsddp_gym[viz]"  (from a clone: pip install -e ".[viz]")'),
     "imageio": ("viz", 'pip install "hsddp_gym[viz]"  (from a clone: pip install -e ".[viz]")'),
+    "ray": ("ray", 'pip install "hsddp_gym[ray]"  (from a clone: pip install -e ".[ray]")'),
 }
 _PIP_NAMES = {"PIL": "pillow", "stable_baselines3": "stable-baselines3"}
 
