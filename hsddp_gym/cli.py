@@ -175,7 +175,10 @@ def cmd_dataset(args) -> int:
 
 
 def _bc_extra(args) -> dict:
-    extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay)}
+    extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
+             "gain_copies": args.gain_copies}
+    if args.gain_noise is not None:
+        extra["gain_position_std"], extra["gain_velocity_std"] = args.gain_noise
     if args.hidden:
         extra["hidden"] = tuple(args.hidden)
     return extra
@@ -316,6 +319,13 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--weight-decay", type=_nonnegative_float, default=0.0,
                    help="bc/dagger: Adam weight decay (default: 0)")
     p.add_argument("--lr-decay", action="store_true", help="bc/dagger: cosine learning-rate decay to 0 over the epochs")
+    p.add_argument("--gain-copies", type=_nonnegative_int, default=0,
+                   help="bc: perturbed copies of every demonstration labelled with the expert's feedback law "
+                        "u + K dx (needs a dataset made with --gains; hsddp_gym.learning.gain_labels); 0: off "
+                        "(default: %(default)s)")
+    p.add_argument("--gain-noise", type=_nonnegative_float, nargs=2, metavar=("POS_STD", "VEL_STD"), default=None,
+                   help="bc: standard deviations of the state offsets of --gain-copies, positions [m, rad] "
+                        "and velocities [m/s, rad/s] (default: 0.01 0.1)")
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",

@@ -13,6 +13,7 @@ import numpy as np
 
 from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
 from hsddp_gym.learning.features import FEATURES, build_inputs, clock_from_params, clock_params, make_gait_clock
+from hsddp_gym.learning.gain_labels import gain_augmented_pairs
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import read_npz, write_npz
@@ -37,6 +38,9 @@ class BCConfig:
     threads: int = 1
     features: str = "obs"
     lr_decay: bool = False
+    gain_copies: int = 0
+    gain_position_std: float = 0.01
+    gain_velocity_std: float = 0.1
 
     def __post_init__(self) -> None:
         if self.features not in FEATURES:
@@ -51,6 +55,11 @@ class BCConfig:
         for name in ("batch_size", "epochs", "threads"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        if int(self.gain_copies) < 0:
+            raise ValueError(f"gain_copies must be >= 0, got {self.gain_copies!r}")
+        for name in ("gain_position_std", "gain_velocity_std"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -181,6 +190,15 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
         clock = make_gait_clock(interface)
     obs = build_inputs(demos, config, clock, interface.layout)
     acts = np.clip(np.asarray(demos.actions, dtype=np.float64), -1.0, 1.0)
+    n_demo = len(obs)
+    if config.gain_copies:
+        if demos.feedback is None:
+            raise ValueError("gain_copies needs demonstrations with the expert's feedback gains (a dataset "
+                             "generated with include_gains=True, hsddp-gym dataset --gains)")
+        extra_in, extra_act = gain_augmented_pairs(obs, demos.feedback, config.gain_copies,
+                                                   config.gain_position_std, config.gain_velocity_std,
+                                                   config.seed, interface.layout)
+        obs, acts = np.concatenate([obs, extra_in]), np.concatenate([acts, extra_act])
     if init is not None:
         if (tuple(int(h) for h in init.config.hidden) != tuple(int(h) for h in config.hidden)
                 or init.config.activation != config.activation or init.config.features != config.features):
@@ -226,10 +244,11 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     linears = [m for m in net if isinstance(m, nn.Linear)]
     weights = [(m.weight.detach().numpy().astype(np.float64), m.bias.detach().numpy().astype(np.float64))
                for m in linears]
-    history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n),
-               "episodes": demos.n_episodes}
+    history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n_demo),
+               "gain_labels": int(n - n_demo), "episodes": demos.n_episodes}
     policy = MLPPolicy(interface, weights=weights, obs_mean=mean, obs_std=std, config=config,
-                       info={"transitions": int(n), "episodes": demos.n_episodes, "final_loss": losses[-1]},
+                       info={"transitions": int(n_demo), "gain_labels": int(n - n_demo),
+                             "episodes": demos.n_episodes, "final_loss": losses[-1]},
                        clock=clock if config.features == "gait_clock" else None)
     return policy, history
 
@@ -282,6 +301,7 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     summary = {"algo": "bc", "dataset": str(dataset), "dataset_id": meta.get("dataset_id"),
                "dataset_policy": meta.get("policy", {}).get("name"), "format": fmt, "seed": int(seed),
                "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
+               "gain_labels": hist["gain_labels"],
                "config": config.to_dict(), "loss": hist["loss"], "final_loss": hist["loss"][-1],
                "wall_time_s": hist["wall_time_s"], "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
                "files": ["policy.npz", "loss.csv", "summary.json"]}
