@@ -193,14 +193,16 @@ def cmd_train(args) -> int:
         if args.steps is None:
             print("error: --steps is required for ppo and sac", file=sys.stderr)
             return 2
-        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else None
+        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else {}
+        if args.n_envs is not None:
+            overrides["n_envs"] = args.n_envs
         if args.learning_starts is not None and args.algo == "ppo":
             print("error: --learning-starts applies to sac only", file=sys.stderr)
             return 2
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
-                        max_episode_steps=args.max_episode_steps, overrides=overrides, eval_freq=args.eval_freq,
-                        final_eval_episodes=args.eval_episodes, progress=not args.quiet,
-                        time_limit=args.time_limit)
+                        max_episode_steps=args.max_episode_steps, overrides=overrides or None,
+                        eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
+                        time_limit=args.time_limit, preset=args.preset)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
@@ -298,6 +300,11 @@ def _add_learning_parsers(sub) -> None:
                         "at least 1000; 0: none)")
     p.add_argument("--learning-starts", type=_nonnegative_int, default=None,
                    help="sac: env steps of random actions before learning starts (default: the zoo's 10000)")
+    p.add_argument("--preset", choices=("hopper", "halfcheetah"), default="hopper",
+                   help="ppo/sac: the RL-Zoo hyperparameters of Hopper-v3 (a task that ends on falls, like this "
+                        "one) or HalfCheetah-v3 (hsddp_gym.learning.sb3.PRESETS; default: %(default)s)")
+    p.add_argument("--n-envs", type=_positive_int, default=None,
+                   help="ppo/sac: envs stepped together in one DummyVecEnv (default: the preset's, 1)")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
