@@ -176,7 +176,7 @@ def cmd_dataset(args) -> int:
 
 def _bc_extra(args) -> dict:
     extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
-             "gain_copies": args.gain_copies}
+             "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input)}
     if args.gain_noise is not None:
         extra["gain_position_std"], extra["gain_velocity_std"] = args.gain_noise
     if args.hidden:
@@ -212,7 +212,8 @@ def cmd_train(args) -> int:
             return 2
         config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                           **_bc_extra(args))
-        summary = run_bc(args.dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
+        dataset = args.dataset[0] if len(args.dataset) == 1 else args.dataset
+        summary = run_bc(dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
                          eval_episodes=args.eval_episodes, curve=args.curve,
                          env_kwargs=env_kwargs or None, max_episode_steps=args.max_episode_steps,
                          progress=not args.quiet)
@@ -220,13 +221,17 @@ def cmd_train(args) -> int:
         from hsddp_gym.learning.bc import BCConfig
         from hsddp_gym.learning.dagger import DAggerConfig, run_dagger
 
+        if args.dataset is not None and len(args.dataset) > 1:
+            print("error: --dataset: dagger takes one dataset (its round-0 data)", file=sys.stderr)
+            return 2
         config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
                               rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
                               rollout_steps=args.rollout_steps,
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                           seed=args.seed, **_bc_extra(args)))
-        summary = run_dagger(args.expert, out, seed=args.seed, config=config, dataset=args.dataset,
+        summary = run_dagger(args.expert, out, seed=args.seed, config=config,
+                             dataset=None if args.dataset is None else args.dataset[0],
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
                              env_kwargs=env_kwargs, progress=not args.quiet)
     ev = summary.get("eval") or {}
@@ -282,8 +287,8 @@ def _add_learning_parsers(sub) -> None:
     p = sub.add_parser("train", help="train a baseline: behaviour cloning, DAgger, PPO or SAC",
                        description="bc: MLP 2x256 ReLU, Adam 1e-3, MSE on normalized actions, on --dataset; dagger: "
                                    "BC + relabelling rounds by --expert with beta = BETA_DECAY**round; ppo / sac: "
-                                   "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters "
-                                   "(hsddp_gym.learning.sb3). "
+                                   "Stable-Baselines3 with RL-Zoo hyperparameters (--preset: Hopper-v3 by default, or "
+                                   "HalfCheetah-v3; hsddp_gym.learning.sb3). "
                                    "Writes the model, summary.json (with training wall time and a 10-episode "
                                    "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
     p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,
@@ -308,8 +313,12 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
-    p.add_argument("--dataset", default=None, help="bc (required) / dagger (optional round-0 data): a dataset "
-                                                   "directory written by `hsddp-gym dataset`")
+    p.add_argument("--dataset", nargs="+", default=None,
+                   help="bc (required) / dagger (optional round-0 data): a dataset directory written by "
+                        "`hsddp-gym dataset`; bc takes several (pooled, e.g. at several target speeds)")
+    p.add_argument("--speed-input", action="store_true",
+                   help="bc: the env's target speed as one more input of the MLP (for demonstrations at several "
+                        "target speeds)")
     p.add_argument("--format", choices=("minari", "npz"), default="minari",
                    help="read the dataset through minari.load_dataset or its episodes.npz (default: %(default)s)")
     p.add_argument("--demos", type=_positive_int, default=None,

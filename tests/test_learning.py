@@ -269,7 +269,8 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
         assert (out / name).exists(), name
     if algo == "ppo":
         assert (out / "vecnormalize.npz").exists() and (out / "vecnormalize.pkl").exists()
-        assert s["hyperparameters"]["n_steps"] == 512 and s["hyperparameters"]["learning_rate"] == 2.0633e-5
+        assert s["hyperparameters"]["n_steps"] == 512 and s["hyperparameters"]["learning_rate"] == 9.80828e-5
+        assert s["preset"] == "hopper"
     else:
         assert s["hyperparameters"]["learning_starts"] == 100
     # the weights-only reload acts like the SB3 model

@@ -41,6 +41,7 @@ class BCConfig:
     gain_copies: int = 0
     gain_position_std: float = 0.01
     gain_velocity_std: float = 0.1
+    speed_input: bool = False
 
     def __post_init__(self) -> None:
         if self.features not in FEATURES:
@@ -55,6 +56,8 @@ class BCConfig:
         for name in ("batch_size", "epochs", "threads"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        if not isinstance(self.speed_input, (bool, np.bool_)):
+            raise TypeError(f"speed_input must be a bool, got {type(self.speed_input).__name__}")
         if int(self.gain_copies) < 0:
             raise ValueError(f"gain_copies must be >= 0, got {self.gain_copies!r}")
         for name in ("gain_position_std", "gain_velocity_std"):
@@ -74,7 +77,8 @@ class MLPPolicy(Policy):
 
     Args:
         weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
-        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features).
+        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features, plus 1
+            with ``speed_input``).
         config: the :class:`BCConfig` it was trained with.
         clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
         features; the policy then has memory (the clock), reset by :meth:`reset`.
@@ -100,6 +104,7 @@ class MLPPolicy(Policy):
         else:
             self.clock = None
             n_in = interface.layout.size
+        n_in += 1 if config.speed_input else 0
         if self.obs_mean.shape != (n_in,):
             raise ValueError(f"obs_mean must have shape ({n_in},), got {self.obs_mean.shape}")
 
@@ -131,6 +136,8 @@ class MLPPolicy(Policy):
             self.clock.update(mode, float(x[NQ + IPITCH]))
             z = np.concatenate([z, self.clock.features()])
             self.clock.tick()
+        if self.config.speed_input:
+            z = np.concatenate([z, [self.interface.target_speed]])
         return self.forward(z[None])[0].astype(np.float32)
 
     def save(self, path) -> Path:
@@ -256,7 +263,9 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
 def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: int | None = None,
            fmt: str = "minari", eval_episodes: int = 10, curve: list | None = None,
            env_kwargs: dict | None = None, max_episode_steps: int | None = None, progress: bool = True) -> dict:
-    """Train BC on a dataset directory and write into ``out``: ``policy.npz``, ``summary.json``,
+    """Train BC on a dataset directory (or a list of them, e.g. at several target speeds: their demonstrations
+    are pooled, ``demos`` and ``curve`` count episodes per dataset, the first one's metadata give the default
+    evaluation env) and write into ``out``: ``policy.npz``, ``summary.json``,
     ``loss.csv`` and, with ``curve`` (numbers of demonstration episodes), ``curve.csv`` / ``curve.png`` of
     the evaluation return of BC trained on the first n episodes.
 
@@ -270,12 +279,18 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config or BCConfig(), seed=int(seed))
-    meta = read_metadata(dataset)
+    sources = list(dataset) if isinstance(dataset, (list, tuple)) else [dataset]
+    if not sources:
+        raise ValueError("dataset must be a dataset directory or a non-empty list of them")
+    if curve and len(sources) > 1:
+        raise ValueError("curve needs a single dataset (the learning curve counts its first n episodes)")
+    dataset = str(sources[0]) if len(sources) == 1 else [str(d) for d in sources]
+    meta = read_metadata(sources[0])
     env_kwargs = dict(meta.get("env_kwargs", {}) if env_kwargs is None else env_kwargs)
     env = make_env(env_kwargs, max_episode_steps)
     interface = EnvInterface.from_env(env)
     env.close()
-    data = load_demonstrations(dataset, episodes=demos, fmt=fmt)
+    data = load_demonstrations(sources if len(sources) > 1 else sources[0], episodes=demos, fmt=fmt)
     loss_bar = None
     if progress:
         from tqdm import tqdm
@@ -295,10 +310,10 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     policy, hist = train_bc(data, config, interface, callback=cb, clock=clock)
     if loss_bar is not None:
         loss_bar.close()
-    policy.info.update(dataset=str(dataset), dataset_id=meta.get("dataset_id"))
+    policy.info.update(dataset=dataset, dataset_id=meta.get("dataset_id"))
     policy.save(out / "policy.npz")
     write_csv(out / "loss.csv", ["epoch", "loss"], [[i + 1, f"{v:.6g}"] for i, v in enumerate(hist["loss"])])
-    summary = {"algo": "bc", "dataset": str(dataset), "dataset_id": meta.get("dataset_id"),
+    summary = {"algo": "bc", "dataset": dataset, "dataset_id": meta.get("dataset_id"),
                "dataset_policy": meta.get("policy", {}).get("name"), "format": fmt, "seed": int(seed),
                "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
                "gain_labels": hist["gain_labels"],

@@ -61,13 +61,15 @@ class FeedbackLaw:
 @dataclasses.dataclass
 class Demonstrations:
     """Labelled observations: ``obs (N, d)`` float32, ``actions (N, 4)`` float32, ``episode (N,)`` the
-    episode each pair comes from (0-based, in dataset order), and ``feedback`` the expert's local feedback law
-    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains)."""
+    episode each pair comes from (0-based, in dataset order), ``feedback`` the expert's local feedback law
+    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains) and ``target_speed (N,)`` the env's
+    target speed [m/s] of each pair's episode (from the dataset's metadata; None when unknown)."""
 
     obs: np.ndarray
     actions: np.ndarray
     episode: np.ndarray
     feedback: FeedbackLaw | None = None
+    target_speed: np.ndarray | None = None
 
     @property
     def n_episodes(self) -> int:
@@ -79,16 +81,19 @@ class Demonstrations:
     def first_episodes(self, n: int) -> Demonstrations:
         keep = self.episode < int(n)
         fb = self.feedback.take(keep) if self.feedback is not None else None
-        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep], fb)
+        speed = self.target_speed[keep] if self.target_speed is not None else None
+        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep], fb, speed)
 
     def concat(self, other: Demonstrations) -> Demonstrations:
-        """Both sets of pairs (``other``'s episodes renumbered after these); the feedback laws are kept only
-        when both have them."""
+        """Both sets of pairs (``other``'s episodes renumbered after these); the feedback laws and target speeds
+        are kept only when both have them."""
         offset = self.n_episodes
         fb = (FeedbackLaw.concat(self.feedback, other.feedback)
               if self.feedback is not None and other.feedback is not None else None)
+        speed = (np.concatenate([self.target_speed, other.target_speed])
+                 if self.target_speed is not None and other.target_speed is not None else None)
         return Demonstrations(np.concatenate([self.obs, other.obs]), np.concatenate([self.actions, other.actions]),
-                              np.concatenate([self.episode, other.episode + offset]), fb)
+                              np.concatenate([self.episode, other.episode + offset]), fb, speed)
 
 
 def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari") -> Demonstrations:
@@ -99,8 +104,9 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
 
     Args:
         source: a ``MinariDataset``, a :class:`hsddp_gym.datasets.storage.FlatDataset`, a dataset directory written
-            by :func:`hsddp_gym.datasets.generation.generate_dataset`, or an ``episodes.npz`` file.
-        episodes: use only the first ``episodes`` episodes (None: all).
+            by :func:`hsddp_gym.datasets.generation.generate_dataset`, an ``episodes.npz`` file, or a list of
+            these (their pairs concatenated, e.g. demonstrations at several target speeds).
+        episodes: use only the first ``episodes`` episodes (None: all; of each source for a list).
         fmt: for a directory, read the Minari dataset (``"minari"``, via ``minari.load_dataset``) or
             ``episodes.npz`` (``"npz"``).
     """
@@ -108,8 +114,20 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
 
     if fmt not in ("minari", "npz"):
         raise ValueError(f"fmt must be 'minari' or 'npz', got {fmt!r}")
+    if isinstance(source, (list, tuple)):
+        if not source:
+            raise ValueError("source must not be an empty list")
+        parts = [load_demonstrations(s, episodes, fmt) for s in source]
+        out = parts[0]
+        for part in parts[1:]:
+            out = out.concat(part)
+        return out
+    speed = None
     if isinstance(source, (str, Path)):
         p = Path(source)
+        meta_file = (p.parent if p.is_file() else p) / "metadata.json"
+        if meta_file.exists():
+            speed = _target_speed(datasets.read_metadata(meta_file.parent))
         if p.is_file():
             source = datasets.load_npz(p)
         elif fmt == "npz":
@@ -118,6 +136,7 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
             source = datasets.load_minari(p)
     obs, acts, ep, laws = [], [], [], []
     if isinstance(source, datasets.FlatDataset):
+        speed = _target_speed(source.metadata) if speed is None and source.metadata else speed
         n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
         for i in range(n):
             e = source.episode(i)
@@ -143,5 +162,16 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         feedback = laws[0]
         for law in laws[1:]:
             feedback = FeedbackLaw.concat(feedback, law)
+    n_pairs = sum(len(o) for o in obs)
     return Demonstrations(np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32),
-                          np.concatenate(ep).astype(np.int64), feedback)
+                          np.concatenate(ep).astype(np.int64), feedback,
+                          None if speed is None else np.full(n_pairs, speed))
+
+
+def _target_speed(metadata: dict) -> float | None:
+    """The target speed [m/s] of a dataset's env (its ``env_kwargs``, else the env's default)."""
+    if not isinstance(metadata, dict) or "env_kwargs" not in metadata:
+        return None
+    from hsddp_gym.envs.bounding import DEFAULT_TARGET_SPEED
+
+    return float(metadata["env_kwargs"].get("target_speed", DEFAULT_TARGET_SPEED))
