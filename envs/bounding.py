@@ -21,6 +21,8 @@ DEFAULT_FRAME_SKIP = 5
 DEFAULT_SIM_TIMESTEP = 1e-3
 DEFAULT_MAX_EPISODE_STEPS = 1000
 DEFAULT_MOTOR_SPEED_LIMITS = (36.0, 50.0)
+DEFAULT_TARGET_SPEED = 1.0
+"""Desired forward speed [m/s] of the task (the paper's 1 m/s bound)."""
 _MAX_PENETRATION_AT_RESET = 1e-3
 _OPTION_KEYS = ("state", "push", "time")
 
@@ -176,7 +178,8 @@ class BoundingEnv(gym.Env):
                                                                                         * DEFAULT_SIM_TIMESTEP)))}
 
     def __init__(self, frame_skip: int = DEFAULT_FRAME_SKIP, sim_timestep: float = DEFAULT_SIM_TIMESTEP,
-                 target_speed: float = 1.0, tracking_sigma: float = 0.5, forward_reward_weight: float = 1.0,
+                 target_speed: float = DEFAULT_TARGET_SPEED, tracking_sigma: float = 0.5,
+                 forward_reward_weight: float = 1.0,
                  ctrl_cost_weight: float = 0.1, healthy_reward: float = 0.5, terminate_when_unhealthy: bool = True,
                  healthy_z_range=(0.12, 0.5), healthy_pitch_range=(-0.8, 0.8), reset_noise_scale: float = 0.01,
                  exclude_current_positions_from_observation: bool = True, gait_period: float = 0.296,

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hsddp_gym.learning.reporting import curve_band, mean_ci95
 from hsddp_gym.util.io import atomic_path, write_json
 
 POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
@@ -87,6 +88,41 @@ def build(name: str, run_dir: Path | None):
     return policy, None, {"samples": samples, "train_time_s": summary.get("wall_time_s"), "summary": summary}
 
 
+def expand_runs(name: str, paths) -> list[Path]:
+    """The run directories of ``name``: each path that holds the run's files, or else its ``seed*`` subfolders
+    that do (the layout of ``experiments/train_rl.py``: OUT/ALGO/seedS), in order."""
+    found = []
+    for p in paths:
+        p = Path(p)
+        if all((p / f).exists() for f in TRAINED[name]):
+            found.append(p)
+        elif p.is_dir():
+            found += sorted(c for c in p.glob("seed*") if c.is_dir() and all((c / f).exists() for f in TRAINED[name]))
+    return found
+
+
+def aggregate(name: str, evals: list[dict], infos: list[dict]) -> dict:
+    """One table row from the evaluations of one or several training seeds of a policy: the mean return over
+    seeds with its 95 % Student-t interval (``ci95``, None for one seed), the std over all episodes, falls and
+    episodes summed."""
+    per_seed = [e["mean_return"] for e in evals]
+    mean, half = mean_ci95(per_seed)
+    returns = [r for e in evals for r in e["returns"]]
+    times = [i.get("train_time_s") for i in infos if i.get("train_time_s") is not None]
+    row = {"policy": name, "mean_return": mean, "ci95": None if len(evals) < 2 else half,
+           "std_return": float(np.std(returns)), "returns": returns, "seed_mean_returns": per_seed,
+           "training_seeds": len(evals) if name in TRAINED else None,
+           "falls": int(sum(e["falls"] for e in evals)), "episodes": int(sum(e["episodes"] for e in evals)),
+           "mean_forward_speed": float(np.mean([e["mean_forward_speed"] for e in evals])),
+           "mean_episode_length": float(np.mean([e["mean_episode_length"] for e in evals])),
+           "samples": infos[0]["samples"], "train_time_s": float(np.mean(times)) if times else None,
+           "real_time_factor": evals[0].get("real_time_factor")}
+    if evals[0].get("replans"):
+        row.update(replans=evals[0]["replans"], planner_failures=evals[0]["planner_failures"],
+                   mean_replan_ms=evals[0]["mean_replan_ms"])
+    return row
+
+
 def _read_csv(path: Path) -> list[dict]:
     if not path.exists():
         return []
@@ -95,8 +131,10 @@ def _read_csv(path: Path) -> list[dict]:
 
 
 def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bool:
-    """``out/curves.png``: PPO/SAC return against env steps, BC/DAgger against expert labels, and the expert's
-    (MPC's) evaluation return as a dashed line in both; False when matplotlib is missing."""
+    """``out/curves.png``: PPO/SAC return against env steps (with several training seeds: the mean and the 95 %
+    interval of their evaluation curves), BC/DAgger (the first run) against expert labels, and the expert's
+    (MPC's) evaluation return as a dashed line in both; ``runs``: name -> list of run directories. False when
+    matplotlib is missing."""
     from hsddp_gym.viz.plotting import _plt, _save
 
     try:
@@ -106,9 +144,23 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
     any_a = any_b = False
     for i, name in enumerate(("ppo", "sac")):
-        d = runs.get(name)
-        if d is None:
+        dirs = runs.get(name) or []
+        if len(dirs) > 1:  # several training seeds: mean and 95 % interval of the evaluation curves
+            curves = []
+            for d in dirs:
+                ev = _read_csv(d / "eval_curve.csv")
+                if len(ev) >= 2:
+                    curves.append(([float(r["env_step"]) for r in ev], [float(r["mean_return"]) for r in ev]))
+            if curves:
+                band = curve_band(curves)
+                a.plot(band["x"], band["mean"], color=f"C{i}", label=f"{name} eval, mean of {band['seeds']} seeds")
+                a.fill_between(band["x"], band["low"], band["high"], color=f"C{i}", alpha=0.25,
+                               label=f"{name} 95 % interval over seeds")
+                any_a = True
             continue
+        if not dirs:
+            continue
+        d = dirs[0]
         ev = _read_csv(d / "eval_curve.csv")
         tr = _read_csv(d / "curve.csv")
         if tr:
@@ -128,7 +180,8 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
     a.set_ylabel("episode return")
     a.set_title("PPO / SAC")
     for i, name in enumerate(("bc", "dagger")):
-        d = runs.get(name)
+        dirs = runs.get(name) or []
+        d = dirs[0] if dirs else None
         rows = _read_csv(d / "curve.csv") if d is not None else []
         rows = [r for r in rows if r.get("mean_return")]
         if not rows:
@@ -164,7 +217,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="output directory for compare.md, compare.json and curves.png (default: %(default)s)")
     p.add_argument("--runs", default="runs/train", help="default parent of the bc/dagger/ppo/sac run directories")
     for name in TRAINED:
-        p.add_argument(f"--{name}", default=None, help=f"{name} run directory (default: RUNS/{name})")
+        p.add_argument(f"--{name}", nargs="+", default=None,
+                       help=f"{name} run directories, one per training seed, or folders of seed* runs (default: "
+                            f"RUNS/{name}); several seeds give the mean and a 95 % interval over seeds")
     p.add_argument("--episodes", type=int, default=10, help="episodes per policy, seeds 0.. (default: %(default)s)")
     p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES),
                    help="policies to evaluate; trained ones whose run directory lacks its files are skipped with a "
@@ -178,52 +233,57 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     from hsddp_gym.learning.reporting import evaluate_policy_episodes
 
-    runs = {n: Path(getattr(args, n) or Path(args.runs) / n) for n in TRAINED}
+    runs = {n: expand_runs(n, getattr(args, n) or [Path(args.runs) / n]) for n in TRAINED}
     rows, notes = [], []
     for name in args.policies:
-        try:
-            policy, options, info = build(name, runs.get(name))
-        except FileNotFoundError as exc:
-            notes.append(f"skipped {exc}")
-            print(f"skip: {exc}", flush=True)
+        dirs = runs[name] if name in TRAINED else [None]
+        if not dirs:
+            msg = f"{name}: no run directory with {', '.join(TRAINED[name])} in {getattr(args, name) or args.runs}"
+            notes.append(f"skipped {msg}")
+            print(f"skip: {msg}", flush=True)
             continue
         t = time.perf_counter()
-        ev = evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
-                                      reset_options=options)
-        row = {"policy": name, "mean_return": ev["mean_return"], "std_return": ev["std_return"],
-               "returns": ev["returns"], "falls": ev["falls"], "episodes": ev["episodes"],
-               "mean_forward_speed": ev["mean_forward_speed"], "mean_episode_length": ev["mean_episode_length"],
-               "samples": info["samples"], "train_time_s": info.get("train_time_s"),
-               "eval_wall_s": time.perf_counter() - t, "real_time_factor": ev.get("real_time_factor")}
-        if ev.get("replans"):
-            row.update(replans=ev["replans"], planner_failures=ev["planner_failures"],
-                       mean_replan_ms=ev["mean_replan_ms"])
+        evals, infos = [], []
+        for d in dirs:
+            policy, options, info = build(name, d)
+            evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
+                                                  reset_options=options))
+            infos.append(info)
+        row = aggregate(name, evals, infos)
+        row["eval_wall_s"] = time.perf_counter() - t
         rows.append(row)
-        print(f"{name:<10} return {row['mean_return']:8.1f} ± {row['std_return']:6.1f}  falls {row['falls']}/"
-              f"{row['episodes']}  speed {row['mean_forward_speed']:+.2f} m/s  length "
-              f"{row['mean_episode_length']:.0f}  ({row['eval_wall_s']:.0f} s)", flush=True)
+        spread = f"95 % CI ± {row['ci95']:6.1f} over {len(evals)} seeds" if row["ci95"] is not None else \
+            f"± {row['std_return']:6.1f}"
+        print(f"{name:<10} return {row['mean_return']:8.1f} {spread}  falls {row['falls']}/{row['episodes']}  "
+              f"speed {row['mean_forward_speed']:+.2f} m/s  length {row['mean_episode_length']:.0f}  "
+              f"({row['eval_wall_s']:.0f} s)", flush=True)
     limit = "" if args.max_episode_steps is None else f", time limit {args.max_episode_steps} steps"
     lines = [f"# Policies on hsddp_gym/Bounding-v0 ({args.episodes} episodes, seeds 0..{args.episodes - 1}, "
              f"deterministic{limit})", "",
-             "| policy | return (mean ± std) | falls | forward speed [m/s] | episode length | learned from | "
-             "training wall time |", "|---|---|---|---|---|---|---|"]
+             "| policy | return | training seeds | falls | forward speed [m/s] | episode length | learned from | "
+             "training wall time (per seed) |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         tt = "-" if r["train_time_s"] is None else f"{r['train_time_s']:.0f} s"
-        lines.append(f"| {r['policy']} | {r['mean_return']:.1f} ± {r['std_return']:.1f} | {r['falls']}/"
-                     f"{r['episodes']} | {r['mean_forward_speed']:.2f} | {r['mean_episode_length']:.0f} | "
-                     f"{r['samples']} | {tt} |")
-    lines += ["", "The expert starts every episode at its plan's initial state (no reset noise).",
+        ret = (f"{r['mean_return']:.1f} ± {r['ci95']:.1f} (95 % CI)" if r["ci95"] is not None
+               else f"{r['mean_return']:.1f} ± {r['std_return']:.1f} (std)")
+        seeds = "-" if r["training_seeds"] is None else str(r["training_seeds"])
+        lines.append(f"| {r['policy']} | {ret} | {seeds} | {r['falls']}/{r['episodes']} | "
+                     f"{r['mean_forward_speed']:.2f} | {r['mean_episode_length']:.0f} | {r['samples']} | {tt} |")
+    lines += ["", "Return: mean ± std over the episodes for a single policy; for learned policies with several "
+              "training seeds, the mean over seeds of each seed's mean return ± the 95 % Student-t interval of that "
+              "mean (falls and episodes summed over seeds).",
+              "The expert starts every episode at its plan's initial state (no reset noise).",
               "Return per step is at most 1.5 (tracking 1 + healthy 0.5, minus the control cost); 1000 steps."]
     lines += [f"- {n}" for n in notes]
     expert = next((r["mean_return"] for r in rows if r["policy"] == "mpc"), None)
-    plotted = plot_curves({n: d for n, d in runs.items() if d.exists()}, out, expert)
+    plotted = plot_curves({n: d for n, d in runs.items() if d}, out, expert)
     if plotted:
         lines += ["", "![curves](curves.png)"]
     with atomic_path(out / "compare.md") as tmp:
         tmp.write_text("\n".join(lines) + "\n")
     write_json(out / "compare.json", {"episodes": args.episodes, "seeds": list(range(args.episodes)),
                                       "max_episode_steps": args.max_episode_steps, "rows": rows,
-                                      "notes": notes, "runs": {n: str(d) for n, d in runs.items()}})
+                                      "notes": notes, "runs": {n: [str(x) for x in d] for n, d in runs.items()}})
     print("\n".join(lines))
     print(f"wrote {out / 'compare.md'}, {out / 'compare.json'}" + (", curves.png" if plotted else ""))
     return 0

@@ -1,10 +1,13 @@
-"""RL baselines on hsddp_gym/Bounding-v0: PPO and SAC with the RL-Zoo HalfCheetah-v3 hyperparameters.
+"""RL baselines on hsddp_gym/Bounding-v0: PPO and SAC with RL-Zoo hyperparameters, several training seeds.
 
-Hyperparameters (hsddp_gym.learning.sb3.PPO_HYPERPARAMS / SAC_HYPERPARAMS, from rl-baselines3-zoo hyperparams/*.yml):
+Hyperparameters (hsddp_gym.learning.sb3.PRESETS, from rl-baselines3-zoo hyperparams/*.yml), ``--preset``:
 
-* PPO: VecNormalize (obs + reward), 1 env, n_steps 512, batch 64, gamma 0.98, gae_lambda 0.92,
-  lr 2.0633e-5, clip 0.1, n_epochs 20, ent_coef 4e-4, max_grad_norm 0.8, vf_coef 0.58,
-  policy_kwargs log_std_init -2, ortho_init False, ReLU, pi/vf [256, 256].
+* PPO ``hopper`` (default; Hopper-v3, a task that ends on falls like this one): VecNormalize (obs + reward),
+  1 env (``--n-envs``), n_steps 512, batch 32, gamma 0.999, gae_lambda 0.99, lr 9.80828e-5, clip 0.2,
+  n_epochs 5, ent_coef 2.3e-3, max_grad_norm 0.7, vf_coef 0.836, policy_kwargs log_std_init -2,
+  ortho_init False, ReLU, pi/vf [256, 256].
+* PPO ``halfcheetah`` (HalfCheetah-v3, never terminates): n_steps 512, batch 64, gamma 0.98, gae_lambda 0.92,
+  lr 2.0633e-5, clip 0.1, n_epochs 20, ent_coef 4e-4, max_grad_norm 0.8, vf_coef 0.58, the same policy_kwargs.
 * SAC: SB3 defaults (lr 3e-4, buffer 1e6, batch 256, tau 0.005, gamma 0.99, train_freq 1, gradient_steps 1,
   auto entropy, [256, 256] ReLU) + learning_starts 10000.
 
@@ -40,18 +43,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-freq", type=int, default=None, help="env steps between 5-episode evaluations")
     p.add_argument("--eval-episodes", type=int, default=10, help="final evaluation episodes (seeds 0..)")
     p.add_argument("--progress", action="store_true", help="SB3 progress bar")
+    p.add_argument("--preset", choices=("hopper", "halfcheetah"), default="hopper",
+                   help="RL-Zoo hyperparameter set (default: %(default)s)")
+    p.add_argument("--n-envs", type=int, default=None, help="envs stepped together (default: the preset's)")
     p.add_argument("--time-limit", type=float, default=None,
                    help="wall-clock budget per run [s]: training stops there and reports the steps that fit")
     args = p.parse_args(argv)
+    if args.n_envs is not None and args.n_envs < 1:
+        p.error(f"--n-envs must be >= 1, got {args.n_envs}")
     rows = []
     for algo in args.algos:
         for seed in args.seeds:
             out = Path(args.out) / algo / f"seed{seed}"
             overrides = ({"learning_starts": args.learning_starts}
-                         if algo == "sac" and args.learning_starts is not None else None)
-            res = train_sb3(algo, args.steps, seed, out, overrides=overrides, eval_freq=args.eval_freq,
+                         if algo == "sac" and args.learning_starts is not None else {})
+            if args.n_envs is not None:
+                overrides["n_envs"] = args.n_envs
+            res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             final_eval_episodes=args.eval_episodes, progress=args.progress,
-                            time_limit=args.time_limit)
+                            time_limit=args.time_limit, preset=args.preset)
             s = res.summary
             ev = s.get("eval", {})
             rows.append((algo, seed, s["steps"], s["wall_time_s"], ev.get("mean_return"), ev.get("std_return"),

@@ -271,7 +271,10 @@ def cmd_dataset(args) -> int:
 
 
 def _bc_extra(args) -> dict:
-    extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay)}
+    extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
+             "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input)}
+    if args.gain_noise is not None:
+        extra["gain_position_std"], extra["gain_velocity_std"] = args.gain_noise
     if args.hidden:
         extra["hidden"] = tuple(args.hidden)
     return extra
@@ -280,6 +283,14 @@ def _bc_extra(args) -> dict:
 def _check_train(args) -> None:
     """Everything about ``train``'s options that can be checked before training (UsageError / MissingExtraError)."""
     check_output_dir(args.out, "--out")
+    for flag, given in (("--gain-copies", args.gain_copies), ("--gain-noise", args.gain_noise is not None),
+                        ("--speed-input", args.speed_input)):
+        if given and args.algo != "bc":
+            raise UsageError(flag, f"given with --algo {args.algo}", "--algo bc")
+    if args.gain_noise is not None and not args.gain_copies:
+        raise UsageError("--gain-noise", "given without --gain-copies", "with --gain-copies N (N >= 1)")
+    if args.n_envs is not None and args.algo not in ("ppo", "sac"):
+        raise UsageError("--n-envs", f"given with --algo {args.algo}", "--algo ppo or sac")
     if args.algo in ("ppo", "sac"):
         if args.steps is None:
             raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
@@ -300,10 +311,16 @@ def _check_train(args) -> None:
         return
     from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
 
-    args.dataset = str(resolve_dataset_dir(args.dataset, "--dataset"))
-    n = int(read_metadata(args.dataset)["episodes"])
+    if len(args.dataset) > 1 and args.algo != "bc":
+        raise UsageError("--dataset", f"{len(args.dataset)} datasets with --algo {args.algo}",
+                         "one dataset (its round-0 data); several only with --algo bc")
+    if len(args.dataset) > 1 and args.curve:
+        raise UsageError("--curve", f"given with {len(args.dataset)} datasets", "one --dataset")
+    args.dataset = [str(resolve_dataset_dir(d, "--dataset")) for d in args.dataset]
+    n = min(int(read_metadata(d)["episodes"]) for d in args.dataset)
     if args.demos is not None and args.demos > n:
-        raise UsageError("--demos", f"{args.demos} episodes, the dataset has {n}", f"1 .. {n}")
+        what = "the dataset has" if len(args.dataset) == 1 else "the smallest dataset has"
+        raise UsageError("--demos", f"{args.demos} episodes, {what} {n}", f"1 .. {n}")
     used = args.demos if args.demos is not None else n
     too_many = [c for c in args.curve or [] if c > used]
     if too_many:
@@ -325,18 +342,21 @@ def cmd_train(args) -> int:
     if args.algo in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import train_sb3
 
-        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else None
+        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else {}
+        if args.n_envs is not None:
+            overrides["n_envs"] = args.n_envs
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
-                        max_episode_steps=args.max_episode_steps, overrides=overrides, eval_freq=args.eval_freq,
-                        final_eval_episodes=args.eval_episodes, progress=not args.quiet,
-                        time_limit=args.time_limit)
+                        max_episode_steps=args.max_episode_steps, overrides=overrides or None,
+                        eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
+                        time_limit=args.time_limit, preset=args.preset)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
 
         config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
                           **_bc_extra(args))
-        summary = run_bc(args.dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
+        dataset = args.dataset[0] if len(args.dataset) == 1 else args.dataset
+        summary = run_bc(dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
                          eval_episodes=args.eval_episodes, curve=args.curve,
                          env_kwargs=env_kwargs or None, max_episode_steps=args.max_episode_steps,
                          progress=not args.quiet)
@@ -350,7 +370,8 @@ def cmd_train(args) -> int:
                               rollout_steps=args.rollout_steps,
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                           seed=args.seed, **_bc_extra(args)))
-        summary = run_dagger(args.expert, out, seed=args.seed, config=config, dataset=args.dataset,
+        summary = run_dagger(args.expert, out, seed=args.seed, config=config,
+                             dataset=None if args.dataset is None else args.dataset[0],
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
                              env_kwargs=env_kwargs, progress=not args.quiet)
     ev = summary.get("eval") or {}
@@ -414,8 +435,8 @@ def _add_learning_parsers(sub) -> None:
     p = sub.add_parser("train", help="train a baseline: behaviour cloning, DAgger, PPO or SAC",
                        description="bc: MLP 2x256 ReLU, Adam 1e-3, MSE on normalized actions, on --dataset; dagger: "
                                    "BC + relabelling rounds by --expert with beta = BETA_DECAY**round; ppo / sac: "
-                                   "Stable-Baselines3 with the RL-Zoo HalfCheetah hyperparameters "
-                                   "(hsddp_gym.learning.sb3). "
+                                   "Stable-Baselines3 with RL-Zoo hyperparameters (--preset: Hopper-v3 by default, or "
+                                   "HalfCheetah-v3; hsddp_gym.learning.sb3). "
                                    "Writes the model, summary.json (with training wall time and a 10-episode "
                                    "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
     p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,
@@ -432,11 +453,20 @@ def _add_learning_parsers(sub) -> None:
                         "at least 1000; 0: none)")
     p.add_argument("--learning-starts", type=_nonnegative_int, default=None,
                    help="sac: env steps of random actions before learning starts (default: the zoo's 10000)")
+    p.add_argument("--preset", choices=("hopper", "halfcheetah"), default="hopper",
+                   help="ppo/sac: the RL-Zoo hyperparameters of Hopper-v3 (a task that ends on falls, like this "
+                        "one) or HalfCheetah-v3 (hsddp_gym.learning.sb3.PRESETS; default: %(default)s)")
+    p.add_argument("--n-envs", type=_positive_int, default=None,
+                   help="ppo/sac: envs stepped together in one DummyVecEnv (default: the preset's, 1)")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
-    p.add_argument("--dataset", default=None, help="bc (required) / dagger (optional round-0 data): a dataset "
-                                                   "directory written by `hsddp-gym dataset`")
+    p.add_argument("--dataset", nargs="+", default=None,
+                   help="bc (required) / dagger (optional round-0 data): a dataset directory written by "
+                        "`hsddp-gym dataset`; bc takes several (pooled, e.g. at several target speeds)")
+    p.add_argument("--speed-input", action="store_true",
+                   help="bc: the env's target speed as one more input of the MLP (for demonstrations at several "
+                        "target speeds)")
     p.add_argument("--format", choices=("minari", "npz"), default="minari",
                    help="read the dataset through minari.load_dataset or its episodes.npz (default: %(default)s)")
     p.add_argument("--demos", type=_positive_int, default=None,
@@ -453,6 +483,13 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--weight-decay", type=_nonnegative_float, default=0.0,
                    help="bc/dagger: Adam weight decay (default: 0)")
     p.add_argument("--lr-decay", action="store_true", help="bc/dagger: cosine learning-rate decay to 0 over the epochs")
+    p.add_argument("--gain-copies", type=_nonnegative_int, default=0,
+                   help="bc: perturbed copies of every demonstration labelled with the expert's feedback law "
+                        "u + K dx (needs a dataset made with --gains; hsddp_gym.learning.gain_labels); 0: off "
+                        "(default: %(default)s)")
+    p.add_argument("--gain-noise", type=_nonnegative_float, nargs=2, metavar=("POS_STD", "VEL_STD"), default=None,
+                   help="bc: standard deviations of the state offsets of --gain-copies, positions [m, rad] "
+                        "and velocities [m/s, rad/s] (default: 0.01 0.1)")
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",

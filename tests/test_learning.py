@@ -269,7 +269,8 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
         assert (out / name).exists(), name
     if algo == "ppo":
         assert (out / "vecnormalize.npz").exists() and (out / "vecnormalize.pkl").exists()
-        assert s["hyperparameters"]["n_steps"] == 512 and s["hyperparameters"]["learning_rate"] == 2.0633e-5
+        assert s["hyperparameters"]["n_steps"] == 512 and s["hyperparameters"]["learning_rate"] == 9.80828e-5
+        assert s["preset"] == "hopper"
     else:
         assert s["hyperparameters"]["learning_starts"] == 100
     # the weights-only reload acts like the SB3 model
@@ -393,3 +394,62 @@ def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
     assert rows["ppo"]["samples"].endswith("env steps") and rows["ppo"]["train_time_s"] > 0
     assert "demos" in rows["bc"]["samples"] and "expert labels" in rows["dagger"]["samples"]
     assert all(r["episodes"] == 2 and r["mean_episode_length"] <= 30 for r in rows.values())
+
+
+def test_compare_policies_over_training_seeds_reports_a_95_interval(tmp_path):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    runs = tmp_path / "runs"
+    for seed in (0, 1):
+        assert cli.main(["train", "--algo", "ppo", "--steps", "128", "--max-episode-steps", "20", "--eval-freq", "64",
+                         "--eval-episodes", "1", "--seed", str(seed), "--out", str(runs / "ppo" / f"seed{seed}"),
+                         "--quiet"]) == 0
+    path = Path(__file__).resolve().parents[1] / "experiments" / "compare_policies.py"
+    spec = importlib.util.spec_from_file_location("compare_policies", path)
+    compare = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(compare)
+    assert [p.name for p in compare.expand_runs("ppo", [runs / "ppo"])] == ["seed0", "seed1"]
+    out = tmp_path / "compare"
+    assert compare.main(["--out", str(out), "--ppo", str(runs / "ppo"), "--episodes", "2", "--max-episode-steps",
+                         "20", "--policies", "ppo"]) == 0
+    row = json.loads((out / "compare.json").read_text())["rows"][0]
+    assert row["training_seeds"] == 2 and row["episodes"] == 4 and len(row["seed_mean_returns"]) == 2
+    from hsddp_gym.learning.reporting import mean_ci95
+
+    assert row["mean_return"] == pytest.approx(mean_ci95(row["seed_mean_returns"])[0])
+    assert row["ci95"] == pytest.approx(mean_ci95(row["seed_mean_returns"])[1])
+    assert "(95 % CI)" in (out / "compare.md").read_text()
+
+
+def test_mean_ci95_and_curve_band():
+    from hsddp_gym.learning.reporting import curve_band, mean_ci95
+
+    m, h = mean_ci95([1.0, 2.0, 3.0])
+    assert m == 2.0 and h == pytest.approx(4.303 * 1.0 / np.sqrt(3))
+    assert np.isnan(mean_ci95([5.0])[1])
+    with pytest.raises(ValueError, match="must not be empty"):
+        mean_ci95([])
+    with pytest.raises(ValueError, match="finite"):
+        mean_ci95([1.0, float("nan")])
+    band = curve_band([([0, 10], [0, 10]), ([0, 5, 10], [2, 7, 12])], points=11)
+    np.testing.assert_allclose(band["x"], np.arange(11.0))
+    np.testing.assert_allclose(band["mean"], np.arange(11.0) + 1.0)
+    half = 12.706 * np.std([0.0, 2.0], ddof=1) / np.sqrt(2)
+    np.testing.assert_allclose(band["high"] - band["mean"], half)
+    assert band["seeds"] == 2
+    with pytest.raises(ValueError, match="share no x range"):
+        curve_band([([0, 1], [0, 0]), ([2, 3], [0, 0])])
+
+
+def test_rl_presets():
+    from hsddp_gym.learning.sb3 import PPO_HYPERPARAMS, hyperparameters
+
+    hp = hyperparameters("ppo")
+    assert hp["learning_rate"] == 9.80828e-5 and hp["batch_size"] == 32 and hp["gamma"] == 0.999
+    assert hyperparameters("ppo", preset="halfcheetah") == PPO_HYPERPARAMS
+    assert hyperparameters("ppo", {"n_envs": 4})["n_envs"] == 4
+    assert hyperparameters("sac")["learning_starts"] == 10_000
+    with pytest.raises(ValueError, match="preset must be one of"):
+        hyperparameters("ppo", preset="walker")

@@ -20,7 +20,14 @@ cycle sin/cos). The MPC's phase is advanced by the observed touchdowns and drift
 ``2 pi t / gait_period`` (about 0.2 cycles per second, a whole cycle over a 5 s episode), so its action is
 not a function of the observation alone; the clock, however, is a deterministic function of the observation
 history (contact flags, pitch rate, step count), which :class:`MLPPolicy` replays while acting (it then has
-memory, cleared by ``reset()``) and :func:`build_inputs` replays per demonstration episode.
+memory, cleared by ``reset()``) and :func:`build_inputs` replays per demonstration episode. With
+``BCConfig.speed_input`` the env's target speed [m/s] is one more input (the observation does not hold it): the
+demonstrations' from their datasets' metadata (demonstrations at several speeds: ``load_demonstrations([dir, ...])``,
+``hsddp-gym train --dataset DIR DIR ... --speed-input``), the env's ``EnvInterface.target_speed`` while acting.
+
+**Feedback-gain labels** (``BCConfig.gain_copies``, :mod:`hsddp_gym.learning.gain_labels`): from a dataset recorded
+with the expert's gains, perturbed copies of every demonstration labelled with the expert's local law
+``u + K dx``.
 
 **Demonstrations** (:func:`load_demonstrations`) come from a Minari dataset (``minari.load_dataset`` /
 :func:`hsddp_gym.datasets.storage.load_minari`, the default) or from a dataset's ``episodes.npz``

@@ -13,6 +13,7 @@ import numpy as np
 
 from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
 from hsddp_gym.learning.features import FEATURES, build_inputs, clock_from_params, clock_params, make_gait_clock
+from hsddp_gym.learning.gain_labels import gain_augmented_pairs
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import read_npz, write_npz
@@ -37,6 +38,10 @@ class BCConfig:
     threads: int = 1
     features: str = "obs"
     lr_decay: bool = False
+    gain_copies: int = 0
+    gain_position_std: float = 0.01
+    gain_velocity_std: float = 0.1
+    speed_input: bool = False
 
     def __post_init__(self) -> None:
         if self.features not in FEATURES:
@@ -51,6 +56,13 @@ class BCConfig:
         for name in ("batch_size", "epochs", "threads"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        if not isinstance(self.speed_input, (bool, np.bool_)):
+            raise TypeError(f"speed_input must be a bool, got {type(self.speed_input).__name__}")
+        if int(self.gain_copies) < 0:
+            raise ValueError(f"gain_copies must be >= 0, got {self.gain_copies!r}")
+        for name in ("gain_position_std", "gain_velocity_std"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
@@ -65,7 +77,8 @@ class MLPPolicy(Policy):
 
     Args:
         weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
-        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features).
+        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features, plus 1
+            with ``speed_input``).
         config: the :class:`BCConfig` it was trained with.
         clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
         features; the policy then has memory (the clock), reset by :meth:`reset`.
@@ -91,6 +104,7 @@ class MLPPolicy(Policy):
         else:
             self.clock = None
             n_in = interface.layout.size
+        n_in += 1 if config.speed_input else 0
         if self.obs_mean.shape != (n_in,):
             raise ValueError(f"obs_mean must have shape ({n_in},), got {self.obs_mean.shape}")
 
@@ -122,6 +136,8 @@ class MLPPolicy(Policy):
             self.clock.update(mode, float(x[NQ + IPITCH]))
             z = np.concatenate([z, self.clock.features()])
             self.clock.tick()
+        if self.config.speed_input:
+            z = np.concatenate([z, [self.interface.target_speed]])
         return self.forward(z[None])[0].astype(np.float32)
 
     def save(self, path) -> Path:
@@ -181,6 +197,15 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
         clock = make_gait_clock(interface)
     obs = build_inputs(demos, config, clock, interface.layout)
     acts = np.clip(np.asarray(demos.actions, dtype=np.float64), -1.0, 1.0)
+    n_demo = len(obs)
+    if config.gain_copies:
+        if demos.feedback is None:
+            raise ValueError("gain_copies needs demonstrations with the expert's feedback gains (a dataset "
+                             "generated with include_gains=True, hsddp-gym dataset --gains)")
+        extra_in, extra_act = gain_augmented_pairs(obs, demos.feedback, config.gain_copies,
+                                                   config.gain_position_std, config.gain_velocity_std,
+                                                   config.seed, interface.layout)
+        obs, acts = np.concatenate([obs, extra_in]), np.concatenate([acts, extra_act])
     if init is not None:
         if (tuple(int(h) for h in init.config.hidden) != tuple(int(h) for h in config.hidden)
                 or init.config.activation != config.activation or init.config.features != config.features):
@@ -226,10 +251,11 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     linears = [m for m in net if isinstance(m, nn.Linear)]
     weights = [(m.weight.detach().numpy().astype(np.float64), m.bias.detach().numpy().astype(np.float64))
                for m in linears]
-    history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n),
-               "episodes": demos.n_episodes}
+    history = {"loss": losses, "wall_time_s": time.perf_counter() - t0, "transitions": int(n_demo),
+               "gain_labels": int(n - n_demo), "episodes": demos.n_episodes}
     policy = MLPPolicy(interface, weights=weights, obs_mean=mean, obs_std=std, config=config,
-                       info={"transitions": int(n), "episodes": demos.n_episodes, "final_loss": losses[-1]},
+                       info={"transitions": int(n_demo), "gain_labels": int(n - n_demo),
+                             "episodes": demos.n_episodes, "final_loss": losses[-1]},
                        clock=clock if config.features == "gait_clock" else None)
     return policy, history
 
@@ -237,7 +263,9 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
 def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: int | None = None,
            fmt: str = "minari", eval_episodes: int = 10, curve: list | None = None,
            env_kwargs: dict | None = None, max_episode_steps: int | None = None, progress: bool = True) -> dict:
-    """Train BC on a dataset directory and write into ``out``: ``policy.npz``, ``summary.json``,
+    """Train BC on a dataset directory (or a list of them, e.g. at several target speeds: their demonstrations
+    are pooled, ``demos`` and ``curve`` count episodes per dataset, the first one's metadata give the default
+    evaluation env) and write into ``out``: ``policy.npz``, ``summary.json``,
     ``loss.csv`` and, with ``curve`` (numbers of demonstration episodes), ``curve.csv`` / ``curve.png`` of
     the evaluation return of BC trained on the first n episodes.
 
@@ -250,22 +278,30 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     from hsddp_gym.util.io import write_json
 
     require(["torch"] + (["minari", "h5py"] if fmt == "minari" else []), "run_bc")
-    dataset = resolve_dataset_dir(dataset, "dataset")
-    meta = read_metadata(dataset)
-    n_available = int(meta["episodes"])
+    sources = list(dataset) if isinstance(dataset, (list, tuple)) else [dataset]
+    if not sources:
+        raise ValueError("dataset must be a dataset directory or a non-empty list of them")
+    if curve and len(sources) > 1:
+        raise ValueError("curve needs a single dataset (the learning curve counts its first n episodes)")
+    sources = [resolve_dataset_dir(d, "dataset") for d in sources]
+    metas = [read_metadata(d) for d in sources]
+    meta = metas[0]
+    n_available = min(int(m["episodes"]) for m in metas)
     if demos is not None and not 1 <= int(demos) <= n_available:
-        raise ValueError(f"demos must be in 1 .. {n_available} (the episodes of {dataset}), got {demos}")
+        where = sources[0] if len(sources) == 1 else "the smallest of the datasets"
+        raise ValueError(f"demos must be in 1 .. {n_available} (the episodes of {where}), got {demos}")
     n_used = int(demos) if demos is not None else n_available
     if curve and any(not 1 <= int(c) <= n_used for c in curve):
         raise ValueError(f"curve must hold numbers of episodes in 1 .. {n_used} (the episodes used), got {list(curve)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config or BCConfig(), seed=int(seed))
+    dataset = str(sources[0]) if len(sources) == 1 else [str(d) for d in sources]
     env_kwargs = dict(meta.get("env_kwargs", {}) if env_kwargs is None else env_kwargs)
     env = make_env(env_kwargs, max_episode_steps)
     interface = EnvInterface.from_env(env)
     env.close()
-    data = load_demonstrations(dataset, episodes=demos, fmt=fmt)
+    data = load_demonstrations(sources if len(sources) > 1 else sources[0], episodes=demos, fmt=fmt)
     loss_bar = None
     if progress:
         from tqdm import tqdm
@@ -285,12 +321,13 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     policy, hist = train_bc(data, config, interface, callback=cb, clock=clock)
     if loss_bar is not None:
         loss_bar.close()
-    policy.info.update(dataset=str(dataset), dataset_id=meta.get("dataset_id"))
+    policy.info.update(dataset=dataset, dataset_id=meta.get("dataset_id"))
     policy.save(out / "policy.npz")
     write_csv(out / "loss.csv", ["epoch", "loss"], [[i + 1, f"{v:.6g}"] for i, v in enumerate(hist["loss"])])
-    summary = {"algo": "bc", "dataset": str(dataset), "dataset_id": meta.get("dataset_id"),
+    summary = {"algo": "bc", "dataset": dataset, "dataset_id": meta.get("dataset_id"),
                "dataset_policy": meta.get("policy", {}).get("name"), "format": fmt, "seed": int(seed),
                "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
+               "gain_labels": hist["gain_labels"],
                "config": config.to_dict(), "loss": hist["loss"], "final_loss": hist["loss"][-1],
                "wall_time_s": hist["wall_time_s"], "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
                "files": ["policy.npz", "loss.csv", "summary.json"]}

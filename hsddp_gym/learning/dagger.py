@@ -53,6 +53,9 @@ class DAggerConfig:
     rollout_steps: int | None = None
 
     def __post_init__(self) -> None:
+        if int(self.bc.gain_copies):
+            raise ValueError("bc.gain_copies must be 0 for DAgger: its relabelled rounds have no feedback gains "
+                             "(gain labels are a behaviour-cloning option)")
         if int(self.rounds) < 0:
             raise ValueError(f"rounds must be >= 0, got {self.rounds!r}")
         if int(self.episodes_per_round) < 1:

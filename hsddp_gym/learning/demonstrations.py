@@ -7,16 +7,69 @@ from pathlib import Path
 
 import numpy as np
 
-
 # ================================================================================================ data
+FEEDBACK_KEYS = ("qpos", "qvel", "expert_state_nominal", "expert_action_nominal", "expert_feedback_gain",
+                 "expert_tracking")
+"""The ``infos`` keys :class:`FeedbackLaw` is read from (a dataset generated with gains, ``--gains``)."""
+
+
+@dataclasses.dataclass
+class FeedbackLaw:
+    """The expert's local feedback law at every demonstration: ``u = u_bar + K (x - x_bar)`` in normalized action
+    units (torques / torque limit), from a dataset recorded with ``include_gains`` (``hsddp-gym dataset --gains``).
+
+    Attributes:
+        state: ``x (N, 14)`` the true state of each observation (``infos`` qpos, qvel).
+        nominal_state: ``x_bar (N, 14)``; nominal_action: ``u_bar (N, 4)`` (normalized, not clipped);
+        gain: ``K (N, 4, 14)`` (normalized; column 0, the trunk x, is zero);
+        tracking: ``(N,)`` bool, True where the action came from this law (elsewhere the law is stale and
+            must not be used: the MPC was between plans, or a fallback acted).
+    """
+
+    state: np.ndarray
+    nominal_state: np.ndarray
+    nominal_action: np.ndarray
+    gain: np.ndarray
+    tracking: np.ndarray
+
+    def action(self, dx: np.ndarray | None = None, rows=None) -> np.ndarray:
+        """``clip(u_bar + K (x + dx - x_bar), -1, 1)`` ``(n, 4)`` at the rows ``rows`` (default all) for state
+        offsets ``dx (n, 14)`` (default 0)."""
+        rows = slice(None) if rows is None else rows
+        x = self.state[rows] if dx is None else self.state[rows] + dx
+        u = self.nominal_action[rows] + np.einsum("nux,nx->nu", self.gain[rows], x - self.nominal_state[rows])
+        return np.clip(u, -1.0, 1.0)
+
+    def take(self, keep) -> FeedbackLaw:
+        return FeedbackLaw(*(getattr(self, f.name)[keep] for f in dataclasses.fields(self)))
+
+    @staticmethod
+    def concat(a: FeedbackLaw, b: FeedbackLaw) -> FeedbackLaw:
+        return FeedbackLaw(*(np.concatenate([getattr(a, f.name), getattr(b, f.name)])
+                             for f in dataclasses.fields(FeedbackLaw)))
+
+    @classmethod
+    def from_infos(cls, infos: dict, rows: slice) -> FeedbackLaw:
+        """From one episode's ``infos`` (arrays of T + 1 rows), the rows ``rows`` (the observations acted on)."""
+        state = np.concatenate([np.asarray(infos["qpos"]), np.asarray(infos["qvel"])], axis=1)[rows]
+        return cls(state.astype(np.float64), np.asarray(infos["expert_state_nominal"], dtype=np.float64)[rows],
+                   np.asarray(infos["expert_action_nominal"], dtype=np.float64)[rows],
+                   np.asarray(infos["expert_feedback_gain"], dtype=np.float64)[rows],
+                   np.asarray(infos["expert_tracking"], dtype=bool)[rows])
+
+
 @dataclasses.dataclass
 class Demonstrations:
     """Labelled observations: ``obs (N, d)`` float32, ``actions (N, 4)`` float32, ``episode (N,)`` the
-    episode each pair comes from (0-based, in dataset order)."""
+    episode each pair comes from (0-based, in dataset order), ``feedback`` the expert's local feedback law
+    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains) and ``target_speed (N,)`` the env's
+    target speed [m/s] of each pair's episode (from the dataset's metadata; None when unknown)."""
 
     obs: np.ndarray
     actions: np.ndarray
     episode: np.ndarray
+    feedback: FeedbackLaw | None = None
+    target_speed: np.ndarray | None = None
 
     @property
     def n_episodes(self) -> int:
@@ -27,12 +80,20 @@ class Demonstrations:
 
     def first_episodes(self, n: int) -> Demonstrations:
         keep = self.episode < int(n)
-        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep])
+        fb = self.feedback.take(keep) if self.feedback is not None else None
+        speed = self.target_speed[keep] if self.target_speed is not None else None
+        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep], fb, speed)
 
     def concat(self, other: Demonstrations) -> Demonstrations:
+        """Both sets of pairs (``other``'s episodes renumbered after these); the feedback laws and target speeds
+        are kept only when both have them."""
         offset = self.n_episodes
+        fb = (FeedbackLaw.concat(self.feedback, other.feedback)
+              if self.feedback is not None and other.feedback is not None else None)
+        speed = (np.concatenate([self.target_speed, other.target_speed])
+                 if self.target_speed is not None and other.target_speed is not None else None)
         return Demonstrations(np.concatenate([self.obs, other.obs]), np.concatenate([self.actions, other.actions]),
-                              np.concatenate([self.episode, other.episode + offset]))
+                              np.concatenate([self.episode, other.episode + offset]), fb, speed)
 
 
 def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari") -> Demonstrations:
@@ -43,8 +104,9 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
 
     Args:
         source: a ``MinariDataset``, a :class:`hsddp_gym.datasets.storage.FlatDataset`, a dataset directory written
-            by :func:`hsddp_gym.datasets.generation.generate_dataset`, or an ``episodes.npz`` file.
-        episodes: use only the first ``episodes`` episodes (None: all).
+            by :func:`hsddp_gym.datasets.generation.generate_dataset`, an ``episodes.npz`` file, or a list of
+            these (their pairs concatenated, e.g. demonstrations at several target speeds).
+        episodes: use only the first ``episodes`` episodes (None: all; of each source for a list).
         fmt: for a directory, read the Minari dataset (``"minari"``, via ``minari.load_dataset``) or
             ``episodes.npz`` (``"npz"``).
     """
@@ -52,25 +114,40 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
 
     if fmt not in ("minari", "npz"):
         raise ValueError(f"fmt must be 'minari' or 'npz', got {fmt!r}")
+    if isinstance(source, (list, tuple)):
+        if not source:
+            raise ValueError("source must not be an empty list")
+        parts = [load_demonstrations(s, episodes, fmt) for s in source]
+        out = parts[0]
+        for part in parts[1:]:
+            out = out.concat(part)
+        return out
+    speed = None
     if isinstance(source, (str, Path)):
         p = Path(source)
+        meta_file = (p.parent if p.is_file() else p) / "metadata.json"
+        if meta_file.exists():
+            speed = _target_speed(datasets.read_metadata(meta_file.parent))
         if p.is_file():
             source = datasets.load_npz(p)
         elif fmt == "npz":
             source = datasets.load_npz(p)
         else:
             source = datasets.load_minari(p)
-    obs, acts, ep = [], [], []
+    obs, acts, ep, laws = [], [], [], []
     available = source.n_episodes if isinstance(source, datasets.FlatDataset) else source.total_episodes
     if episodes is not None and not 1 <= int(episodes) <= available:
         raise ValueError(f"episodes must be in 1 .. {available} (the dataset's episodes), got {episodes}")
     if isinstance(source, datasets.FlatDataset):
+        speed = _target_speed(source.metadata) if speed is None and source.metadata else speed
         n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
         for i in range(n):
             e = source.episode(i)
             obs.append(e["observations"][:-1])
             acts.append(e["infos"]["expert_action"][:-1] if "expert_action" in e["infos"] else e["actions"])
             ep.append(np.full(len(e["actions"]), i))
+            if all(k in e["infos"] for k in FEEDBACK_KEYS):
+                laws.append(FeedbackLaw.from_infos(e["infos"], slice(0, len(e["actions"]))))
     else:  # a MinariDataset
         n = source.total_episodes if episodes is None else min(int(episodes), source.total_episodes)
         for i, e in enumerate(source.iterate_episodes(episode_indices=list(range(n)))):
@@ -79,7 +156,25 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
             acts.append(np.asarray(infos["expert_action"])[:-1] if "expert_action" in infos else
                         np.asarray(e.actions))
             ep.append(np.full(len(e.actions), i))
+            if all(k in infos for k in FEEDBACK_KEYS):
+                laws.append(FeedbackLaw.from_infos(infos, slice(0, len(e.actions))))
     if not obs:
         raise ValueError("the dataset has no episodes")
+    feedback = None
+    if laws and len(laws) == len(obs):
+        feedback = laws[0]
+        for law in laws[1:]:
+            feedback = FeedbackLaw.concat(feedback, law)
+    n_pairs = sum(len(o) for o in obs)
     return Demonstrations(np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32),
-                          np.concatenate(ep).astype(np.int64))
+                          np.concatenate(ep).astype(np.int64), feedback,
+                          None if speed is None else np.full(n_pairs, speed))
+
+
+def _target_speed(metadata: dict) -> float | None:
+    """The target speed [m/s] of a dataset's env (its ``env_kwargs``, else the env's default)."""
+    if not isinstance(metadata, dict) or "env_kwargs" not in metadata:
+        return None
+    from hsddp_gym.envs.bounding import DEFAULT_TARGET_SPEED
+
+    return float(metadata["env_kwargs"].get("target_speed", DEFAULT_TARGET_SPEED))

@@ -76,13 +76,19 @@ def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
 
 def build_inputs(demos: Demonstrations, config, clock=None, layout=None) -> np.ndarray:
     """The MLP inputs (float64) of ``demos`` for ``config.features`` (``clock``: a GaitClock for
-    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock)."""
+    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock), with the
+    target speed [m/s] of each pair's episode appended last when ``config.speed_input``."""
     obs = np.asarray(demos.obs, dtype=np.float64)
-    if config.features == "obs":
-        return obs
-    if clock is None:
-        raise ValueError("features='gait_clock' needs a gait clock")
-    feats = np.zeros((len(obs), clock.N_FEATURES))
-    for a, b in _episode_runs(demos.episode):
-        feats[a:b] = gait_clock_features(obs[a:b], clock, layout)
-    return np.concatenate([obs, feats], axis=1)
+    if config.features == "gait_clock":
+        if clock is None:
+            raise ValueError("features='gait_clock' needs a gait clock")
+        feats = np.zeros((len(obs), clock.N_FEATURES))
+        for a, b in _episode_runs(demos.episode):
+            feats[a:b] = gait_clock_features(obs[a:b], clock, layout)
+        obs = np.concatenate([obs, feats], axis=1)
+    if getattr(config, "speed_input", False):
+        if demos.target_speed is None:
+            raise ValueError("speed_input needs the target speed of every demonstration (datasets loaded from "
+                             "their directories, whose metadata record it)")
+        obs = np.concatenate([obs, np.asarray(demos.target_speed, dtype=np.float64)[:, None]], axis=1)
+    return obs

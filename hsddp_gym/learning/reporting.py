@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 
 # ================================================================================================ evaluation
 def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwargs: dict | None = None,
                              max_episode_steps: int | None = None, reset_options: dict | None = None) -> dict:
     """The comparison protocol: ``episodes`` episodes seeded ``seed, seed + 1, ...``, the policy's
     deterministic actions; returns :func:`hsddp_gym.planners.policies.evaluation.summarize` (mean/std return, falls,
-    forward
-    speed, episode length, ...)."""
+    forward speed, episode length, ...)."""
     from hsddp_gym.datasets.collection import make_env
     from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
@@ -48,9 +49,12 @@ def plot_curve(path, x, y, yerr=None, xlabel: str = "", ylabel: str = "mean retu
 
 
 def write_csv(path, header, rows) -> None:
+    """A CSV file with a header row, written atomically."""
     import csv
 
-    with open(path, "w", newline="") as fh:
+    from hsddp_gym.util.io import atomic_path
+
+    with atomic_path(path, suffix=".csv") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         w.writerows(rows)
@@ -60,3 +64,46 @@ def eval_brief(summary: dict) -> dict:
     keys = ("episodes", "seeds", "mean_return", "std_return", "returns", "falls", "mean_forward_speed",
             "mean_episode_length")
     return {k: summary[k] for k in keys if k in summary}
+
+
+# ================================================================================================ seeds
+_T975 = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+         2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042)
+"""Two-sided 95 % Student-t critical values for 1..30 degrees of freedom (1.96 beyond)."""
+
+
+def mean_ci95(values) -> tuple[float, float]:
+    """``(mean, half-width)`` of the two-sided 95 % Student-t confidence interval of the mean of ``values``
+    (independent samples, e.g. one number per training seed); the half-width is NaN for fewer than 2 values."""
+    v = np.asarray(values, dtype=np.float64).ravel()
+    if v.size == 0:
+        raise ValueError("values must not be empty")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"values must be finite, got {v.tolist()}")
+    if v.size < 2:
+        return float(v[0]), float("nan")
+    t = _T975[v.size - 2] if v.size - 1 <= len(_T975) else 1.96
+    return float(v.mean()), float(t * v.std(ddof=1) / np.sqrt(v.size))
+
+
+def curve_band(curves, points: int = 50) -> dict:
+    """Mean and 95 % interval across seeds of learning curves ``[(x (n_i,), y (n_i,)), ...]`` (x increasing),
+    linearly interpolated onto ``points`` common x values from the largest first x to the smallest last x (the
+    range every curve covers). Returns ``{"x", "mean", "low", "high", "seeds"}`` (arrays; low/high = mean -+
+    half-width, equal to the mean for a single curve)."""
+    curves = [(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)) for x, y in curves]
+    curves = [(x, y) for x, y in curves if len(x) >= 2]
+    if not curves:
+        raise ValueError("curves must hold at least one curve of >= 2 points")
+    lo_x, hi_x = max(x[0] for x, _ in curves), min(x[-1] for x, _ in curves)
+    if not hi_x > lo_x:
+        raise ValueError(f"the curves share no x range (they start at {lo_x:g} and the first ends at {hi_x:g})")
+    grid = np.linspace(lo_x, hi_x, int(points))
+    Y = np.stack([np.interp(grid, x, y) for x, y in curves])
+    mean = Y.mean(axis=0)
+    if len(curves) == 1:
+        half = np.zeros_like(mean)
+    else:
+        t = _T975[len(curves) - 2] if len(curves) - 1 <= len(_T975) else 1.96
+        half = t * Y.std(axis=0, ddof=1) / np.sqrt(len(curves))
+    return {"x": grid, "mean": mean, "low": mean - half, "high": mean + half, "seeds": len(curves)}

@@ -8,8 +8,10 @@ A :class:`Policy` keeps one independent copy per vectorized env and resets the c
 is true, so planners with memory (gait clock, plan cursor, MPC warm start) work with ``evaluate_policy``
 and with ``imitation``'s rollout / DAgger tooling. A plain callable is applied row by row and has no memory.
 
-**Baselines.** :func:`train_sb3` trains PPO or SAC with the RL-Zoo HalfCheetah-v3 hyperparameters
-(:data:`PPO_HYPERPARAMS`, :data:`SAC_HYPERPARAMS`; ``user_needs.md`` §2.2) and writes into ``out``:
+**Baselines.** :func:`train_sb3` trains PPO or SAC with RL-Zoo hyperparameters (:data:`PRESETS`): by default
+those of Hopper-v3 (:data:`PPO_HOPPER_HYPERPARAMS`; SAC's are its HalfCheetah-v3 defaults, :data:`SAC_HYPERPARAMS`),
+a task that ends on a fall like this one; ``preset="halfcheetah"`` gives the HalfCheetah-v3 set
+(:data:`PPO_HYPERPARAMS`; ``user_needs.md`` §2.2). It writes into ``out``:
 
 * ``model.zip``: the SB3 model (``PPO.load`` / ``SAC.load``, or :func:`load_trained_policy`, which reads only
   the weights, never unpickles);
@@ -57,6 +59,25 @@ PPO_HYPERPARAMS: dict = {
 }
 """RL-Zoo ``hyperparams/ppo.yml`` HalfCheetah-v3 (tuned): VecNormalize on observations and rewards, one env."""
 
+PPO_HOPPER_HYPERPARAMS: dict = {
+    "normalize": True,
+    "n_envs": 1,
+    "n_steps": 512,
+    "batch_size": 32,
+    "gamma": 0.999,
+    "gae_lambda": 0.99,
+    "learning_rate": 9.80828e-5,
+    "clip_range": 0.2,
+    "n_epochs": 5,
+    "ent_coef": 0.00229519,
+    "max_grad_norm": 0.7,
+    "vf_coef": 0.835671,
+    "policy_kwargs": {"log_std_init": -2.0, "ortho_init": False, "activation_fn": "ReLU",
+                      "net_arch": {"pi": [256, 256], "vf": [256, 256]}},
+}
+"""RL-Zoo ``hyperparams/ppo.yml`` Hopper-v3 (tuned): the family of terminating locomotion tasks (an episode ends
+on a fall, as here), unlike HalfCheetah, which never terminates; VecNormalize on observations and rewards."""
+
 SAC_HYPERPARAMS: dict = {
     "normalize": False,
     "n_envs": 1,
@@ -64,6 +85,12 @@ SAC_HYPERPARAMS: dict = {
 }
 """RL-Zoo ``hyperparams/sac.yml`` HalfCheetah-v3: SB3 defaults (lr 3e-4, buffer 1e6, batch 256, tau 0.005,
 gamma 0.99, train_freq 1, auto entropy, [256, 256] ReLU) plus ``learning_starts`` 10000."""
+
+PRESETS: dict = {"ppo": {"hopper": PPO_HOPPER_HYPERPARAMS, "halfcheetah": PPO_HYPERPARAMS},
+                 "sac": {"hopper": SAC_HYPERPARAMS, "halfcheetah": SAC_HYPERPARAMS}}
+"""The hyperparameter sets by algorithm and RL-Zoo task (SAC's Hopper-v3 entry is its HalfCheetah-v3 one)."""
+DEFAULT_PRESET = "hopper"
+"""Bounding-v0 terminates on falls like Hopper/Walker2d: their settings are the default."""
 
 
 # ================================================================================================ adapter
@@ -168,11 +195,14 @@ def _policy_kwargs(kwargs: dict) -> dict:
     return kw
 
 
-def hyperparameters(algo: str, overrides: dict | None = None) -> dict:
-    """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) with ``overrides`` applied."""
+def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFAULT_PRESET) -> dict:
+    """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` (:data:`PRESETS`) with
+    ``overrides`` applied (e.g. ``{"n_envs": 4}``)."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
-    hp = json.loads(json.dumps(PPO_HYPERPARAMS if algo == "ppo" else SAC_HYPERPARAMS))
+    if preset not in PRESETS[algo]:
+        raise ValueError(f"preset must be one of {tuple(PRESETS[algo])}, got {preset!r}")
+    hp = json.loads(json.dumps(PRESETS[algo][preset]))
     for k, v in (overrides or {}).items():
         if v is not None:
             hp[k] = v
@@ -223,13 +253,15 @@ def save_vecnormalize_npz(venv, path) -> Path:
 def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = None,
               max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
               eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
-              verbose: int = 0, time_limit: float | None = None) -> TrainResult:
+              verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET) -> TrainResult:
     """Train PPO or SAC on ``Bounding-v0`` and write the files of the module docstring into ``out``.
 
     Args:
         algo: ``"ppo"`` or ``"sac"``. steps: env steps. seed: seeds the model, the env and the evaluation env.
         env_kwargs: ``gym.make`` keyword arguments. max_episode_steps: time-limit override (None: 1000).
-        overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``).
+        overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``,
+            ``{"n_envs": 4}``: that many envs in a ``DummyVecEnv``, stepped together).
+        preset: the RL-Zoo hyperparameter set (:data:`PRESETS`; default ``"hopper"``, a terminating task).
         eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
             ``max(steps // 10, 1000)``; 0: none).
         final_eval_episodes: after training, evaluate the saved policy with the comparison protocol
@@ -258,7 +290,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = dict(env_kwargs or {})
-    hp = hyperparameters(algo, overrides)
+    hp = hyperparameters(algo, overrides, preset)
     venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv")
     eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None)
     if hp["normalize"]:
@@ -292,7 +324,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     summary = {
         "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
         "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
-        "hyperparameters": hp, "wall_time_s": wall, "threads": int(threads), "eval_freq": eval_freq,
+        "preset": preset, "hyperparameters": hp, "wall_time_s": wall, "threads": int(threads), "eval_freq": eval_freq,
         "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),
         "eval_episodes": eval_episodes, "files": files,
         "training_episodes": _count_monitor_episodes(out / "train.monitor.csv"),
