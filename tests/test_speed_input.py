@@ -83,3 +83,19 @@ def test_cli_trains_on_several_datasets_with_the_speed_input(two_speeds, tmp_pat
     assert not np.array_equal(a07, a13)
     assert cli.main(["train", "--algo", "dagger", "--dataset", *map(str, two_speeds), "--out",
                      str(tmp_path / "d"), "--quiet"]) == 2
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["--algo", "ppo", "--steps", "10", "--gain-copies", "2"], "--gain-copies"),
+    (["--algo", "dagger", "--speed-input"], "--speed-input"),
+    (["--algo", "bc", "--gain-noise", "0.01", "0.1"], "--gain-noise"),
+    (["--algo", "bc", "--n-envs", "4"], "--n-envs"),
+])
+def test_learner_options_are_refused_where_they_do_not_apply(argv, option, tmp_path, capsys, two_speeds):
+    from hsddp_gym import cli
+
+    extra = ["--dataset", str(two_speeds[0])] if "bc" in argv else []
+    assert cli.main(["train", *argv, *extra, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {option}:") and err.count("\n") == 1, err
+    assert not (tmp_path / "o").exists()
