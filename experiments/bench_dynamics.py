@@ -122,8 +122,7 @@ def bench_trajectory(dyn: HybridDynamics, traj: Trajectory, args) -> dict[str, f
 def bench_fused(dyn: HybridDynamics, traj: Trajectory, args) -> float:
     """µs per knot of the solver's own step + all derivatives: one policy rollout that linearizes every knot
     on the way (``hsddp_gym.planners.optimizer.hsddp.rollout_policy`` with ``lin``, the full-step line-search trial),
-    here with
-    the open-loop controls of ``traj`` (no feedback), including the resets."""
+    here with the open-loop controls of ``traj`` (no feedback), including the resets."""
     from hsddp_gym.planners.optimizer.hsddp import _Traj, rollout_policy
     from hsddp_gym.planners.optimizer.problem import HybridProblem
 

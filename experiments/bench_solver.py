@@ -50,8 +50,7 @@ GOAL_SOLVE_S = 5.0
 
 class RolloutMeter:
     """Wraps ``hsddp_gym.planners.optimizer.hsddp.rollout_policy`` (the solver looks it up at call time) to time every
-    rollout,
-    split into plain rollouts and rollouts that also linearize (``lin`` given)."""
+    rollout, split into plain rollouts and rollouts that also linearize (``lin`` given)."""
 
     def __init__(self) -> None:
         self.original = hsddp_module.rollout_policy

@@ -17,8 +17,7 @@ history)."""
 # ================================================================================================ features
 def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict | None = None):
     """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of an :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    built for ``interface``
-    with ``MPCOptions(**mpc_options)`` (default options)."""
+    built for ``interface`` with ``MPCOptions(**mpc_options)`` (default options)."""
     from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
     o = MPCOptions(**dict(mpc_options or {}))

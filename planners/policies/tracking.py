@@ -52,8 +52,7 @@ class PlanTracker:
     @classmethod
     def from_solution(cls, solution, problem=None) -> PlanTracker:
         """Tracker of a :class:`~hsddp_gym.planners.optimizer.solution.Solution` (phase steps from ``problem`` when
-        given,
-        else ``durations / knots``)."""
+        given, else ``durations / knots``)."""
         knots = np.diff(solution.phase_start)
         phase_dt = problem.phase_dt if problem is not None else solution.schedule.durations / knots
         return cls(solution.X, solution.U, solution.K, solution.phase_start, solution.schedule.modes, phase_dt,
