@@ -1,5 +1,6 @@
 """A regular (non-editable) install puts one import package, ``hsddp_gym``, into site-packages, and works from a
-user's project that has its own ``envs/`` and ``planners/`` packages (a common layout in RL code)."""
+user's project that has its own ``envs/`` and ``planners/`` packages (a common layout in RL code); with the core
+dependencies only, the core runs and every command that needs an extra names it before it starts."""
 
 from __future__ import annotations
 
@@ -47,23 +48,80 @@ def _dependency_paths() -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def installed(tmp_path_factory):
+def wheel(tmp_path_factory):
+    """A wheel of the checkout, built once (a regular, non-editable build)."""
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("needs a git checkout to copy the sources")
-    tmp = tmp_path_factory.mktemp("install")
+    tmp = tmp_path_factory.mktemp("wheel")
     src = _copy_source(tmp / "src")
+    res = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index",
+                          "-q", "-w", str(tmp / "dist"), str(src)], capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+    return next((tmp / "dist").glob("hsddp_gym-*.whl"))
+
+
+def _venv_with(wheel, tmp: Path, dependency_paths: list[str]) -> dict:
+    """A venv (no pip) whose dependencies are importable from ``dependency_paths`` (a .pth: no downloads, and
+    the checkout's editable install, a meta-path finder registered by a .pth of our site-packages, is not
+    registered there), with ``wheel`` installed into it."""
     venv = tmp / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     py = venv / "bin" / "python"
     site = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                           capture_output=True, text=True, check=True).stdout.strip()
-    # the dependencies come from this interpreter's paths (no downloads); the editable install of the
-    # checkout is a meta-path finder registered by a .pth of our site-packages, which is not processed there
-    Path(site, "deps.pth").write_text("\n".join(_dependency_paths()) + "\n")
-    res = subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps",
-                          "--no-build-isolation", "--no-index", "-q", str(src)], capture_output=True, text=True)
+    Path(site, "deps.pth").write_text("\n".join(dependency_paths) + "\n")
+    res = subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "--no-index",
+                          "-q", str(wheel)], capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
     return {"python": py, "bin": venv / "bin", "site": Path(site), "tmp": tmp}
+
+
+@pytest.fixture(scope="module")
+def installed(wheel, tmp_path_factory):
+    return _venv_with(wheel, tmp_path_factory.mktemp("install"), _dependency_paths())
+
+
+def core_distributions() -> dict:
+    """The installed distributions the core install needs: ``hsddp_gym``'s requirements without extras, and
+    theirs, transitively (``{normalized name: Distribution}``)."""
+    import importlib.metadata as md
+
+    from packaging.markers import default_environment
+    from packaging.requirements import Requirement
+
+    env = {**default_environment(), "extra": ""}
+    found: dict = {}
+
+    def visit(name: str) -> None:
+        key = name.lower().replace("_", "-")
+        if key in found:
+            return
+        found[key] = md.distribution(name)
+        for text in found[key].requires or []:
+            req = Requirement(text)
+            if req.marker is None or req.marker.evaluate(env):
+                visit(req.name)
+
+    visit("hsddp_gym")
+    found.pop("hsddp-gym")
+    return found
+
+
+@pytest.fixture(scope="module")
+def core_only(wheel, tmp_path_factory):
+    """A venv with the core dependencies only: their top-level entries of our site-packages symlinked into a
+    directory of their own (numpy, gymnasium, pin and its cmeel prefix, numba, tqdm, ...), nothing else."""
+    pytest.importorskip("packaging")
+    tmp = tmp_path_factory.mktemp("core_only")
+    deps = tmp / "core_site"
+    deps.mkdir()
+    for dist in core_distributions().values():
+        base = Path(dist.locate_file(""))
+        for entry in {str(f).split("/")[0] for f in dist.files or []} - {"..", "__pycache__"}:
+            if (base / entry).exists() and not (deps / entry).exists():
+                (deps / entry).symlink_to(base / entry)
+    cmeel = deps / "cmeel.prefix" / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
+    return _venv_with(wheel, tmp, [str(deps)] + ([str(cmeel)] if cmeel.is_dir() else []))
 
 
 def _run(installed, args, cwd, **kw):
@@ -107,3 +165,34 @@ def test_planners_and_envs_are_not_importable_names(installed):
     res = _run(installed, [str(installed["python"]), "-c", "import hsddp_gym.planners, hsddp_gym.envs"], cwd=empty)
     assert res.returncode == 0, res.stderr
 
+
+
+CORE_CHECK = """
+import importlib.util
+absent = [m for m in ("minari", "h5py", "torch", "stable_baselines3", "matplotlib", "PIL", "imageio", "ray")
+          if importlib.util.find_spec(m) is not None]
+assert not absent, f"not a core-only environment: {absent}"
+import numpy, gymnasium, pinocchio, numba, tqdm, hsddp_gym
+print("core ok")
+"""
+
+
+def test_a_core_only_install_runs_the_core_and_names_the_missing_extras(core_only):
+    work = core_only["tmp"] / "work"
+    work.mkdir()
+    res = _run(core_only, [str(core_only["python"]), "-c", CORE_CHECK], cwd=work)
+    assert res.returncode == 0 and "core ok" in res.stdout, res.stdout + res.stderr
+    cli = str(core_only["bin"] / "hsddp-gym")
+    res = _run(core_only, [cli, "rollout", "--policy", "heuristic", "--episodes", "1", "--max-episode-steps", "50",
+                           "--out", str(work / "rollout"), "--quiet"], cwd=work)
+    assert res.returncode == 0, res.stdout + res.stderr
+    for argv, extra in ((["dataset", "--policy", "heuristic", "--episodes", "1"], "data"),
+                        (["train", "--algo", "ppo", "--steps", "10"], "rl"),
+                        (["demo"], "viz")):
+        out = work / argv[0]
+        res = _run(core_only, [cli, *argv, "--out", str(out)], cwd=work)
+        assert res.returncode == 2, (argv, res.stdout, res.stderr)
+        lines = res.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in res.stderr, res.stderr
+        assert f"the '{extra}' extra" in lines[0] and f"hsddp_gym[{extra}]" in lines[0], lines[0]
+        assert not out.exists(), f"{argv[0]} wrote {out} before failing"
