@@ -80,12 +80,27 @@ def max_rel_err(value: np.ndarray, reference: np.ndarray) -> float:
     return float(np.max(np.abs(value - reference) / np.maximum(1.0, np.abs(reference))))
 
 
+def assert_same_datasets(a, b, ignore=()) -> None:
+    """Two datasets (directories or ``episodes.npz``) hold the same arrays: episodes, boundaries, seeds and every
+    ``infos`` key but those in ``ignore`` (e.g. the wall-clock ``solve_ms``)."""
+    from hsddp_gym.datasets.storage import load_npz
+
+    da, db = load_npz(a), load_npz(b)
+    for k in ("observations", "actions", "rewards", "terminations", "truncations", "episode_starts",
+              "episode_seeds"):
+        np.testing.assert_array_equal(getattr(da, k), getattr(db, k), err_msg=k)
+    assert set(da.infos) == set(db.infos)
+    for k in set(da.infos) - set(ignore):
+        np.testing.assert_array_equal(da.infos[k], db.infos[k], err_msg=k)
+
+
 @pytest.fixture(scope="session")
 def tools() -> types.SimpleNamespace:
     """The helpers and constants above: ``tools.random_state(rng)``, ``tools.fd_jacobian(f, x)``, ..."""
     return types.SimpleNamespace(random_state=random_state, random_control=random_control, fd_jacobian=fd_jacobian,
                                  max_rel_err=max_rel_err, FD_EPS=FD_EPS, FD_TOL=FD_TOL, SEED=SEED, MODES=MODES,
-                                 CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS)
+                                 CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS,
+                                 assert_same_datasets=assert_same_datasets)
 
 
 @pytest.fixture(scope="session")

@@ -102,16 +102,10 @@ def test_recover_environment_in_a_fresh_process(small, tmp_path):
     assert res.stdout.split() == ["hsddp_gym/Bounding-v0", str(STEPS), "17", str(EPISODES), "1.3", "5"]
 
 
-def test_same_data_whatever_the_number_of_workers(small, tmp_path):
+def test_same_data_whatever_the_number_of_workers(small, tmp_path, tools):
     out = tmp_path / "w2"
     generate_dataset("heuristic", EPISODES, out, seed=0, workers=2, max_episode_steps=STEPS, progress=False)
-    a, b = load_npz(small), load_npz(out)
-    for name in ("observations", "actions", "rewards", "terminations", "truncations", "episode_starts",
-                 "episode_seeds"):
-        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
-    assert set(a.infos) == set(b.infos)
-    for k in a.infos:
-        np.testing.assert_array_equal(a.infos[k], b.infos[k], err_msg=k)
+    tools.assert_same_datasets(small, out)
 
 
 def test_mpc_data_do_not_depend_on_the_number_of_workers(tmp_path):

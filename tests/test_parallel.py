@@ -8,12 +8,10 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from hsddp_gym.datasets.generation import generate_dataset
 from hsddp_gym.datasets.recording import NONDETERMINISTIC_INFOS, PolicySpec
-from hsddp_gym.datasets.storage import load_npz
 from hsddp_gym.util.parallel import check_backend, run_parallel
 
 TESTS = str(Path(__file__).resolve().parent)
@@ -129,17 +127,6 @@ def local_ray():
     ray.shutdown()
 
 
-def _same_data(a, b) -> None:
-    da, db = load_npz(a), load_npz(b)
-    for k in ("observations", "actions", "rewards", "terminations", "truncations", "episode_starts",
-              "episode_seeds"):
-        np.testing.assert_array_equal(getattr(da, k), getattr(db, k), err_msg=k)
-    assert set(da.infos) == set(db.infos)
-    for k in da.infos:
-        if k not in NONDETERMINISTIC_INFOS:
-            np.testing.assert_array_equal(da.infos[k], db.infos[k], err_msg=k)
-
-
 def test_ray_backend_same_results_and_a_dead_worker_loses_nothing(local_ray, tmp_path):
     assert run_parallel(square, range(6), workers=2, backend="ray") == [x * x for x in range(6)]
     assert ray.is_initialized()  # an instance it did not start is left running
@@ -150,7 +137,7 @@ def test_ray_backend_same_results_and_a_dead_worker_loses_nothing(local_ray, tmp
         run_parallel(fails_on_three, range(5), backend="ray")
 
 
-def test_ray_dataset_equals_the_local_one_even_when_a_worker_is_killed(local_ray, tmp_path):
+def test_ray_dataset_equals_the_local_one_even_when_a_worker_is_killed(local_ray, tmp_path, tools):
     steps = 40
     local = generate_dataset("heuristic", 4, tmp_path / "local", seed=5, workers=1, max_episode_steps=steps,
                              progress=False)
@@ -159,5 +146,5 @@ def test_ray_dataset_equals_the_local_one_even_when_a_worker_is_killed(local_ray
                               max_episode_steps=steps, progress=False, backend="ray", policy_name="heuristic")
     assert marker.exists(), "the worker of episode seed 6 was killed once"
     assert remote.metadata["backend"] == "ray" and local.metadata["backend"] == "local"
-    _same_data(tmp_path / "local", tmp_path / "ray")
+    tools.assert_same_datasets(tmp_path / "local", tmp_path / "ray", ignore=NONDETERMINISTIC_INFOS)
     assert not (tmp_path / ".ray.partial").exists()  # published atomically, checkpoints removed

@@ -423,16 +423,19 @@ def _nl_reset_jac(x):
     return np.array([[1.0 + 0.1 * v, 0.1 * z], [1.6 * z, -0.6 + 0.3 * np.cos(v)]])
 
 
+def _two_phase_bounce(rng):
+    """``(h, lq, phase_start, N, x0, U_hat)``: the bouncing mass's two phases of 30 and 25 knots at h = 0.01 (its
+    quadratic costs reused by the nonlinear-reset tests), a start state and random nominal controls."""
+    h = 0.01
+    lq = bouncing_mass(h=h, knots=(30, 25))
+    return h, lq, lq.phase_start, lq.N, np.array([0.8, 0.3]), rng.normal(0.0, 3.0, (lq.N, 1))
+
+
 def test_nonlinear_reset_v_x_is_the_gradient_of_the_fixed_feedback_policy_cost(rng):
     """With mu = 0, V_x = Q_x + K'Q_u satisfies the chain rule of J_pol(x0), the cost of rolling out
     ``u = u_hat + K (x - x_hat)`` on the nonlinear system, through the nonlinear reset (eq. 22c is exact to
     first order) -- no second-order information is involved."""
-    h, knots = 0.01, (30, 25)
-    lq = bouncing_mass(h=h, knots=knots)  # reuse its quadratic costs
-    ps = lq.phase_start
-    N = lq.N
-    x0 = np.array([0.8, 0.3])
-    U_hat = rng.normal(0.0, 3.0, (N, 1))
+    h, lq, ps, N, x0, U_hat = _two_phase_bounce(rng)
 
     def simulate(x_start, control, first_phase=0):
         X = np.full((N + 1, 2), np.nan)
@@ -487,12 +490,7 @@ def test_nonlinear_reset_v_xx_is_the_hessian_of_the_fixed_feedback_policy_cost(r
     policy ``u = u_hat + K (x - x_hat)`` (4-point central differences), and V_xx after the reset is that of the
     second phase. A pass that drops P_x from the V_xx update at the reset (but keeps it in V_x) fails here; the
     V_x test above cannot see it."""
-    h, knots = 0.01, (30, 25)
-    lq = bouncing_mass(h=h, knots=knots)
-    ps = lq.phase_start
-    N = lq.N
-    x0 = np.array([0.8, 0.3])
-    U_hat = rng.normal(0.0, 3.0, (N, 1))
+    h, lq, ps, N, x0, U_hat = _two_phase_bounce(rng)
 
     def simulate(x_start, control, first_knot=0):
         X = np.full((N + 1, 2), np.nan)
