@@ -198,7 +198,8 @@ class BoundingEnv(gym.Env):
                  exclude_current_positions_from_observation: bool = True, gait_period: float = 0.296,
                  torque_limit: float = DEFAULT_PARAMS.torque_limit, friction: float = DEFAULT_PARAMS.friction,
                  gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0,
-                 motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, render_mode: str | None = None,
+                 motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent: bool = True,
+                 render_mode: str | None = None,
                  width: int = 480, height: int = 320, render_grf: bool = True) -> None:
         self.frame_skip = check_int(frame_skip, "frame_skip", minimum=1)
         self.sim_timestep = check_positive(sim_timestep, "sim_timestep")
@@ -224,6 +225,7 @@ class BoundingEnv(gym.Env):
         gravity = check_positive(gravity, "gravity", allow_zero=True)
         contact_erp = check_in_range(contact_erp, 0.0, 1.0, "contact_erp")
         motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
+        energy_consistent = _check_bool(energy_consistent, "energy_consistent")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -234,7 +236,7 @@ class BoundingEnv(gym.Env):
         self.robot = CheetahModel()
         self.sim = ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
                                     erp=contact_erp, motor_speed_limits=motor_speed_limits,
-                                    torque_limit=self.torque_limit)
+                                    torque_limit=self.torque_limit, energy_consistent=energy_consistent)
         self.observation_layout = ObservationLayout(exclude_current_positions=exclude)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low=low, high=high, dtype=np.float32)

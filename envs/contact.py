@@ -90,6 +90,10 @@ _DOUBLE_STICK = (STICK, STICK)
 PENETRATION_SLOP = 1e-6
 """Penetrations up to this depth [m] are left alone by the position correction."""
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+POSITION_TOLERANCE = 1e-9
+"""The position projection iterates until every contact foot is this close [m] to its target."""
+_MAX_PROJECTION_ITERATIONS = 6
+_MOMENTUM_ROWS = [0, 2, 4]  # centroidal momentum rows: linear x, linear z, angular y
 
 
 # ------------------------------------------------------------------------------------------ the LCP
@@ -331,7 +335,7 @@ class ContactSimulator:
 
     def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
                  gravity: float | None = None, erp: float = 1.0, motor_speed_limits=None,
-                 torque_limit: float | None = None) -> None:
+                 torque_limit: float | None = None, energy_consistent: bool = True) -> None:
         self.robot = robot if robot is not None else CheetahModel()
         if not isinstance(self.robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel, got {type(self.robot).__name__}")
@@ -343,6 +347,9 @@ class ContactSimulator:
         self.torque_limit = check_positive(params.torque_limit if torque_limit is None else torque_limit,
                                            "torque_limit")
         self.motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
+        if not isinstance(energy_consistent, (bool, np.bool_)):
+            raise TypeError(f"energy_consistent must be a bool, got {type(energy_consistent).__name__}")
+        self.energy_consistent = bool(energy_consistent)
         self.model = pin.Model(self.robot.model)
         self.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.gravity]), np.zeros(3))
         self.data = self.model.createData()
@@ -355,6 +362,10 @@ class ContactSimulator:
         self.states = [SEPARATE, SEPARATE]
         self.contact = np.zeros(2, dtype=bool)
         self.lcp_fallbacks = 0
+        self.energy_projections = 0
+        self.momentum_fallbacks = 0
+        self.energy_deficits = 0
+        self.projection_residual = 0.0
         self._tau = np.zeros(NV)
         self._vf = np.zeros(NV)
         self._dq = np.zeros(NQ)
@@ -363,6 +374,7 @@ class ContactSimulator:
                              np.zeros(2 * k)) for k in (1, 2)}
         self._lam = {k: np.zeros(2 * k) for k in (1, 2)}
         self._had_contact = False
+        self._minv = None
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
         # A foot farther than this above the ground cannot reach it within one step at < 50 m/s.
         self._far = 50.0 * self.dt
@@ -415,6 +427,10 @@ class ContactSimulator:
         """
         total = self._imp_sum
         total[0] = total[1] = total[2] = total[3] = 0.0
+        if self.energy_consistent and n > 0:
+            model, data = self.model, self.data
+            pin.forwardKinematics(model, data, self.q, self.v)
+            self._energy = pin.computeKineticEnergy(model, data) + pin.computePotentialEnergy(model, data)
         if self.motor_speed_limits is None:
             self._tau[3:] = u
             for _ in range(n):
@@ -474,7 +490,8 @@ class ContactSimulator:
             jc, A, G_array, c_array = self._buffers[k]
             for i, (_, J, _) in enumerate(cand):
                 jc[2 * i:2 * i + 2] = J[2::-2]  # rows z (normal), x (tangent)
-            np.dot(jc, pin.computeMinverse(model, data, q), out=A)  # A = J M^-1 (2k, 7); M^-1 J^T = A^T
+            minv = self._minv = pin.computeMinverse(model, data, q)
+            np.dot(jc, minv, out=A)  # A = J M^-1 (2k, 7); M^-1 J^T = A^T
             np.dot(A, jc.T, out=G_array)
             np.dot(jc, vf, out=c_array)
             c = c_array.tolist()
@@ -507,11 +524,119 @@ class ContactSimulator:
                 if phi < -PENETRATION_SLOP and sol[i] != SEPARATE:
                     pen = [(i, phi)] if pen is None else pen + [(i, phi)]
             self._had_contact = True
-            if pen is not None and self.erp > 0.0:
+            if pen is not None and self.erp > 0.0 and not self.energy_consistent:
                 self._correct_penetration(pen, G, A)
+        if self.energy_consistent:
+            self._finish_consistent(cand)
+        else:
+            np.multiply(v, h, out=self._dq)
+            q += self._dq
+        self.time += h
+
+    def _finish_consistent(self, cand: list) -> None:
+        """End of an energy-consistent step: ``q+ = q + h v+``, then the position projection of the contact
+        feet, then the energy projection of ``v+``; see the module docstring (*Energy-consistent stepping*)."""
+        model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt
+        tau = self._tau
+        q_old = q.copy()
         np.multiply(v, h, out=self._dq)
         q += self._dq
-        self.time += h
+        if cand:
+            self._project_positions(cand, q_old)
+        else:
+            pin.forwardKinematics(model, data, q, v)
+        # work of the joint torques over the step (tau is constant during it)
+        work = float(tau[3] * (q[3] - q_old[3]) + tau[4] * (q[4] - q_old[4]) + tau[5] * (q[5] - q_old[5])
+                     + tau[6] * (q[6] - q_old[6]))
+        kinetic = pin.computeKineticEnergy(model, data)
+        potential = pin.computePotentialEnergy(model, data)
+        allowed = self._energy + work
+        if kinetic + potential > allowed:
+            self.energy_projections += 1
+            target = allowed - potential
+            target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
+            if target <= 0.0:
+                # the positions alone exceed the allowed energy (cannot happen at any state we could find;
+                # counted): stop the robot, the least energy this step can leave
+                self.energy_deficits += 1
+                v[:] = 0.0
+                kinetic = 0.0
+            elif cand:
+                # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
+                factor = (target / kinetic) ** 0.5
+                v *= factor
+                kinetic = target
+            else:
+                kinetic = self._project_flight(kinetic, target)
+        self._energy = kinetic + potential
+
+    def _project_flight(self, kinetic: float, target: float) -> float:
+        """Flight: the point nearest to ``v+`` in the mass metric with kinetic energy ``target`` and the same
+        linear (x, z) and angular (y) momentum about the centre of mass as ``v+``. With ``P`` (3, 7) those rows
+        of the centroidal momentum matrix and ``v_c = M^-1 P^T (P M^-1 P^T)^-1 P v+`` (the least-energy motion
+        with that momentum, M-orthogonal to every momentum-free motion), ``v = v_c + s (v+ - v_c)``. Falls back
+        to scaling ``v+`` (counted in :attr:`momentum_fallbacks`) when ``target`` is below ``K(v_c)``."""
+        model, data, q, v = self.model, self.data, self.q, self.v
+        P = pin.computeCentroidalMap(model, data, q)[_MOMENTUM_ROWS]
+        B = pin.computeMinverse(model, data, q) @ P.T  # (7, 3)
+        S = P @ B  # (3, 3)
+        p = P @ v
+        y = np.linalg.solve(S, p)
+        k_c = 0.5 * float(p @ y)
+        if target >= k_c and kinetic > k_c:
+            factor = ((target - k_c) / (kinetic - k_c)) ** 0.5
+            vc = B @ y
+            v *= factor
+            v += (1.0 - factor) * vc
+            return target
+        self.momentum_fallbacks += 1
+        v *= (target / kinetic) ** 0.5
+        return target
+
+    def _project_positions(self, cand: list, q_old: np.ndarray) -> None:
+        """Move ``q+`` in the mass metric of the step (``dq = M^-1 J^T mu``) so that every candidate foot in
+        contact (or ending below the ground) is at height 0 and every sticking foot at its position at the start
+        of the step. Newton iterations with the exact Jacobians at the current ``q`` (quadratic: one iteration
+        in practice) until the residual is below :data:`POSITION_TOLERANCE`. Leaves ``data`` with the
+        kinematics (``q``, ``v``) of the result."""
+        model, data, q, v = self.model, self.data, self.q, self.v
+        fids = self._fids
+        states = self.states
+        targets = []  # (foot, axis of the translation (0: x, 2: z), target, Jacobian row (0: x, 2: z))
+        for foot, J, _ in cand:
+            state = states[foot]
+            if state == STICK:
+                targets.append((foot, 0, float(q_old[0] - J[2, 2])))  # LWA Jacobian: foot x = x - J[2, 2]
+            if state != SEPARATE:
+                targets.append((foot, 2, 0.0))
+        pin.computeJointJacobians(model, data, q)
+        for foot, _, _ in cand:  # a separating candidate foot that ends below the ground is lifted onto it
+            if states[foot] == SEPARATE and pin.updateFramePlacement(model, data, fids[foot]).translation[2] < 0.0:
+                targets.append((foot, 2, 0.0))
+        fresh = True  # data holds the joint Jacobians of the current q
+        residual = 0.0
+        if targets:
+            minv = self._minv
+            for _ in range(_MAX_PROJECTION_ITERATIONS):
+                r = [target - float(pin.updateFramePlacement(model, data, fids[foot]).translation[axis])
+                     for foot, axis, target in targets]
+                residual = max(map(abs, r))
+                if residual <= POSITION_TOLERANCE:
+                    break
+                if not fresh:
+                    pin.computeJointJacobians(model, data, q)
+                Jr = np.array([pin.getFrameJacobian(model, data, fids[foot], _LWA)[axis]
+                               for foot, axis, _ in targets])
+                B = minv @ Jr.T
+                mu = _solve_linear((Jr @ B).tolist(), r)
+                if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
+                    break
+                q += B @ mu
+                pin.forwardKinematics(model, data, q, v)
+                fresh = False
+            self.projection_residual = max(self.projection_residual, residual)
+        if fresh:
+            pin.forwardKinematics(model, data, q, v)
 
     def _correct_penetration(self, pen: list, G: list, A: np.ndarray) -> None:
         """Split-impulse position correction: move ``q`` by ``M^-1 J_n^T mu`` (``A = J M^-1``) so that each
