@@ -375,6 +375,8 @@ class ContactSimulator:
         self._lam = {k: np.zeros(2 * k) for k in (1, 2)}
         self._had_contact = False
         self._minv = None
+        self._q_old = np.zeros(NQ)
+        self._energy = 0.0
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
         # A foot farther than this above the ground cannot reach it within one step at < 50 m/s.
         self._far = 50.0 * self.dt
@@ -538,33 +540,31 @@ class ContactSimulator:
         feet, then the energy projection of ``v+``; see the module docstring (*Energy-consistent stepping*)."""
         model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt
         tau = self._tau
-        q_old = q.copy()
+        q_old = self._q_old
+        q_old[:] = q
         np.multiply(v, h, out=self._dq)
         q += self._dq
         if cand:
             self._project_positions(cand, q_old)
+            kinetic = pin.computeKineticEnergy(model, data)  # data: kinematics of (q, v) from the projection
         else:
-            pin.forwardKinematics(model, data, q, v)
-        # work of the joint torques over the step (tau is constant during it)
-        work = float(tau[3] * (q[3] - q_old[3]) + tau[4] * (q[4] - q_old[4]) + tau[5] * (q[5] - q_old[5])
-                     + tau[6] * (q[6] - q_old[6]))
-        kinetic = pin.computeKineticEnergy(model, data)
+            kinetic = pin.computeKineticEnergy(model, data, q, v)
         potential = pin.computePotentialEnergy(model, data)
-        allowed = self._energy + work
+        # work of the joint torques over the step (tau is constant during it; its base entries are 0)
+        allowed = self._energy + (tau.dot(q) - tau.dot(q_old))
         if kinetic + potential > allowed:
             self.energy_projections += 1
             target = allowed - potential
             target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
             if target <= 0.0:
-                # the positions alone exceed the allowed energy (cannot happen at any state we could find;
-                # counted): stop the robot, the least energy this step can leave
+                # the positions alone exceed the allowed energy (never seen; counted): stop the robot, the
+                # least energy this step can leave
                 self.energy_deficits += 1
                 v[:] = 0.0
                 kinetic = 0.0
             elif cand:
                 # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
-                factor = (target / kinetic) ** 0.5
-                v *= factor
+                v *= (target / kinetic) ** 0.5
                 kinetic = target
             else:
                 kinetic = self._project_flight(kinetic, target)
@@ -617,16 +617,17 @@ class ContactSimulator:
         residual = 0.0
         if targets:
             minv = self._minv
+            feet = sorted({t[0] for t in targets})
             for _ in range(_MAX_PROJECTION_ITERATIONS):
-                r = [target - float(pin.updateFramePlacement(model, data, fids[foot]).translation[axis])
-                     for foot, axis, target in targets]
+                pos = {foot: pin.updateFramePlacement(model, data, fids[foot]).translation for foot in feet}
+                r = [target - float(pos[foot][axis]) for foot, axis, target in targets]
                 residual = max(map(abs, r))
                 if residual <= POSITION_TOLERANCE:
                     break
                 if not fresh:
                     pin.computeJointJacobians(model, data, q)
-                Jr = np.array([pin.getFrameJacobian(model, data, fids[foot], _LWA)[axis]
-                               for foot, axis, _ in targets])
+                jac = {foot: pin.getFrameJacobian(model, data, fids[foot], _LWA) for foot in feet}
+                Jr = np.array([jac[foot][axis] for foot, axis, _ in targets])
                 B = minv @ Jr.T
                 mu = _solve_linear((Jr @ B).tolist(), r)
                 if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent

@@ -4,7 +4,9 @@ Prints env steps/s and simulated 1-ms steps/s for ``frame_skip=1`` and the defau
 random actions (a mix of flight, impacts, stance and sliding) and under zero torque from a standing
 start (mostly double stance: the contact-solver path), and whether each row meets the goal of
 20,000 simulated steps/s; for the default frame skip, both with the energy-consistent stepping (the default)
-and with the legacy scheme (``energy_consistent=False``), and their ratio (goal >= 0.8). When ``gymnasium[mujoco]`` is installed it also times HalfCheetah-v5 (MuJoCo,
+and with the legacy scheme (``energy_consistent=False``), and their ratio (goal >= 0.8), timed interleaved
+in short chunks so that a load change on a shared machine hits both alike. When ``gymnasium[mujoco]`` is
+installed it also times HalfCheetah-v5 (MuJoCo,
 0.01 s timestep, frame_skip 5, both read from the env) in the same run and prints the ratios of env steps/s
 and of simulated steps/s (the issue's comparison: about 42,000 MuJoCo steps/s on this kind of machine).
 
