@@ -65,7 +65,8 @@ class BoundingEnv(gym.Env):
     four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
     each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
     ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step. The motors are ideal torque
+    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step, followed by a
+    position and an energy projection (``energy_consistent``). The motors are ideal torque
     sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
     50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
     modelled) from spinning up without bound under random actions. The task suits bounding (back stance,
@@ -162,15 +163,20 @@ class BoundingEnv(gym.Env):
     | ``torque_limit`` | 33.0 | torque of a full action [N m] |
     | ``friction`` | 0.6 | Coulomb friction coefficient |
     | ``gravity`` | 9.81 | gravitational acceleration [m/s^2] (0 for energy tests) |
-    | ``contact_erp`` | 1.0 | fraction of a contact foot's penetration removed per step (1) |
+    | ``contact_erp`` | 1.0 | legacy scheme: fraction of a penetration removed per step (1) |
     | ``motor_speed_limits`` | (36.0, 50.0) | torque-speed limit ``(w_full, w_zero)`` [rad/s] or None (2) |
+    | ``energy_consistent`` | True | energy-consistent stepping (3); False: the legacy scheme |
     | ``render_mode`` | None | ``"rgb_array"`` or ``"human"`` |
     | ``width``, ``height`` | 480, 320 | image size of ``render`` [px] |
     | ``render_grf`` | True | draw ground-force arrows |
 
-    (1) A position correction (split impulse) that leaves velocities, hence energy, untouched.
+    (1) The legacy scheme's position correction; the default scheme projects contact feet exactly onto the
+    ground (and sticking feet onto their positions) every step.
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
+    (3) :mod:`hsddp_gym.envs.contact`: a mass-metric position projection (sticking feet do not creep, contact
+    feet end each step on the ground) and an energy projection, so that per simulation step
+    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates.
 
     Every argument is JSON-serializable, so Minari can rebuild the env from its spec.
 

@@ -456,6 +456,7 @@ def test_out_of_box_actions_are_clipped():
     ({"gravity": -9.81}, ValueError, "gravity"),
     ({"contact_erp": 1.5}, ValueError, "contact_erp"),
     ({"motor_speed_limits": (50.0, 36.0)}, ValueError, "motor_speed_limits"),
+    ({"energy_consistent": 1}, TypeError, "energy_consistent"),
     ({"render_mode": "rgb"}, ValueError, "render_mode"),
     ({"width": 4}, ValueError, "width"),
     ({"exclude_current_positions_from_observation": "yes"}, TypeError, "exclude_current_positions"),
@@ -468,6 +469,7 @@ def test_bad_kwargs_raise_naming_the_argument(kwargs, error, message):
 def test_physics_options_reach_the_simulator():
     env = BoundingEnv(gravity=0.0, friction=0.3, motor_speed_limits=None, frame_skip=3, sim_timestep=5e-4)
     assert env.sim.gravity == 0.0 and env.sim.mu == 0.3 and env.sim.motor_speed_limits is None
+    assert env.sim.energy_consistent and not BoundingEnv(energy_consistent=False).sim.energy_consistent
     assert env.dt == pytest.approx(1.5e-3)
     env.reset(seed=0)
     t0 = env.time
