@@ -240,9 +240,7 @@ class BoundingEnv(gym.Env):
         self.render_grf = _check_bool(render_grf, "render_grf")
 
         self.robot = CheetahModel()
-        self.sim = ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
-                                    erp=contact_erp, motor_speed_limits=motor_speed_limits,
-                                    torque_limit=self.torque_limit, energy_consistent=energy_consistent)
+        self.sim = self._make_simulator(friction, gravity, contact_erp, motor_speed_limits, energy_consistent)
         self.observation_layout = ObservationLayout(exclude_current_positions=exclude)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low=low, high=high, dtype=np.float32)
@@ -265,6 +263,12 @@ class BoundingEnv(gym.Env):
         self._invalid = False
         self.sim.set_state(self.init_state)
         self._update_feet(at_reset=True)
+
+    def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
+        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it."""
+        return ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
+                                erp=contact_erp, motor_speed_limits=motor_speed_limits,
+                                torque_limit=self.torque_limit, energy_consistent=energy_consistent)
 
     # ------------------------------------------------------------------ properties
     @property

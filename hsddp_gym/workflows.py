@@ -40,6 +40,7 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 
 # ----------------------------------------------------------------------------------------------- rollout
 ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
+ROLLOUT_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/BoundingMuJoCo-v0")
 
 
 def make_policy(name: str, env, seed: int = 0, mpc_options=None):
@@ -67,13 +68,15 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None) -> dict:
+                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None,
+                 env_id: str = "hsddp_gym/Bounding-v0") -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
     ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
     MPC with its push-robust settings (:meth:`hsddp_gym.planners.policies.mpc.MPCOptions.push_recovery`),
     ``mpc_options`` with any
-    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (not both)."""
+    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (not both). ``env_id``: ``hsddp_gym/Bounding-v0`` (the
+    exact-LCP env) or ``hsddp_gym/BoundingMuJoCo-v0`` (its MuJoCo twin)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -83,7 +86,9 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
+    if env_id not in ROLLOUT_ENVS:
+        raise ValueError(f"env_id must be one of {ROLLOUT_ENVS}, got {env_id!r}")
+    env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs, **limit)
     if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
         raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
     if mpc_recovery and mpc_options is not None:
@@ -100,7 +105,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
     summary = summarize(results)
-    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
+    summary.update(policy=policy_name, env_id=env_id, env_kwargs=env_kwargs, push=push, first_seed=seed,
                    max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
     if mpc_options is not None:
         import dataclasses
