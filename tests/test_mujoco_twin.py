@@ -120,3 +120,17 @@ def test_build_mjcf_validates():
         build_mjcf(solref=(0.0, 1.0))
     with pytest.raises(ValueError, match="timestep"):
         build_mjcf(timestep=-1.0)
+
+
+def test_two_simulator_table_experiment(tmp_path, experiment):
+    """``experiments/two_simulators.py``: one row per policy with both simulators, missing models noted."""
+    import json
+
+    experiment("two_simulators").main(["--out", str(tmp_path), "--policies", "heuristic", "sac", "--episodes", "2",
+                                       "--max-episode-steps", "10"])
+    table = (tmp_path / "two_simulators.md").read_text()
+    assert "| heuristic |" in table and "sac: skipped" in table
+    data = json.loads((tmp_path / "two_simulators.json").read_text())
+    runs = data["results"]["heuristic"]
+    assert set(runs) == {"exact LCP (Bounding-v0)", "MuJoCo (BoundingMuJoCo-v0)"}
+    assert all(r["episodes"] == 2 for r in runs.values())
