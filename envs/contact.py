@@ -160,6 +160,63 @@ def _solve_linear(A: list, b: list) -> list | None:
     return z
 
 
+def _solve_spd(S: list, r: list) -> list | None:
+    """Solve ``S z = r`` for a symmetric positive-definite ``S`` (lists, n <= 4): closed form for n <= 2, an
+    unrolled Cholesky factorization for n = 3, 4 (~10x faster than :func:`_solve_linear` there); None when
+    ``S`` is not numerically positive definite."""
+    n = len(r)
+    if n <= 2:
+        return _solve_linear(S, r)
+    if n == 3:
+        (a00, a01, a02), (_, a11, a12), (_, _, a22) = S
+        if a00 <= 0.0:
+            return None
+        l00 = a00 ** 0.5
+        l10, l20 = a01 / l00, a02 / l00
+        d1 = a11 - l10 * l10
+        if d1 <= 1e-12 * a11:
+            return None
+        l11 = d1 ** 0.5
+        l21 = (a12 - l20 * l10) / l11
+        d2 = a22 - l20 * l20 - l21 * l21
+        if d2 <= 1e-12 * a22:
+            return None
+        l22 = d2 ** 0.5
+        y0 = r[0] / l00
+        y1 = (r[1] - l10 * y0) / l11
+        y2 = (r[2] - l20 * y0 - l21 * y1) / l22
+        z2 = y2 / l22
+        z1 = (y1 - l21 * z2) / l11
+        return [(y0 - l10 * z1 - l20 * z2) / l00, z1, z2]
+    (a00, a01, a02, a03), (_, a11, a12, a13), (_, _, a22, a23), (_, _, _, a33) = S
+    if a00 <= 0.0:
+        return None
+    l00 = a00 ** 0.5
+    l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
+    d1 = a11 - l10 * l10
+    if d1 <= 1e-12 * a11:
+        return None
+    l11 = d1 ** 0.5
+    l21, l31 = (a12 - l20 * l10) / l11, (a13 - l30 * l10) / l11
+    d2 = a22 - l20 * l20 - l21 * l21
+    if d2 <= 1e-12 * a22:
+        return None
+    l22 = d2 ** 0.5
+    l32 = (a23 - l30 * l20 - l31 * l21) / l22
+    d3 = a33 - l30 * l30 - l31 * l31 - l32 * l32
+    if d3 <= 1e-12 * a33:
+        return None
+    l33 = d3 ** 0.5
+    y0 = r[0] / l00
+    y1 = (r[1] - l10 * y0) / l11
+    y2 = (r[2] - l20 * y0 - l21 * y1) / l22
+    y3 = (r[3] - l30 * y0 - l31 * y1 - l32 * y2) / l33
+    z3 = y3 / l33
+    z2 = (y2 - l32 * z3) / l22
+    z1 = (y1 - l21 * z2 - l31 * z3) / l11
+    return [(y0 - l10 * z1 - l20 * z2 - l30 * z3) / l00, z1, z2, z3]
+
+
 def _try_states(G: list, c: list, mu: float, states: tuple, tol_v: float, tol_l: float):
     """Solve the linear system of one state combination; return ``(violation, lam, w)``."""
     m = 2 * len(states)
@@ -657,7 +714,7 @@ class ContactSimulator:
                 jac = {foot: pin.getFrameJacobian(model, data, fids[foot], _LWA) for foot in feet}
                 Jr = np.array([jac[foot][axis] for foot, axis, _ in targets])
                 B = minv @ Jr.T
-                mu = _solve_linear((Jr @ B).tolist(), r)
+                mu = _solve_spd((Jr @ B).tolist(), r)  # J M^-1 J^T: symmetric positive definite
                 if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
                     break
                 q += B @ mu

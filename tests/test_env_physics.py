@@ -218,3 +218,19 @@ def test_env_energy_with_zero_action_from_accepted_reset_states():
             e1 = env.sim.energy()
             assert e1 - e <= TOL_J
             e = e1
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4])
+def test_spd_solver_of_the_position_projection(n):
+    from hsddp_gym.envs.contact import _solve_spd
+
+    rng = np.random.default_rng(n)
+    for _ in range(200):
+        J = rng.standard_normal((n, 7))
+        S = J @ J.T + 1e-3 * np.eye(n)
+        r = rng.standard_normal(n)
+        z = np.array(_solve_spd(S.tolist(), r.tolist()))
+        np.testing.assert_allclose(S @ z, r, atol=1e-9)
+    if n > 1:
+        singular = np.ones((n, n))
+        assert _solve_spd(singular.tolist(), [1.0] * n) is None
