@@ -516,8 +516,8 @@ class ContactSimulator:
         total[0] = total[1] = total[2] = total[3] = 0.0
         if self.energy_consistent and n > 0:
             model, data = self.model, self.data
-            pin.forwardKinematics(model, data, self.q, self.v)
-            self._energy = pin.computeKineticEnergy(model, data) + pin.computePotentialEnergy(model, data)
+            pin.computeMechanicalEnergy(model, data, self.q, self.v)
+            self._energy = data.kinetic_energy + data.potential_energy
         if self.motor_speed_limits is None:
             self._tau[3:] = u
             for _ in range(n):
@@ -632,9 +632,10 @@ class ContactSimulator:
         if cand:
             self._project_positions(cand, q_old)
             kinetic = pin.computeKineticEnergy(model, data)  # data: kinematics of (q, v) from the projection
+            potential = pin.computePotentialEnergy(model, data)
         else:
-            kinetic = pin.computeKineticEnergy(model, data, q, v)
-        potential = pin.computePotentialEnergy(model, data)
+            pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
+            kinetic, potential = data.kinetic_energy, data.potential_energy
         # work of the joint torques over the step (tau is constant during it; its base entries are 0)
         allowed = self._energy + (tau.dot(q) - tau.dot(q_old))
         if kinetic + potential > allowed:
@@ -664,10 +665,11 @@ class ContactSimulator:
         model, data, q, v = self.model, self.data, self.q, self.v
         P = pin.computeCentroidalMap(model, data, q)[_MOMENTUM_ROWS]
         B = pin.computeMinverse(model, data, q) @ P.T  # (7, 3)
-        S = P @ B  # (3, 3)
-        p = P @ v
-        y = np.linalg.solve(S, p)
-        k_c = 0.5 * float(p @ y)
+        p = (P @ v).tolist()
+        y = _solve_spd((P @ B).tolist(), p)  # P M^-1 P^T (3, 3): symmetric positive definite
+        if y is None:  # pragma: no cover - the momentum rows are independent for this robot
+            y = [0.0, 0.0, 0.0]
+        k_c = 0.5 * (p[0] * y[0] + p[1] * y[1] + p[2] * y[2])
         if target >= k_c and kinetic > k_c:
             factor = ((target - k_c) / (kinetic - k_c)) ** 0.5
             vc = B @ y
