@@ -199,6 +199,14 @@ def test_landing_penetrates_at_most_one_millimetre(robot, speed, pitch):
         lowest = min(lowest, float(sim.foot_heights().min()))
     assert lowest >= -1e-3
     assert np.all(np.isfinite(sim.x)) and sim.lcp_fallbacks == 0
+    if speed == 10.0:  # the legacy scheme sinks deeper than that
+        legacy = ContactSimulator(robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent=False)
+        legacy.set_state(x)
+        deepest = np.inf
+        for _ in range(300):
+            legacy.run(np.zeros(4), 1)
+            deepest = min(deepest, float(legacy.foot_heights().min()))
+        assert deepest < -1e-3
 
 
 def test_env_energy_with_zero_action_from_accepted_reset_states():
