@@ -20,6 +20,10 @@ Simulation: ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator, elli
 default is 0.02 s) with the default ``solimp``. Unlike the exact-LCP env, contacts are compliant: feet sink
 millimetres, may bounce and slip slightly while "sticking".
 
+Divergence: when MuJoCo meets a non-finite or huge ``qpos``/``qvel``/``qacc`` it warns and silently resets the
+state to ``qpos0``; the twin turns that into a non-finite state, so the env reports ``info["invalid_state"]``
+exactly as Bounding-v0 does.
+
 Checks (``tests/test_mujoco_twin.py``): mass matrix, bias forces (Coriolis + gravity) and foot positions equal
 the Pinocchio model's to 1e-9 at random states, and a free-flight step equals the legacy Bounding-v0 step (the
 same semi-implicit Euler) to 1e-9.
@@ -158,6 +162,14 @@ class MuJoCoSimulator:
         self.lcp_fallbacks = 0
         self._f6 = np.zeros(6)
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
+        w = mujoco.mjtWarning
+        self._unstable = (int(w.mjWARN_BADQPOS), int(w.mjWARN_BADQVEL), int(w.mjWARN_BADQACC))
+        self._seen_instabilities = 0
+
+    def _instabilities(self) -> int:
+        """How many times MuJoCo has warned of a non-finite / huge qpos, qvel or qacc (it then resets the state)."""
+        warning = self.data.warning
+        return sum(warning[i].number for i in self._unstable)
 
     def set_state(self, x: np.ndarray) -> None:
         """Set the state ``x`` (14,), reset the clock and contact flags."""
@@ -166,6 +178,7 @@ class MuJoCoSimulator:
         self.impulse[:] = 0.0
         self.contact[:] = False
         self._mj.mj_resetData(self.model, self.data)
+        self._seen_instabilities = 0
         self._load()
         self._mj.mj_forward(self.model, self.data)
 
@@ -233,6 +246,11 @@ class MuJoCoSimulator:
                 total[k] += self.impulse[k] * h
         self.x[:NQ] = data.qpos
         self.x[NQ:] = data.qvel
+        if self._instabilities() != self._seen_instabilities:
+            # MuJoCo met a non-finite or huge qpos/qvel/qacc and silently reset the state to qpos0: report it
+            # as what it is, an invalid state (the env then sets info["invalid_state"] and stops stepping)
+            self._seen_instabilities = self._instabilities()
+            self.x[:] = np.nan
         self.time += n * h
         # impulse: of the last step [N s], as ContactSimulator
         self.impulse *= h

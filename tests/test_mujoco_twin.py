@@ -134,3 +134,18 @@ def test_two_simulator_table_experiment(tmp_path, experiment):
     runs = data["results"]["heuristic"]
     assert set(runs) == {"exact LCP (Bounding-v0)", "MuJoCo (BoundingMuJoCo-v0)"}
     assert all(r["episodes"] == 2 for r in runs.values())
+
+
+def test_a_mujoco_divergence_is_reported_as_an_invalid_state(tmp_path, monkeypatch):
+    """MuJoCo resets a diverging simulation to qpos0 with only a warning; the twin reports an invalid state."""
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
+    env = MuJoCoBoundingEnv(terminate_when_unhealthy=False)
+    env.reset(seed=0)
+    env.sim.v[3] = np.nan
+    _, _, terminated, _, info = env.step(np.zeros(4))
+    assert terminated and info["invalid_state"] is True
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4))
+    _, info = env.reset(seed=0)
+    _, _, terminated, _, info = env.step(np.zeros(4))
+    assert not info["invalid_state"]
