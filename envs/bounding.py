@@ -25,6 +25,17 @@ DEFAULT_TARGET_SPEED = 1.0
 """Desired forward speed [m/s] of the task (the paper's 1 m/s bound)."""
 _MAX_PENETRATION_AT_RESET = 1e-3
 _OPTION_KEYS = ("state", "push", "time")
+RESET_MAX_LINEAR_SPEED = 10.0
+"""Largest trunk speed ``|vx|``, ``|vz|`` [m/s] that ``reset(options={"state": x})`` accepts."""
+RESET_MAX_PITCH_RATE = 50.0
+"""Largest trunk pitch rate [rad/s] that ``reset(options={"state": x})`` accepts."""
+RESET_MAX_JOINT_RATE = 100.0
+"""Largest joint rate [rad/s] that ``reset(options={"state": x})`` accepts (twice the motors' no-load speed)."""
+RESET_VELOCITY_BOUNDS = (RESET_MAX_LINEAR_SPEED, RESET_MAX_LINEAR_SPEED, RESET_MAX_PITCH_RATE) \
+    + (RESET_MAX_JOINT_RATE,) * NU
+"""Bounds (7,) on ``|v|`` of a reset state, in state order ``[vx, vz, pitch rate, 4 joint rates]``."""
+_STATE_NAMES = ("x", "z", "pitch", "hip_front", "knee_front", "hip_back", "knee_back",
+                "vx", "vz", "pitch_rate", "hip_front_rate", "knee_front_rate", "hip_back_rate", "knee_back_rate")
 
 
 def _check_range(value, name: str) -> tuple[float, float]:
@@ -56,7 +67,8 @@ class BoundingEnv(gym.Env):
     four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
     each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
     ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step. The motors are ideal torque
+    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step, followed by a
+    position and an energy projection (``energy_consistent``). The motors are ideal torque
     sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
     50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
     modelled) from spinning up without bound under random actions. The task suits bounding (back stance,
@@ -67,8 +79,9 @@ class BoundingEnv(gym.Env):
     ``Box(-1, 1, (4,), float32)``: normalized joint torques ``[hip_front, knee_front, hip_back, knee_back]``;
     the torque is ``action * torque_limit`` (33 N m). The action is held for ``frame_skip`` simulation steps
     (control period ``dt = frame_skip * sim_timestep``, default 5 ms = 200 Hz). Actions outside the box are
-    clipped to it (the clipped action enters the control cost); an action with NaN/inf entries or a shape
-    other than (4,) raises ``ValueError``.
+    clipped to it (the clipped action enters the control cost); an action with NaN/inf entries, entries too
+    large for a float (e.g. ``10**400``) or a shape other than (4,) raises ``ValueError``; a complex, boolean,
+    string or other non-real action raises ``TypeError``.
 
     ## Observation space
     ``Box(low, high, (17,), float32)`` by default (18 with ``exclude_current_positions_from_observation=False``),
@@ -107,8 +120,10 @@ class BoundingEnv(gym.Env):
     foot below the ground, the trunk is raised until the lowest foot is at height 0.
     ``reset(options=...)`` accepts:
 
-    * ``"state"``: a state (14,) to start from exactly (no noise); feet may not be more than 1 mm below the
-      ground;
+    * ``"state"``: a state (14,) to start from exactly (no noise): finite, positions inside the observation
+      bounds, ``|vx|, |vz| <= 10 m/s``, ``|pitch rate| <= 50 rad/s``, ``|joint rates| <= 100 rad/s``
+      (:data:`RESET_VELOCITY_BOUNDS`); feet may not be more than 1 mm below the ground. A violation raises
+      ``ValueError`` naming the entry (e.g. ``options['state'][10] (hip_front_rate)``);
     * ``"time"``: the initial clock time [s] (>= 0, default 0), which sets the gait phase;
     * ``"push"``: either a velocity change (3,) ``[dvx, dvz, dpitch_rate]`` applied right after the reset, or
       ``{"delta_v": (3,), "time": t}`` applied at the first simulation step at or after ``t`` seconds of
@@ -118,16 +133,18 @@ class BoundingEnv(gym.Env):
     ``terminated`` is True when the robot is unhealthy and ``terminate_when_unhealthy`` is True: the trunk
     height leaves ``healthy_z_range`` or the pitch leaves ``healthy_pitch_range`` (a fall); an invalid state
     (non-finite, or speeds beyond the observation bounds of 100 m/s and 1000 rad/s: a numerical blow-up)
-    always terminates. Truncation comes only from the registered ``TimeLimit`` (1000 control
-    steps = 5 s at the default rate, about 17 bounding cycles); ``step`` itself always returns
-    ``truncated=False``.
+    always terminates, is reported as ``info["invalid_state"] = True`` (with the raw non-finite ``qpos`` /
+    ``qvel`` in ``info``; the observation itself stays inside its box, NaN entries as 0, so that buffers stay
+    finite) and any further ``step`` raises ``RuntimeError`` until ``reset``.
+    Truncation comes only from the registered ``TimeLimit`` (1000 control steps = 5 s at the default rate,
+    about 17 bounding cycles); ``step`` itself always returns ``truncated=False``.
 
     ## Info
     Same keys at reset and at every step (Minari-compatible): ``x_position``, ``x_velocity`` (mean over the
     step; the instantaneous vx at reset), ``reward_forward``, ``reward_ctrl``, ``reward_healthy`` (0 at
     reset), ``contact`` (2,) bool flags ``[front, back]``, ``foot_heights`` (2,) [m], ``grf`` (4,) mean ground
     force over the step ``[f_front_x, f_front_z, f_back_x, f_back_z]`` [N] (zeros at reset), ``qpos`` (7,),
-    ``qvel`` (7,), ``time`` [s].
+    ``qvel`` (7,), ``time`` [s], ``invalid_state`` (bool: the simulation blew up, see Episode end).
 
     ## Arguments
     | parameter | default | description |
@@ -148,15 +165,20 @@ class BoundingEnv(gym.Env):
     | ``torque_limit`` | 33.0 | torque of a full action [N m] |
     | ``friction`` | 0.6 | Coulomb friction coefficient |
     | ``gravity`` | 9.81 | gravitational acceleration [m/s^2] (0 for energy tests) |
-    | ``contact_erp`` | 1.0 | fraction of a contact foot's penetration removed per step (1) |
+    | ``contact_erp`` | 1.0 | legacy scheme: fraction of a penetration removed per step (1) |
     | ``motor_speed_limits`` | (36.0, 50.0) | torque-speed limit ``(w_full, w_zero)`` [rad/s] or None (2) |
+    | ``energy_consistent`` | True | energy-consistent stepping (3); False: the legacy scheme |
     | ``render_mode`` | None | ``"rgb_array"`` or ``"human"`` |
     | ``width``, ``height`` | 480, 320 | image size of ``render`` [px] |
     | ``render_grf`` | True | draw ground-force arrows |
 
-    (1) A position correction (split impulse) that leaves velocities, hence energy, untouched.
+    (1) The legacy scheme's position correction; the default scheme projects contact feet exactly onto the
+    ground (and sticking feet onto their positions) every step.
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
+    (3) :mod:`hsddp_gym.envs.contact`: a mass-metric position projection (sticking feet do not creep, contact
+    feet end each step on the ground) and an energy projection, so that per simulation step
+    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates.
 
     Every argument is JSON-serializable, so Minari can rebuild the env from its spec.
 
@@ -185,7 +207,8 @@ class BoundingEnv(gym.Env):
                  exclude_current_positions_from_observation: bool = True, gait_period: float = 0.296,
                  torque_limit: float = DEFAULT_PARAMS.torque_limit, friction: float = DEFAULT_PARAMS.friction,
                  gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0,
-                 motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, render_mode: str | None = None,
+                 motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent: bool = True,
+                 render_mode: str | None = None,
                  width: int = 480, height: int = 320, render_grf: bool = True) -> None:
         self.frame_skip = check_int(frame_skip, "frame_skip", minimum=1)
         self.sim_timestep = check_positive(sim_timestep, "sim_timestep")
@@ -211,6 +234,7 @@ class BoundingEnv(gym.Env):
         gravity = check_positive(gravity, "gravity", allow_zero=True)
         contact_erp = check_in_range(contact_erp, 0.0, 1.0, "contact_erp")
         motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
+        energy_consistent = _check_bool(energy_consistent, "energy_consistent")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -219,9 +243,7 @@ class BoundingEnv(gym.Env):
         self.render_grf = _check_bool(render_grf, "render_grf")
 
         self.robot = CheetahModel()
-        self.sim = ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
-                                    erp=contact_erp, motor_speed_limits=motor_speed_limits,
-                                    torque_limit=self.torque_limit)
+        self.sim = self._make_simulator(friction, gravity, contact_erp, motor_speed_limits, energy_consistent)
         self.observation_layout = ObservationLayout(exclude_current_positions=exclude)
         low, high = self.observation_layout.bounds()
         self.observation_space = spaces.Box(low=low, high=high, dtype=np.float32)
@@ -241,8 +263,15 @@ class BoundingEnv(gym.Env):
         self._last_rewards = (0.0, 0.0, 0.0)
         self._figure = None
         self._heights = np.zeros(2)
+        self._invalid = False
         self.sim.set_state(self.init_state)
         self._update_feet(at_reset=True)
+
+    def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
+        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it."""
+        return ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
+                                erp=contact_erp, motor_speed_limits=motor_speed_limits,
+                                torque_limit=self.torque_limit, energy_consistent=energy_consistent)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -330,7 +359,23 @@ class BoundingEnv(gym.Env):
             "qpos": x[:NQ].copy(),
             "qvel": x[NQ:].copy(),
             "time": float(self.time),
+            "invalid_state": self._invalid,
         }
+
+    def _check_reset_state(self, state) -> np.ndarray:
+        """``options["state"]`` as a float array (14,): finite, positions inside the observation bounds and
+        ``|v| <= RESET_VELOCITY_BOUNDS``; raises ValueError naming the offending entry."""
+        x = check_vector(state, NX, "options['state']")
+        low, high = ObservationLayout(exclude_current_positions=False).bounds()
+        for i in range(NQ):
+            if not float(low[i]) <= x[i] <= float(high[i]):
+                raise ValueError(f"options['state'][{i}] ({_STATE_NAMES[i]}) must be in [{float(low[i]):g}, "
+                                 f"{float(high[i]):g}], got {x[i]!r}")
+        for i, bound in enumerate(RESET_VELOCITY_BOUNDS):
+            if abs(x[NQ + i]) > bound:
+                raise ValueError(f"options['state'][{NQ + i}] ({_STATE_NAMES[NQ + i]}) must satisfy |v| <= {bound:g} "
+                                 f"(RESET_VELOCITY_BOUNDS), got {x[NQ + i]!r}")
+        return x
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Reset to the (noisy) paper initial state or to ``options["state"]``; see the class docstring.
@@ -349,7 +394,7 @@ class BoundingEnv(gym.Env):
                                                                      allow_zero=True)
         push_now, self._push = self._parse_push(options.get("push"))
         if options.get("state") is not None:
-            x = check_vector(options["state"], NX, "options['state']")
+            x = self._check_reset_state(options["state"])
             heights = self.robot.foot_heights(x[:NQ])
             if heights.min() < -_MAX_PENETRATION_AT_RESET:
                 raise ValueError(f"options['state'] puts a foot {-heights.min():.4g} m below the ground "
@@ -366,7 +411,9 @@ class BoundingEnv(gym.Env):
         if push_now is not None:
             self.sim.v[:3] += push_now
         self._t0 = t0
-        self._update_feet(self.valid_state(), at_reset=True)
+        valid = self.valid_state()  # False only if a huge immediate push made it blow past the bounds
+        self._invalid = not valid
+        self._update_feet(valid, at_reset=True)
         self._grf[:] = 0.0
         self._x_velocity = float(self.sim.v[0])
         self._last_rewards = (0.0, 0.0, 0.0)
@@ -378,19 +425,15 @@ class BoundingEnv(gym.Env):
         """Hold the torques ``action * torque_limit`` for ``frame_skip`` simulation steps.
 
         Args:
-            action: (4,) normalized torques; clipped to [-1, 1]; NaN/inf or a wrong shape raise ValueError.
+            action: (4,) normalized torques; clipped to [-1, 1]; NaN/inf, overflowing entries or a wrong shape
+                raise ValueError, non-real entries TypeError; after an invalid state, RuntimeError until reset.
         Returns:
             ``(observation, reward (float), terminated, truncated (always False), info)``.
         """
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"action must be an array of {NU} numbers, got {action!r}") from exc
-        if a.shape != (NU,):
-            raise ValueError(f"action must have shape ({NU},), got {a.shape}")
-        values = a.tolist()
-        if not all(map(math.isfinite, values)):
-            raise ValueError(f"action must be finite, got {a}")
+        if self._invalid:
+            raise RuntimeError("step() called after the simulation reached an invalid (non-finite or blown-up) "
+                               "state; call reset() first (info['invalid_state'] was True)")
+        values = self._parse_action(action)
         values = [1.0 if v > 1.0 else (-1.0 if v < -1.0 else v) for v in values]  # clip to the box
         limit = self.torque_limit
         u = self._u
@@ -412,6 +455,7 @@ class BoundingEnv(gym.Env):
         grf = self._grf
         grf[0], grf[1], grf[2], grf[3] = impulse[0] / dt, impulse[1] / dt, impulse[2] / dt, impulse[3] / dt
         finite = self.valid_state()
+        self._invalid = not finite
         self._update_feet(finite)
         self._x_velocity = (float(sim.x[IX]) - x_before) / dt
         healthy = self._healthy(finite)
@@ -428,6 +472,34 @@ class BoundingEnv(gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._get_obs(), reward, bool(terminated), False, self._get_info()
+
+    @staticmethod
+    def _parse_action(action) -> list:
+        """The action as a list of 4 finite Python floats (not yet clipped); raises naming ``action``."""
+        a = action if isinstance(action, np.ndarray) else None
+        if a is None:
+            try:
+                a = np.asarray(action)
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise ValueError(f"action must be an array of {NU} real numbers, got {action!r}") from exc
+        kind = a.dtype.kind
+        if kind not in "fiu":
+            if kind == "c":
+                raise TypeError(f"action must be real, got the complex array {a!r}")
+            if kind != "O":
+                raise TypeError(f"action must be an array of {NU} real numbers, got dtype {a.dtype} ({action!r})")
+            for v in a.ravel().tolist():  # object arrays (e.g. huge Python ints): each entry must be real
+                if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+                    raise TypeError(f"action must hold real numbers, got {v!r} of type {type(v).__name__}")
+        if a.shape != (NU,):
+            raise ValueError(f"action must have shape ({NU},), got {a.shape}")
+        try:
+            values = [float(v) for v in a.tolist()]
+        except OverflowError as exc:
+            raise ValueError(f"action must be finite, got entries too large for a float: {action!r}") from exc
+        if not all(map(math.isfinite, values)):
+            raise ValueError(f"action must be finite, got {a}")
+        return values
 
     # ------------------------------------------------------------------ pushes
     @staticmethod

@@ -3,7 +3,10 @@
 Prints env steps/s and simulated 1-ms steps/s for ``frame_skip=1`` and the default frame skip, under
 random actions (a mix of flight, impacts, stance and sliding) and under zero torque from a standing
 start (mostly double stance: the contact-solver path), and whether each row meets the goal of
-20,000 simulated steps/s. When ``gymnasium[mujoco]`` is installed it also times HalfCheetah-v5 (MuJoCo,
+20,000 simulated steps/s; for the default frame skip, both with the energy-consistent stepping (the default)
+and with the legacy scheme (``energy_consistent=False``), and their ratio (goal >= 0.8), timed interleaved
+in short chunks so that a load change on a shared machine hits both alike. When ``gymnasium[mujoco]`` is
+installed it also times HalfCheetah-v5 (MuJoCo,
 0.01 s timestep, frame_skip 5, both read from the env) in the same run and prints the ratios of env steps/s
 and of simulated steps/s (the issue's comparison: about 42,000 MuJoCo steps/s on this kind of machine).
 
@@ -24,6 +27,7 @@ from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, Bo
 import hsddp_gym  # noqa: F401  (registers the env)
 
 GOAL_SIM_STEPS_PER_S = 20_000
+GOAL_RATIO_TO_LEGACY = 0.8
 
 
 def time_env(env: gym.Env, seconds: float, seed: int, policy: str) -> tuple[float, int]:
@@ -77,22 +81,41 @@ def main(argv=None) -> None:
 
     print(f"Bounding-v0, single process, {args.seconds:g} s per row (goal: >= {GOAL_SIM_STEPS_PER_S:,} "
           "simulated 1-ms steps/s)")
-    print(f"{'frame_skip':>10} {'actions':>14} {'env steps/s':>12} {'sim steps/s':>12} {'x real time':>11} "
-          f"{'goal':>6}")
+    print(f"{'scheme':>8} {'frame_skip':>10} {'actions':>14} {'env steps/s':>12} {'sim steps/s':>12} "
+          f"{'x real time':>11} {'goal':>6}")
     results = {}
-    for frame_skip in sorted({1, DEFAULT_FRAME_SKIP}):
-        for policy in ("random", "zero-standing"):
-            env = BoundingEnv(frame_skip=frame_skip, terminate_when_unhealthy=(policy == "random"))
-            if policy == "zero-standing":
-                env = _StandingStart(env)
-            rate, _ = time_env(env, args.seconds, args.seed, "random" if policy == "random" else "zero")
-            sim_rate = rate * frame_skip
-            sim_dt = env.unwrapped.sim_timestep
-            results[(frame_skip, policy)] = rate
-            verdict = "meets" if sim_rate >= GOAL_SIM_STEPS_PER_S else "MISSES"
-            print(f"{frame_skip:>10} {policy:>14} {rate:>12,.0f} {sim_rate:>12,.0f} {sim_rate * sim_dt:>11.1f} "
-                  f"{verdict:>6}")
-            env.close()
+    rows = [(fs, policy, True) for fs in sorted({1, DEFAULT_FRAME_SKIP}) for policy in ("random", "zero-standing")]
+    rows += [(DEFAULT_FRAME_SKIP, policy, False) for policy in ("random", "zero-standing")]
+    for frame_skip, policy, consistent in rows:
+        env = BoundingEnv(frame_skip=frame_skip, terminate_when_unhealthy=(policy == "random"),
+                          energy_consistent=consistent)
+        if policy == "zero-standing":
+            env = _StandingStart(env)
+        rate, _ = time_env(env, args.seconds, args.seed, "random" if policy == "random" else "zero")
+        sim_rate = rate * frame_skip
+        sim_dt = env.unwrapped.sim_timestep
+        results[(frame_skip, policy, consistent)] = rate
+        verdict = "meets" if sim_rate >= GOAL_SIM_STEPS_PER_S else "MISSES"
+        print(f"{'energy' if consistent else 'legacy':>8} {frame_skip:>10} {policy:>14} {rate:>12,.0f} "
+              f"{sim_rate:>12,.0f} {sim_rate * sim_dt:>11.1f} {verdict:>6}")
+        env.close()
+    for policy in ("random", "zero-standing"):
+        envs = {}
+        for consistent in (True, False):
+            env = BoundingEnv(terminate_when_unhealthy=(policy == "random"), energy_consistent=consistent)
+            envs[consistent] = _StandingStart(env) if policy == "zero-standing" else env
+        steps = {True: 0, False: 0}
+        wall = {True: 0.0, False: 0.0}
+        chunk = max(0.05, args.seconds / 10.0)
+        for i in range(20):  # alternate 10 chunks each; each chunk resets its env (same seed: same states)
+            consistent = i % 2 == 0
+            rate, n = time_env(envs[consistent], chunk, args.seed, "random" if policy == "random" else "zero")
+            steps[consistent] += n
+            wall[consistent] += n / rate
+        ratio = (steps[True] / wall[True]) / (steps[False] / wall[False])
+        print(f"interleaved, frame_skip {DEFAULT_FRAME_SKIP}, {policy}: energy-consistent "
+              f"{steps[True] / wall[True]:,.0f}, legacy {steps[False] / wall[False]:,.0f} env steps/s, "
+              f"ratio {ratio:.3f} (goal >= {GOAL_RATIO_TO_LEGACY})")
 
     try:
         import mujoco  # noqa: F401
@@ -106,7 +129,7 @@ def main(argv=None) -> None:
     rate, _ = time_env(cheetah, args.seconds, args.seed, "random")
     cheetah.close()
     cheetah_sim = rate * cheetah_skip
-    ours = results[(DEFAULT_FRAME_SKIP, "random")]
+    ours = results[(DEFAULT_FRAME_SKIP, "random", True)]
     ours_sim = ours * DEFAULT_FRAME_SKIP
     print(f"HalfCheetah-v5 (MuJoCo, frame_skip {cheetah_skip}, {1e3 * cheetah_dt:g} ms timestep, "
           f"{1e3 * cheetah_skip * cheetah_dt:g} ms per env step): {rate:,.0f} env steps/s "

@@ -15,7 +15,7 @@ from hsddp_gym.util.extras import MissingExtraError, require
 from hsddp_gym.util.io import write_json
 from hsddp_gym.util.parallel import BACKENDS, check_backend
 from hsddp_gym.util.validation import UsageError, check_output_dir
-from hsddp_gym.workflows import parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
+from hsddp_gym.workflows import ROLLOUT_ENVS, parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
 
 
 def _number(kind, low: float, high: float = float("inf"), low_open: bool = False, what: str = ""):
@@ -160,8 +160,10 @@ def _check_push(push, max_episode_steps) -> None:
 def cmd_rollout(args) -> int:
     out = check_output_dir(args.out, "--out")
     parse_policy_spec(args.policy, "--policy")
-    require(required_modules(args.policy) + (["PIL"] if args.video else []),
-            f"hsddp-gym rollout --policy {args.policy}" + (" --video" if args.video else ""))
+    require(required_modules(args.policy) + (["PIL"] if args.video else [])
+            + (["mujoco"] if args.simulator == "mujoco" else []),
+            f"hsddp-gym rollout --policy {args.policy}" + (" --video" if args.video else "")
+            + (" --simulator mujoco" if args.simulator == "mujoco" else ""))
     env_kwargs = {}
     if args.target_speed is not None:
         env_kwargs["target_speed"] = args.target_speed
@@ -174,7 +176,7 @@ def cmd_rollout(args) -> int:
         raise UsageError("--mpc-recovery", f"given with --policy {args.policy}", "--policy mpc")
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
                            push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps,
-                           mpc_recovery=args.mpc_recovery)
+                           mpc_recovery=args.mpc_recovery, env_id=ROLLOUT_ENVS[args.simulator == "mujoco"])
     for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
               "replans", "planner_failures", "mean_replan_ms"):
         v = summary.get(k)
@@ -594,6 +596,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "grid and the push recovery: an immediate re-plan with more iterations when the trunk velocity "
                         "leaves the plan, a double stance when the trunk sinks, the heuristic while a re-plan has "
                         "failed); summary.json then also counts recoveries and fallback_steps")
+    p.add_argument("--simulator", choices=("lcp", "mujoco"), default="lcp",
+                   help="lcp: hsddp_gym/Bounding-v0 (exact-LCP contacts); mujoco: its MuJoCo twin "
+                        "hsddp_gym/BoundingMuJoCo-v0 (soft contacts; needs the extra 'mujoco') (default: %(default)s)")
     p.add_argument("--video", action="store_true", help="write episode0.gif (the first episode, rendered off-screen)")
     p.add_argument("--out", default="runs/rollout", help="output directory (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

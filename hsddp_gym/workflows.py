@@ -47,6 +47,7 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 
 # ----------------------------------------------------------------------------------------------- rollout
 ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
+ROLLOUT_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/BoundingMuJoCo-v0")
 LEARNED_POLICIES = ("bc", "dagger", "sb3", "ppo", "sac")
 """Prefixes of learned policies, ``KIND:DIR`` with ``DIR`` the ``--out`` of ``hsddp-gym train``: ``bc`` and
 ``dagger`` load its ``policy.npz`` (an :class:`~hsddp_gym.learning.bc.MLPPolicy`, NumPy inference, no torch),
@@ -150,13 +151,15 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None) -> dict:
+                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None,
+                 env_id: str = "hsddp_gym/Bounding-v0") -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
     ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
     MPC with its push-robust settings (:meth:`hsddp_gym.planners.policies.mpc.MPCOptions.push_recovery`),
     ``mpc_options`` with any
-    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (not both)."""
+    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (not both). ``env_id``: ``hsddp_gym/Bounding-v0`` (the
+    exact-LCP env) or ``hsddp_gym/BoundingMuJoCo-v0`` (its MuJoCo twin)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -167,6 +170,8 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
 
     parse_policy_spec(policy_name, "policy_name")
     out = check_output_dir(out, "out")
+    if env_id not in ROLLOUT_ENVS:
+        raise ValueError(f"env_id must be one of {ROLLOUT_ENVS}, got {env_id!r}")
     if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
         raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
     if mpc_recovery and mpc_options is not None:
@@ -177,7 +182,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     (out / "episode0.gif").unlink(missing_ok=True)  # a GIF of an earlier run must not pass for this one's
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make("hsddp_gym/Bounding-v0", render_mode="rgb_array" if video else None, **env_kwargs, **limit)
+    env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs, **limit)
     if mpc_recovery:
         from hsddp_gym.planners.policies.mpc import MPCOptions
 
@@ -190,7 +195,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
     summary = summarize(results)
-    summary.update(policy=policy_name, env_kwargs=env_kwargs, push=push, first_seed=seed,
+    summary.update(policy=policy_name, env_id=env_id, env_kwargs=env_kwargs, push=push, first_seed=seed,
                    max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
     if mpc_options is not None:
         import dataclasses

@@ -21,7 +21,7 @@ from hsddp_gym.core.references import paper_initial_state
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 INFO_KEYS = {"x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
-             "grf", "qpos", "qvel", "time"}
+             "grf", "qpos", "qvel", "time", "invalid_state"}
 
 
 def make_env():
@@ -295,8 +295,29 @@ def test_reset_to_a_given_state_and_validation():
         env.reset(options={"state": bad})
     with pytest.raises(ValueError, match="unknown reset option"):
         env.reset(options={"stat": x})
+    with pytest.raises(ValueError, match="finite"):
+        env.reset(options={"state": np.where(np.arange(NX) == 9, np.inf, x)})
     with pytest.raises(ValueError, match="time"):
         env.reset(options={"time": -1.0})
+
+
+@pytest.mark.parametrize("index, value, name", [
+    (7, 10.5, "vx"), (8, -11.0, "vz"), (9, 50.5, "pitch_rate"), (10, 101.0, "hip_front_rate"),
+    (13, -1000.0, "knee_back_rate"), (2, 150.0, "pitch"), (1, 20.0, "z"),
+])
+def test_reset_state_outside_the_documented_bounds_is_refused_naming_the_entry(index, value, name):
+    from hsddp_gym.envs.bounding import RESET_VELOCITY_BOUNDS
+
+    assert RESET_VELOCITY_BOUNDS == (10.0, 10.0, 50.0, 100.0, 100.0, 100.0, 100.0)
+    env = BoundingEnv()
+    x = paper_initial_state()
+    x[index] = value
+    with pytest.raises(ValueError, match=rf"options\['state'\]\[{index}\] \({name}\)"):
+        env.reset(options={"state": x})
+    x[index] = 0.0 if index < 7 else np.sign(value) * RESET_VELOCITY_BOUNDS[index - 7]  # on the bound: accepted
+    if index >= 7:
+        env.reset(options={"state": x})
+        np.testing.assert_array_equal(env.state, x)
 
 
 def test_pushes_change_the_trunk_velocity():
@@ -329,13 +350,80 @@ def test_pushes_change_the_trunk_velocity():
     (np.array([np.inf, 0, 0, 0]), "finite"),
     (np.zeros(3), "shape"),
     (np.zeros((1, 4)), "shape"),
-    ("left", "action"),
+    ([10**400, 0, 0, 0], "action"),
+    (np.array([10**400, 0, 0, 0], dtype=object), "action"),
+    ([0.1, 0.2, 0.3], "shape"),
 ])
 def test_bad_actions_raise(action, message):
     env = BoundingEnv()
     env.reset(seed=0)
     with pytest.raises(ValueError, match=message):
         env.step(action)
+
+
+@pytest.mark.parametrize("action", [
+    np.array([0.1 + 0.5j, 0, 0, 0]),
+    [0.1 + 0j, 0, 0, 0],
+    np.array([True, False, True, False]),
+    "left",
+    np.array(["a", "b", "c", "d"]),
+    np.array([None, 0, 0, 0], dtype=object),
+])
+def test_non_real_actions_raise_type_error_without_warnings(action):
+    env = BoundingEnv()
+    env.reset(seed=0)
+    x = env.state
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no ComplexWarning on the way
+        with pytest.raises(TypeError, match="action"):
+            env.step(action)
+    np.testing.assert_array_equal(env.state, x)  # nothing was simulated
+
+
+def test_real_action_types_are_accepted():
+    env = BoundingEnv(reset_noise_scale=0.0)
+    ref = BoundingEnv(reset_noise_scale=0.0)
+    env.reset(seed=0)
+    ref.reset(seed=0)
+    expected = ref.step(np.array([0.5, -0.25, 0.0, 1.0], dtype=np.float32))[0]
+    for action in ([0.5, -0.25, 0, 1], (0.5, -0.25, 0.0, 1.0), np.array([0.5, -0.25, 0.0, 1.0]),
+                   np.array([0.5, -0.25, 0, 1], dtype=object)):
+        env.reset(seed=0)
+        np.testing.assert_array_equal(env.step(action)[0], expected)
+    env.reset(seed=0)
+    env.step(np.array([2, -3, 0, 1], dtype=np.int64))  # integers are real: clipped to the box
+
+
+# ------------------------------------------------------------------------------------------ invalid states
+def test_invalid_state_is_reported_terminates_and_blocks_further_steps():
+    env = BoundingEnv(terminate_when_unhealthy=False)
+    obs, info = env.reset(seed=0)
+    assert info["invalid_state"] is False
+    env.apply_push([1e3, 0.0, 0.0])  # 1 km/s: far beyond the 100 m/s of a valid state
+    obs, reward, terminated, truncated, info = env.step(np.zeros(4))
+    assert terminated and not truncated
+    assert info["invalid_state"] is True
+    assert not env.valid_state() and not env.is_healthy
+    assert env.observation_space.contains(obs)  # the observation stays in its box ...
+    assert abs(info["qvel"][0]) > 100.0  # ... while info carries the raw state
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(4))
+    obs, info = env.reset(seed=0)
+    assert info["invalid_state"] is False
+    _, _, terminated, _, info = env.step(np.zeros(4))
+    assert not terminated and info["invalid_state"] is False
+
+
+def test_non_finite_state_is_reported_not_masked():
+    env = BoundingEnv()
+    env.reset(seed=0)
+    env.sim.v[3] = np.nan
+    obs, reward, terminated, _, info = env.step(np.zeros(4))
+    assert terminated and info["invalid_state"] is True and math.isfinite(reward)
+    assert np.isnan(info["qvel"]).any() and np.isnan(info["foot_heights"]).all()
+    assert np.all(np.isfinite(obs))
+    with pytest.raises(RuntimeError, match="invalid"):
+        env.step(np.zeros(4))
 
 
 def test_out_of_box_actions_are_clipped():
@@ -368,6 +456,7 @@ def test_out_of_box_actions_are_clipped():
     ({"gravity": -9.81}, ValueError, "gravity"),
     ({"contact_erp": 1.5}, ValueError, "contact_erp"),
     ({"motor_speed_limits": (50.0, 36.0)}, ValueError, "motor_speed_limits"),
+    ({"energy_consistent": 1}, TypeError, "energy_consistent"),
     ({"render_mode": "rgb"}, ValueError, "render_mode"),
     ({"width": 4}, ValueError, "width"),
     ({"exclude_current_positions_from_observation": "yes"}, TypeError, "exclude_current_positions"),
@@ -380,6 +469,7 @@ def test_bad_kwargs_raise_naming_the_argument(kwargs, error, message):
 def test_physics_options_reach_the_simulator():
     env = BoundingEnv(gravity=0.0, friction=0.3, motor_speed_limits=None, frame_skip=3, sim_timestep=5e-4)
     assert env.sim.gravity == 0.0 and env.sim.mu == 0.3 and env.sim.motor_speed_limits is None
+    assert env.sim.energy_consistent and not BoundingEnv(energy_consistent=False).sim.energy_consistent
     assert env.dt == pytest.approx(1.5e-3)
     env.reset(seed=0)
     t0 = env.time

@@ -169,7 +169,7 @@ def test_planners_and_envs_are_not_importable_names(installed):
 
 CORE_CHECK = """
 import importlib.util
-absent = [m for m in ("minari", "h5py", "torch", "stable_baselines3", "matplotlib", "PIL", "imageio", "ray")
+absent = [m for m in ("minari", "h5py", "torch", "stable_baselines3", "matplotlib", "PIL", "imageio", "ray", "mujoco")
           if importlib.util.find_spec(m) is not None]
 assert not absent, f"not a core-only environment: {absent}"
 import numpy, gymnasium, pinocchio, numba, tqdm, hsddp_gym

@@ -20,6 +20,7 @@ EXTRAS = {
     "PIL": ("viz", 'pip install "hsddp_gym[viz]"  (from a clone: pip install -e ".[viz]")'),
     "imageio": ("viz", 'pip install "hsddp_gym[viz]"  (from a clone: pip install -e ".[viz]")'),
     "ray": ("ray", 'pip install "hsddp_gym[ray]"  (from a clone: pip install -e ".[ray]")'),
+    "mujoco": ("mujoco", 'pip install "hsddp_gym[mujoco]"  (from a clone: pip install -e ".[mujoco]")'),
 }
 _PIP_NAMES = {"PIL": "pillow", "stable_baselines3": "stable-baselines3"}
 

@@ -1,0 +1,92 @@
+"""Every policy in both simulators: hsddp_gym/Bounding-v0 (exact-LCP contacts) and its MuJoCo twin
+hsddp_gym/BoundingMuJoCo-v0 (soft contacts), same protocol as ``compare_policies.py`` (``--episodes`` seeded
+0, 1, ..., default env settings, 1000-step limit, deterministic actions).
+
+Policies: ``mpc``, ``heuristic``, and the trained ``bc`` / ``dagger`` / ``ppo`` / ``sac`` read from run
+directories (``--bc DIR`` ...; skipped with a note when the files are missing). Writes ``two_simulators.md`` and
+``two_simulators.json`` into ``--out`` (atomically) and prints the table.
+
+Usage::
+
+    python experiments/two_simulators.py --out runs/two_sims --policies mpc heuristic bc sac --bc runs/issue7/bc \
+        --sac runs/rl1h/sac/seed0 [--episodes 10] [--max-episode-steps N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+from hsddp_gym.util.io import atomic_path, write_json
+
+ENVS = {"exact LCP (Bounding-v0)": "hsddp_gym/Bounding-v0", "MuJoCo (BoundingMuJoCo-v0)": "hsddp_gym/BoundingMuJoCo-v0"}
+POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
+
+
+def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
+    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes."""
+    import gymnasium as gym
+    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+
+    import hsddp_gym  # noqa: F401  (registers both ids)
+
+    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
+    env = gym.make(env_id, **limit)
+    try:
+        return summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
+    finally:
+        env.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", default="runs/two_sims", help="output directory (default: %(default)s)")
+    p.add_argument("--policies", nargs="+", choices=POLICIES, default=["mpc", "heuristic", "bc", "sac"],
+                   help="policies to run (default: %(default)s)")
+    for name in POLICIES[2:]:
+        p.add_argument(f"--{name}", default=None, help=f"{name} run directory (policy.npz / model.zip + summary.json)")
+    p.add_argument("--episodes", type=int, default=10, help="episodes per policy and simulator (default: 10)")
+    p.add_argument("--max-episode-steps", type=int, default=None, help="time limit (default: the env's 1000)")
+    args = p.parse_args(argv)
+    if args.episodes < 1:
+        p.error(f"--episodes must be >= 1, got {args.episodes}")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from compare_policies import build  # the same policy construction as the one-env comparison
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows, notes = {}, []
+    jobs = [(name, label) for name in args.policies for label in ENVS]
+    for name, label in tqdm(jobs, desc="policy x simulator"):
+        run_dir = getattr(args, name, None) if name in POLICIES[2:] else None
+        try:
+            policy, options, _ = build(name, Path(run_dir) if run_dir else None)
+        except FileNotFoundError as exc:
+            if f"{name}: skipped" not in " ".join(notes):
+                notes.append(f"{name}: skipped ({exc})")
+            continue
+        rows.setdefault(name, {})[label] = evaluate(policy, ENVS[label], args.episodes, args.max_episode_steps,
+                                                    options)
+    lines = ["| policy | " + " | ".join(ENVS) + " | kept in MuJoCo |", "|---" * (len(ENVS) + 2) + "|"]
+    for name, by_env in rows.items():
+        cells = []
+        for label in ENVS:
+            s = by_env[label]
+            cells.append(f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
+                         f"{s['mean_forward_speed']:.3f} m/s")
+        a, b = (by_env[label]["mean_return"] for label in ENVS)
+        lines.append(f"| {name} | " + " | ".join(cells) + f" | {100.0 * b / a:.1f} % |")
+    table = "\n".join(lines + [""] + notes)
+    print(table)
+    with atomic_path(out / "two_simulators.md") as tmp:
+        Path(tmp).write_text(table + "\n")
+    write_json(out / "two_simulators.json", {"episodes": args.episodes, "max_episode_steps": args.max_episode_steps,
+                                             "envs": ENVS, "results": rows, "notes": notes})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
