@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 
@@ -145,6 +146,7 @@ class BoundingEnv(gym.Env):
     | ``gait_period`` | 0.296 | period of the observation's phase clock [s] |
     | ``torque_limit`` | 33.0 | torque of a full action [N m] |
     | ``friction`` | 0.6 | Coulomb friction coefficient |
+    | ``trunk_mass_scale`` | 1.0 | factor on the trunk's mass and rotational inertia (3) |
     | ``gravity`` | 9.81 | gravitational acceleration [m/s^2] (0 for energy tests) |
     | ``contact_erp`` | 1.0 | fraction of a contact foot's penetration removed per step (1) |
     | ``motor_speed_limits`` | (36.0, 50.0) | torque-speed limit ``(w_full, w_zero)`` [rad/s] or None (2) |
@@ -155,6 +157,8 @@ class BoundingEnv(gym.Env):
     (1) A position correction (split impulse) that leaves velocities, hence energy, untouched.
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
+    (3) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
+    than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
 
     Every argument is JSON-serializable, so Minari can rebuild the env from its spec.
 
@@ -181,7 +185,7 @@ class BoundingEnv(gym.Env):
                  healthy_z_range=(0.12, 0.5), healthy_pitch_range=(-0.8, 0.8), reset_noise_scale: float = 0.01,
                  exclude_current_positions_from_observation: bool = True, gait_period: float = 0.296,
                  torque_limit: float = DEFAULT_PARAMS.torque_limit, friction: float = DEFAULT_PARAMS.friction,
-                 gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0,
+                 gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0, trunk_mass_scale: float = 1.0,
                  motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, render_mode: str | None = None,
                  width: int = 480, height: int = 320, render_grf: bool = True) -> None:
         self.frame_skip = check_int(frame_skip, "frame_skip", minimum=1)
@@ -208,6 +212,7 @@ class BoundingEnv(gym.Env):
         gravity = check_positive(gravity, "gravity", allow_zero=True)
         contact_erp = check_in_range(contact_erp, 0.0, 1.0, "contact_erp")
         motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
+        self.trunk_mass_scale = check_positive(trunk_mass_scale, "trunk_mass_scale")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -215,7 +220,12 @@ class BoundingEnv(gym.Env):
         self.height = check_int(height, "height", minimum=16)
         self.render_grf = _check_bool(render_grf, "render_grf")
 
-        self.robot = CheetahModel()
+        params = DEFAULT_PARAMS
+        if self.trunk_mass_scale != 1.0:
+            trunk = dataclasses.replace(params.trunk, mass=params.trunk.mass * self.trunk_mass_scale,
+                                        inertia_yy=params.trunk.inertia_yy * self.trunk_mass_scale)
+            params = dataclasses.replace(params, trunk=trunk)
+        self.robot = CheetahModel(params)
         self.sim = ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
                                     erp=contact_erp, motor_speed_limits=motor_speed_limits,
                                     torque_limit=self.torque_limit)
