@@ -9,8 +9,8 @@ import numbers
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from hsddp_gym.envs.contact import ContactSimulator, check_motor_speed_limits
 
+from hsddp_gym.core.contact import ContactSimulator, check_motor_speed_limits
 from hsddp_gym.core.conventions import IPITCH, IX, IZ, NGRF, NQ, NU, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
@@ -55,7 +55,7 @@ class BoundingEnv(gym.Env):
     four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
     each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
     ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step. The motors are ideal torque
+    per-step contact LCP is solved exactly (:mod:`hsddp_gym.core.contact`) at a 1 ms step. The motors are ideal torque
     sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
     50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
     modelled) from spinning up without bound under random actions. The task suits bounding (back stance,

@@ -25,6 +25,7 @@ class EnvInterface:
         target_speed: the env's desired forward speed [m/s].
         action_delay_steps: control steps between an action's return and its execution (the env's known
             actuation latency, e.g. :class:`hsddp_gym.envs.perturbations.ActionDelay`; 0: none).
+        motor_speed_limits: the env's motor torque-speed limit ``(w_full, w_zero)`` [rad/s], or None.
     """
 
     control_dt: float = 0.005
@@ -33,12 +34,17 @@ class EnvInterface:
     gait_period: float = 0.296
     target_speed: float = 1.0
     action_delay_steps: int = 0
+    motor_speed_limits: tuple | None = (36.0, 50.0)
 
     def __post_init__(self) -> None:
         check_positive(self.control_dt, "control_dt")
         check_positive(self.torque_limit, "torque_limit")
         check_positive(self.gait_period, "gait_period")
         check_int(self.action_delay_steps, "action_delay_steps", minimum=0)
+        m = self.motor_speed_limits
+        if m is not None and (not isinstance(m, tuple) or len(m) != 2 or not 0 < m[0] < m[1]):
+            raise ValueError(f"motor_speed_limits must be None or a tuple (w_full, w_zero) with 0 < w_full < w_zero "
+                             f"[rad/s], got {m!r}")
         if not isinstance(self.layout, ObservationLayout):
             raise TypeError(f"layout must be an ObservationLayout, got {type(self.layout).__name__}")
 
@@ -52,7 +58,8 @@ class EnvInterface:
         except AttributeError:
             delay = 0
         return cls(control_dt=float(u.dt), torque_limit=float(u.torque_limit), layout=u.observation_layout,
-                   gait_period=float(u.gait_period), target_speed=float(u.target_speed), action_delay_steps=delay)
+                   gait_period=float(u.gait_period), target_speed=float(u.target_speed), action_delay_steps=delay,
+                   motor_speed_limits=getattr(u.sim, "motor_speed_limits", None))
 
     def action_from_torque(self, u: np.ndarray) -> np.ndarray:
         """Normalized action (4,) float32 from torques [N m] (clipped to the box)."""

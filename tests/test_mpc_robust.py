@@ -1,0 +1,98 @@
+"""The MPC's robustness mechanisms: latency compensation (model prediction over the action delay), the
+velocity filter; their options' validation."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hsddp_gym.envs.perturbations import ActionDelay, make_env
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor
+from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+import hsddp_gym  # noqa: F401
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+
+
+def _state(info):
+    return np.concatenate([info["qpos"], info["qvel"]])
+
+
+@pytest.mark.parametrize("delay", [1, 2])
+def test_latency_predictor_reproduces_the_env_state_after_the_delay(delay):
+    env = ActionDelay(gym.make(ENV_ID), delay)
+    policy = MPCPolicy.from_env(env)
+    assert policy.action_delay == delay
+    obs, info = env.reset(seed=500)
+    policy.reset()
+    predictions, states = [], [_state(info)]
+    for _ in range(80):  # 0.4 s: touchdowns, lift-offs, flights
+        obs, _, terminated, _, info = env.step(policy(obs))
+        predictions.append(policy.last_prediction)
+        states.append(_state(info))
+        assert not terminated
+    # the action computed at step t acts from step t + delay on: the prediction is that state (x excluded)
+    err = [np.abs(predictions[t][1:] - states[t + delay][1:]).max() for t in range(len(predictions) - delay)]
+    moved = [np.abs(states[t][1:] - states[t + delay][1:]).max() for t in range(len(predictions) - delay)]
+    assert max(err) < 1e-3  # float32 observations: the rest is round-off
+    assert np.median(moved) > 0.5  # the state does move over the delay: the prediction is not trivial
+
+
+def test_predictor_is_the_nominal_model_not_the_env():
+    """The prediction is the nominal env's physics (friction 0.6) and knows nothing of a mismatched env (ice)."""
+    pred = ContactModelPredictor(0.005)
+    assert pred.sim.mu == 0.6 and pred.n_sub == 5
+    u = np.array([0.0, 0.0, -20.0, 20.0])  # presses the back foot on the ground and pushes it forward
+    finals = []
+    for friction in (0.6, 0.0):
+        env = gym.make(ENV_ID, friction=friction).unwrapped
+        x = env.init_state.copy()
+        env.reset(options={"state": x})
+        for _ in range(4):
+            info = env.step(u / 33.0)[4]
+        finals.append(_state(info))
+    xp, mode = pred.predict(x, None, [u] * 4)
+    assert np.abs(xp[1:] - finals[0][1:]).max() < 1e-9
+    assert np.abs(xp[1:] - finals[1][1:]).max() > 1e-3
+    with pytest.raises(ValueError, match="x"):
+        pred.predict(np.zeros(3), None, [u])
+
+
+def test_without_delay_or_compensation_the_mpc_acts_on_the_observation():
+    env = ActionDelay(gym.make(ENV_ID), 1)
+    policy = MPCPolicy.from_env(env, options=MPCOptions(latency_compensation=False))
+    obs, info = env.reset(seed=3)
+    policy.reset()
+    policy(obs)
+    np.testing.assert_allclose(policy.last_prediction[1:], _state(info)[1:], atol=1e-6)
+    # the default env has no delay: nothing is predicted
+    env0 = gym.make(ENV_ID)
+    p0 = MPCPolicy.from_env(env0)
+    assert p0.action_delay == 0
+    # an explicit option overrides the env's delay
+    assert MPCPolicy.from_env(env0, options=MPCOptions(action_delay=2)).action_delay == 2
+
+
+def test_new_mpc_options_are_validated_by_name():
+    with pytest.raises(ValueError, match="action_delay"):
+        MPCOptions(action_delay=-1)
+    with pytest.raises(TypeError, match="latency_compensation"):
+        MPCOptions(latency_compensation="yes")
+    with pytest.raises(ValueError, match="action_delay_steps"):
+        EnvInterface(action_delay_steps=-2)
+    with pytest.raises(ValueError, match="motor_speed_limits"):
+        EnvInterface(motor_speed_limits=(50.0, 36.0))
+
+
+def test_latency_compensated_mpc_survives_a_10ms_delay_episode_start():
+    env = make_env("delay_10ms", max_episode_steps=200)
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=501)
+    policy.reset()
+    for _ in range(200):  # 1 s: the start-up transient where the uncompensated MPC falls
+        obs, _, terminated, truncated, _ = env.step(policy(obs))
+        assert not terminated
+        if truncated:
+            break
