@@ -96,3 +96,62 @@ def test_latency_compensated_mpc_survives_a_10ms_delay_episode_start():
         assert not terminated
         if truncated:
             break
+
+
+def _run(env, policy, steps, seed):
+    obs, info = env.reset(seed=seed)
+    policy.reset()
+    est, true, raw = [], [], []
+    for _ in range(steps):
+        action = policy(obs)
+        est.append(policy.last_estimate.copy())
+        true.append(_state(info))
+        raw.append(obs.copy())
+        obs, _, terminated, _, info = env.step(action)
+        assert not terminated
+    return np.array(est), np.array(true), np.array(raw)
+
+
+def test_state_filter_is_the_identity_on_exact_observations():
+    env = gym.make(ENV_ID)
+    est, true, _ = _run(env, MPCPolicy.from_env(env), 60, seed=502)
+    assert np.abs(est[:, 1:] - true[:, 1:]).max() < 1e-3  # float32 observations
+
+
+def test_state_filter_reduces_velocity_noise():
+    from hsddp_gym.envs.perturbations import ObservationNoise
+
+    env = ObservationNoise(gym.make(ENV_ID), 0.01, 0.1)
+    est, true, raw = _run(env, MPCPolicy.from_env(env), 120, seed=503)
+    layout = env.unwrapped.observation_layout
+    raw_err = raw[:, layout.qvel] - true[:, 7:]
+    est_err = est[:, 7:] - true[:, 7:]
+    assert 0.08 < raw_err.std() < 0.12
+    assert est_err[:, :3].std() < 0.7 * raw_err[:, :3].std()  # trunk velocities (measured: about 0.5)
+    assert est_err.std() < 0.9 * raw_err.std()  # all (the light legs' rates are filtered less)
+
+
+def test_state_filter_takes_large_innovations_whole():
+    pred = ContactModelPredictor(0.005)
+    from hsddp_gym.planners.policies.estimation import VelocityFilter
+
+    filt = VelocityFilter(pred, 0.5, 0.3, 0.05, 0.5)
+    x = gym.make(ENV_ID).unwrapped.init_state.copy()
+    x[1] += 0.1  # in the air
+    u = np.zeros(4)
+    filt.update(x, 0, None)
+    prior, _ = pred.step(x, u)
+    y = prior.copy()
+    y[7] += 2.0  # a push: 2 m/s more
+    y[8] += 0.05  # within the gate: filtered
+    est = filt.update(y, 0, u)
+    assert est[7] == pytest.approx(y[7])
+    assert est[8] == pytest.approx(prior[8] + 0.3 * 0.05)
+    with pytest.raises(ValueError, match="velocity_gain"):
+        VelocityFilter(pred, 0.5, 0.0)
+    with pytest.raises(ValueError, match="filter_velocity_gate"):
+        MPCOptions(filter_velocity_gate=0.0)
+    with pytest.raises(ValueError, match="filter_position_gain"):
+        MPCOptions(filter_position_gain=1.5)
+    with pytest.raises(TypeError, match="state_filter"):
+        MPCOptions(state_filter=1)

@@ -70,45 +70,95 @@ class ContactModelPredictor:
         return x, mode
 
 
+CONTACT_TOLERANCE = 1e-4
+"""Feet in contact within this distance [m] of the ground are left where they are (the env's own contact
+resolution leaves micrometres)."""
+
+
+def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.ndarray:
+    """``x`` (14,) with its trunk height (and, for two feet, pitch) moved so that the feet in contact in ``mode`` are
+    on the ground (one Gauss-Newton step on the feet's heights; a copy), unless they all are within
+    :data:`CONTACT_TOLERANCE` of it."""
+    x = np.array(x, dtype=np.float64)
+    feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
+    if not feet:
+        return x
+    rows = [robot.foot_height_derivatives(x[:NQ], f) for f in feet]
+    if max(abs(r[0]) for r in rows) <= CONTACT_TOLERANCE:
+        return x
+    if len(feet) == 1:
+        x[1] -= rows[0][0]
+        return x
+    A = np.array([[g[1], g[2]] for _, g, _ in rows])
+    h = np.array([r[0] for r in rows])
+    try:
+        dz, dpitch = np.linalg.solve(A, -h)
+    except np.linalg.LinAlgError:
+        return x
+    x[1] += dz
+    x[2] += dpitch
+    return x
+
+
 class VelocityFilter:
     """Fixed-gain observer of the state from noisy observations (see the module docstring).
 
+    Each observation ``y`` (14,) is compared with the prior ``x_prior`` (the previous estimate propagated one
+    control period with the model and the torque the env executed); the estimate is
+    ``x = x_prior + L (y - x_prior)`` per component, with ``L = position_gain`` for positions and
+    ``velocity_gain`` for velocities, except that an innovation ``|y - x_prior|`` beyond ``position_gate`` /
+    ``velocity_gate`` (far more than sensor noise: the model is wrong, e.g. a slip, a push, another friction or
+    mass) is taken whole (``L = 1``), as is every velocity when the observed contact mode differs from the
+    predicted one (an impact the model placed elsewhere). The feet the (clean) contact flags report on the
+    ground are put on it (:func:`project_onto_contacts`: trunk height, and pitch for two feet), so that the
+    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. With
+    exact observations and the exact model the estimate is the observation (to round-off).
+
     Args:
         predictor: the model used for the prior.
-        position_gain, velocity_gain: the correction gains ``L`` in (0, 1] (1: no filtering).
+        position_gain, velocity_gain: the correction gains in (0, 1] (1: no filtering).
+        position_gate, velocity_gate: innovations beyond these [m or rad, m/s or rad/s] are not filtered.
     """
 
-    def __init__(self, predictor: ContactModelPredictor, position_gain: float = 0.5,
-                 velocity_gain: float = 0.3) -> None:
+    def __init__(self, predictor: ContactModelPredictor, position_gain: float = 0.5, velocity_gain: float = 0.3,
+                 position_gate: float = 0.05, velocity_gate: float = 0.5) -> None:
         if not isinstance(predictor, ContactModelPredictor):
             raise TypeError(f"predictor must be a ContactModelPredictor, got {type(predictor).__name__}")
         self.predictor = predictor
         self.position_gain = check_in_range(position_gain, 1e-6, 1.0, "position_gain")
         self.velocity_gain = check_in_range(velocity_gain, 1e-6, 1.0, "velocity_gain")
+        self.position_gate = check_positive(position_gate, "position_gate")
+        self.velocity_gate = check_positive(velocity_gate, "velocity_gate")
+        self._gain = np.concatenate([np.full(NQ, self.position_gain), np.full(NX - NQ, self.velocity_gain)])
+        self._gate = np.concatenate([np.full(NQ, self.position_gate), np.full(NX - NQ, self.velocity_gate)])
         self.reset()
 
     def reset(self) -> None:
+        """Forget the estimate (the next observation is taken as it is)."""
         self.x: np.ndarray | None = None
-        self.mode: Mode | None = None
 
     def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None) -> np.ndarray:
         """The estimate (14,) after measuring ``y`` (14,) in the (clean) contact ``mode``; ``u_executed`` (4,)
-        [N m] is the torque the env executed over the last control period (None at the first observation)."""
-        y = np.asarray(y, dtype=np.float64)
+        [N m] is the torque the env executed over the last control period (None: take ``y`` as it is)."""
+        y = check_vector(y, NX, "y")
         mode = Mode(mode)
+        robot = self.predictor.robot
         if self.x is None or u_executed is None:
-            self.x, self.mode = y.copy(), mode
+            self.x = project_onto_contacts(robot, y, mode)
             return self.x.copy()
         try:
-            prior, _ = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64), self.mode)
+            prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64))
         except (ArithmeticError, ValueError, RuntimeError):
-            prior = y.copy()
-        prior[0] = y[0]  # the trunk x is not observed
-        gain_v = 1.0 if mode != self.mode else self.velocity_gain
-        x = prior.copy()
-        x[:NQ] += self.position_gain * (y[:NQ] - prior[:NQ])
-        x[NQ:] += gain_v * (y[NQ:] - prior[NQ:])
-        self.x, self.mode = x, mode
+            self.x = project_onto_contacts(robot, y, mode)
+            return self.x.copy()
+        innovation = y - prior
+        innovation[0] = 0.0  # the trunk x is not observed
+        gain = np.where(np.abs(innovation) > self._gate, 1.0, self._gain)
+        if prior_mode != mode:
+            gain[NQ:] = 1.0
+        x = project_onto_contacts(robot, prior + gain * innovation, mode)
+        x[0] = y[0]
+        self.x = x
         return x.copy()
 
 

@@ -46,7 +46,7 @@ from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains, HeuristicPolicy
 from hsddp_gym.planners.policies.tracking import PlanTracker
 
@@ -54,7 +54,7 @@ from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.params import DEFAULT_PARAMS
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
-from hsddp_gym.util.validation import check_int, check_positive
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
@@ -150,6 +150,12 @@ class MPCOptions:
             contact dynamics, impacts, lift-offs, motor speed limits) from the observed state under the ``d``
             actions already sent; the gait clock is advanced over the prediction with the predicted contacts.
             False: act on the observed state as if there were no delay (the ablation).
+        state_filter: estimate the state from the observations with the model
+            (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
+            estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
+            innovations beyond ``filter_position_gate`` [m, rad] / ``filter_velocity_gate`` [m/s, rad/s] and
+            velocities at an unpredicted contact change are taken whole). With exact observations of the nominal
+            robot the estimate is the observation (to round-off). False: use the observation as the state.
     """
 
     horizon: float | None = None
@@ -187,6 +193,11 @@ class MPCOptions:
     weights: str | None = None
     action_delay: int | None = None
     latency_compensation: bool = True
+    state_filter: bool = True
+    filter_position_gain: float = 0.5
+    filter_velocity_gain: float = 0.3
+    filter_position_gate: float = 0.05
+    filter_velocity_gate: float = 0.5
 
     PUSH_RECOVERY_PLANNER_DT = 0.0025
     """The planner step of :meth:`push_recovery` [s]."""
@@ -234,7 +245,11 @@ class MPCOptions:
             raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
         if self.action_delay is not None:
             check_int(self.action_delay, "action_delay", minimum=0)
-        for name in ("latency_compensation",):
+        for name in ("filter_position_gain", "filter_velocity_gain"):
+            check_in_range(getattr(self, name), 1e-6, 1.0, name)
+        for name in ("filter_position_gate", "filter_velocity_gate"):
+            check_positive(getattr(self, name), name)
+        for name in ("latency_compensation", "state_filter"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if self.method not in ("ddp", "al", "al-reb"):
@@ -438,6 +453,7 @@ class MPCPolicy(Policy):
         self.action_delay = options.action_delay if options.action_delay is not None else interface.action_delay_steps
         """Control steps between an action's return and its execution (the latency compensated for)."""
         self._predictor = self._make_predictor()
+        self._filter = self._make_filter()
         self._fallback = HeuristicPolicy(interface)
         self._warm_controller = HeuristicBoundingController(
             gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
@@ -448,9 +464,18 @@ class MPCPolicy(Policy):
         return ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
                                      torque_limit=i.torque_limit)
 
+    def _make_filter(self) -> VelocityFilter:
+        o = self.options
+        return VelocityFilter(ContactModelPredictor(self.interface.control_dt,
+                                                    motor_speed_limits=self.interface.motor_speed_limits,
+                                                    torque_limit=self.interface.torque_limit),
+                              o.filter_position_gain, o.filter_velocity_gain, o.filter_position_gate,
+                              o.filter_velocity_gate)
+
     def _reset_copy_state(self) -> None:
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
         self._predictor = self._make_predictor()
+        self._filter = self._make_filter()
         self._fallback = self._fallback.spawn()
 
     def reset(self) -> None:
@@ -463,7 +488,13 @@ class MPCPolicy(Policy):
         self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
                                self.options.min_flight, self.options.max_wait, self.options.lost_stance_steps)
         self._plan_clock = self.clock
-        self._sent = collections.deque(np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay))
+        # the last action_delay + 1 actions returned (oldest first): the oldest was executed over the last control
+        # period, the others are still to be executed (zeros before the first ones, as the env's delay queue)
+        self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay + 1)),
+                                       maxlen=self.action_delay + 1)
+        self._filter.reset()
+        self._first_obs = True
+        self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
         """The state (14,) the last action was computed for: the observed state, or with latency compensation
         the state predicted ``action_delay`` steps ahead."""
@@ -703,6 +734,11 @@ class MPCPolicy(Policy):
         """
         x_obs, mode, _ = self._parse(obs)
         o = self.options
+        if o.state_filter:
+            executed = None if self._first_obs else self._sent[0].astype(np.float64) * self.interface.torque_limit
+            x_obs = self._filter.update(x_obs, mode, executed)
+        self._first_obs = False
+        self.last_estimate = x_obs
         eff = self._update_clock(mode, x_obs)
         x, eff = self._predict_ahead(x_obs, mode, eff)
         self.last_prediction = x.copy()
@@ -744,9 +780,7 @@ class MPCPolicy(Policy):
         self._since_replan += self.interface.control_dt
         self._time += self.interface.control_dt
         action = self.interface.action_from_torque(u)
-        if self.action_delay:
-            self._sent.append(action)
-            self._sent.popleft()
+        self._sent.append(action)
         return action
 
     def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode) -> tuple[np.ndarray, Mode]:
@@ -760,7 +794,7 @@ class MPCPolicy(Policy):
         clock = self.clock.copy()
         xp = x
         try:
-            for a in self._sent:
+            for a in list(self._sent)[1:]:
                 xp, mode = self._predictor.step(xp, a.astype(np.float64) * self.interface.torque_limit, mode)
                 clock.tick()
                 eff = clock.update(mode, float(xp[NQ + IPITCH]))
