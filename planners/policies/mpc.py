@@ -150,6 +150,9 @@ class MPCOptions:
             contact dynamics, impacts, lift-offs, motor speed limits) from the observed state under the ``d``
             actions already sent; the gait clock is advanced over the prediction with the predicted contacts.
             False: act on the observed state as if there were no delay (the ablation).
+        speed_acceleration: the largest rate [m/s^2] at which the plans' forward-speed reference moves from the speed
+            measured at the episode's first observation toward the target (None: no limit; ``speed_ramp`` still
+            applies): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
         state_filter: estimate the state from the observations with the model
             (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
             estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
@@ -194,6 +197,7 @@ class MPCOptions:
     action_delay: int | None = None
     latency_compensation: bool = True
     state_filter: bool = True
+    speed_acceleration: float | None = 1.0
     filter_position_gain: float = 0.5
     filter_velocity_gain: float = 0.3
     filter_position_gate: float = 0.05
@@ -245,6 +249,8 @@ class MPCOptions:
             raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
         if self.action_delay is not None:
             check_int(self.action_delay, "action_delay", minimum=0)
+        if self.speed_acceleration is not None:
+            check_positive(self.speed_acceleration, "speed_acceleration")
         for name in ("filter_position_gain", "filter_velocity_gain"):
             check_in_range(getattr(self, name), 1e-6, 1.0, name)
         for name in ("filter_position_gate", "filter_velocity_gate"):
@@ -494,6 +500,7 @@ class MPCPolicy(Policy):
                                        maxlen=self.action_delay + 1)
         self._filter.reset()
         self._first_obs = True
+        self._start_speed: float | None = None
         self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
         """The state (14,) the last action was computed for: the observed state, or with latency compensation
@@ -651,6 +658,10 @@ class MPCPolicy(Policy):
         if ramp is None:
             return float(target)
         vx = float(x[NQ])
+        acc = self.options.speed_acceleration
+        if acc is not None and self._start_speed is not None:
+            reach = acc * self._time
+            target = min(max(target, self._start_speed - reach), self._start_speed + reach)
         return float(min(max(target, vx - ramp), vx + ramp))
 
     def replan(self, x: np.ndarray, mode: Mode) -> bool:
@@ -737,6 +748,8 @@ class MPCPolicy(Policy):
         if o.state_filter:
             executed = None if self._first_obs else self._sent[0].astype(np.float64) * self.interface.torque_limit
             x_obs = self._filter.update(x_obs, mode, executed)
+        if self._first_obs:
+            self._start_speed = float(x_obs[NQ])
         self._first_obs = False
         self.last_estimate = x_obs
         eff = self._update_clock(mode, x_obs)
