@@ -24,6 +24,7 @@ Usage::
 
     python experiments/robustness.py --out runs/robustness --policies mpc heuristic --seeds 20 --workers 2
         [--conditions default obs_noise ...] [--learned bc=runs/train/bc]
+    python experiments/robustness.py --out runs/robustness_table --combine runs/a/robustness.json runs/b/robustness.json
 """
 
 from __future__ import annotations
@@ -183,6 +184,29 @@ def plot(results: dict, conditions, path: Path) -> bool:
     return True
 
 
+def combine(paths, out: Path) -> dict:
+    """One table from several ``robustness.json`` files (e.g. a baseline, the current default, ablations): every
+    policy of every file, labelled ``NAME`` or, when two files hold the same name, ``NAME@DIRNAME``; only the
+    conditions common to all. Writes ``OUT/robustness.md``, ``.png`` and ``.json``."""
+    loaded = [(Path(p), json.loads(Path(p).read_text())) for p in paths]
+    names = [name for _, d in loaded for name in d["results"]]
+    results, sources = {}, {}
+    for path, d in loaded:
+        for name, cells in d["results"].items():
+            label = name if names.count(name) == 1 else f"{name}@{path.parent.name}"
+            results[label] = cells
+            sources[label] = {"file": str(path), "command": d.get("command"), "seeds": d.get("seeds")}
+    common = [c for c in loaded[0][1]["conditions"] if all(c in cells for cells in results.values())]
+    write_json(out / "robustness.json", {"command": " ".join(["python", *sys.argv]), "sources": sources,
+                                         "conditions": loaded[0][1]["conditions"], "results": results})
+    table = markdown(results, common)
+    with atomic_path(out / "robustness.md") as tmp:
+        tmp.write_text(table)
+    plot(results, common, out / "robustness.png")
+    print(table)
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     from hsddp_gym.envs.perturbations import CONDITIONS
 
@@ -205,7 +229,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes; results do not depend on it (default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
+                   help="run nothing: merge these robustness.json files into one table in --out")
     args = p.parse_args(argv)
+    if args.combine:
+        missing = [f for f in args.combine if not Path(f).is_file()]
+        if missing:
+            p.error(f"--combine: no such file(s) {missing}")
+        combine(args.combine, Path(args.out))
+        return 0
     if args.seeds < 1:
         p.error(f"--seeds must be >= 1, got {args.seeds}")
     if args.first_seed < 0:

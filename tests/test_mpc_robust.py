@@ -155,3 +155,28 @@ def test_state_filter_takes_large_innovations_whole():
         MPCOptions(filter_position_gain=1.5)
     with pytest.raises(TypeError, match="state_filter"):
         MPCOptions(state_filter=1)
+
+
+def test_speed_reference_rises_from_the_start_speed_at_the_bounded_rate():
+    env = gym.make(ENV_ID, target_speed=2.0)
+    policy = MPCPolicy.from_env(env)
+    obs, info = env.reset(seed=504)
+    policy.reset()
+    policy(obs)
+    v0 = float(info["qvel"][0])
+    assert policy._start_speed == pytest.approx(v0, abs=1e-6)
+    x = np.zeros(14)
+    x[7] = v0
+    policy._time = 0.3
+    assert policy.plan_speed(x) == pytest.approx(v0 + 0.3)  # 1 m/s^2, inside the 0.5 m/s speed ramp
+    policy._time = 5.0
+    assert policy.plan_speed(x) == pytest.approx(v0 + 0.5)  # the measured-speed ramp still applies
+    x[7] = 1.9
+    assert policy.plan_speed(x) == pytest.approx(2.0)
+    free = MPCPolicy.from_env(env, options=MPCOptions(speed_acceleration=None))
+    free.reset()
+    free(obs)
+    x[7] = v0
+    assert free.plan_speed(x) == pytest.approx(v0 + 0.5)
+    with pytest.raises(ValueError, match="speed_acceleration"):
+        MPCOptions(speed_acceleration=-1.0)

@@ -173,3 +173,37 @@ def test_registry_builds_every_condition_and_rejects_unknown_ones():
     assert env.get_wrapper_attr("action_delay_steps") == 1
     assert set(custom.as_dict()) == {"name", "description", "env_kwargs", "observation_noise", "action_delay",
                                      "push"}
+
+
+def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experiment):
+    import json
+
+    rob = experiment("robustness")
+    argv = ["--policies", "heuristic", "--conditions", "default", "delay_10ms", "push", "--seeds", "2",
+            "--first-seed", "11", "--max-steps", "150", "--quiet"]
+    assert rob.main(argv + ["--out", str(tmp_path / "a")]) == 0
+    assert rob.main(argv + ["--out", str(tmp_path / "b"), "--workers", "2"]) == 0
+    a = json.loads((tmp_path / "a" / "robustness.json").read_text())
+    b = json.loads((tmp_path / "b" / "robustness.json").read_text())
+    strip = [{k: v for k, v in r.items() if k != "wall_time_s"} for c in a["results"]["heuristic"].values()
+             for r in c["runs"]]
+    strip_b = [{k: v for k, v in r.items() if k != "wall_time_s"} for c in b["results"]["heuristic"].values()
+               for r in c["runs"]]
+    assert strip == strip_b and a["seeds"] == [11, 12]
+    cells = a["results"]["heuristic"]
+    assert cells["delay_10ms"]["falls"] == 2 and cells["default"]["falls"] == 0  # the heuristic cannot take 10 ms
+    assert (tmp_path / "a" / "robustness.png").exists()
+    table = (tmp_path / "a" / "robustness.md").read_text()
+    assert "| delay_10ms" in table and "**2/2**" in table
+    assert rob.main(["--out", str(tmp_path / "c"), "--combine", str(tmp_path / "a" / "robustness.json"),
+                     str(tmp_path / "b" / "robustness.json")]) == 0
+    c = json.loads((tmp_path / "c" / "robustness.json").read_text())
+    assert set(c["results"]) == {"heuristic@a", "heuristic@b"}
+    skipped = tmp_path / "d"
+    assert rob.main(argv[:4] + ["--seeds", "1", "--max-steps", "3", "--quiet", "--learned", f"bc={tmp_path}/none",
+                                "--out", str(skipped)]) == 0
+    assert "bc" in json.loads((skipped / "robustness.json").read_text())["skipped"]
+    for bad in (["--workers", "0"], ["--learned", "xyz=dir"], ["--policies", "mpc-options"],
+                ["--combine", str(tmp_path / "missing.json")]):
+        with pytest.raises(SystemExit):
+            rob.main(["--out", str(tmp_path / "e"), *bad])
