@@ -111,13 +111,13 @@ def test_speed_governor_and_lost_stance_rule_survive_a_push_the_mpc_without_them
 
 def test_speed_governor_and_lost_stance_rule_leave_unpushed_bounding_unchanged():
     """While bounding, the speed stays within ``speed_ramp`` of the target and no stance foot lifts early: the
-    same actions as without either mechanism."""
+    same actions as without either mechanism (the start-up's speed rate limit, which does act, off in both)."""
     env = make_env()
-    bare = MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0))
+    bare = MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0, speed_acceleration=None))
     obs, _ = env.reset(seed=1)
     _, a_bare = run(env, bare, obs, 200)
     obs, _ = env.reset(seed=1)
-    _, a_default = run(env, MPCPolicy.from_env(env), obs, 200)
+    _, a_default = run(env, MPCPolicy.from_env(env, options=MPCOptions(speed_acceleration=None)), obs, 200)
     np.testing.assert_array_equal(a_bare, a_default)
 
 
@@ -165,15 +165,22 @@ NOSE_DOWN = {"push": {"delta_v": [0.0, 0.0, 10.0], "time": 1.0}}
 def test_a_nose_down_push_the_heuristic_does_not_survive_the_recovering_mpc_does_on_its_own():
     """Seed 103: the contact-event heuristic falls after the push; the MPC with ``recovery=True`` bounds on
     without the heuristic fallback ever acting. Without ``recovery_min_flight`` (the clock takes the front
-    foot's touchdown 5-10 ms after the back foot's lift-off for a graze) the MPC falls too."""
+    foot's touchdown 5-10 ms after the back foot's lift-off for a graze) the MPC falls too. (On the MPC without
+    the state filter and the start-up speed rate limit, the base the recovery was built on: with them the
+    recovering MPC bounds on too, but the fallback acts for 4 steps.)"""
     env = make_env()
     heuristic = run_episode(env, HeuristicPolicy.from_env(env), 103, options=NOSE_DOWN, max_steps=300)
     assert heuristic.fell
-    mpc = MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
+    base = {"state_filter": False, "speed_acceleration": None}
+    mpc = MPCPolicy.from_env(env, options=MPCOptions(recovery=True, **base))
     res = run_episode(env, mpc, 103, options=NOSE_DOWN, max_steps=300)
     assert not res.fell and res.length == 300
     assert mpc.stats["recoveries"] >= 1 and mpc.stats["fallback_steps"] == 0
-    graze = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_min_flight=None)),
+    today = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True)), 103, options=NOSE_DOWN,
+                        max_steps=300)
+    assert not today.fell
+    graze = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(recovery=True, recovery_min_flight=None,
+                                                                        **base)),
                         103, options=NOSE_DOWN, max_steps=300)
     assert graze.fell
 

@@ -19,6 +19,12 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
+Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
+executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
+actions already sent (``latency_compensation``): the plan and its feedback law are for the state at which the
+action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
+start speed toward the target at a bounded rate (``speed_acceleration``).
+
 A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
 feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
 
@@ -152,7 +158,7 @@ class MPCOptions:
             False: act on the observed state as if there were no delay (the ablation).
         speed_acceleration: the largest rate [m/s^2] at which the plans' forward-speed reference moves from the speed
             measured at the episode's first observation toward the target (None: no limit; ``speed_ramp`` still
-            applies): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
+            applies after it): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
         state_filter: estimate the state from the observations with the model
             (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
             estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
@@ -654,14 +660,14 @@ class MPCPolicy(Policy):
         """The forward-speed reference [m/s] of a plan from state ``x`` (14,): the target speed, moved at most
         ``speed_ramp`` from the measured speed (None: the target)."""
         target = self.interface.target_speed
-        ramp = self.options.speed_ramp
-        if ramp is None:
-            return float(target)
-        vx = float(x[NQ])
         acc = self.options.speed_acceleration
         if acc is not None and self._start_speed is not None:
             reach = acc * self._time
             target = min(max(target, self._start_speed - reach), self._start_speed + reach)
+        ramp = self.options.speed_ramp
+        if ramp is None:
+            return float(target)
+        vx = float(x[NQ])
         return float(min(max(target, vx - ramp), vx + ramp))
 
     def replan(self, x: np.ndarray, mode: Mode) -> bool:
