@@ -49,7 +49,7 @@ import time
 import numpy as np
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
-from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, HybridProblem
+from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
@@ -159,6 +159,8 @@ class MPCOptions:
         speed_acceleration: the largest rate [m/s^2] at which the plans' forward-speed reference moves from the speed
             measured at the episode's first observation toward the target (None: no limit; ``speed_ramp`` still
             applies after it): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
+        plan_friction: the friction coefficient of the plans' friction cones (default 0.45; None: the model's
+            0.6): a friction margin, the ground forces planned inside a narrower cone than the model's.
         state_filter: estimate the state from the observations with the model
             (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
             estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
@@ -204,6 +206,7 @@ class MPCOptions:
     latency_compensation: bool = True
     state_filter: bool = True
     speed_acceleration: float | None = 1.0
+    plan_friction: float | None = 0.45
     filter_position_gain: float = 0.5
     filter_velocity_gain: float = 0.3
     filter_position_gate: float = 0.05
@@ -257,6 +260,8 @@ class MPCOptions:
             check_int(self.action_delay, "action_delay", minimum=0)
         if self.speed_acceleration is not None:
             check_positive(self.speed_acceleration, "speed_acceleration")
+        if self.plan_friction is not None:
+            check_positive(self.plan_friction, "plan_friction")
         for name in ("filter_position_gain", "filter_velocity_gain"):
             check_in_range(getattr(self, name), 1e-6, 1.0, name)
         for name in ("filter_position_gate", "filter_velocity_gate"):
@@ -466,6 +471,9 @@ class MPCPolicy(Policy):
         """Control steps between an action's return and its execution (the latency compensated for)."""
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
+        params = self.dynamics.robot.params
+        self._constraints = None if options.plan_friction is None else ConstraintSpec(
+            torque_limit=params.torque_limit, friction=options.plan_friction)
         self._fallback = HeuristicPolicy(interface)
         self._warm_controller = HeuristicBoundingController(
             gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
@@ -678,7 +686,8 @@ class MPCPolicy(Policy):
                    and float(x[NQ + 1]) < -o.recovery_sink_speed)
         schedule = self._schedule(sinking)
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
-                                         dynamics=self.dynamics, z_velocity=o.z_velocity, weights=self.weights)
+                                         dynamics=self.dynamics, constraints=self._constraints,
+                                         z_velocity=o.z_velocity, weights=self.weights)
         first = self.last_solution is None
         recovering = self.recovering
         iters = o.warmup_iterations if first else (o.recovery_iterations if recovering else o.max_iterations)
