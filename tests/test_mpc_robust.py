@@ -180,3 +180,18 @@ def test_speed_reference_rises_from_the_start_speed_at_the_bounded_rate():
     assert free.plan_speed(x) == pytest.approx(v0 + 0.5)
     with pytest.raises(ValueError, match="speed_acceleration"):
         MPCOptions(speed_acceleration=-1.0)
+
+
+def test_plans_keep_a_friction_margin():
+    env = gym.make(ENV_ID)
+    obs, _ = env.reset(seed=505)
+    margin = MPCPolicy.from_env(env)
+    margin.reset()
+    margin(obs)
+    assert margin.options.plan_friction == 0.45 and margin._problem.constraints.friction == 0.45
+    full = MPCPolicy.from_env(env, options=MPCOptions(plan_friction=None))
+    full.reset()
+    full(obs)
+    assert full._problem.constraints.friction == 0.6
+    with pytest.raises(ValueError, match="plan_friction"):
+        MPCOptions(plan_friction=0.0)
