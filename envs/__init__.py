@@ -1,6 +1,6 @@
 """Installed as ``hsddp_gym.envs``: Gymnasium environments for the planar Mini Cheetah.
 
-* :mod:`hsddp_gym.envs.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
+* :mod:`hsddp_gym.core.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
 * :mod:`hsddp_gym.envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
 * :mod:`hsddp_gym.envs.mujoco_twin`: ``MuJoCoBoundingEnv``, the same task on MuJoCo, registered as
   ``hsddp_gym/BoundingMuJoCo-v0`` (optional extra ``mujoco``).

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import numbers
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from hsddp_gym.envs.contact import ContactSimulator, check_motor_speed_limits
 
+from hsddp_gym.core.contact import ContactSimulator, check_motor_speed_limits
 from hsddp_gym.core.conventions import IPITCH, IX, IZ, NGRF, NQ, NU, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
@@ -67,7 +68,7 @@ class BoundingEnv(gym.Env):
     four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
     each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
     ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`hsddp_gym.envs.contact`) at a 1 ms step, followed by a
+    per-step contact LCP is solved exactly (:mod:`hsddp_gym.core.contact`) at a 1 ms step, followed by a
     position and an energy projection (``energy_consistent``). The motors are ideal torque
     sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
     50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
@@ -164,6 +165,7 @@ class BoundingEnv(gym.Env):
     | ``gait_period`` | 0.296 | period of the observation's phase clock [s] |
     | ``torque_limit`` | 33.0 | torque of a full action [N m] |
     | ``friction`` | 0.6 | Coulomb friction coefficient |
+    | ``trunk_mass_scale`` | 1.0 | factor on the trunk's mass and rotational inertia (4) |
     | ``gravity`` | 9.81 | gravitational acceleration [m/s^2] (0 for energy tests) |
     | ``contact_erp`` | 1.0 | legacy scheme: fraction of a penetration removed per step (1) |
     | ``motor_speed_limits`` | (36.0, 50.0) | torque-speed limit ``(w_full, w_zero)`` [rad/s] or None (2) |
@@ -176,9 +178,11 @@ class BoundingEnv(gym.Env):
     ground (and sticking feet onto their positions) every step.
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
-    (3) :mod:`hsddp_gym.envs.contact`: a mass-metric position projection (sticking feet do not creep, contact
+    (3) :mod:`hsddp_gym.core.contact`: a mass-metric position projection (sticking feet do not creep, contact
     feet end each step on the ground) and an energy projection, so that per simulation step
     ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates.
+    (4) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
+    than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
 
     Every argument is JSON-serializable, so Minari can rebuild the env from its spec.
 
@@ -206,7 +210,7 @@ class BoundingEnv(gym.Env):
                  healthy_z_range=(0.12, 0.5), healthy_pitch_range=(-0.8, 0.8), reset_noise_scale: float = 0.01,
                  exclude_current_positions_from_observation: bool = True, gait_period: float = 0.296,
                  torque_limit: float = DEFAULT_PARAMS.torque_limit, friction: float = DEFAULT_PARAMS.friction,
-                 gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0,
+                 gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0, trunk_mass_scale: float = 1.0,
                  motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent: bool = True,
                  render_mode: str | None = None,
                  width: int = 480, height: int = 320, render_grf: bool = True) -> None:
@@ -235,6 +239,7 @@ class BoundingEnv(gym.Env):
         contact_erp = check_in_range(contact_erp, 0.0, 1.0, "contact_erp")
         motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
         energy_consistent = _check_bool(energy_consistent, "energy_consistent")
+        self.trunk_mass_scale = check_positive(trunk_mass_scale, "trunk_mass_scale")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, got {render_mode!r}")
         self.render_mode = render_mode
@@ -242,7 +247,12 @@ class BoundingEnv(gym.Env):
         self.height = check_int(height, "height", minimum=16)
         self.render_grf = _check_bool(render_grf, "render_grf")
 
-        self.robot = CheetahModel()
+        params = DEFAULT_PARAMS
+        if self.trunk_mass_scale != 1.0:
+            trunk = dataclasses.replace(params.trunk, mass=params.trunk.mass * self.trunk_mass_scale,
+                                        inertia_yy=params.trunk.inertia_yy * self.trunk_mass_scale)
+            params = dataclasses.replace(params, trunk=trunk)
+        self.robot = CheetahModel(params)
         self.sim = self._make_simulator(friction, gravity, contact_erp, motor_speed_limits, energy_consistent)
         self.observation_layout = ObservationLayout(exclude_current_positions=exclude)
         low, high = self.observation_layout.bounds()

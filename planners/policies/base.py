@@ -10,7 +10,7 @@ import numpy as np
 
 from hsddp_gym.core.conventions import NU, Mode
 from hsddp_gym.core.observation import DEFAULT_LAYOUT, ObservationLayout, state_from_observation
-from hsddp_gym.util.validation import check_positive
+from hsddp_gym.util.validation import check_int, check_positive
 
 
 @dataclasses.dataclass(frozen=True)
@@ -23,6 +23,9 @@ class EnvInterface:
         layout: the observation layout.
         gait_period: period of the observation's phase clock [s].
         target_speed: the env's desired forward speed [m/s].
+        action_delay_steps: control steps between an action's return and its execution (the env's known
+            actuation latency, e.g. :class:`hsddp_gym.envs.perturbations.ActionDelay`; 0: none).
+        motor_speed_limits: the env's motor torque-speed limit ``(w_full, w_zero)`` [rad/s], or None.
     """
 
     control_dt: float = 0.005
@@ -30,20 +33,33 @@ class EnvInterface:
     layout: ObservationLayout = DEFAULT_LAYOUT
     gait_period: float = 0.296
     target_speed: float = 1.0
+    action_delay_steps: int = 0
+    motor_speed_limits: tuple | None = (36.0, 50.0)
 
     def __post_init__(self) -> None:
         check_positive(self.control_dt, "control_dt")
         check_positive(self.torque_limit, "torque_limit")
         check_positive(self.gait_period, "gait_period")
+        check_int(self.action_delay_steps, "action_delay_steps", minimum=0)
+        m = self.motor_speed_limits
+        if m is not None and (not isinstance(m, tuple) or len(m) != 2 or not 0 < m[0] < m[1]):
+            raise ValueError(f"motor_speed_limits must be None or a tuple (w_full, w_zero) with 0 < w_full < w_zero "
+                             f"[rad/s], got {m!r}")
         if not isinstance(self.layout, ObservationLayout):
             raise TypeError(f"layout must be an ObservationLayout, got {type(self.layout).__name__}")
 
     @classmethod
     def from_env(cls, env) -> EnvInterface:
-        """Read the settings of a (possibly wrapped) ``Bounding-v0`` env."""
+        """Read the settings of a (possibly wrapped) ``Bounding-v0`` env (the action delay from a wrapper's
+        ``action_delay_steps`` attribute, 0 without one)."""
         u = env.unwrapped
+        try:
+            delay = int(env.get_wrapper_attr("action_delay_steps"))
+        except AttributeError:
+            delay = 0
         return cls(control_dt=float(u.dt), torque_limit=float(u.torque_limit), layout=u.observation_layout,
-                   gait_period=float(u.gait_period), target_speed=float(u.target_speed))
+                   gait_period=float(u.gait_period), target_speed=float(u.target_speed), action_delay_steps=delay,
+                   motor_speed_limits=getattr(u.sim, "motor_speed_limits", None))
 
     def action_from_torque(self, u: np.ndarray) -> np.ndarray:
         """Normalized action (4,) float32 from torques [N m] (clipped to the box)."""

@@ -19,6 +19,12 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
+Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
+executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
+actions already sent (``latency_compensation``): the plan and its feedback law are for the state at which the
+action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
+start speed toward the target at a bounded rate (``speed_acceleration``).
+
 A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
 feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
 
@@ -35,6 +41,7 @@ below the threshold and the actions are those of the plain MPC; in the 1.5 m/s g
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 import time
@@ -42,9 +49,10 @@ import time
 import numpy as np
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
-from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, HybridProblem
+from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains, HeuristicPolicy
 from hsddp_gym.planners.policies.tracking import PlanTracker
 
@@ -52,7 +60,7 @@ from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.params import DEFAULT_PARAMS
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
-from hsddp_gym.util.validation import check_int, check_positive
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
@@ -141,6 +149,24 @@ class MPCOptions:
             one gait cycle (whose phase-end terminal costs would otherwise ask for torques that saturate and
             feet swung high to get there). While bounding, the speed stays within 0.5 m/s of the target and the
             reference is the target.
+        action_delay: control steps between an action's return and its execution (None: the env's, read from
+            ``EnvInterface.action_delay_steps``, e.g. :class:`hsddp_gym.envs.perturbations.ActionDelay`).
+        latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps
+            ahead, predicted with the model (:class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`:
+            contact dynamics, impacts, lift-offs, motor speed limits) from the observed state under the ``d``
+            actions already sent; the gait clock is advanced over the prediction with the predicted contacts.
+            False: act on the observed state as if there were no delay (the ablation).
+        speed_acceleration: the largest rate [m/s^2] at which the plans' forward-speed reference moves from the speed
+            measured at the episode's first observation toward the target (None: no limit; ``speed_ramp`` still
+            applies after it): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
+        plan_friction: the friction coefficient of the plans' friction cones (default 0.45; None: the model's
+            0.6): a friction margin, the ground forces planned inside a narrower cone than the model's.
+        state_filter: estimate the state from the observations with the model
+            (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
+            estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
+            innovations beyond ``filter_position_gate`` [m, rad] / ``filter_velocity_gate`` [m/s, rad/s] and
+            velocities at an unpredicted contact change are taken whole). With exact observations of the nominal
+            robot the estimate is the observation (to round-off). False: use the observation as the state.
     """
 
     horizon: float | None = None
@@ -176,6 +202,15 @@ class MPCOptions:
     recovery_sink_speed: float = 0.5
     speed_ramp: float | None = 0.5
     weights: str | None = None
+    action_delay: int | None = None
+    latency_compensation: bool = True
+    state_filter: bool = True
+    speed_acceleration: float | None = 1.0
+    plan_friction: float | None = 0.45
+    filter_position_gain: float = 0.5
+    filter_velocity_gain: float = 0.3
+    filter_position_gate: float = 0.05
+    filter_velocity_gate: float = 0.5
 
     PUSH_RECOVERY_PLANNER_DT = 0.0025
     """The planner step of :meth:`push_recovery` [s]."""
@@ -221,6 +256,19 @@ class MPCOptions:
             raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
         if self.weights is not None and self.weights not in BOUNDING_WEIGHTS:
             raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
+        if self.action_delay is not None:
+            check_int(self.action_delay, "action_delay", minimum=0)
+        if self.speed_acceleration is not None:
+            check_positive(self.speed_acceleration, "speed_acceleration")
+        if self.plan_friction is not None:
+            check_positive(self.plan_friction, "plan_friction")
+        for name in ("filter_position_gain", "filter_velocity_gain"):
+            check_in_range(getattr(self, name), 1e-6, 1.0, name)
+        for name in ("filter_position_gate", "filter_velocity_gate"):
+            check_positive(getattr(self, name), name)
+        for name in ("latency_compensation", "state_filter"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
 
@@ -419,13 +467,35 @@ class MPCPolicy(Policy):
         self.weights = options.weights if options.weights is not None else ("later" if fast else "paper")
         self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
+        self.action_delay = options.action_delay if options.action_delay is not None else interface.action_delay_steps
+        """Control steps between an action's return and its execution (the latency compensated for)."""
+        self._predictor = self._make_predictor()
+        self._filter = self._make_filter()
+        params = self.dynamics.robot.params
+        self._constraints = None if options.plan_friction is None else ConstraintSpec(
+            torque_limit=params.torque_limit, friction=options.plan_friction)
         self._fallback = HeuristicPolicy(interface)
         self._warm_controller = HeuristicBoundingController(
             gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
         self.reset()
 
+    def _make_predictor(self) -> ContactModelPredictor:
+        i = self.interface
+        return ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
+                                     torque_limit=i.torque_limit)
+
+    def _make_filter(self) -> VelocityFilter:
+        o = self.options
+        return VelocityFilter(ContactModelPredictor(self.interface.control_dt,
+                                                    motor_speed_limits=self.interface.motor_speed_limits,
+                                                    torque_limit=self.interface.torque_limit),
+                              o.filter_position_gain, o.filter_velocity_gain, o.filter_position_gate,
+                              o.filter_velocity_gate)
+
     def _reset_copy_state(self) -> None:
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
+        self._predictor = self._make_predictor()
+        self._filter = self._make_filter()
         self._fallback = self._fallback.spawn()
 
     def reset(self) -> None:
@@ -437,6 +507,18 @@ class MPCPolicy(Policy):
         self._cs: ConstraintState | None = None
         self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
                                self.options.min_flight, self.options.max_wait, self.options.lost_stance_steps)
+        self._plan_clock = self.clock
+        # the last action_delay + 1 actions returned (oldest first): the oldest was executed over the last control
+        # period, the others are still to be executed (zeros before the first ones, as the env's delay queue)
+        self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay + 1)),
+                                       maxlen=self.action_delay + 1)
+        self._filter.reset()
+        self._first_obs = True
+        self._start_speed: float | None = None
+        self.last_estimate: np.ndarray | None = None
+        self.last_prediction: np.ndarray | None = None
+        """The state (14,) the last action was computed for: the observed state, or with latency compensation
+        the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
@@ -448,11 +530,11 @@ class MPCPolicy(Policy):
     # ------------------------------------------------------------------ gait clock
     @property
     def _phase_j(self) -> int | None:
-        return self.clock.phase
+        return self._plan_clock.phase
 
     @property
     def _tau(self) -> float:
-        return self.clock.tau
+        return self._plan_clock.tau
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
@@ -481,9 +563,9 @@ class MPCPolicy(Policy):
             modes = [_CYCLE[s], Mode.DOUBLE_STANCE, _CYCLE[j]]
             durs = [left, o.recovery_double_stance, self.durations[j]]
         elif j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
-            j = self.clock.after_double
+            j = self._plan_clock.after_double
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
-            durs = [max(self.clock.double_duration - self._tau, o.min_phase), self.durations[j]]
+            durs = [max(self._plan_clock.double_duration - self._tau, o.min_phase), self.durations[j]]
         else:
             modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
@@ -504,7 +586,7 @@ class MPCPolicy(Policy):
         if _CYCLE[j] != Mode.FLIGHT:
             return j, max(self.durations[j] - self._tau, o.min_phase)
         lifting = BACK if j == 1 else FRONT
-        return (j - 1, o.min_phase) if self.clock.touching(lifting) else None
+        return (j - 1, o.min_phase) if self._plan_clock.touching(lifting) else None
 
     # ------------------------------------------------------------------ warm start
     def _warm_start(self, problem: HybridProblem, x: np.ndarray):
@@ -586,6 +668,10 @@ class MPCPolicy(Policy):
         """The forward-speed reference [m/s] of a plan from state ``x`` (14,): the target speed, moved at most
         ``speed_ramp`` from the measured speed (None: the target)."""
         target = self.interface.target_speed
+        acc = self.options.speed_acceleration
+        if acc is not None and self._start_speed is not None:
+            reach = acc * self._time
+            target = min(max(target, self._start_speed - reach), self._start_speed + reach)
         ramp = self.options.speed_ramp
         if ramp is None:
             return float(target)
@@ -600,7 +686,8 @@ class MPCPolicy(Policy):
                    and float(x[NQ + 1]) < -o.recovery_sink_speed)
         schedule = self._schedule(sinking)
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
-                                         dynamics=self.dynamics, z_velocity=o.z_velocity, weights=self.weights)
+                                         dynamics=self.dynamics, constraints=self._constraints,
+                                         z_velocity=o.z_velocity, weights=self.weights)
         first = self.last_solution is None
         recovering = self.recovering
         iters = o.warmup_iterations if first else (o.recovery_iterations if recovering else o.max_iterations)
@@ -671,9 +758,18 @@ class MPCPolicy(Policy):
         contact-event heuristic (fed every observation, so its stance/swing timers follow the real
         touchdowns) acts instead of the stale plan (``recovery_handover``: for the whole window).
         """
-        x, mode, _ = self._parse(obs)
+        x_obs, mode, _ = self._parse(obs)
         o = self.options
-        eff = self._update_clock(mode, x)
+        if o.state_filter:
+            executed = None if self._first_obs else self._sent[0].astype(np.float64) * self.interface.torque_limit
+            x_obs = self._filter.update(x_obs, mode, executed)
+        if self._first_obs:
+            self._start_speed = float(x_obs[NQ])
+        self._first_obs = False
+        self.last_estimate = x_obs
+        eff = self._update_clock(mode, x_obs)
+        x, eff = self._predict_ahead(x_obs, mode, eff)
+        self.last_prediction = x.copy()
         if self.tracker is not None:
             self.tracker.sync(eff)
         if (o.recovery and not self.recovering and self._time >= o.recovery_after - 1e-9
@@ -687,7 +783,7 @@ class MPCPolicy(Policy):
             u_fallback = self._fallback.gait.torque(x, (mode.in_contact(FRONT), mode.in_contact(BACK)))
         if self._use_fallback and not self.recovering:
             self._use_fallback = False  # the window closed: back to the (last successful) plan
-        if self.clock.resynced:
+        if self.clock.resynced or self._plan_clock.resynced:
             self._since_replan = np.inf  # the schedule changed against the cycle: re-plan now
         if self._since_replan >= self.options.replan_period - 1e-9:
             self._since_replan = 0.0
@@ -711,7 +807,29 @@ class MPCPolicy(Policy):
         self.clock.tick()
         self._since_replan += self.interface.control_dt
         self._time += self.interface.control_dt
-        return self.interface.action_from_torque(u)
+        action = self.interface.action_from_torque(u)
+        self._sent.append(action)
+        return action
+
+    def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode) -> tuple[np.ndarray, Mode]:
+        """Latency compensation (``MPCOptions.latency_compensation``): the state (14,) ``action_delay`` control
+        steps after the observed ``x``, under the actions already sent, and the gait clock advanced over the
+        prediction with the predicted contacts (in :attr:`_plan_clock`); returns ``(state, clock mode)``.
+        Without a delay (or compensation) the observed state and clock."""
+        self._plan_clock = self.clock
+        if not self.action_delay or not self.options.latency_compensation:
+            return x, eff
+        clock = self.clock.copy()
+        xp = x
+        try:
+            for a in list(self._sent)[1:]:
+                xp, mode = self._predictor.step(xp, a.astype(np.float64) * self.interface.torque_limit, mode)
+                clock.tick()
+                eff = clock.update(mode, float(xp[NQ + IPITCH]))
+        except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
+            return x, self.clock.mode
+        self._plan_clock = clock
+        return xp, eff
 
     _prev_lam = None
     _pitch_length = DEFAULT_PARAMS.hip_offset

@@ -1,0 +1,264 @@
+"""Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
+
+Three Gymnasium wrappers and two env arguments, and one registry, :data:`CONDITIONS`, that names the
+conditions of the robustness benchmark (``experiments/robustness.py``):
+
+* :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
+  flags and the gait clock stay clean);
+* :class:`ActionDelay`: every action is executed ``steps`` control steps after the policy returned it (the
+  first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
+  policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it);
+* :class:`RandomPush`: one push per episode at a random time, a random trunk-velocity change
+  ``[dvx, dvz, dpitch_rate]`` applied through the env's documented ``push`` reset option;
+* model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
+  simulated trunk is heavier or lighter than the model every policy uses).
+
+**Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
+(a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
+policy and of the env's own reset noise; ``reset()`` without a seed continues the generator (seeded from
+the env's ``np_random`` on first use).
+
+Example::
+
+    from hsddp_gym.envs.perturbations import make_env
+    env = make_env("push")                    # gym.make("hsddp_gym/Bounding-v0") + RandomPush
+    obs, info = env.reset(seed=3)             # info["push"]: the push of this episode
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import math
+import numbers
+
+import gymnasium as gym
+import numpy as np
+
+from hsddp_gym.core.conventions import NU
+from hsddp_gym.util.validation import check_int, check_positive
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+
+
+def _episode_rng(wrapper, seed, salt: int) -> np.random.Generator:
+    """The wrapper's generator for an episode reset with ``seed`` (None: continue, or start from the env)."""
+    if seed is not None:
+        return np.random.default_rng(np.random.SeedSequence([int(seed), salt]))
+    if wrapper._rng is None:
+        return np.random.default_rng(np.random.SeedSequence(
+            [int(wrapper.env.unwrapped.np_random.integers(2 ** 63)), salt]))
+    return wrapper._rng
+
+
+def _check_nonneg(value, name: str) -> float:
+    return check_positive(value, name, allow_zero=True)
+
+
+class ObservationNoise(gym.Wrapper):
+    """Gaussian noise ``N(0, position_std^2)`` on every observed position (trunk height, pitch, joint angles;
+    the trunk ``x`` too when it is observed) and ``N(0, velocity_std^2)`` on every observed velocity, drawn
+    independently at every observation (reset included); contact flags and the gait clock are not perturbed.
+    The noisy observation is clipped to the observation space. ``info`` is untouched (it holds the true
+    state).
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``.
+        position_std: [m or rad] (>= 0). velocity_std: [m/s or rad/s] (>= 0).
+    """
+
+    SALT = 0x0B5E
+
+    def __init__(self, env: gym.Env, position_std: float = 0.01, velocity_std: float = 0.1) -> None:
+        super().__init__(env)
+        self.position_std = _check_nonneg(position_std, "position_std")
+        self.velocity_std = _check_nonneg(velocity_std, "velocity_std")
+        layout = env.unwrapped.observation_layout
+        self._std = np.zeros(layout.size)
+        self._std[layout.qpos] = self.position_std
+        self._std[layout.qvel] = self.velocity_std
+        self._rng: np.random.Generator | None = None
+
+    def _noisy(self, obs: np.ndarray) -> np.ndarray:
+        noisy = obs + self._std * self._rng.standard_normal(obs.shape)
+        space = self.observation_space
+        return np.clip(noisy, space.low, space.high).astype(obs.dtype)
+
+    def reset(self, *, seed=None, options=None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._rng = _episode_rng(self, seed, self.SALT)
+        return self._noisy(obs), info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._noisy(obs), reward, terminated, truncated, info
+
+
+class ActionDelay(gym.Wrapper):
+    """Actions executed ``steps`` control steps late: ``step(a_t)`` executes ``a_{t - steps}`` (zero torques for
+    the first ``steps`` steps after a reset). ``info["executed_action"]`` is the action the env executed.
+
+    A bad action (wrong shape, non-finite) raises ``ValueError`` when it is given, not when it is executed.
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``. steps: the delay in control steps (>= 0; 0 is the identity).
+
+    Attributes:
+        action_delay_steps: ``steps`` (policies that know their latency read it through
+            ``env.get_wrapper_attr("action_delay_steps")``).
+    """
+
+    def __init__(self, env: gym.Env, steps: int = 1) -> None:
+        super().__init__(env)
+        self.action_delay_steps = check_int(steps, "steps", minimum=0)
+        self._queue: collections.deque = collections.deque()
+
+    def reset(self, *, seed=None, options=None):
+        self._queue = collections.deque(np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay_steps))
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action):
+        try:
+            a = np.array(action, dtype=np.float32)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"action must be an array of {NU} numbers, got {action!r}") from exc
+        if a.shape != (NU,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be a finite array of shape ({NU},), got {action!r}")
+        self._queue.append(a)
+        executed = self._queue.popleft()
+        obs, reward, terminated, truncated, info = self.env.step(executed)
+        info = dict(info, executed_action=executed)
+        return obs, reward, terminated, truncated, info
+
+
+def _check_range(value, name: str, minimum: float | None = None) -> tuple[float, float]:
+    if not isinstance(value, (tuple, list)) or len(value) != 2:
+        raise TypeError(f"{name} must be a pair (low, high), got {value!r}")
+    lo, hi = value
+    for v in (lo, hi):
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
+            raise ValueError(f"{name} must hold two finite numbers, got {value!r}")
+    if not float(lo) <= float(hi):
+        raise ValueError(f"{name} must satisfy low <= high, got {value!r}")
+    if minimum is not None and float(lo) < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value!r}")
+    return float(lo), float(hi)
+
+
+class RandomPush(gym.Wrapper):
+    """One push per episode: at env time ``t ~ U(time_range)`` the trunk velocities change by
+    ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``, m/s, m/s, rad/s,
+    positive pitch rate nose-down), through the env's ``{"push": {"delta_v", "time"}}`` reset option. The
+    push of the episode is ``info["push"]`` at reset and :attr:`last_push`. Giving the ``push`` reset option
+    yourself as well raises ``ValueError``.
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``. time_range: ``(low, high)`` push time [s] (>= 0).
+        max_delta_v: (3,) largest absolute velocity change per component (>= 0).
+    """
+
+    SALT = 0x9054
+
+    def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0)) -> None:
+        super().__init__(env)
+        self.time_range = _check_range(time_range, "time_range", minimum=0.0)
+        if not isinstance(max_delta_v, (tuple, list, np.ndarray)) or len(max_delta_v) != 3:
+            raise TypeError(f"max_delta_v must be 3 numbers [m/s, m/s, rad/s], got {max_delta_v!r}")
+        self.max_delta_v = tuple(_check_nonneg(v, f"max_delta_v[{i}]") for i, v in enumerate(max_delta_v))
+        self._rng: np.random.Generator | None = None
+        self.last_push: dict | None = None
+
+    def reset(self, *, seed=None, options=None):
+        options = {} if options is None else dict(options)
+        if options.get("push") is not None:
+            raise ValueError("RandomPush draws the push itself: do not also give the 'push' reset option")
+        if seed is not None or self._rng is None:
+            self._rng = _episode_rng(self, seed, self.SALT)
+        lo, hi = self.time_range
+        t = float(self._rng.uniform(lo, hi))
+        m = np.asarray(self.max_delta_v)
+        dv = (m * self._rng.uniform(-1.0, 1.0, size=3)).tolist()
+        self.last_push = {"delta_v": dv, "time": t}
+        options["push"] = dict(self.last_push)
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, dict(info, push=dict(self.last_push))
+
+
+# ------------------------------------------------------------------------------------------------ registry
+@dataclasses.dataclass(frozen=True)
+class Condition:
+    """A named test condition: env arguments plus wrappers.
+
+    Attributes:
+        name: the registry key. description: one line for tables.
+        env_kwargs: arguments of ``gym.make("hsddp_gym/Bounding-v0", ...)`` (reset noise, friction, trunk mass,
+            target speed).
+        observation_noise: ``(position_std, velocity_std)`` of :class:`ObservationNoise`, or None.
+        action_delay: control steps of :class:`ActionDelay` (0: none).
+        push: the keyword arguments of :class:`RandomPush` (``{}``: its defaults), or None (no push).
+    """
+
+    name: str
+    description: str
+    env_kwargs: dict = dataclasses.field(default_factory=dict)
+    observation_noise: tuple | None = None
+    action_delay: int = 0
+    push: dict | None = None
+
+    def make(self, **make_kwargs) -> gym.Env:
+        """``gym.make`` the env with :attr:`env_kwargs` (``make_kwargs`` may add others, e.g. ``render_mode``,
+        ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it."""
+        import hsddp_gym  # noqa: F401  (registers the env)
+
+        both = sorted(set(make_kwargs) & set(self.env_kwargs))
+        if both:
+            raise ValueError(f"condition {self.name!r} sets {both} itself; do not pass them to make()")
+        env = gym.make(ENV_ID, **self.env_kwargs, **make_kwargs)
+        if self.push is not None:
+            env = RandomPush(env, **self.push)
+        if self.action_delay:
+            env = ActionDelay(env, self.action_delay)
+        if self.observation_noise is not None:
+            env = ObservationNoise(env, *self.observation_noise)
+        return env
+
+    def as_dict(self) -> dict:
+        """A JSON-serializable description."""
+        return dataclasses.asdict(self)
+
+
+def _conditions(*conds: Condition) -> dict:
+    return {c.name: c for c in conds}
+
+
+CONDITIONS: dict[str, Condition] = _conditions(
+    Condition("default", "default env (reset noise 0.01)"),
+    Condition("reset_noise_x4", "reset noise x4 (reset_noise_scale=0.04)", {"reset_noise_scale": 0.04}),
+    Condition("obs_noise", "observation noise: sigma 0.01 on positions, 0.1 on velocities",
+              observation_noise=(0.01, 0.1)),
+    Condition("delay_5ms", "actions executed 1 control step (5 ms) late", action_delay=1),
+    Condition("delay_10ms", "actions executed 2 control steps (10 ms) late", action_delay=2),
+    Condition("push", "random push: t ~ U(1, 4) s, dv ~ U(+-0.8 m/s, +-0.8 m/s, +-5 rad/s)", push={}),
+    Condition("friction_0.4", "friction mu = 0.4 (model: 0.6)", {"friction": 0.4}),
+    Condition("mass_+15", "trunk mass +15 % (env only)", {"trunk_mass_scale": 1.15}),
+    Condition("mass_-15", "trunk mass -15 % (env only)", {"trunk_mass_scale": 0.85}),
+    Condition("speed_0.5", "target speed 0.5 m/s", {"target_speed": 0.5}),
+    Condition("speed_1.25", "target speed 1.25 m/s", {"target_speed": 1.25}),
+    Condition("speed_1.5", "target speed 1.5 m/s", {"target_speed": 1.5}),
+    Condition("speed_2.0", "target speed 2.0 m/s", {"target_speed": 2.0}),
+)
+"""The robustness benchmark's conditions by name (issue 14's table, plus target speeds 0.5 and 1.5 m/s)."""
+
+
+def get_condition(name: str) -> Condition:
+    """The :class:`Condition` called ``name`` (ValueError naming the known ones otherwise)."""
+    if not isinstance(name, str) or name not in CONDITIONS:
+        raise ValueError(f"condition must be one of {list(CONDITIONS)}, got {name!r}")
+    return CONDITIONS[name]
+
+
+def make_env(condition: str | Condition, **make_kwargs) -> gym.Env:
+    """The env of a condition (a name of :data:`CONDITIONS` or a :class:`Condition`), see :meth:`Condition.make`."""
+    if isinstance(condition, Condition):
+        return condition.make(**make_kwargs)
+    return get_condition(condition).make(**make_kwargs)

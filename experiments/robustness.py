@@ -1,0 +1,291 @@
+"""Robustness benchmark: every named perturbation of ``hsddp_gym.envs.perturbations.CONDITIONS`` x any policy.
+
+Each (policy, condition, seed) is one episode of the condition's env (``make_env(condition)``: env kwargs and
+wrappers, every random draw seeded from the episode seed) reset with ``seed``, run to the env's 1000-step
+time limit (5 s) or a fall. Policies:
+
+* ``mpc``: ``MPCPolicy`` with the default ``MPCOptions()`` (it reads the env's action delay, if any, from
+  ``EnvInterface.from_env``); ``mpc-options``: ``MPCOptions(**json)`` from ``--mpc-options`` (ablations; give
+  ``--label`` to name it);
+* ``heuristic``: the contact-event heuristic; ``random``;
+* learned ones, ``--learned NAME=DIR`` (NAME ``bc`` / ``dagger``: ``DIR/policy.npz``; ``ppo`` / ``sac``:
+  ``DIR/model.zip`` + ``summary.json``), skipped with a note when the files are missing.
+
+**Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
+develop or tune anything. Development used seeds 500-519.
+
+Per cell: falls / episodes, mean return (all episodes), mean forward speed of the episodes that did not fall
+(and its error to the target), real-time factor (simulated / wall time, policy + simulation), and for the MPC the
+planner failures and mean re-plan time. Writes ``OUT/robustness.json`` (every episode), ``OUT/robustness.md``
+(the table) and ``OUT/robustness.png`` (falls and speed per condition). Episodes are independent:
+``--workers`` runs them in parallel with the same results (timings aside).
+
+Usage::
+
+    python experiments/robustness.py --out runs/robustness --policies mpc heuristic --seeds 20 --workers 2
+        [--conditions default obs_noise ...] [--learned bc=runs/train/bc]
+    python experiments/robustness.py --out runs/robustness_table --combine runs/a/robustness.json runs/b/robustness.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.util.io import atomic_path, write_json
+
+BUILTIN = ("mpc", "mpc-options", "heuristic", "random")
+LEARNED = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
+EVAL_FIRST_SEED = 7000
+
+
+def make_policy(spec: dict, env):
+    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ...}``) for ``env``."""
+    from hsddp_gym.planners.policies.base import EnvInterface
+
+    kind = spec["kind"]
+    interface = EnvInterface.from_env(env)
+    if kind in ("mpc", "mpc-options"):
+        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+        return MPCPolicy(interface, MPCOptions(**(spec.get("mpc_options") or {})))
+    if kind == "heuristic":
+        from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+
+        return HeuristicPolicy(interface)
+    if kind == "random":
+        from hsddp_gym.planners.policies.random_policy import RandomPolicy
+
+        return RandomPolicy(interface, seed=0)
+    if kind in ("bc", "dagger"):
+        from hsddp_gym.learning.bc import MLPPolicy
+
+        return MLPPolicy.load(Path(spec["dir"]) / "policy.npz", interface)
+    if kind in ("ppo", "sac"):
+        from hsddp_gym.learning.sb3 import load_trained_policy
+
+        return load_trained_policy(spec["dir"], env)
+    raise ValueError(f"policy kind must be one of {BUILTIN + tuple(LEARNED)}, got {kind!r}")
+
+
+def run_one(task: tuple) -> dict:
+    """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None)``."""
+    from hsddp_gym.envs.perturbations import make_env
+    from hsddp_gym.planners.policies.evaluation import run_episode
+
+    label, spec, condition, seed, max_steps = task
+    env = make_env(condition)
+    try:
+        policy = make_policy(spec, env)
+        res = run_episode(env, policy, seed, max_steps=max_steps)
+        stats = res.policy_stats or {}
+        solve_ms = stats.get("solve_ms") or []
+        return {"seed": int(seed), "return": res.episode_return, "fell": bool(res.fell), "length": res.length,
+                "fall_time_s": res.simulated_time if res.fell else None, "speed": res.forward_speed,
+                "wall_time_s": res.wall_time, "simulated_time_s": res.simulated_time,
+                "replans": int(stats.get("replans", 0)), "planner_failures": int(stats.get("planner_failures", 0)),
+                "mean_replan_ms": float(np.mean(solve_ms)) if solve_ms else None,
+                "target_speed": float(env.unwrapped.target_speed)}
+    finally:
+        env.close()
+
+
+def summarize_cell(runs: list[dict]) -> dict:
+    alive = [r for r in runs if not r["fell"]]
+    target = runs[0]["target_speed"]
+    speed = float(np.mean([r["speed"] for r in alive])) if alive else None
+    ms = [r["mean_replan_ms"] for r in runs if r["mean_replan_ms"] is not None]
+    return {"episodes": len(runs), "falls": sum(r["fell"] for r in runs),
+            "fall_seeds": [r["seed"] for r in runs if r["fell"]],
+            "mean_return": float(np.mean([r["return"] for r in runs])),
+            "std_return": float(np.std([r["return"] for r in runs])),
+            "mean_speed": speed, "target_speed": target,
+            "speed_error": None if speed is None else (speed - target) / target,
+            "real_time_factor": sum(r["simulated_time_s"] for r in runs) / max(sum(r["wall_time_s"] for r in runs),
+                                                                              1e-12),
+            "planner_failures": sum(r["planner_failures"] for r in runs),
+            "mean_replan_ms": float(np.mean(ms)) if ms else None}
+
+
+def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True) -> dict:
+    """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``."""
+    from tqdm import tqdm
+
+    tasks = [(label, spec, c, s, max_steps) for c in conditions for label, spec in policies.items() for s in seeds]
+    bar = {"total": len(tasks), "desc": "episodes", "disable": not progress, "smoothing": 0.05}
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=workers) as pool:
+            runs = list(tqdm(pool.map(run_one, tasks, chunksize=1), **bar))
+    else:
+        runs = [run_one(t) for t in tqdm(tasks, **bar)]
+    out: dict = {label: {} for label in policies}
+    for task, run in zip(tasks, runs):
+        out[task[0]].setdefault(task[2], []).append(run)
+    return {label: {c: {**summarize_cell(r), "runs": r} for c, r in cells.items()} for label, cells in out.items()}
+
+
+def markdown(results: dict, conditions) -> str:
+    from hsddp_gym.envs.perturbations import get_condition
+
+    labels = list(results)
+    lines = ["Falls / episodes, mean return, mean speed of the episodes that did not fall (error to the target), "
+             "real-time factor", "",
+             "| condition | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+    for c in conditions:
+        cells = []
+        for label in labels:
+            s = results[label][c]
+            speed = "-" if s["mean_speed"] is None else f"{s['mean_speed']:.2f} m/s ({100 * s['speed_error']:+.0f} %)"
+            cells.append(f"**{s['falls']}/{s['episodes']}**, {s['mean_return']:.0f}, {speed}, "
+                         f"RTF {s['real_time_factor']:.1f}")
+        lines.append(f"| {c}: {get_condition(c).description} | " + " | ".join(cells) + " |")
+    totals = [f"{sum(results[lb][c]['falls'] for c in conditions)}/"
+              f"{sum(results[lb][c]['episodes'] for c in conditions)}" for lb in labels]
+    lines.append("| total falls | " + " | ".join(totals) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def plot(results: dict, conditions, path: Path) -> bool:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    labels = list(results)
+    x = np.arange(len(conditions))
+    w = 0.8 / len(labels)
+    fig, (a, b) = plt.subplots(2, 1, figsize=(max(8, 0.9 * len(conditions)), 6.5), sharex=True)
+    for i, label in enumerate(labels):
+        falls = [results[label][c]["falls"] / results[label][c]["episodes"] for c in conditions]
+        err = [100 * (results[label][c]["speed_error"] or np.nan) for c in conditions]
+        a.bar(x + i * w - 0.4 + w / 2, falls, w, label=label)
+        b.bar(x + i * w - 0.4 + w / 2, err, w, label=label)
+    a.set_ylabel("fall rate")
+    a.axhline(0.05, color="k", ls="--", lw=0.8)
+    a.legend()
+    b.set_ylabel("speed error [%]")
+    for y in (-10, 10):
+        b.axhline(y, color="k", ls="--", lw=0.8)
+    b.set_xticks(x)
+    b.set_xticklabels(conditions, rotation=35, ha="right")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    plt.close(fig)
+    return True
+
+
+def combine(paths, out: Path) -> dict:
+    """One table from several ``robustness.json`` files (e.g. a baseline, the current default, ablations): every
+    policy of every file, labelled ``NAME`` or, when two files hold the same name, ``NAME@DIRNAME``; only the
+    conditions common to all. Writes ``OUT/robustness.md``, ``.png`` and ``.json``."""
+    loaded = [(Path(p), json.loads(Path(p).read_text())) for p in paths]
+    names = [name for _, d in loaded for name in d["results"]]
+    results, sources = {}, {}
+    for path, d in loaded:
+        for name, cells in d["results"].items():
+            label = name if names.count(name) == 1 else f"{name}@{path.parent.name}"
+            results[label] = cells
+            sources[label] = {"file": str(path), "command": d.get("command"), "seeds": d.get("seeds")}
+    common = [c for c in loaded[0][1]["conditions"] if all(c in cells for cells in results.values())]
+    write_json(out / "robustness.json", {"command": " ".join(["python", *sys.argv]), "sources": sources,
+                                         "conditions": loaded[0][1]["conditions"], "results": results})
+    table = markdown(results, common)
+    with atomic_path(out / "robustness.md") as tmp:
+        tmp.write_text(table)
+    plot(results, common, out / "robustness.png")
+    print(table)
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    from hsddp_gym.envs.perturbations import CONDITIONS
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="runs/robustness", help="output directory (default: %(default)s)")
+    p.add_argument("--policies", nargs="+", default=["mpc", "heuristic"], choices=BUILTIN,
+                   help="built-in policies (default: %(default)s)")
+    p.add_argument("--mpc-options", default=None, metavar="JSON",
+                   help="MPCOptions fields of the mpc-options policy as a JSON object (ablations)")
+    p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
+    p.add_argument("--learned", action="append", default=[], metavar="NAME=DIR",
+                   help=f"a trained policy, NAME one of {list(LEARNED)} (repeatable; skipped if its files are missing)")
+    p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS),
+                   help="conditions (default: all)")
+    p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
+    p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
+                   help="first seed (default: %(default)s, the evaluation seeds; develop on others)")
+    p.add_argument("--max-steps", type=int, default=None,
+                   help="stop episodes after this many control steps (default: the 1000-step limit; smoke tests)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="parallel worker processes; results do not depend on it (default: %(default)s)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
+                   help="run nothing: merge these robustness.json files into one table in --out")
+    args = p.parse_args(argv)
+    if args.combine:
+        missing = [f for f in args.combine if not Path(f).is_file()]
+        if missing:
+            p.error(f"--combine: no such file(s) {missing}")
+        combine(args.combine, Path(args.out))
+        return 0
+    if args.seeds < 1:
+        p.error(f"--seeds must be >= 1, got {args.seeds}")
+    if args.first_seed < 0:
+        p.error(f"--first-seed must be >= 0, got {args.first_seed}")
+    if args.workers < 1:
+        p.error(f"--workers must be >= 1, got {args.workers}")
+    if args.max_steps is not None and args.max_steps < 1:
+        p.error(f"--max-steps must be >= 1, got {args.max_steps}")
+    policies: dict = {}
+    for name in args.policies:
+        if name == "mpc-options":
+            if args.mpc_options is None:
+                p.error("the mpc-options policy needs --mpc-options")
+            from hsddp_gym.planners.policies.mpc import MPCOptions
+
+            try:
+                opts = json.loads(args.mpc_options)
+                MPCOptions(**opts)
+            except (ValueError, TypeError) as exc:
+                p.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
+            policies[args.label] = {"kind": "mpc-options", "mpc_options": opts}
+        else:
+            policies[name] = {"kind": name}
+    skipped = {}
+    for item in args.learned:
+        name, sep, path = item.partition("=")
+        if not sep or name not in LEARNED:
+            p.error(f"--learned must be NAME=DIR with NAME one of {list(LEARNED)}, got {item!r}")
+        if not (Path(path) / LEARNED[name]).exists():
+            skipped[name] = f"missing {Path(path) / LEARNED[name]}"
+            print(f"skipping {name}: {skipped[name]}", flush=True)
+            continue
+        policies[name] = {"kind": name, "dir": path}
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    t0 = time.perf_counter()
+    results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet)
+    out = Path(args.out)
+    write_json(out / "robustness.json", {
+        "command": " ".join(["python", *sys.argv]), "seeds": seeds, "max_steps": args.max_steps,
+        "policies": policies, "skipped": skipped, "wall_time_s": time.perf_counter() - t0,
+        "conditions": {c: CONDITIONS[c].as_dict() for c in args.conditions}, "results": results})
+    table = markdown(results, args.conditions)
+    with atomic_path(out / "robustness.md") as tmp:
+        tmp.write_text(table)
+    plot(results, args.conditions, out / "robustness.png")
+    print("\n" + table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

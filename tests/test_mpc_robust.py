@@ -1,0 +1,197 @@
+"""The MPC's robustness mechanisms: latency compensation (model prediction over the action delay), the
+velocity filter; their options' validation."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hsddp_gym.envs.perturbations import ActionDelay, make_env
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor
+from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+import hsddp_gym  # noqa: F401
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+
+
+def _state(info):
+    return np.concatenate([info["qpos"], info["qvel"]])
+
+
+@pytest.mark.parametrize("delay", [1, 2])
+def test_latency_predictor_reproduces_the_env_state_after_the_delay(delay):
+    env = ActionDelay(gym.make(ENV_ID), delay)
+    policy = MPCPolicy.from_env(env)
+    assert policy.action_delay == delay
+    obs, info = env.reset(seed=500)
+    policy.reset()
+    predictions, states = [], [_state(info)]
+    for _ in range(80):  # 0.4 s: touchdowns, lift-offs, flights
+        obs, _, terminated, _, info = env.step(policy(obs))
+        predictions.append(policy.last_prediction)
+        states.append(_state(info))
+        assert not terminated
+    # the action computed at step t acts from step t + delay on: the prediction is that state (x excluded)
+    err = [np.abs(predictions[t][1:] - states[t + delay][1:]).max() for t in range(len(predictions) - delay)]
+    moved = [np.abs(states[t][1:] - states[t + delay][1:]).max() for t in range(len(predictions) - delay)]
+    assert max(err) < 1e-3  # float32 observations: the rest is round-off
+    assert np.median(moved) > 0.5  # the state does move over the delay: the prediction is not trivial
+
+
+def test_predictor_is_the_nominal_model_not_the_env():
+    """The prediction is the nominal env's physics (friction 0.6) and knows nothing of a mismatched env (ice)."""
+    pred = ContactModelPredictor(0.005)
+    assert pred.sim.mu == 0.6 and pred.n_sub == 5
+    u = np.array([0.0, 0.0, -20.0, 20.0])  # presses the back foot on the ground and pushes it forward
+    finals = []
+    for friction in (0.6, 0.0):
+        env = gym.make(ENV_ID, friction=friction).unwrapped
+        x = env.init_state.copy()
+        env.reset(options={"state": x})
+        for _ in range(4):
+            info = env.step(u / 33.0)[4]
+        finals.append(_state(info))
+    xp, mode = pred.predict(x, None, [u] * 4)
+    assert np.abs(xp[1:] - finals[0][1:]).max() < 1e-9
+    assert np.abs(xp[1:] - finals[1][1:]).max() > 1e-3
+    with pytest.raises(ValueError, match="x"):
+        pred.predict(np.zeros(3), None, [u])
+
+
+def test_without_delay_or_compensation_the_mpc_acts_on_the_observation():
+    env = ActionDelay(gym.make(ENV_ID), 1)
+    policy = MPCPolicy.from_env(env, options=MPCOptions(latency_compensation=False))
+    obs, info = env.reset(seed=3)
+    policy.reset()
+    policy(obs)
+    np.testing.assert_allclose(policy.last_prediction[1:], _state(info)[1:], atol=1e-6)
+    # the default env has no delay: nothing is predicted
+    env0 = gym.make(ENV_ID)
+    p0 = MPCPolicy.from_env(env0)
+    assert p0.action_delay == 0
+    # an explicit option overrides the env's delay
+    assert MPCPolicy.from_env(env0, options=MPCOptions(action_delay=2)).action_delay == 2
+
+
+def test_new_mpc_options_are_validated_by_name():
+    with pytest.raises(ValueError, match="action_delay"):
+        MPCOptions(action_delay=-1)
+    with pytest.raises(TypeError, match="latency_compensation"):
+        MPCOptions(latency_compensation="yes")
+    with pytest.raises(ValueError, match="action_delay_steps"):
+        EnvInterface(action_delay_steps=-2)
+    with pytest.raises(ValueError, match="motor_speed_limits"):
+        EnvInterface(motor_speed_limits=(50.0, 36.0))
+
+
+def test_latency_compensated_mpc_survives_a_10ms_delay_episode_start():
+    env = make_env("delay_10ms", max_episode_steps=200)
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=501)
+    policy.reset()
+    for _ in range(200):  # 1 s: the start-up transient where the uncompensated MPC falls
+        obs, _, terminated, truncated, _ = env.step(policy(obs))
+        assert not terminated
+        if truncated:
+            break
+
+
+def _run(env, policy, steps, seed):
+    obs, info = env.reset(seed=seed)
+    policy.reset()
+    est, true, raw = [], [], []
+    for _ in range(steps):
+        action = policy(obs)
+        est.append(policy.last_estimate.copy())
+        true.append(_state(info))
+        raw.append(obs.copy())
+        obs, _, terminated, _, info = env.step(action)
+        assert not terminated
+    return np.array(est), np.array(true), np.array(raw)
+
+
+def test_state_filter_is_the_identity_on_exact_observations():
+    env = gym.make(ENV_ID)
+    est, true, _ = _run(env, MPCPolicy.from_env(env), 60, seed=502)
+    assert np.abs(est[:, 1:] - true[:, 1:]).max() < 1e-3  # float32 observations
+
+
+def test_state_filter_reduces_velocity_noise():
+    from hsddp_gym.envs.perturbations import ObservationNoise
+
+    env = ObservationNoise(gym.make(ENV_ID), 0.01, 0.1)
+    est, true, raw = _run(env, MPCPolicy.from_env(env), 120, seed=503)
+    layout = env.unwrapped.observation_layout
+    raw_err = raw[:, layout.qvel] - true[:, 7:]
+    est_err = est[:, 7:] - true[:, 7:]
+    assert 0.08 < raw_err.std() < 0.12
+    assert est_err[:, :3].std() < 0.7 * raw_err[:, :3].std()  # trunk velocities (measured: about 0.5)
+    assert est_err.std() < 0.9 * raw_err.std()  # all (the light legs' rates are filtered less)
+
+
+def test_state_filter_takes_large_innovations_whole():
+    pred = ContactModelPredictor(0.005)
+    from hsddp_gym.planners.policies.estimation import VelocityFilter
+
+    filt = VelocityFilter(pred, 0.5, 0.3, 0.05, 0.5)
+    x = gym.make(ENV_ID).unwrapped.init_state.copy()
+    x[1] += 0.1  # in the air
+    u = np.zeros(4)
+    filt.update(x, 0, None)
+    prior, _ = pred.step(x, u)
+    y = prior.copy()
+    y[7] += 2.0  # a push: 2 m/s more
+    y[8] += 0.05  # within the gate: filtered
+    est = filt.update(y, 0, u)
+    assert est[7] == pytest.approx(y[7])
+    assert est[8] == pytest.approx(prior[8] + 0.3 * 0.05)
+    with pytest.raises(ValueError, match="velocity_gain"):
+        VelocityFilter(pred, 0.5, 0.0)
+    with pytest.raises(ValueError, match="filter_velocity_gate"):
+        MPCOptions(filter_velocity_gate=0.0)
+    with pytest.raises(ValueError, match="filter_position_gain"):
+        MPCOptions(filter_position_gain=1.5)
+    with pytest.raises(TypeError, match="state_filter"):
+        MPCOptions(state_filter=1)
+
+
+def test_speed_reference_rises_from_the_start_speed_at_the_bounded_rate():
+    env = gym.make(ENV_ID, target_speed=2.0)
+    policy = MPCPolicy.from_env(env)
+    obs, info = env.reset(seed=504)
+    policy.reset()
+    policy(obs)
+    v0 = float(info["qvel"][0])
+    assert policy._start_speed == pytest.approx(v0, abs=1e-6)
+    x = np.zeros(14)
+    x[7] = v0
+    policy._time = 0.3
+    assert policy.plan_speed(x) == pytest.approx(v0 + 0.3)  # 1 m/s^2, inside the 0.5 m/s speed ramp
+    policy._time = 5.0
+    assert policy.plan_speed(x) == pytest.approx(v0 + 0.5)  # the measured-speed ramp still applies
+    x[7] = 1.9
+    assert policy.plan_speed(x) == pytest.approx(2.0)
+    free = MPCPolicy.from_env(env, options=MPCOptions(speed_acceleration=None))
+    free.reset()
+    free(obs)
+    x[7] = v0
+    assert free.plan_speed(x) == pytest.approx(v0 + 0.5)
+    with pytest.raises(ValueError, match="speed_acceleration"):
+        MPCOptions(speed_acceleration=-1.0)
+
+
+def test_plans_keep_a_friction_margin():
+    env = gym.make(ENV_ID)
+    obs, _ = env.reset(seed=505)
+    margin = MPCPolicy.from_env(env)
+    margin.reset()
+    margin(obs)
+    assert margin.options.plan_friction == 0.45 and margin._problem.constraints.friction == 0.45
+    full = MPCPolicy.from_env(env, options=MPCOptions(plan_friction=None))
+    full.reset()
+    full(obs)
+    assert full._problem.constraints.friction == 0.6
+    with pytest.raises(ValueError, match="plan_friction"):
+        MPCOptions(plan_friction=0.0)
