@@ -230,7 +230,7 @@ def test_env_energy_with_zero_action_from_accepted_reset_states():
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4])
 def test_spd_solver_of_the_position_projection(n):
-    from hsddp_gym.envs.contact import _solve_spd
+    from hsddp_gym.core.contact import _solve_spd
 
     rng = np.random.default_rng(n)
     for _ in range(200):

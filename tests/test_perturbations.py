@@ -180,7 +180,7 @@ def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experime
 
     rob = experiment("robustness")
     argv = ["--policies", "heuristic", "--conditions", "default", "delay_10ms", "push", "--seeds", "2",
-            "--first-seed", "11", "--max-steps", "150", "--quiet"]
+            "--first-seed", "11", "--max-steps", "250", "--quiet"]
     assert rob.main(argv + ["--out", str(tmp_path / "a")]) == 0
     assert rob.main(argv + ["--out", str(tmp_path / "b"), "--workers", "2"]) == 0
     a = json.loads((tmp_path / "a" / "robustness.json").read_text())
