@@ -86,8 +86,7 @@ class MPCOptions:
             the target speed: the paper's 80/72/72/72 ms up to FAST_GAIT_SPEED (1.2 m/s), the authors' 1.5 m/s gait
             80/100/80/100 ms above (their MHPC bounding code).
         weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`); None picks them like
-            the
-            durations: ``"paper"`` up to 1.2 m/s, above it ``"later"``, the weights the authors' code runs with
+            the durations: ``"paper"`` up to 1.2 m/s, above it ``"later"``, the weights the authors' code runs with
             its 1.5 m/s gait (with the paper's weights, whose terminal forward-speed weight is 3x larger, the
             MPC fell in the start-up transient from the paper's 0.9 m/s initial state on 3 of 3 seeds).
         min_phase: shortest remaining duration given to the current phase [s].
@@ -101,8 +100,7 @@ class MPCOptions:
             moves on anyway [s].
         z_velocity: vertical-velocity references at the phase ends (see
             :func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): "code" (default; the authors' +-1 m/s,
-            real
-            flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
+            real flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
             flight made 2 of 10 seeded MPC episodes fall).
         reb_delta, reb_eps: relaxed-barrier relaxation and weight used in every re-plan (kept moderate:
             the one-shot solve's shrinking delta makes warm-started re-plans needlessly stiff).
