@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.util.io import atomic_path, write_json
+from hsddp_gym.util.parallel import BACKENDS, check_backend, run_parallel
 
 BUILTIN = ("mpc", "mpc-options", "heuristic", "random")
 LEARNED = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
@@ -112,19 +113,16 @@ def summarize_cell(runs: list[dict]) -> dict:
             "mean_replan_ms": float(np.mean(ms)) if ms else None}
 
 
-def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True) -> dict:
-    """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``."""
+def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True,
+                  backend: str = "local", address: str | None = None) -> dict:
+    """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``; the episodes run on
+    :func:`hsddp_gym.util.parallel.run_parallel` (``backend`` "local" or "ray", ``address`` a Ray cluster)."""
     from tqdm import tqdm
 
     tasks = [(label, spec, c, s, max_steps) for c in conditions for label, spec in policies.items() for s in seeds]
-    bar = {"total": len(tasks), "desc": "episodes", "disable": not progress, "smoothing": 0.05}
-    if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            runs = list(tqdm(pool.map(run_one, tasks, chunksize=1), **bar))
-    else:
-        runs = [run_one(t) for t in tqdm(tasks, **bar)]
+    with tqdm(total=len(tasks), desc="episodes", disable=not progress, smoothing=0.05) as bar:
+        runs = run_parallel(run_one, tasks, workers=workers, backend=backend, address=address,
+                            on_result=lambda i, r: bar.update(1))
     out: dict = {label: {} for label in policies}
     for task, run in zip(tasks, runs):
         out[task[0]].setdefault(task[2], []).append(run)
@@ -228,6 +226,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="stop episodes after this many control steps (default: the 1000-step limit; smoke tests)")
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes; results do not depend on it (default: %(default)s)")
+    p.add_argument("--backend", choices=BACKENDS, default="local",
+                   help="'local' processes or 'ray' (a local Ray instance, or the cluster at --address; the ray "
+                        "extra); same results (default: %(default)s)")
+    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a "
+                                                    "local instance)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
                    help="run nothing: merge these robustness.json files into one table in --out")
@@ -244,6 +247,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--first-seed must be >= 0, got {args.first_seed}")
     if args.workers < 1:
         p.error(f"--workers must be >= 1, got {args.workers}")
+    try:
+        check_backend(args.backend, args.address)
+    except (ImportError, ValueError) as exc:
+        p.error(f"--backend {args.backend}: {exc}")
     if args.max_steps is not None and args.max_steps < 1:
         p.error(f"--max-steps must be >= 1, got {args.max_steps}")
     policies: dict = {}
@@ -273,7 +280,8 @@ def main(argv: list[str] | None = None) -> int:
         policies[name] = {"kind": name, "dir": path}
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     t0 = time.perf_counter()
-    results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet)
+    results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet,
+                            args.backend, args.address)
     out = Path(args.out)
     write_json(out / "robustness.json", {
         "command": " ".join(["python", *sys.argv]), "seeds": seeds, "max_steps": args.max_steps,
