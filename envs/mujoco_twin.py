@@ -32,12 +32,12 @@ same semi-implicit Euler) to 1e-9.
 from __future__ import annotations
 
 import numpy as np
-from hsddp_gym.envs.bounding import BoundingEnv
-from hsddp_gym.envs.contact import check_motor_speed_limits
 
 from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NU, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
+from hsddp_gym.envs.bounding import BoundingEnv
+from hsddp_gym.envs.contact import check_motor_speed_limits
 from hsddp_gym.util.validation import check_positive, check_vector
 
 FOOT_RADIUS = 0.005

@@ -13,9 +13,9 @@ import dataclasses
 import sys
 
 import numpy as np
+
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.tasks import plan_bounding
-
 from hsddp_gym.util.io import write_json
 
 FIELDS = {f.name for f in dataclasses.fields(SolverOptions)}

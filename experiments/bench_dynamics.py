@@ -25,13 +25,13 @@ import timeit
 
 import numpy as np
 import pinocchio as pin
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 from hsddp_gym.core.conventions import NGRF, NQ, NX, Mode
 from hsddp_gym.core.dynamics import INTEGRATORS, HybridDynamics, Linearization
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import Trajectory, rollout
 from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 TARGET_US_PER_KNOT = 30.0
 MODES = (Mode.FLIGHT, Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)

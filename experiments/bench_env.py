@@ -22,9 +22,9 @@ import time
 
 import gymnasium as gym
 import numpy as np
-from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, BoundingEnv
 
 import hsddp_gym  # noqa: F401  (registers the env)
+from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, BoundingEnv
 
 GOAL_SIM_STEPS_PER_S = 20_000
 GOAL_RATIO_TO_LEGACY = 0.8

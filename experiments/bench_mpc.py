@@ -29,9 +29,9 @@ def main(argv=None) -> int:
     import warnings
 
     import gymnasium as gym
-    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
     import hsddp_gym  # noqa: F401
+    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
     warnings.simplefilter("ignore", RuntimeWarning)
     over = {k: v for k, v in (("replan_period", args.replan_period), ("planner_dt", args.planner_dt),

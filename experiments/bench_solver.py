@@ -36,9 +36,10 @@ import pstats
 import statistics
 import time
 
-import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 import numpy as np
 import pinocchio as pin
+
+import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
@@ -132,10 +133,9 @@ def calibrate(problem: HybridProblem, sol, cs, repeat: int = 5) -> dict:
     """Best-of-``repeat`` times [s] of the pieces of a line-search trial around the solved trajectory (the
     feedback policy with ``eps = 1``): a plain rollout, a rollout with fused linearization, a separate
     linearization pass, an objective evaluation. Measured outside the solve (warm caches): a lower bound."""
+    from hsddp_gym.core.dynamics import Linearization
     from hsddp_gym.planners.optimizer.hsddp import _Traj
     from hsddp_gym.planners.optimizer.objective import Objective
-
-    from hsddp_gym.core.dynamics import Linearization
 
     rollout = hsddp_module.rollout_policy
     tr = _Traj(problem.n_knots, problem.n_phases)

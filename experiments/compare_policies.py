@@ -43,12 +43,12 @@ TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summa
 def build(name: str, run_dir: Path | None):
     """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
     import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-    import hsddp_gym  # noqa: F401
 
     env = gym.make("hsddp_gym/Bounding-v0")  # only its public settings are read (the default env)
     interface = EnvInterface.from_env(env)

@@ -18,11 +18,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS
-from hsddp_gym.envs.contact import STICK, ContactSimulator
 
 from hsddp_gym.core.conventions import BACK, FRONT
 from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS
+from hsddp_gym.envs.contact import STICK, ContactSimulator
 
 
 def main(argv: list[str] | None = None) -> int:

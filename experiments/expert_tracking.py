@@ -35,10 +35,10 @@ def main(argv=None) -> int:
         parser.error(f"--steps must be >= 1, got {args.steps}")
 
     import gymnasium as gym
-    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
-    from hsddp_gym.planners.tasks import plan_bounding
 
     import hsddp_gym  # noqa: F401  (registers the env)
+    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.tasks import plan_bounding
 
     sol = plan_bounding("al-reb", cycles=5).solution
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=args.steps)

@@ -12,7 +12,6 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.planners.tasks import PLAN_METHODS, plan_bounding
-
 from hsddp_gym.util.io import write_json
 from hsddp_gym.viz import plotting
 

@@ -21,9 +21,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.tasks import fig8_study, run_sto, sto_problem
-
 from hsddp_gym.util.io import write_json
 from hsddp_gym.viz.plotting import _plt, _save
 

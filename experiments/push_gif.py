@@ -23,11 +23,11 @@ import numpy as np
 def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple[np.ndarray, bool, float]:
     """``(states (T+1, 14), fell, control period [s])`` of one pushed episode."""
     import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401  (registers the env)
     from hsddp_gym.planners.policies.evaluation import run_episode
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-    import hsddp_gym  # noqa: F401  (registers the env)
 
     env = gym.make("hsddp_gym/Bounding-v0")
     if policy_name == "heuristic":
@@ -58,7 +58,6 @@ def main(argv=None) -> int:
     if args.stride < 1:
         p.error(f"--stride must be >= 1, got {args.stride}")
     from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
-
     from hsddp_gym.viz.render import render_state, save_gif
 
     push = {"delta_v": list(args.push[1:]), "time": t_push}

@@ -24,7 +24,6 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
-
 from hsddp_gym.util.io import atomic_path, write_json
 from hsddp_gym.util.parallel import BACKENDS, check_backend, run_parallel
 
@@ -68,9 +67,9 @@ def push_label(dv) -> str:
 def run_one(task: tuple) -> dict:
     """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps, mpc_options)``."""
     import gymnasium as gym
-    from hsddp_gym.planners.policies.evaluation import run_episode
 
     import hsddp_gym  # noqa: F401  (registers the env)
+    from hsddp_gym.planners.policies.evaluation import run_episode
 
     name, dv, seed, push_time, steps, mpc_options = task
     env = gym.make("hsddp_gym/Bounding-v0")

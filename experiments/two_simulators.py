@@ -29,9 +29,9 @@ POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
     """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes."""
     import gymnasium as gym
-    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
     import hsddp_gym  # noqa: F401  (registers both ids)
+    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make(env_id, **limit)

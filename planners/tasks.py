@@ -6,6 +6,8 @@ import dataclasses
 import time
 
 import numpy as np
+
+from hsddp_gym.core.rollout import Trajectory, rollout
 from hsddp_gym.planners.optimizer.callbacks import Callback
 from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj
 from hsddp_gym.planners.optimizer.metrics import trajectory_summary
@@ -19,8 +21,6 @@ from hsddp_gym.planners.optimizer.sto import (
     time_derivatives,
 )
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
-
-from hsddp_gym.core.rollout import Trajectory, rollout
 
 PLAN_METHODS = ("heuristic", "ddp", "al", "al-reb")
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from hsddp_gym.planners.optimizer.barrier import relaxed_barrier
 
 DELTAS = (1e-3, 0.05, 0.2, 0.4, 1.0, 3.0)

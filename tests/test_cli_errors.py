@@ -32,12 +32,11 @@ def dataset(tmp_path_factory):
 @pytest.fixture
 def no_long_work(monkeypatch):
     """The jobs behind the commands: reaching one fails the test (the error must come before)."""
-    import hsddp_gym.planners.tasks as tasks
-
     import hsddp_gym.datasets.generation as generation
     import hsddp_gym.learning.bc as bc
     import hsddp_gym.learning.dagger as dagger
     import hsddp_gym.learning.sb3 as sb3
+    import hsddp_gym.planners.tasks as tasks
     import hsddp_gym.workflows as workflows
 
     def reached(*args, **kwargs):

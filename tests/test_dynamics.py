@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 from hsddp_gym.core.conventions import BACK, FRONT, NGRF, NQ, NU, NV, NX, Mode, grf_slice
 from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import rollout
 from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 MODES = tuple(Mode)
 CONTACT_MODES = (Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)

@@ -12,12 +12,12 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env as gym_check_env
-from hsddp_gym.envs.bounding import BoundingEnv
 
 import hsddp_gym
 from hsddp_gym.core.conventions import NX, Mode
 from hsddp_gym.core.observation import ObservationLayout, state_from_observation
 from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.envs.bounding import BoundingEnv
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 INFO_KEYS = {"x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from hsddp_gym.envs.contact import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK, ContactSimulator, solve_contact_lcp
 
 from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FOOT_U, FRONT, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.envs.contact import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK, ContactSimulator, solve_contact_lcp
 
 MU = 0.6
 

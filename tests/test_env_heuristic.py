@@ -18,16 +18,16 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym.core.conventions import BACK, FRONT, Mode, mode_from_contacts
+from hsddp_gym.core.observation import state_from_observation
 from hsddp_gym.planners.policies.heuristic import (
     ContactEventBoundingController,
     ContactEventGains,
     HeuristicGains,
     HeuristicPolicy,
 )
-
-import hsddp_gym  # noqa: F401
-from hsddp_gym.core.conventions import BACK, FRONT, Mode, mode_from_contacts
-from hsddp_gym.core.observation import state_from_observation
 
 STEPS = 400  # 2 s at the default 5 ms control period, about 12 bounding cycles
 

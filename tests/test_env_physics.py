@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
-from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS, RESET_VELOCITY_BOUNDS, BoundingEnv
-from hsddp_gym.envs.contact import STICK, ContactSimulator
 
 from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FOOT_U, FRONT
 from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS, RESET_VELOCITY_BOUNDS, BoundingEnv
+from hsddp_gym.envs.contact import STICK, ContactSimulator
 
 TOL_J = 1e-9  # the energy goal per step [J]
 COMBOS = [(False, False), (True, False), (False, True), (True, True)]  # (front, back) starting on the ground

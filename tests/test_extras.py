@@ -58,9 +58,8 @@ SCRIPT = textwrap.dedent('''
 @pytest.fixture(scope="module")
 def core_only(tmp_path_factory):
     """Run CLI commands in a subprocess where the extras cannot be imported; ``{argv[0] + tag: run}``."""
-    from hsddp_gym.planners.policies.base import EnvInterface
-
     from hsddp_gym.learning.bc import BCConfig, MLPPolicy
+    from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.util.io import write_json
 
     tmp = tmp_path_factory.mktemp("core")

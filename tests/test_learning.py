@@ -7,8 +7,6 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
-from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
@@ -18,6 +16,8 @@ from hsddp_gym.learning.bc import BCConfig, MLPPolicy, train_bc
 from hsddp_gym.learning.dagger import DAggerConfig, dagger_rollout, train_dagger
 from hsddp_gym.learning.demonstrations import load_demonstrations
 from hsddp_gym.learning.sb3 import as_sb3_policy
+from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
 torch = pytest.importorskip("torch")
 torch.set_num_threads(1)
@@ -333,7 +333,6 @@ def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
     import json
 
     from hsddp_gym.planners.policies.mpc import MPCPolicy
-
     from hsddp_gym.util.io import read_npz
 
     out = tmp_path / "dagger"

@@ -6,12 +6,12 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym.core.conventions import Mode
 from hsddp_gym.learning.features import gait_clock_features, make_gait_clock
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
 
 
 def test_clock_rules():

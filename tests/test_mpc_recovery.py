@@ -7,13 +7,13 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym.core.conventions import Mode
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-import hsddp_gym  # noqa: F401
-from hsddp_gym.core.conventions import Mode
 
 ARMED = 110
 """Control steps (0.55 s) after which the recovery is armed (``recovery_after`` = 0.5 s)."""

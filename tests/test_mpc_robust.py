@@ -6,12 +6,12 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import hsddp_gym  # noqa: F401
 from hsddp_gym.envs.perturbations import ActionDelay, make_env
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-import hsddp_gym  # noqa: F401
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 

@@ -9,13 +9,12 @@ import pytest
 
 mujoco = pytest.importorskip("mujoco")
 
-from hsddp_gym.envs.bounding import BoundingEnv  # noqa: E402
-from hsddp_gym.envs.contact import ContactSimulator  # noqa: E402
-from hsddp_gym.envs.mujoco_twin import FOOT_RADIUS, MuJoCoBoundingEnv, MuJoCoSimulator, build_mjcf  # noqa: E402
-
 import hsddp_gym  # noqa: E402
 from hsddp_gym.core.model import CheetahModel  # noqa: E402
 from hsddp_gym.core.params import LinkParams, RobotParams  # noqa: E402
+from hsddp_gym.envs.bounding import BoundingEnv  # noqa: E402
+from hsddp_gym.envs.contact import ContactSimulator  # noqa: E402
+from hsddp_gym.envs.mujoco_twin import FOOT_RADIUS, MuJoCoBoundingEnv, MuJoCoSimulator, build_mjcf  # noqa: E402
 
 
 @pytest.fixture(scope="module")

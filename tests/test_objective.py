@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hsddp_gym.planners.optimizer.hsddp import _Traj, rollout_policy
-from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
-from hsddp_gym.planners.optimizer.problem import HybridProblem
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 from hsddp_gym.core.conventions import NU, NX
 from hsddp_gym.core.dynamics import Linearization
 from hsddp_gym.core.rollout import rollout
+from hsddp_gym.planners.optimizer.hsddp import _Traj, rollout_policy
+from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 
 def _trajectory(problem: HybridProblem):
@@ -242,9 +242,8 @@ def test_terminal_and_al_derivatives(use_al):
 
 def test_bounding_weights_are_the_authors():
     """original_code_facts §3.5: the weights closest to the paper (default) and the later ones (MH HEAD / HM)."""
-    from hsddp_gym.planners.optimizer.problem import bounding_phase_cost
-
     from hsddp_gym.core.conventions import Mode
+    from hsddp_gym.planners.optimizer.problem import bounding_phase_cost
 
     bs = bounding_phase_cost(Mode.BACK_STANCE, None)
     np.testing.assert_allclose(bs.q, 0.01 * np.array([0, 10, 5, 2, 2, 2, 2, 8, 1, 0.01, 5, 5, 5, 5]))
@@ -266,11 +265,10 @@ def test_bounding_weights_are_the_authors():
 def test_double_stance_cost_and_reference():
     """Double stance (the recovering MPC's, not the authors' gait): the touchdown posture of the foot that stays
     with zero vertical velocity, stance weights on both legs, the weight shared by the two feet."""
-    from hsddp_gym.planners.optimizer.problem import bounding_phase_cost
-
     from hsddp_gym.core.conventions import BACK, FRONT, NQ, Mode, grf_slice
     from hsddp_gym.core.references import end_of_mode_reference
     from hsddp_gym.core.schedule import ModeSchedule
+    from hsddp_gym.planners.optimizer.problem import bounding_phase_cost
 
     for foot in (FRONT, BACK):
         for z_velocity in ("code", "paper"):

@@ -5,6 +5,8 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import hsddp_gym  # noqa: F401
 from hsddp_gym.envs.perturbations import (
     CONDITIONS,
     ActionDelay,
@@ -15,8 +17,6 @@ from hsddp_gym.envs.perturbations import (
     make_env,
 )
 from hsddp_gym.planners.policies.base import EnvInterface
-
-import hsddp_gym  # noqa: F401
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 

@@ -10,7 +10,6 @@ import pytest
 pytest.importorskip("matplotlib")
 
 from hsddp_gym.planners.tasks import plan_bounding  # noqa: E402
-
 from hsddp_gym.viz import plotting  # noqa: E402
 
 

@@ -10,6 +10,10 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym import cli
+from hsddp_gym.core.conventions import Mode
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 from hsddp_gym.planners.policies.expert import PlanTrackingExpert
@@ -18,10 +22,6 @@ from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.random_policy import RandomPolicy
 from hsddp_gym.planners.policies.tracking import PlanTracker
 from hsddp_gym.planners.tasks import plan_bounding
-
-import hsddp_gym  # noqa: F401
-from hsddp_gym import cli
-from hsddp_gym.core.conventions import Mode
 
 
 @pytest.fixture(scope="module")

@@ -7,9 +7,9 @@ import warnings
 
 import numpy as np
 import pytest
-from hsddp_gym.envs.bounding import BoundingEnv
 
 from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.viz.render import render_state, render_trajectory, save_gif
 
 PIL = pytest.importorskip("PIL")

@@ -18,6 +18,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+
 from hsddp_gym.planners.optimizer.riccati import backward_pass
 
 # ----------------------------------------------------------------------------------------- LQ machinery

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IX, IZ, NGRF, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import Trajectory, knot_layout, rollout
 from hsddp_gym.core.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 BS, FL, FS, DS = Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.DOUBLE_STANCE
 

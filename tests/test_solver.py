@@ -13,14 +13,14 @@ import os
 
 import numpy as np
 import pytest
+
+from hsddp_gym.core.rollout import rollout
 from hsddp_gym.planners.optimizer.callbacks import VerbosePrinter
 from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, rollout_policy, solve
 from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import LOG_FIELDS, IterationRecord, Solution, SolverOptions
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
-
-from hsddp_gym.core.rollout import rollout
 
 METHODS = ("ddp", "al", "al-reb")
 

@@ -6,10 +6,10 @@ import json
 
 import numpy as np
 import pytest
-from hsddp_gym.planners.policies.base import EnvInterface
 
 from hsddp_gym.core.observation import build_observation
 from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
+from hsddp_gym.planners.policies.base import EnvInterface
 
 pytest.importorskip("torch")
 

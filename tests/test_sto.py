@@ -23,9 +23,11 @@ from __future__ import annotations
 import json
 import types
 
-import hsddp_gym.planners.optimizer.sto as sto_module
 import numpy as np
 import pytest
+
+import hsddp_gym.planners.optimizer.sto as sto_module
+from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, constraint_metrics, rollout_policy
 from hsddp_gym.planners.optimizer.objective import Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
@@ -39,8 +41,6 @@ from hsddp_gym.planners.optimizer.sto import (
     time_scaled_jacobians,
 )
 from hsddp_gym.planners.tasks import fig8_study, heuristic_warm_start
-
-from hsddp_gym.core.dynamics import HybridDynamics, Linearization
 
 FD_STEP_GRAD = 1e-5
 """Central-difference step for V_z [s]."""

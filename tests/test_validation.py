@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 
 from hsddp_gym.core.conventions import NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics, Linearization
@@ -15,6 +14,7 @@ from hsddp_gym.core.params import LinkParams, RobotParams
 from hsddp_gym.core.references import end_of_mode_reference, paper_initial_state
 from hsddp_gym.core.rollout import rollout
 from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 from hsddp_gym.util.validation import check_array, check_in_range, check_int, check_positive, check_vector
 
 X0 = paper_initial_state()

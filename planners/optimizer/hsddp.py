@@ -22,14 +22,14 @@ import time
 
 import numpy as np
 import pinocchio as pin
+
+from hsddp_gym.core.conventions import NGRF, NU, NX
+from hsddp_gym.core.dynamics import Linearization, grf_from_lambda
 from hsddp_gym.planners.optimizer.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from hsddp_gym.planners.optimizer.objective import ConstraintState, CostBreakdown, Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.riccati import backward_pass, warm_up
 from hsddp_gym.planners.optimizer.solution import IterationRecord, Solution, SolverOptions
-
-from hsddp_gym.core.conventions import NGRF, NU, NX
-from hsddp_gym.core.dynamics import Linearization, grf_from_lambda
 from hsddp_gym.util.validation import check_array
 
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
-from hsddp_gym.planners.optimizer.problem import HybridProblem
 
 from hsddp_gym.core.conventions import IPITCH, IZ, NQ
+from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
+from hsddp_gym.planners.optimizer.problem import HybridProblem
 
 
 def task_cost(problem: HybridProblem, X, X_pre, U, GRF) -> float:

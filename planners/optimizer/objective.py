@@ -17,10 +17,10 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from hsddp_gym.planners.optimizer.barrier import relaxed_barrier
-from hsddp_gym.planners.optimizer.problem import HybridProblem
 
 from hsddp_gym.core.conventions import NGRF, NU, NX
+from hsddp_gym.planners.optimizer.barrier import relaxed_barrier
+from hsddp_gym.planners.optimizer.problem import HybridProblem
 
 
 def friction_rows(mu: float) -> np.ndarray:

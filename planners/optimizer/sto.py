@@ -30,13 +30,13 @@ import dataclasses
 import time
 
 import numpy as np
+
+from hsddp_gym.core.conventions import NQ, NU, NX
 from hsddp_gym.planners.optimizer.hsddp import HSDDP, _Traj, rollout_policy
 from hsddp_gym.planners.optimizer.objective import Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.riccati import warm_up
 from hsddp_gym.planners.optimizer.solution import Solution, SolverOptions
-
-from hsddp_gym.core.conventions import NQ, NU, NX
 
 STO_METHODS = ("hsddp", "open-loop")
 

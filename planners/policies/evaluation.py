@@ -6,6 +6,7 @@ import dataclasses
 import time
 
 import numpy as np
+
 from hsddp_gym.planners.policies.base import Policy
 
 

@@ -43,7 +43,6 @@ import dataclasses
 import math
 
 import numpy as np
-from hsddp_gym.planners.policies.base import EnvInterface, Policy
 
 from hsddp_gym.core.conventions import (
     BACK,
@@ -63,6 +62,7 @@ from hsddp_gym.core.conventions import (
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.references import end_of_mode_reference
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.validation import check_vector
 
 _MIN_FOOT_DEPTH = 0.01

@@ -47,6 +47,11 @@ import math
 import time
 
 import numpy as np
+
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
@@ -55,11 +60,6 @@ from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains, HeuristicPolicy
 from hsddp_gym.planners.policies.tracking import PlanTracker
-
-from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
-from hsddp_gym.core.dynamics import HybridDynamics
-from hsddp_gym.core.params import DEFAULT_PARAMS
-from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-from hsddp_gym.planners.policies.base import EnvInterface, Policy
 
 from hsddp_gym.core.conventions import NU
+from hsddp_gym.planners.policies.base import EnvInterface, Policy
 
 
 class RandomPolicy(Policy):
