@@ -33,11 +33,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from hsddp_gym.core.contact import check_motor_speed_limits, motor_torques
 from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NU, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
 from hsddp_gym.envs.bounding import BoundingEnv
-from hsddp_gym.envs.contact import check_motor_speed_limits
 from hsddp_gym.util.validation import check_positive, check_vector
 
 FOOT_RADIUS = 0.005
@@ -209,15 +209,7 @@ class MuJoCoSimulator:
 
     def applied_torque(self, u: np.ndarray) -> np.ndarray:
         """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
-        u = check_vector(u, NU, "u").copy()
-        if self.motor_speed_limits is None:
-            return u
-        w_full, w_zero = self.motor_speed_limits
-        w = self.v[3:]
-        cap = np.clip((w_zero - np.abs(w)) * self.torque_limit / (w_zero - w_full), 0.0, None)
-        limited = (u * w > 0.0) & (np.abs(w) > w_full) & (np.abs(u) > cap)
-        u[limited] = np.sign(u[limited]) * cap[limited]
-        return u
+        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
 
     def step(self, u: np.ndarray) -> None:
         self.run(check_vector(u, NU, "u"), 1)

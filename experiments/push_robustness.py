@@ -25,7 +25,7 @@ from pathlib import Path
 
 from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
 from hsddp_gym.util.io import atomic_path, write_json
-from hsddp_gym.util.parallel import BACKENDS, check_backend, run_parallel
+from hsddp_gym.util.parallel import add_backend_arguments, check_backend, run_parallel
 
 DEFAULT_PUSHES = [
     (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (-1.5, 0.0, 0.0), (1.5, 0.0, 0.0), (3.0, 0.0, 0.0),
@@ -150,11 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes (or the CPUs of the local Ray instance); the results do not "
                         "depend on it (default: %(default)s)")
-    p.add_argument("--backend", choices=BACKENDS, default="local",
-                   help="'local' processes or 'ray' (a local Ray instance, or the cluster at --address; the ray "
-                        "extra); same results (default: %(default)s)")
-    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a "
-                                                    "local instance)")
+    add_backend_arguments(p)
     p.add_argument("--push", type=float, nargs=3, action="append", metavar=("DVX", "DVZ", "DPITCH"),
                    help="a push to test (repeatable; default: the built-in grid)")
     args = p.parse_args(argv)

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.util.io import atomic_path, write_json
-from hsddp_gym.util.parallel import BACKENDS, check_backend, run_parallel
+from hsddp_gym.util.parallel import add_backend_arguments, check_backend, run_parallel
 
 BUILTIN = ("mpc", "mpc-options", "heuristic", "random")
 LEARNED = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
@@ -226,11 +226,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="stop episodes after this many control steps (default: the 1000-step limit; smoke tests)")
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes; results do not depend on it (default: %(default)s)")
-    p.add_argument("--backend", choices=BACKENDS, default="local",
-                   help="'local' processes or 'ray' (a local Ray instance, or the cluster at --address; the ray "
-                        "extra); same results (default: %(default)s)")
-    p.add_argument("--address", default=None, help="Ray cluster address for --backend ray (default: start a "
-                                                    "local instance)")
+    add_backend_arguments(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
                    help="run nothing: merge these robustness.json files into one table in --out")

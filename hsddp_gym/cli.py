@@ -13,7 +13,7 @@ from pathlib import Path
 
 from hsddp_gym.util.extras import MissingExtraError, require
 from hsddp_gym.util.io import write_json
-from hsddp_gym.util.parallel import BACKENDS, check_backend
+from hsddp_gym.util.parallel import add_backend_arguments, check_backend
 from hsddp_gym.util.validation import UsageError, check_output_dir
 from hsddp_gym.workflows import ROLLOUT_ENVS, parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
 
@@ -404,13 +404,7 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--workers", type=_positive_int, default=1,
                    help="worker processes (1: in this process), or the CPUs of the local Ray instance with "
                         "--backend ray; the data do not depend on it (default: %(default)s)")
-    p.add_argument("--backend", choices=BACKENDS, default="local",
-                   help="where the episodes run: 'local' (this process or local worker processes) or 'ray' (a "
-                        "local Ray instance, or the cluster at --address; needs the ray extra). Same data either "
-                        "way; an episode whose worker dies is run again (default: %(default)s)")
-    p.add_argument("--address", default=None,
-                   help="with --backend ray: the address of a running Ray cluster ('auto', 'ray://host:10001', "
-                        "'host:6379'); its nodes need hsddp_gym installed (default: start a local Ray instance)")
+    add_backend_arguments(p)
     p.add_argument("--seed", type=_seed, default=0, help="seed of episode 0 (default: %(default)s)")
     p.add_argument("--out", required=True, help="dataset directory (must not exist unless --overwrite)")
     p.add_argument("--overwrite", action="store_true",

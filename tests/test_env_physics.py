@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 import pytest
+from test_env_contact import pd_hold  # noqa: E402  (the tests folder is on sys.path)
 
-from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FOOT_U, FRONT
+from hsddp_gym.core.conventions import BACK, FRONT
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS, RESET_VELOCITY_BOUNDS, BoundingEnv
 from hsddp_gym.envs.contact import STICK, ContactSimulator
@@ -145,14 +146,6 @@ def test_spinning_leg_in_free_flight(robot, rate, kept):
     assert drift[True] <= drift[False] * (1 + 1e-6)
 
 
-def pd_hold(sim, q_ref, kp=100.0, kd=1.0, foot_damping=100.0):
-    u = kp * (q_ref[3:] - sim.q[3:]) - kd * sim.v[3:]
-    for foot in (FRONT, BACK):
-        if sim.contact[foot]:
-            joints = list(FOOT_JOINTS[foot])
-            J = sim.robot.foot_jacobian(sim.q, foot)[:, joints]
-            u[list(FOOT_U[foot])] -= foot_damping * J.T @ (J @ sim.v[joints])
-    return u
 
 
 @pytest.mark.parametrize("consistent", [True, False])

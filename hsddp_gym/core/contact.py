@@ -372,6 +372,20 @@ def solve_contact_lcp(G, c, mu: float, guess=None, tol_v: float = 1e-9, tol_l: f
 
 
 # ------------------------------------------------------------------------------------------ the simulator
+def motor_torques(u: np.ndarray, w: np.ndarray, motor_speed_limits, torque_limit: float) -> np.ndarray:
+    """The torques (4,) the motors apply for commanded ``u`` (4,) at joint rates ``w`` (4,): a torque that drives
+    its joint in the direction it moves is capped at ``torque_limit`` up to ``w_full`` and linearly down to 0 at
+    ``w_zero`` (``motor_speed_limits = (w_full, w_zero)``; None: ideal torque sources, ``u`` unchanged)."""
+    u = np.array(u, dtype=np.float64)
+    if motor_speed_limits is None:
+        return u
+    w_full, w_zero = motor_speed_limits
+    cap = np.clip((w_zero - np.abs(w)) * torque_limit / (w_zero - w_full), 0.0, None)
+    limited = (u * w > 0.0) & (np.abs(w) > w_full) & (np.abs(u) > cap)
+    u[limited] = np.sign(u[limited]) * cap[limited]
+    return u
+
+
 def check_motor_speed_limits(value, name: str = "motor_speed_limits") -> tuple[float, float] | None:
     """None, or a pair ``(w_full, w_zero)`` of finite speeds with ``0 < w_full < w_zero`` [rad/s]."""
     if value is None:
@@ -543,15 +557,7 @@ class ContactSimulator:
 
     def applied_torque(self, u: np.ndarray) -> np.ndarray:
         """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
-        u = check_vector(u, NU, "u").copy()
-        if self.motor_speed_limits is None:
-            return u
-        w_full, w_zero = self.motor_speed_limits
-        w = self.v[3:]
-        cap = np.clip((w_zero - np.abs(w)) * self.torque_limit / (w_zero - w_full), 0.0, None)
-        limited = (u * w > 0.0) & (np.abs(w) > w_full) & (np.abs(u) > cap)
-        u[limited] = np.sign(u[limited]) * cap[limited]
-        return u
+        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
 
     def _step(self, total: list) -> None:
         model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt

@@ -70,6 +70,17 @@ def child_threads(threads: int):
                 os.environ[v] = value
 
 
+def add_backend_arguments(parser, what: str = "the episodes") -> None:
+    """``--backend {local,ray}`` and ``--address ADDR`` on an argparse ``parser`` (the CLI and the sweeps)."""
+    parser.add_argument("--backend", choices=BACKENDS, default="local",
+                        help=f"where {what} run: 'local' (this process or local worker processes) or 'ray' (a local "
+                             "Ray instance, or the cluster at --address; needs the ray extra). Same results either "
+                             "way; a task whose worker dies is run again (default: %(default)s)")
+    parser.add_argument("--address", default=None,
+                        help="with --backend ray: the address of a running Ray cluster ('auto', 'ray://host:10001', "
+                             "'host:6379'); its nodes need hsddp_gym installed (default: start a local Ray instance)")
+
+
 def run_parallel(fn: Callable, tasks: Sequence, workers: int = 1, backend: str = "local", address: str | None = None,
                  on_result: Callable[[int, object], None] | None = None, max_retries: int = DEFAULT_RETRIES) -> list:
     """``[fn(t) for t in tasks]``, computed by ``backend`` with ``workers`` workers (see the module docstring).
