@@ -19,10 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hsddp_gym.core.conventions import BACK, FRONT
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS
-from hsddp_gym.envs.contact import STICK, ContactSimulator
+from hsddp_gym.envs.contact import ContactSimulator
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -33,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.states < 1 or args.steps < 1:
         p.error("--states and --steps must be >= 1")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from test_env_physics import COMBOS, energy_excess, pd_hold, random_state
+    from test_env_physics import COMBOS, energy_excess, random_state, stick_drift
 
     robot = CheetahModel()
     for consistent in (True, False):
@@ -64,20 +63,7 @@ def main(argv: list[str] | None = None) -> int:
                 sim.run(np.zeros(4), 500)
                 ratios.append(f"{rate:g} rad/s: {sim.energy() / e0:.4g}")
         print("  spinning front hip, free flight, g = 0, E(0.5 s)/E(0): " + ", ".join(ratios))
-        sim = ContactSimulator(robot, energy_consistent=consistent)
-        q = np.array([0.0, 0.0, 0.0, 0.25 * np.pi, -0.5 * np.pi, 0.25 * np.pi, -0.5 * np.pi])
-        q[1] = -robot.foot_heights(q).min()
-        x = np.r_[q, np.zeros(7)]
-        x[7], x[9] = 0.3, 1.5
-        sim.set_state(x)
-        feet, drift = sim.foot_positions(), 0.0
-        for _ in range(200):
-            sim.run(pd_hold(sim, x[:7]), 1)
-            new = sim.foot_positions()
-            for foot in (FRONT, BACK):
-                if sim.states[foot] == STICK:
-                    drift = max(drift, float(np.abs(new[foot] - feet[foot]).max()))
-            feet = new
+        drift, _ = stick_drift(robot, consistent)
         print(f"  sticking foot, largest motion in one step (200 ms rocking double stance): {drift:.3e} m")
         depths = []
         for speed in (1.0, 5.0, 10.0):

@@ -17,6 +17,7 @@ from hsddp_gym.learning.gain_labels import gain_augmented_pairs
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import read_npz, write_npz
+from hsddp_gym.util.validation import check_int
 
 ACTIVATIONS = ("relu", "tanh")
 
@@ -58,8 +59,7 @@ class BCConfig:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)!r}")
         if not isinstance(self.speed_input, (bool, np.bool_)):
             raise TypeError(f"speed_input must be a bool, got {type(self.speed_input).__name__}")
-        if int(self.gain_copies) < 0:
-            raise ValueError(f"gain_copies must be >= 0, got {self.gain_copies!r}")
+        check_int(self.gain_copies, "gain_copies", minimum=0)
         for name in ("gain_position_std", "gain_velocity_std"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
