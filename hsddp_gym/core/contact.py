@@ -93,7 +93,7 @@ import itertools
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.conventions import FEET, NQ, NU, NV, NX
+from hsddp_gym.core.conventions import FEET, FOOT_JOINTS, IPITCH, NQ, NU, NV, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_in_range, check_positive, check_vector
 
@@ -433,7 +433,8 @@ class ContactSimulator:
         energy_projections: steps whose energy projection removed energy; momentum_fallbacks: flight
             projections that had to scale all of ``v`` (0 in the tests); energy_deficits: steps whose positions
             alone exceeded the allowed energy, so ``v`` was zeroed (0 in the tests); projection_residual: the
-            largest position-projection residual so far [m].
+            largest position-projection residual so far [m] (or, after a Newton step, its exact upper bound
+            ``_newton_remainder_bound`` when that is below half the tolerance).
     """
 
     def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
@@ -476,11 +477,15 @@ class ContactSimulator:
         self._buffers = {k: (np.zeros((2 * k, NV)), np.zeros((2 * k, NV)), np.zeros((2 * k, 2 * k)),
                              np.zeros(2 * k)) for k in (1, 2)}
         self._lam = {k: np.zeros(2 * k) for k in (1, 2)}
+        # position projection with m constraint rows: J (m, 7), J M^-1 (m, 7), J M^-1 J^T (m, m)
+        self._proj_buffers = {m: (np.zeros((m, NV)), np.zeros((m, NV)), np.zeros((m, m))) for m in (1, 2, 3, 4)}
         self._had_contact = False
         self._minv = None
         self._q_old = np.zeros(NQ)
         self._energy = 0.0
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
+        p = self.robot.params
+        self._link_lengths = (abs(p.hip_offset), abs(p.thigh.length), abs(p.shank.length))  # |c_0|, |c_1|, |c_2|
         # A foot farther than this above the ground cannot reach it within one step at < 50 m/s.
         self._far = 50.0 * self.dt
 
@@ -640,12 +645,10 @@ class ContactSimulator:
         np.multiply(v, h, out=self._dq)
         q += self._dq
         if cand:
-            self._project_positions(cand, q_old)
-            kinetic = pin.computeKineticEnergy(model, data)  # data: kinematics of (q, v) from the projection
-            potential = pin.computePotentialEnergy(model, data)
+            self._project_positions(cand, q_old)  # leaves the mechanical energy of the result in data
         else:
             pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
-            kinetic, potential = data.kinetic_energy, data.potential_energy
+        kinetic, potential = data.kinetic_energy, data.potential_energy
         # work of the joint torques over the step (tau is constant during it; its base entries are 0)
         allowed = self._energy + (tau.dot(q) - tau.dot(q_old))
         if kinetic + potential > allowed:
@@ -695,46 +698,99 @@ class ContactSimulator:
         contact (or ending below the ground) is at height 0 and every sticking foot at its position at the start
         of the step. Newton iterations with the exact Jacobians at the current ``q`` (quadratic: one iteration
         in practice) until the residual is below :data:`POSITION_TOLERANCE`. Leaves ``data`` with the
-        kinematics (``q``, ``v``) of the result."""
+        kinematics (``q``, ``v``) of the result and its mechanical energy (``data.kinetic_energy``,
+        ``data.potential_energy``).
+
+        Hot path: the foot positions at ``q+`` come from the LWA frame Jacobians the first Newton step needs
+        anyway (foot ``x = q_x - J[2, 2]``, ``z = q_z + J[0, 2]``); the check after a Newton step evaluates the
+        kinematics with the velocities and the energy in one Pinocchio call, so a converged projection leaves
+        the energy of the result at hand."""
         model, data, q, v = self.model, self.data, self.q, self.v
         fids = self._fids
         states = self.states
-        targets = []  # (foot, axis of the translation (0: x, 2: z), target, Jacobian row (0: x, 2: z))
+        rows = []  # (foot, axis of the translation (0: x, 2: z), target)
+        x_old = q_old.item(0)
         for foot, J, _ in cand:
             state = states[foot]
             if state == STICK:
-                targets.append((foot, 0, float(q_old[0] - J[2, 2])))  # LWA Jacobian: foot x = x - J[2, 2]
+                rows.append((foot, 0, x_old - J.item(2, 2)))  # LWA Jacobian: foot x = x - J[2, 2]
             if state != SEPARATE:
-                targets.append((foot, 2, 0.0))
+                rows.append((foot, 2, 0.0))
         pin.computeJointJacobians(model, data, q)
         for foot, _, _ in cand:  # a separating candidate foot that ends below the ground is lifted onto it
             if states[foot] == SEPARATE and pin.updateFramePlacement(model, data, fids[foot]).translation[2] < 0.0:
-                targets.append((foot, 2, 0.0))
+                rows.append((foot, 2, 0.0))
+        if not rows:
+            pin.computeMechanicalEnergy(model, data, q, v)
+            return
+        m = len(rows)
+        Jr, A, S = self._proj_buffers[m]
+        feet = (rows[0][0],) if rows[-1][0] == rows[0][0] else (0, 1)
         fresh = True  # data holds the joint Jacobians of the current q
         residual = 0.0
-        if targets:
-            minv = self._minv
-            feet = sorted({t[0] for t in targets})
-            for _ in range(_MAX_PROJECTION_ITERATIONS):
-                pos = {foot: pin.updateFramePlacement(model, data, fids[foot]).translation for foot in feet}
-                r = [target - float(pos[foot][axis]) for foot, axis, target in targets]
-                residual = max(map(abs, r))
-                if residual <= POSITION_TOLERANCE:
-                    break
-                if not fresh:
-                    pin.computeJointJacobians(model, data, q)
-                jac = {foot: pin.getFrameJacobian(model, data, fids[foot], _LWA) for foot in feet}
-                Jr = np.array([jac[foot][axis] for foot, axis, _ in targets])
-                B = minv @ Jr.T
-                mu = _solve_spd((Jr @ B).tolist(), r)  # J M^-1 J^T: symmetric positive definite
-                if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
-                    break
-                q += B @ mu
-                pin.forwardKinematics(model, data, q, v)
-                fresh = False
-            self.projection_residual = max(self.projection_residual, residual)
+        for _ in range(_MAX_PROJECTION_ITERATIONS):
+            if fresh:  # positions from the Jacobians, which the Newton step needs
+                jac = [None, None]
+                for foot in feet:
+                    jac[foot] = pin.getFrameJacobian(model, data, fids[foot], _LWA)
+                qx, qz = q.item(0), q.item(1)
+                r = [target - (qx - jac[foot].item(2, 2) if axis == 0 else qz + jac[foot].item(0, 2))
+                     for foot, axis, target in rows]
+            else:
+                pos = [None, None]
+                for foot in feet:
+                    pos[foot] = pin.updateFramePlacement(model, data, fids[foot]).translation.tolist()
+                r = [target - pos[foot][axis] for foot, axis, target in rows]
+            residual = max(map(abs, r))
+            if residual <= POSITION_TOLERANCE:
+                break
+            if not fresh:
+                pin.computeJointJacobians(model, data, q)
+                jac = [None, None]
+                for foot in feet:
+                    jac[foot] = pin.getFrameJacobian(model, data, fids[foot], _LWA)
+            if m == 4 and rows[0][1] == 0 and rows[2][1] == 0:  # both feet sticking: rows x, z of each foot
+                Jr[0:2] = jac[rows[0][0]][0:3:2]
+                Jr[2:4] = jac[rows[2][0]][0:3:2]
+            else:
+                for i, (foot, axis, _) in enumerate(rows):
+                    Jr[i] = jac[foot][axis]
+            np.dot(Jr, self._minv, out=A)  # J M^-1 (m, 7)
+            np.dot(A, Jr.T, out=S)  # J M^-1 J^T (m, m): symmetric positive definite
+            mu = _solve_spd(S.tolist(), r)
+            if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
+                break
+            dq = np.dot(mu, A)
+            q += dq
+            pin.computeMechanicalEnergy(model, data, q, v)  # kinematics (q, v) and the energy of the new q
+            fresh = False
+            # Exact bound on the new residual (see _newton_remainder_bound): when it is far below the tolerance
+            # the check would stop the iteration anyway, so the foot placements need not be evaluated.
+            bound = self._newton_remainder_bound(dq.tolist(), feet)
+            if bound <= 0.5 * POSITION_TOLERANCE:
+                residual = bound
+                break
+        self.projection_residual = max(self.projection_residual, residual)
         if fresh:
-            pin.forwardKinematics(model, data, q, v)
+            pin.computeMechanicalEnergy(model, data, q, v)
+
+    def _newton_remainder_bound(self, dq: list, feet: tuple) -> float:
+        """An upper bound [m] on every foot coordinate's residual after a Newton step ``dq`` (7,) of the position
+        projection. The step solves the linearised constraints (``J dq = r`` to round-off), so what remains is
+        the Taylor remainder of the foot kinematics. A foot is ``(x, z) + sum_i R(phi_i) c_i`` with the trunk
+        vector ``c_0`` (hip offset, angle ``phi_0`` = pitch), the thigh ``c_1`` (``phi_0 + hip``) and the shank
+        ``c_2`` (``phi_0 + hip + knee``); along ``dq`` each term's second derivative has norm
+        ``|c_i| dphi_i^2`` exactly, so the remainder of either coordinate is at most
+        ``1/2 sum_i |c_i| dphi_i^2``."""
+        c0, c1, c2 = self._link_lengths
+        d0 = dq[IPITCH]
+        worst = 0.0
+        for foot in feet:
+            hip, knee = FOOT_JOINTS[foot]
+            d1 = d0 + dq[hip]
+            d2 = d1 + dq[knee]
+            worst = max(worst, 0.5 * (c0 * d0 * d0 + c1 * d1 * d1 + c2 * d2 * d2))
+        return worst
 
     def _correct_penetration(self, pen: list, G: list, A: np.ndarray) -> None:
         """Split-impulse position correction: move ``q`` by ``M^-1 J_n^T mu`` (``A = J M^-1``) so that each
