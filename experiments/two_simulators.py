@@ -1,4 +1,5 @@
-"""Every policy in both simulators: hsddp_gym/Bounding-v0 (exact-LCP contacts) and its MuJoCo twin
+"""Every policy in three simulators: the planner's own hybrid model hsddp_gym/BoundingKKT-v0 (pinned feet, KKT
+contact dynamics, touchdown reset maps), hsddp_gym/Bounding-v0 (exact-LCP contacts) and its MuJoCo twin
 hsddp_gym/BoundingMuJoCo-v0 (soft contacts), same protocol as ``compare_policies.py`` (``--episodes`` seeded
 0, 1, ..., default env settings, 1000-step limit, deterministic actions).
 
@@ -22,7 +23,12 @@ from tqdm import tqdm
 
 from hsddp_gym.util.io import atomic_path, write_json
 
-ENVS = {"exact LCP (Bounding-v0)": "hsddp_gym/Bounding-v0", "MuJoCo (BoundingMuJoCo-v0)": "hsddp_gym/BoundingMuJoCo-v0"}
+ENVS = {"planner's model (BoundingKKT-v0)": "hsddp_gym/BoundingKKT-v0",
+        "exact LCP (Bounding-v0)": "hsddp_gym/Bounding-v0",
+        "MuJoCo (BoundingMuJoCo-v0)": "hsddp_gym/BoundingMuJoCo-v0"}
+REFERENCE = "exact LCP (Bounding-v0)"
+"""The column the "kept" ratio divides by."""
+MUJOCO = "MuJoCo (BoundingMuJoCo-v0)"
 POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 
 
@@ -77,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             s = by_env[label]
             cells.append(f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
                          f"{s['mean_forward_speed']:.3f} m/s")
-        a, b = (by_env[label]["mean_return"] for label in ENVS)
+        a, b = by_env[REFERENCE]["mean_return"], by_env[MUJOCO]["mean_return"]
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {100.0 * b / a:.1f} % |")
     table = "\n".join(lines + [""] + notes)
     print(table)
