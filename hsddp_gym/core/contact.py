@@ -638,19 +638,22 @@ class ContactSimulator:
     def _finish_consistent(self, cand: list) -> None:
         """End of an energy-consistent step: ``q+ = q + h v+``, then the position projection of the contact
         feet, then the energy projection of ``v+``; see the module docstring (*Energy-consistent stepping*)."""
-        model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt
-        tau = self._tau
-        q_old = self._q_old
-        q_old[:] = q
-        np.multiply(v, h, out=self._dq)
-        q += self._dq
-        if cand:
-            self._project_positions(cand, q_old)  # leaves the mechanical energy of the result in data
-        else:
-            pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
-        kinetic, potential = data.kinetic_energy, data.potential_energy
+        model, data, q, v = self.model, self.data, self.q, self.v
+        tau, dq = self._tau, self._dq
+        np.multiply(v, self.dt, out=dq)
         # work of the joint torques over the step (tau is constant during it; its base entries are 0)
-        allowed = self._energy + (tau.dot(q) - tau.dot(q_old))
+        if cand:
+            q_old = self._q_old
+            q_old[:] = q
+            q += dq
+            self._project_positions(cand, q_old)  # leaves the mechanical energy of the result in data
+            work = tau.dot(q) - tau.dot(q_old)
+        else:
+            q += dq
+            pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
+            work = tau.dot(dq)  # the displacement is h v+ (equal to tau . (q+ - q) up to round-off)
+        kinetic, potential = data.kinetic_energy, data.potential_energy
+        allowed = self._energy + work
         if kinetic + potential > allowed:
             self.energy_projections += 1
             target = allowed - potential
@@ -708,6 +711,11 @@ class ContactSimulator:
         model, data, q, v = self.model, self.data, self.q, self.v
         fids = self._fids
         states = self.states
+        iterations = _MAX_PROJECTION_ITERATIONS
+        if len(cand) == 2 and states[0] == STICK and states[1] == STICK:
+            if self._project_double_stick(cand, q_old):
+                return
+            iterations -= 1  # one Newton step done; go on with the general iteration
         rows = []  # (foot, axis of the translation (0: x, 2: z), target)
         x_old = q_old.item(0)
         for foot, J, _ in cand:
@@ -728,7 +736,7 @@ class ContactSimulator:
         feet = (rows[0][0],) if rows[-1][0] == rows[0][0] else (0, 1)
         fresh = True  # data holds the joint Jacobians of the current q
         residual = 0.0
-        for _ in range(_MAX_PROJECTION_ITERATIONS):
+        for _ in range(iterations):
             if fresh:  # positions from the Jacobians, which the Newton step needs
                 jac = [None, None]
                 for foot in feet:
@@ -773,6 +781,52 @@ class ContactSimulator:
         self.projection_residual = max(self.projection_residual, residual)
         if fresh:
             pin.computeMechanicalEnergy(model, data, q, v)
+
+    def _project_double_stick(self, cand: list, q_old: np.ndarray) -> bool:
+        """The first Newton step of :meth:`_project_positions` for its commonest case, both feet sticking (rows
+        ``x, z`` of the front foot, then of the back foot), in straight-line code. Returns True when the
+        projection is finished (residual or its exact bound below the tolerance; ``data`` then holds the
+        kinematics and the energy of the result), False when the general iteration must go on from ``q``."""
+        model, data, q = self.model, self.data, self.q
+        fid0, fid1 = self._fids
+        (_, Ja, _), (_, Jb, _) = cand  # the Jacobians at the start of the step (candidates in FEET order)
+        x_old = q_old.item(0)
+        pin.computeJointJacobians(model, data, q)
+        J0 = pin.getFrameJacobian(model, data, fid0, _LWA)
+        J1 = pin.getFrameJacobian(model, data, fid1, _LWA)
+        qx, qz = q.item(0), q.item(1)
+        r = [(x_old - Ja.item(2, 2)) - (qx - J0.item(2, 2)), 0.0 - (qz + J0.item(0, 2)),
+             (x_old - Jb.item(2, 2)) - (qx - J1.item(2, 2)), 0.0 - (qz + J1.item(0, 2))]
+        residual = max(abs(r[0]), abs(r[1]), abs(r[2]), abs(r[3]))
+        if residual <= POSITION_TOLERANCE:
+            pin.computeMechanicalEnergy(model, data, q, self.v)
+            self.projection_residual = max(self.projection_residual, residual)
+            return True
+        Jr, A, S = self._proj_buffers[4]
+        Jr[0:2] = J0[0:3:2]
+        Jr[2:4] = J1[0:3:2]
+        np.dot(Jr, self._minv, out=A)  # J M^-1 (4, 7)
+        np.dot(A, Jr.T, out=S)  # J M^-1 J^T (4, 4)
+        mu = _solve_spd(S.tolist(), r)
+        if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
+            return False
+        dq = np.dot(mu, A)
+        q += dq
+        pin.computeMechanicalEnergy(model, data, q, self.v)
+        d = dq.tolist()
+        c0, c1, c2 = self._link_lengths
+        (hf, kf), (hb, kb) = FOOT_JOINTS
+        d0 = d[IPITCH]
+        a1 = d0 + d[hf]
+        a2 = a1 + d[kf]
+        b1 = d0 + d[hb]
+        b2 = b1 + d[kb]
+        t0 = c0 * d0 * d0
+        bound = max(0.5 * (t0 + c1 * a1 * a1 + c2 * a2 * a2), 0.5 * (t0 + c1 * b1 * b1 + c2 * b2 * b2))
+        if bound <= 0.5 * POSITION_TOLERANCE:
+            self.projection_residual = max(self.projection_residual, bound)
+            return True
+        return False
 
     def _newton_remainder_bound(self, dq: list, feet: tuple) -> float:
         """An upper bound [m] on every foot coordinate's residual after a Newton step ``dq`` (7,) of the position
