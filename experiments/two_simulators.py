@@ -33,18 +33,40 @@ POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 
 
 def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
-    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes."""
+    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes; for the
+    planner's model also its friction demand: ``friction_over_mu`` (fraction of control steps in which a pinned
+    foot needed ``|f_x| > mu f_z``) and ``max_friction_ratio`` (the largest ``|f_x| / f_z``)."""
     import gymnasium as gym
 
-    import hsddp_gym  # noqa: F401  (registers both ids)
+    import hsddp_gym  # noqa: F401  (registers the ids)
     from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
+    class FrictionDemand(gym.Wrapper):
+        """Counts the control steps whose ``info["friction_ratio"]`` exceeds the env's ``mu``."""
+
+        def __init__(self, inner):
+            super().__init__(inner)
+            self.steps, self.over, self.worst = 0, 0, 0.0
+
+        def step(self, action):
+            out = self.env.step(action)
+            ratio = out[-1].get("friction_ratio")
+            if ratio is not None:
+                self.steps += 1
+                self.over += ratio > self.env.unwrapped.sim.mu
+                self.worst = max(self.worst, ratio)
+            return out
+
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make(env_id, **limit)
+    env = FrictionDemand(gym.make(env_id, **limit))
     try:
-        return summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
+        summary = summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
     finally:
         env.close()
+    if env.steps:
+        summary["friction_over_mu"] = env.over / env.steps
+        summary["max_friction_ratio"] = env.worst
+    return summary
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -81,8 +103,12 @@ def main(argv: list[str] | None = None) -> int:
         cells = []
         for label in ENVS:
             s = by_env[label]
-            cells.append(f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
-                         f"{s['mean_forward_speed']:.3f} m/s")
+            cell = (f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
+                    f"{s['mean_forward_speed']:.3f} m/s")
+            if "friction_over_mu" in s:
+                cell += (f"; \\|f_x\\|/f_z > μ in {100.0 * s['friction_over_mu']:.1f} % of control steps "
+                         f"(max {s['max_friction_ratio']:.2f})")
+            cells.append(cell)
         a, b = by_env[REFERENCE]["mean_return"], by_env[MUJOCO]["mean_return"]
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {100.0 * b / a:.1f} % |")
     table = "\n".join(lines + [""] + notes)
