@@ -75,12 +75,20 @@ one: sticking stance trajectories of the two agree to O(h) (tested: halving ``h`
 Motors (optional, ``motor_speed_limits``): a torque that drives its joint in the direction it moves is
 capped at ``torque_limit`` up to ``w_full`` and linearly down to zero at ``w_zero`` (evaluated every step).
 
-Cost per 1 ms step: one ABA, joint Jacobians and two frame Jacobians; with contacts also ``M^-1`` and three
-small products; the LCP is pure Python (an unrolled 4x4 Cholesky for two sticking feet). The energy-consistent
-scheme adds one energy evaluation per step (kinematics, kinetic and potential energy), with contacts the
-position projection (joint Jacobians at ``q+``, one or two Newton corrections, an unrolled Cholesky) and,
-when a step gains energy in flight, the centroidal map and ``M^-1`` (``experiments/bench_env.py`` times both
-schemes: about 0.7x the legacy env steps/s under random actions, 0.5x in a collapsing double stance).
+Cost per 1 ms step: one ABA, joint Jacobians and two frame Jacobians; with contacts also ``M^-1`` and three small
+products; the LCP is pure Python (an unrolled 4x4 Cholesky for two sticking feet). The energy-consistent scheme adds
+one energy evaluation per step (one ``computeMechanicalEnergy``: kinematics, kinetic and potential energy), with
+contacts the position projection: joint and frame Jacobians at ``q+`` (which also give the foot positions), one
+Newton correction (two small products, an unrolled Cholesky, one product) whose energy evaluation doubles as the
+kinematics of the result, and an exact bound on the Newton remainder
+(:meth:`ContactSimulator._newton_remainder_bound`) that makes the final placement check unnecessary (in 90 % of the
+double-stick steps of a collapsing stance); two sticking feet take a straight-line version of the first Newton step.
+When a step gains energy in flight it adds the centroidal map and ``M^-1``. ``experiments/bench_env.py`` times both
+schemes, interleaved: on a loaded 2-core machine (load average 5-5.7) the default made 0.65-0.76x the legacy env
+steps/s under random actions (0.70x both with and without these shortcuts in the one run that timed both) and
+0.54-0.56x in a collapsing double stance (0.50x before), short of the 0.8x goal: the remaining gap is the Python and
+NumPy call overhead of the projection (about 40 % glue, 27 % the 4x4 solve with its list conversion, 20 % the small
+NumPy products, 15 % the Pinocchio calls of a double-stance step, line_profiler).
 
 Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.core.conventions`
 (``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``, the force of the ground on the robot).
