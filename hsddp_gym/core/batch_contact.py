@@ -1,0 +1,899 @@
+"""The contact simulation of :mod:`hsddp_gym.core.contact` for ``N`` robots in one compiled (numba) call.
+
+:class:`~hsddp_gym.core.contact.ContactSimulator` steps one robot with Pinocchio calls from Python; this
+module is the same scheme -- semi-implicit Euler velocity step, the exact planar Coulomb LCP by
+enumeration of foot states (the previous states first, then the same fixed order), the mass-metric
+position projection (Newton to :data:`~hsddp_gym.core.contact.POSITION_TOLERANCE`), the energy projection
+(flight: keep the centroidal momentum; contacts: scale ``v``) and the motor torque-speed law -- written
+out in closed form for the planar tree ``x -> z -> pitch -> {front, back} hip -> knee -> foot`` and
+compiled with numba (``cache=True``), one loop over the robots.
+
+The model is still Pinocchio's: :func:`kernel_params` reads every number from the
+:class:`~hsddp_gym.core.model.CheetahModel` (its :class:`~hsddp_gym.core.params.RobotParams`), and
+``tests/test_vector_env.py`` checks the closed-form mass matrix, bias, foot positions and Jacobians,
+centroidal momentum map and energies against ``pin.crba``, ``pin.nonLinearEffects``, frame Jacobians,
+``pin.computeCentroidalMap`` and ``pin.computeMechanicalEnergy`` to 1e-12 at random states, and whole
+steps against ``ContactSimulator`` in every contact combination (flight, front, back, double stance;
+stick and slide) to 1e-12. The same algorithms are used in the same order (the same LCP linear solves and
+Cholesky factorizations), so the two differ by round-off only.
+
+Closed form (world frame, ``R(t) (a, c) = (cos t a + sin t c, -sin t a + cos t c)`` the rotation about
++y): each body's centre of mass ``p`` has the Jacobian columns ``[1, 0]`` (x), ``[0, 1]`` (z) and, for each
+revolute joint of its chain with pivot ``o``, ``[p_z - o_z, -(p_x - o_x)]``; its angular Jacobian is 1 on
+its chain's revolute joints. ``M = sum m J_p^T J_p + I J_w^T J_w``; the bias is
+``b = sum m J_p^T (a_p + [0, g])`` with ``a_p = -sum_k w_k^2 s_k`` (``s_k`` the chain segments, ``w_k``
+their absolute rates: the planar Coriolis/centrifugal acceleration at zero joint accelerations).
+
+Arrays: ``x (N, 14)`` states, ``u (N, 4)`` joint torques, ``states (N, 2)`` int64 foot states
+(``SEPARATE`` ... ``SLIDE_NEG``), ``contact (N, 2)`` bool, ``impulse (N, 4)`` summed ground impulses (grf
+layout), ``time (N,)`` simulated time, ``heights (N, 2)`` foot heights after the step, ``counters (N, 4)``
+int64 ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]``.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import sys
+import time as _time
+
+import numba
+import numpy as np
+
+from hsddp_gym.core.contact import (CONTACT_MARGIN, POSITION_TOLERANCE, SEPARATE, SLIDE_NEG, SLIDE_POS, STICK,
+                                    ContactSimulator)
+from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
+
+# ------------------------------------------------------------------------------ parameter vector layout
+P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
+P_COMZ = 3  # 3 entries: CoM offset along each link's local z [m]
+P_INERTIA = 6  # 3 entries: I_yy about the CoM [kg m^2]
+P_THIGH_LENGTH = 9
+P_SHANK_LENGTH = 10
+P_HIP_X = 11  # 2 entries: hip x in the trunk frame, front (+) and back (-) [m]
+P_GRAVITY = 13
+P_MU = 14
+P_DT = 15
+P_TORQUE_LIMIT = 16
+P_W_FULL = 17
+P_W_ZERO = 18
+P_MOTOR = 19  # 1.0: motor torque-speed law on, 0.0: ideal torque sources
+P_FAR = 20  # a foot higher than this [m] cannot reach the ground within one step (ContactSimulator._far)
+N_PARAMS = 21
+
+# points (rows of the (12, 2) point array): 0 trunk origin, 1 trunk CoM, then per leg hip, thigh CoM, knee,
+# shank CoM, foot (front: 2..6, back: 7..11)
+_FOOT_POINT = np.array([6, 11])
+# chains: bodies 0..4 (trunk, thigh_f, shank_f, thigh_b, shank_b), then the feet 5, 6
+_CHAIN_POINT = np.array([1, 3, 5, 8, 10, 6, 11])
+_CHAIN_LEN = np.array([1, 2, 3, 2, 3, 3, 3])
+_CHAIN_PIVOT = np.array([[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 7, 0], [0, 7, 9], [0, 2, 4], [0, 7, 9]])
+_CHAIN_DOF = np.array([[2, 0, 0], [2, 3, 0], [2, 3, 4], [2, 5, 0], [2, 5, 6], [2, 3, 4], [2, 5, 6]])
+_BODY_LINK = np.array([0, 1, 2, 1, 2])  # index into the mass / com / inertia triples
+_TOL_V = 1e-9
+_TOL_L = 1e-12
+_MAX_PROJECTION_ITERATIONS = 6
+# the LCP's fixed order (contact._BASE_ORDER and its product for two feet)
+_BASE_ORDER = np.array([STICK, SLIDE_POS, SLIDE_NEG, SEPARATE])
+
+COUNTER_NAMES = ("lcp_fallbacks", "energy_projections", "momentum_fallbacks", "energy_deficits")
+
+
+def kernel_params(sim: ContactSimulator) -> np.ndarray:
+    """The parameter vector (N_PARAMS,) of a simulator: its robot's :class:`RobotParams`, friction, gravity,
+    step, torque limit and motor law. Only the energy-consistent scheme is compiled (ValueError otherwise)."""
+    if not isinstance(sim, ContactSimulator):
+        raise TypeError(f"sim must be a ContactSimulator, got {type(sim).__name__}")
+    if not sim.energy_consistent:
+        raise ValueError("the batched kernel implements only the energy-consistent scheme (energy_consistent=True)")
+    prm = sim.robot.params
+    p = np.zeros(N_PARAMS)
+    for i, link in enumerate((prm.trunk, prm.thigh, prm.shank)):
+        p[P_MASS + i] = link.mass
+        p[P_COMZ + i] = link.com_z
+        p[P_INERTIA + i] = link.inertia_yy
+    p[P_THIGH_LENGTH] = prm.thigh.length
+    p[P_SHANK_LENGTH] = prm.shank.length
+    p[P_HIP_X] = FOOT_SIGN[0] * prm.hip_offset
+    p[P_HIP_X + 1] = FOOT_SIGN[1] * prm.hip_offset
+    p[P_GRAVITY] = sim.gravity
+    p[P_MU] = sim.mu
+    p[P_DT] = sim.dt
+    p[P_TORQUE_LIMIT] = sim.torque_limit
+    if sim.motor_speed_limits is not None:
+        p[P_W_FULL], p[P_W_ZERO] = sim.motor_speed_limits
+        p[P_MOTOR] = 1.0
+    p[P_FAR] = sim._far
+    return p
+
+
+# ------------------------------------------------------------------------------ kinematics and dynamics
+@numba.njit(cache=True)
+def kinematics(p, q, pts):
+    """World (x, z) of the 12 points (12, 2) for configuration ``q`` (7,)."""
+    x, z, th0 = q[0], q[1], q[2]
+    c0, s0 = math.cos(th0), math.sin(th0)
+    pts[0, 0] = x
+    pts[0, 1] = z
+    cz = p[P_COMZ]
+    pts[1, 0] = x + s0 * cz
+    pts[1, 1] = z + c0 * cz
+    for leg in range(2):
+        base = 2 + 5 * leg
+        hx = p[P_HIP_X + leg]
+        hipx = x + c0 * hx
+        hipz = z - s0 * hx
+        pts[base, 0] = hipx
+        pts[base, 1] = hipz
+        th1 = th0 + q[3 + 2 * leg]
+        c1, s1 = math.cos(th1), math.sin(th1)
+        pts[base + 1, 0] = hipx + s1 * p[P_COMZ + 1]
+        pts[base + 1, 1] = hipz + c1 * p[P_COMZ + 1]
+        lt = -p[P_THIGH_LENGTH]
+        kx = hipx + s1 * lt
+        kz = hipz + c1 * lt
+        pts[base + 2, 0] = kx
+        pts[base + 2, 1] = kz
+        th2 = th1 + q[4 + 2 * leg]
+        c2, s2 = math.cos(th2), math.sin(th2)
+        pts[base + 3, 0] = kx + s2 * p[P_COMZ + 2]
+        pts[base + 3, 1] = kz + c2 * p[P_COMZ + 2]
+        ls = -p[P_SHANK_LENGTH]
+        pts[base + 4, 0] = kx + s2 * ls
+        pts[base + 4, 1] = kz + c2 * ls
+
+
+@numba.njit(cache=True)
+def point_jacobian(pts, chain, jx, jz):
+    """Rows ``x`` and ``z`` (7,) each of the world Jacobian of chain ``chain``'s point (0..4: body CoMs,
+    5, 6: front, back foot)."""
+    for j in range(7):
+        jx[j] = 0.0
+        jz[j] = 0.0
+    jx[0] = 1.0
+    jz[1] = 1.0
+    pt = _CHAIN_POINT[chain]
+    px, pz = pts[pt, 0], pts[pt, 1]
+    for k in range(_CHAIN_LEN[chain]):
+        o = _CHAIN_PIVOT[chain, k]
+        d = _CHAIN_DOF[chain, k]
+        jx[d] = pz - pts[o, 1]
+        jz[d] = -(px - pts[o, 0])
+
+
+@numba.njit(cache=True)
+def mass_matrix(p, pts, M, jx, jz):
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`."""
+    for i in range(7):
+        for j in range(7):
+            M[i, j] = 0.0
+    for b in range(5):
+        point_jacobian(pts, b, jx, jz)
+        link = _BODY_LINK[b]
+        m = p[P_MASS + link]
+        inertia = p[P_INERTIA + link]
+        n = _CHAIN_LEN[b]
+        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints
+            da = a if a < 2 else _CHAIN_DOF[b, a - 2]
+            for c in range(n + 2):
+                dc = c if c < 2 else _CHAIN_DOF[b, c - 2]
+                M[da, dc] += m * (jx[da] * jx[dc] + jz[da] * jz[dc])
+        for a in range(n):
+            da = _CHAIN_DOF[b, a]
+            for c in range(n):
+                M[da, _CHAIN_DOF[b, c]] += inertia
+
+
+@numba.njit(cache=True)
+def bias(p, pts, v, out, jx, jz):
+    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``."""
+    w0 = v[2]
+    for i in range(7):
+        out[i] = 0.0
+    g = p[P_GRAVITY]
+    for b in range(5):
+        point_jacobian(pts, b, jx, jz)
+        m = p[P_MASS + _BODY_LINK[b]]
+        n = _CHAIN_LEN[b]
+        pt = _CHAIN_POINT[b]
+        ax = 0.0
+        az = 0.0
+        rate = w0
+        for k in range(n):
+            o = _CHAIN_PIVOT[b, k]
+            nxt = _CHAIN_PIVOT[b, k + 1] if k + 1 < n else pt
+            if k > 0:
+                rate += v[_CHAIN_DOF[b, k]]
+            r2 = rate * rate
+            ax -= r2 * (pts[nxt, 0] - pts[o, 0])
+            az -= r2 * (pts[nxt, 1] - pts[o, 1])
+        fx = m * ax
+        fz = m * (az + g)
+        for i in range(7):
+            out[i] += jx[i] * fx + jz[i] * fz
+
+
+@numba.njit(cache=True)
+def potential_energy(p, pts):
+    """``sum m g z_com`` [J] at the points ``pts``."""
+    e = 0.0
+    for b in range(5):
+        e += p[P_MASS + _BODY_LINK[b]] * pts[_CHAIN_POINT[b], 1]
+    return e * p[P_GRAVITY]
+
+
+@numba.njit(cache=True)
+def kinetic_energy(M, v):
+    """``1/2 v^T M v`` [J]."""
+    e = 0.0
+    for i in range(7):
+        s = 0.0
+        for j in range(7):
+            s += M[i, j] * v[j]
+        e += v[i] * s
+    return 0.5 * e
+
+
+@numba.njit(cache=True)
+def centroidal_rows(p, pts, P, jx, jz):
+    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
+    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts``."""
+    mtot = 0.0
+    cx = 0.0
+    cz = 0.0
+    for b in range(5):
+        m = p[P_MASS + _BODY_LINK[b]]
+        pt = _CHAIN_POINT[b]
+        mtot += m
+        cx += m * pts[pt, 0]
+        cz += m * pts[pt, 1]
+    cx /= mtot
+    cz /= mtot
+    for r in range(3):
+        for j in range(7):
+            P[r, j] = 0.0
+    for b in range(5):
+        point_jacobian(pts, b, jx, jz)
+        link = _BODY_LINK[b]
+        m = p[P_MASS + link]
+        pt = _CHAIN_POINT[b]
+        rx = pts[pt, 0] - cx
+        rz = pts[pt, 1] - cz
+        for j in range(7):
+            P[0, j] += m * jx[j]
+            P[1, j] += m * jz[j]
+            P[2, j] += m * (rz * jx[j] - rx * jz[j])
+        for k in range(_CHAIN_LEN[b]):
+            P[2, _CHAIN_DOF[b, k]] += p[P_INERTIA + link]
+
+
+@numba.njit(cache=True)
+def cholesky7(M, L):
+    """Lower Cholesky factor ``L`` of ``M`` (7, 7); False if ``M`` is not positive definite."""
+    for i in range(7):
+        for j in range(i + 1):
+            s = M[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    return False
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+        for j in range(i + 1, 7):
+            L[i, j] = 0.0
+    return True
+
+
+@numba.njit(cache=True)
+def cholesky_solve7(L, b, out):
+    """``out = M^-1 b`` (7,) from the factor of :func:`cholesky7`."""
+    for i in range(7):
+        s = b[i]
+        for k in range(i):
+            s -= L[i, k] * out[k]
+        out[i] = s / L[i, i]
+    for i in range(6, -1, -1):
+        s = out[i]
+        for k in range(i + 1, 7):
+            s -= L[k, i] * out[k]
+        out[i] = s / L[i, i]
+
+
+@numba.njit(cache=True)
+def inverse7(L, Minv, e, col):
+    """``Minv = M^-1`` (7, 7) from the factor of :func:`cholesky7` (``e``, ``col``: (7,) scratch)."""
+    for c in range(7):
+        for i in range(7):
+            e[i] = 0.0
+        e[c] = 1.0
+        cholesky_solve7(L, e, col)
+        for i in range(7):
+            Minv[i, c] = col[i]
+
+
+# ------------------------------------------------------------------------------ small solves (contact.py's)
+@numba.njit(cache=True)
+def _solve_linear(A, b, n, z):
+    """``A z = b`` for the leading ``n x n`` block (n <= 4): contact._solve_linear (closed form for n <= 2,
+    Gaussian elimination with partial pivoting otherwise); A, b are overwritten; False if singular."""
+    if n == 1:
+        a = A[0, 0]
+        if abs(a) < 1e-300:
+            return False
+        z[0] = b[0] / a
+        return True
+    if n == 2:
+        a, bb = A[0, 0], A[0, 1]
+        c, d = A[1, 0], A[1, 1]
+        det = a * d - bb * c
+        scale = max(abs(a * d), abs(bb * c), 1e-300)
+        if abs(det) <= 1e-13 * scale:
+            return False
+        z[0] = (b[0] * d - bb * b[1]) / det
+        z[1] = (a * b[1] - c * b[0]) / det
+        return True
+    for col in range(n):
+        piv = col
+        best = abs(A[col, col])
+        for r in range(col + 1, n):
+            if abs(A[r, col]) > best:
+                best = abs(A[r, col])
+                piv = r
+        if abs(A[piv, col]) < 1e-300:
+            return False
+        if piv != col:
+            for j in range(n):
+                t = A[col, j]
+                A[col, j] = A[piv, j]
+                A[piv, j] = t
+            t = b[col]
+            b[col] = b[piv]
+            b[piv] = t
+        pv = A[col, col]
+        for r in range(col + 1, n):
+            f = A[r, col] / pv
+            if f != 0.0:
+                for j in range(col, n):
+                    A[r, j] -= f * A[col, j]
+                b[r] -= f * b[col]
+    for r in range(n - 1, -1, -1):
+        s = b[r]
+        for j in range(r + 1, n):
+            s -= A[r, j] * z[j]
+        z[r] = s / A[r, r]
+    return True
+
+
+@numba.njit(cache=True)
+def _cholesky_small(S, r, n, z, L):
+    """contact._solve_spd for n = 3, 4 (upper triangle of S read, as the unrolled version); False if not PD."""
+    for i in range(n):
+        for j in range(i + 1):
+            if i == j:
+                d = S[i, i]
+                for k in range(i):
+                    d -= L[i, k] * L[i, k]
+                if i == 0:
+                    if d <= 0.0:
+                        return False
+                elif d <= 1e-12 * S[i, i]:
+                    return False
+                L[i, i] = math.sqrt(d)
+            else:
+                s = S[j, i]
+                for k in range(j):
+                    s -= L[i, k] * L[j, k]
+                L[i, j] = s / L[j, j]
+    for i in range(n):
+        s = r[i]
+        for k in range(i):
+            s -= L[i, k] * z[k]
+        z[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):
+        s = z[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * z[k]
+        z[i] = s / L[i, i]
+    return True
+
+
+@numba.njit(cache=True)
+def _solve_spd(S, r, n, z, L):
+    """contact._solve_spd: ``S z = r`` (n <= 4) for symmetric positive-definite ``S``; S, r may be overwritten."""
+    if n <= 2:
+        return _solve_linear(S, r, n, z)
+    return _cholesky_small(S, r, n, z, L)
+
+
+# ------------------------------------------------------------------------------ the LCP (contact.py's)
+@numba.njit(cache=True)
+def _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n, rows):
+    """contact._try_states for ``k`` candidate feet with states ``(s0, s1)``; returns the violation
+    (inf if singular) and fills ``lam`` (2k,)."""
+    m = 2 * k
+    ncol = 0
+    nrow = 0
+    for i in range(k):
+        s = s0 if i == 0 else s1
+        n, t = 2 * i, 2 * i + 1
+        if s == STICK:
+            cols_n[ncol] = 1
+            cols_j[ncol, 0] = n
+            cols_c[ncol, 0] = 1.0
+            ncol += 1
+            cols_n[ncol] = 1
+            cols_j[ncol, 0] = t
+            cols_c[ncol, 0] = 1.0
+            ncol += 1
+            rows[nrow] = n
+            rows[nrow + 1] = t
+            nrow += 2
+        elif s == SLIDE_POS or s == SLIDE_NEG:
+            cols_n[ncol] = 2
+            cols_j[ncol, 0] = n
+            cols_c[ncol, 0] = 1.0
+            cols_j[ncol, 1] = t
+            cols_c[ncol, 1] = -mu if s == SLIDE_POS else mu
+            ncol += 1
+            rows[nrow] = n
+            nrow += 1
+    for j in range(m):
+        lam[j] = 0.0
+    if nrow > 0:
+        for a in range(nrow):
+            r = rows[a]
+            for b in range(ncol):
+                acc = 0.0
+                for e in range(cols_n[b]):
+                    acc += cols_c[b, e] * G[r, cols_j[b, e]]
+                A[a, b] = acc
+            rhs[a] = -c[r]
+        if not _solve_linear(A, rhs, nrow, zz):
+            return np.inf
+        for b in range(ncol):
+            for e in range(cols_n[b]):
+                lam[cols_j[b, e]] += cols_c[b, e] * zz[b]
+    for r in range(m):
+        acc = 0.0
+        for j in range(m):
+            acc += G[r, j] * lam[j]
+        w[r] = c[r] + acc
+    viol = 0.0
+    for i in range(k):
+        s = s0 if i == 0 else s1
+        n, t = 2 * i, 2 * i + 1
+        if s == SEPARATE:
+            viol = max(viol, (-w[n] - _TOL_V) / _TOL_V)
+        else:
+            viol = max(viol, (-lam[n] - _TOL_L) / _TOL_L)
+            if s == STICK:
+                viol = max(viol, (abs(lam[t]) - mu * lam[n] - _TOL_L) / _TOL_L)
+            elif s == SLIDE_POS:
+                viol = max(viol, (-w[t] - _TOL_V) / _TOL_V)
+            else:
+                viol = max(viol, (w[t] - _TOL_V) / _TOL_V)
+    return viol
+
+
+@numba.njit(cache=True)
+def _try_double_stick(G, c, mu, lam, L, rhs, zz):
+    """contact._try_double_stick: ``lam = -G^-1 c`` by Cholesky; returns the violation (inf if not PD)."""
+    for i in range(4):
+        rhs[i] = -c[i]
+    if not _cholesky_small(G, rhs, 4, zz, L):
+        return np.inf
+    n0, t0, n1, t1 = zz[0], zz[1], zz[2], zz[3]
+    lam[0] = n0
+    lam[1] = t0
+    lam[2] = n1
+    lam[3] = t1
+    return max(-n0 - _TOL_L, -n1 - _TOL_L, abs(t0) - mu * n0 - _TOL_L, abs(t1) - mu * n1 - _TOL_L) / _TOL_L
+
+
+@numba.njit(cache=True)
+def _try(G, c, mu, k, s0, s1, lam, sc):
+    if k == 2 and s0 == STICK and s1 == STICK:
+        return _try_double_stick(G, c, mu, lam, sc.L, sc.rhs, sc.zz)
+    return _try_states(G, c, mu, k, s0, s1, lam, sc.w, sc.A, sc.rhs, sc.zz, sc.cols_j, sc.cols_c, sc.cols_n,
+                       sc.rows)
+
+
+@numba.njit(cache=True)
+def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, sc):
+    """contact.solve_contact_lcp_lists: the guess ``(g0, g1)`` first, then the fixed order; fills ``lam``
+    (2k,) and ``out_states`` (k,); returns True when exact (False: the least-violating combination)."""
+    best_v = np.inf
+    have = False
+    b0 = SEPARATE
+    b1 = SEPARATE
+    best_lam = sc.best_lam
+    viol = _try(G, c, mu, k, g0, g1, lam, sc)
+    if viol <= 0.0:
+        out_states[0] = g0
+        out_states[1] = g1
+        return True
+    if viol < np.inf:
+        best_v = viol
+        have = True
+        b0, b1 = g0, g1
+        for j in range(2 * k):
+            best_lam[j] = lam[j]
+    n_combos = 4 if k == 1 else 16
+    for idx in range(n_combos):
+        if k == 1:
+            s0 = _BASE_ORDER[idx]
+            s1 = SEPARATE
+        else:
+            s0 = _BASE_ORDER[idx // 4]
+            s1 = _BASE_ORDER[idx % 4]
+        if s0 == g0 and (k == 1 or s1 == g1):
+            continue
+        viol = _try(G, c, mu, k, s0, s1, lam, sc)
+        if viol <= 0.0:
+            out_states[0] = s0
+            out_states[1] = s1
+            return True
+        if viol < best_v:
+            best_v = viol
+            have = True
+            b0, b1 = s0, s1
+            for j in range(2 * k):
+                best_lam[j] = lam[j]
+    if not have:
+        for j in range(2 * k):
+            lam[j] = 0.0
+        out_states[0] = SEPARATE
+        out_states[1] = SEPARATE
+        return False
+    for j in range(2 * k):
+        lam[j] = best_lam[j]
+    out_states[0] = b0
+    out_states[1] = b1
+    return False
+
+
+# ------------------------------------------------------------------------------ scratch space
+_SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
+    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "Minv": (7, 7), "bvec": (7,), "tau": (7,),
+    "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
+    "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
+    "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
+    "sol": (2,), "cached": (1,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,), "B": (7, 4), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,), "e7": (7,),
+}
+_INT_FIELDS = ("cached", "cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
+Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
+"""Work arrays of the kernel (one set reused for every robot of a batch)."""
+
+
+def kernel_scratch() -> Scratch:
+    """A fresh :class:`Scratch` (zeros)."""
+    return Scratch(*[np.zeros(shape, dtype=np.int64 if name in _INT_FIELDS else np.float64)
+                     for name, shape in _SCRATCH_FIELDS.items()])
+
+
+# ------------------------------------------------------------------------------ one step
+@numba.njit(cache=True)
+def _project_positions(p, q, ncand, cfoot, states, sc):
+    """ContactSimulator._project_positions: Newton in the mass metric of the step (``sc.Lm``, at the
+    step's start) onto the contact targets; ``sc.pts_old`` holds the kinematics at the start of the step.
+    Leaves ``sc.pts`` with the kinematics of the result."""
+    tfoot, taxis, tval = sc.tfoot, sc.taxis, sc.tval
+    nt = 0
+    for i in range(ncand):
+        foot = cfoot[i]
+        st = states[foot]
+        if st == STICK:
+            fp = _FOOT_POINT[foot]
+            jz_pitch = -(sc.pts_old[fp, 0] - sc.pts_old[0, 0])  # LWA z row, pitch column, at the step start
+            tfoot[nt] = foot
+            taxis[nt] = 0
+            tval[nt] = sc.q_old[0] - jz_pitch
+            nt += 1
+        if st != SEPARATE:
+            tfoot[nt] = foot
+            taxis[nt] = 1
+            tval[nt] = 0.0
+            nt += 1
+    kinematics(p, q, sc.pts)
+    for i in range(ncand):
+        foot = cfoot[i]
+        if states[foot] == SEPARATE and sc.pts[_FOOT_POINT[foot], 1] < 0.0:
+            tfoot[nt] = foot
+            taxis[nt] = 1
+            tval[nt] = 0.0
+            nt += 1
+    if nt == 0:
+        return
+    r = sc.rhs
+    for _ in range(_MAX_PROJECTION_ITERATIONS):
+        residual = 0.0
+        for a in range(nt):
+            r[a] = tval[a] - sc.pts[_FOOT_POINT[tfoot[a]], taxis[a]]
+            residual = max(residual, abs(r[a]))
+        if residual <= POSITION_TOLERANCE:
+            break
+        for a in range(nt):
+            point_jacobian(sc.pts, 5 + tfoot[a], sc.jx, sc.jz)
+            row = sc.jx if taxis[a] == 0 else sc.jz
+            for j in range(7):
+                sc.Jr[a, j] = row[j]
+        for a in range(nt):  # B = M^-1 Jr^T with the step's M (its factor sc.Lm)
+            for j in range(7):
+                sc.e7[j] = sc.Jr[a, j]
+            cholesky_solve7(sc.Lm, sc.e7, sc.col)
+            for j in range(7):
+                sc.B[j, a] = sc.col[j]
+        for a in range(nt):
+            for b in range(nt):
+                acc = 0.0
+                for j in range(7):
+                    acc += sc.Jr[a, j] * sc.B[j, b]
+                sc.S[a, b] = acc
+        if not _solve_spd(sc.S, r, nt, sc.zz, sc.L):
+            break
+        for i in range(7):
+            acc = 0.0
+            for a in range(nt):
+                acc += sc.B[i, a] * sc.zz[a]
+            q[i] += acc
+        kinematics(p, q, sc.pts)
+
+
+@numba.njit(cache=True)
+def _project_flight(p, q, v, kinetic, target, sc, counters):
+    """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and
+    the same centroidal momentum (``sc.pts``, ``sc.M`` at the current q)."""
+    centroidal_rows(p, sc.pts, sc.P, sc.jx, sc.jz)
+    cholesky7(sc.M, sc.Lm)
+    for a in range(3):
+        for j in range(7):
+            sc.e7[j] = sc.P[a, j]
+        cholesky_solve7(sc.Lm, sc.e7, sc.col)
+        for j in range(7):
+            sc.B[j, a] = sc.col[j]
+    pm = sc.c
+    for a in range(3):
+        acc = 0.0
+        for j in range(7):
+            acc += sc.P[a, j] * v[j]
+        pm[a] = acc
+    for a in range(3):
+        for b in range(3):
+            acc = 0.0
+            for j in range(7):
+                acc += sc.P[a, j] * sc.B[j, b]
+            sc.S[a, b] = acc
+        sc.rhs[a] = pm[a]
+    if not _solve_spd(sc.S, sc.rhs, 3, sc.zz, sc.L):
+        sc.zz[0] = 0.0
+        sc.zz[1] = 0.0
+        sc.zz[2] = 0.0
+    y = sc.zz
+    k_c = 0.5 * (pm[0] * y[0] + pm[1] * y[1] + pm[2] * y[2])
+    if target >= k_c and kinetic > k_c:
+        factor = math.sqrt((target - k_c) / (kinetic - k_c))
+        for j in range(7):
+            vc = sc.B[j, 0] * y[0] + sc.B[j, 1] * y[1] + sc.B[j, 2] * y[2]
+            v[j] = v[j] * factor + (1.0 - factor) * vc
+        return target
+    counters[2] += 1
+    s = math.sqrt(target / kinetic)
+    for j in range(7):
+        v[j] *= s
+    return target
+
+
+@numba.njit(cache=True)
+def substep(p, x, states, contact, total, energy, counters, sc):
+    """One step of ``h`` of one robot (``sc.tau`` holds the joint torques (7,)); returns the energy after it
+    (the ``energy`` argument: the energy at its start)."""
+    q = x[:NQ]
+    v = x[NQ:]
+    h = p[P_DT]
+    pts = sc.pts
+    if sc.cached[0] == 0:  # sc.pts, sc.M hold the kinematics and inertia of q when set (the previous step's end)
+        kinematics(p, q, pts)
+        mass_matrix(p, pts, sc.M, sc.jx, sc.jz)
+    bias(p, pts, v, sc.bvec, sc.jx, sc.jz)
+    for i in range(7):
+        sc.rhs7[i] = sc.tau[i] - sc.bvec[i]
+    cholesky7(sc.M, sc.Lm)
+    cholesky_solve7(sc.Lm, sc.rhs7, sc.acc)
+    vf = sc.vf
+    for i in range(7):
+        vf[i] = sc.acc[i] * h + v[i]
+    # candidate contacts
+    cfoot, cphi = sc.cfoot, sc.cphi
+    ncand = 0
+    for foot in range(2):
+        point_jacobian(pts, 5 + foot, sc.jx, sc.jz)
+        phi = pts[_FOOT_POINT[foot], 1]
+        for j in range(7):
+            sc.fjx[foot, j] = sc.jx[j]
+            sc.fjz[foot, j] = sc.jz[j]
+        if phi > p[P_FAR]:
+            continue
+        wn = 0.0
+        for j in range(7):
+            wn += sc.jz[j] * vf[j]
+        if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
+            cfoot[ncand] = foot
+            cphi[ncand] = phi
+            ncand += 1
+    if ncand == 0:
+        for i in range(7):
+            v[i] = vf[i]
+        states[0] = SEPARATE
+        states[1] = SEPARATE
+        contact[0] = False
+        contact[1] = False
+    else:
+        m = 2 * ncand
+        for i in range(ncand):
+            foot = cfoot[i]
+            for j in range(7):
+                sc.jc[2 * i, j] = sc.fjz[foot, j]
+                sc.jc[2 * i + 1, j] = sc.fjx[foot, j]
+        for r in range(m):  # A = J_c M^-1 (M symmetric: each row is M^-1 applied to a row of J_c)
+            for j in range(7):
+                sc.e7[j] = sc.jc[r, j]
+            cholesky_solve7(sc.Lm, sc.e7, sc.col)
+            for j in range(7):
+                sc.Ac[r, j] = sc.col[j]
+        for r in range(m):
+            for s in range(m):
+                acc = 0.0
+                for k in range(7):
+                    acc += sc.Ac[r, k] * sc.jc[s, k]
+                sc.G[r, s] = acc
+            acc = 0.0
+            for k in range(7):
+                acc += sc.jc[r, k] * vf[k]
+            sc.c[r] = acc
+        for i in range(ncand):
+            if cphi[i] > 0.0:
+                sc.c[2 * i] += cphi[i] / h
+        g0 = states[cfoot[0]]
+        g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
+        exact = solve_lcp(sc.G, sc.c, p[P_MU], ncand, g0, g1, sc.lam, sc.sol, sc)
+        if not exact:
+            counters[0] += 1
+        for j in range(7):
+            acc = 0.0
+            for r in range(m):
+                acc += sc.lam[r] * sc.Ac[r, j]
+            v[j] = acc + vf[j]
+        states[0] = SEPARATE
+        states[1] = SEPARATE
+        contact[0] = False
+        contact[1] = False
+        for i in range(ncand):
+            foot = cfoot[i]
+            ln, lt = sc.lam[2 * i], sc.lam[2 * i + 1]
+            states[foot] = sc.sol[i]
+            total[2 * foot] += lt
+            total[2 * foot + 1] += ln
+            contact[foot] = ln > 1e-9
+    # energy-consistent end of the step (ContactSimulator._finish_consistent)
+    for i in range(7):
+        sc.q_old[i] = q[i]
+    for i in range(12):
+        sc.pts_old[i, 0] = pts[i, 0]
+        sc.pts_old[i, 1] = pts[i, 1]
+    for i in range(7):
+        q[i] += v[i] * h
+    if ncand > 0:
+        _project_positions(p, q, ncand, cfoot, states, sc)
+    else:
+        kinematics(p, q, sc.pts)
+    mass_matrix(p, sc.pts, sc.M, sc.jx, sc.jz)
+    sc.cached[0] = 1  # the next step starts at this q (the energy projection changes only v)
+    kinetic = kinetic_energy(sc.M, v)
+    potential = potential_energy(p, sc.pts)
+    tq = 0.0
+    tq_old = 0.0
+    for i in range(7):
+        tq += sc.tau[i] * q[i]
+        tq_old += sc.tau[i] * sc.q_old[i]
+    allowed = energy + (tq - tq_old)
+    if kinetic + potential > allowed:
+        counters[1] += 1
+        target = allowed - potential
+        target -= 1e-13 * (abs(allowed) + abs(potential))
+        if target <= 0.0:
+            counters[3] += 1
+            for i in range(7):
+                v[i] = 0.0
+            kinetic = 0.0
+        elif ncand > 0:
+            s = math.sqrt(target / kinetic)
+            for i in range(7):
+                v[i] *= s
+            kinetic = target
+        else:
+            kinetic = _project_flight(p, q, v, kinetic, target, sc, counters)
+    return kinetic + potential
+
+
+@numba.njit(cache=True)
+def mechanical_energy(p, x, sc):
+    """``1/2 v^T M v + V`` [J] of one state (14,)."""
+    kinematics(p, x[:NQ], sc.pts)
+    mass_matrix(p, sc.pts, sc.M, sc.jx, sc.jz)
+    sc.cached[0] = 1
+    return kinetic_energy(sc.M, x[NQ:]) + potential_energy(p, sc.pts)
+
+
+@numba.njit(cache=True)
+def run_one(p, x, u, n, states, contact, total, sc, counters):
+    """``n`` steps of one robot with constant commanded torques ``u`` (4,) (ContactSimulator.run): the motor
+    law every step, the energy taken at the start; ``total`` (4,) receives the summed impulses."""
+    for i in range(4):
+        total[i] = 0.0
+    sc.cached[0] = 0
+    if n <= 0:
+        return
+    energy = mechanical_energy(p, x, sc)
+    motor = p[P_MOTOR] != 0.0
+    w_full, w_zero = p[P_W_FULL], p[P_W_ZERO]
+    limit = p[P_TORQUE_LIMIT]
+    slope = limit / (w_zero - w_full) if motor else 0.0
+    for i in range(3):
+        sc.tau[i] = 0.0
+    for _ in range(n):
+        for j in range(4):
+            uj = u[j]
+            if motor:
+                wj = x[NQ + 3 + j]
+                if uj * wj > 0.0 and abs(wj) > w_full:
+                    cap = max(0.0, (w_zero - abs(wj)) * slope)
+                    if abs(uj) > cap:
+                        uj = cap if uj > 0.0 else -cap
+            sc.tau[3 + j] = uj
+        energy = substep(p, x, states, contact, total, energy, counters, sc)
+
+
+@numba.njit(cache=True)
+def step_batch(p, x, u, n, states, contact, impulse, sim_time, heights, counters, sc):
+    """``n`` simulation steps of every robot: ``x (N, 14)`` in place, ``u (N, 4)`` commanded joint torques,
+    ``states (N, 2)``, ``contact (N, 2)``, ``impulse (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)``
+    (``+= h`` per step, accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after
+    the steps, ``counters (N, 4)`` (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are skipped
+    (their outputs are NaN heights, no impulse); the caller ends their episodes."""
+    h = p[P_DT]
+    for r in range(x.shape[0]):
+        xr = x[r]
+        finite = True
+        for i in range(NX):
+            if not math.isfinite(xr[i]):
+                finite = False
+        sc.cached[0] = 0
+        if finite:
+            run_one(p, xr, u[r], n, states[r], contact[r], impulse[r], sc, counters[r])
+        else:
+            for i in range(4):
+                impulse[r, i] = 0.0
+        for _ in range(n):
+            sim_time[r] += h
+        kinematics(p, xr[:NQ], sc.pts)
+        heights[r, 0] = sc.pts[6, 1]
+        heights[r, 1] = sc.pts[11, 1]
+
+
+def warm_up(announce: bool = True) -> float:
+    """Compile (first run on a machine, about a minute) or load from numba's cache the kernel, once per
+    process, before anything is timed; says so on stderr when compiling takes long. Returns the seconds."""
+    start = _time.perf_counter()
+    p = kernel_params(ContactSimulator())
+    n = 1
+    x = np.zeros((n, NX))
+    x[:, 1] = 0.5
+    step_batch(p, x, np.zeros((n, 4)), 1, np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2), dtype=np.bool_),
+               np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)), np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+    elapsed = _time.perf_counter() - start
+    if announce and elapsed > 5.0:
+        print(f"numba: compiled the batched contact kernel in {elapsed:.1f} s (once; cached for later runs)",
+              file=sys.stderr)
+    return elapsed
