@@ -40,8 +40,15 @@ import time as _time
 import numba
 import numpy as np
 
-from hsddp_gym.core.contact import (CONTACT_MARGIN, POSITION_TOLERANCE, SEPARATE, SLIDE_NEG, SLIDE_POS, STICK,
-                                    ContactSimulator)
+from hsddp_gym.core.contact import (
+    CONTACT_MARGIN,
+    POSITION_TOLERANCE,
+    SEPARATE,
+    SLIDE_NEG,
+    SLIDE_POS,
+    STICK,
+    ContactSimulator,
+)
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
 
 # ------------------------------------------------------------------------------ parameter vector layout
@@ -560,7 +567,8 @@ _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
     "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
-    "sol": (2,), "cached": (1,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,), "B": (7, 4), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,), "e7": (7,),
+    "sol": (2,), "cached": (1,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
+    "B": (7, 4), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,), "e7": (7,),
 }
 _INT_FIELDS = ("cached", "cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -856,14 +864,17 @@ def run_one(p, x, u, n, states, contact, total, sc, counters):
 
 
 @numba.njit(cache=True)
-def step_batch(p, x, u, n, states, contact, impulse, sim_time, heights, counters, sc):
-    """``n`` simulation steps of every robot: ``x (N, 14)`` in place, ``u (N, 4)`` commanded joint torques,
-    ``states (N, 2)``, ``contact (N, 2)``, ``impulse (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)``
-    (``+= h`` per step, accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after
-    the steps, ``counters (N, 4)`` (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are skipped
-    (their outputs are NaN heights, no impulse); the caller ends their episodes."""
+def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, counters, sc):
+    """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
+    untouched): ``x (N, 14)`` in place, ``u (N, 4)`` commanded joint torques, ``states (N, 2)``,
+    ``contact (N, 2)``, ``impulse (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step,
+    accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps,
+    ``counters (N, 4)`` (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not
+    finite are not stepped (NaN heights, no impulse); the caller ends their episodes."""
     h = p[P_DT]
     for r in range(x.shape[0]):
+        if not active[r]:
+            continue
         xr = x[r]
         finite = True
         for i in range(NX):
@@ -882,18 +893,59 @@ def step_batch(p, x, u, n, states, contact, impulse, sim_time, heights, counters
         heights[r, 1] = sc.pts[11, 1]
 
 
+_READY = False
+ANNOUNCE_AFTER_S = 5.0
+"""With a cache index on disk, the warm-up still says that numba compiles when it takes longer than this."""
+
+
+def _cache_index_exists() -> bool:
+    """Whether numba's cache index of :func:`step_batch` is on disk (numba internals: False if they moved)."""
+    import os
+
+    try:
+        return os.path.exists(step_batch._cache._cache_file._index_path)
+    except AttributeError:  # pragma: no cover (another numba version)
+        return False
+
+
 def warm_up(announce: bool = True) -> float:
-    """Compile (first run on a machine, about a minute) or load from numba's cache the kernel, once per
-    process, before anything is timed; says so on stderr when compiling takes long. Returns the seconds."""
+    """Make the kernel ready before anything is timed: compile it (the first run on a machine, about a minute)
+    or load numba's on-disk cache (``cache=True``; later runs, about a second), once per process. With
+    ``announce``, a line on stderr says when a compile is under way and how long it took. Returns the seconds
+    spent (0 when already done)."""
+    global _READY
+    if _READY:
+        return 0.0
+    import threading
+
+    def say():
+        print("numba: compiling the batched contact kernel, once (the first run on this machine takes about a "
+              f"minute; later runs load it from the cache in {step_batch.stats.cache_path}) ...", file=sys.stderr,
+              flush=True)
+
+    if announce and not _cache_index_exists():
+        say()
+        announce_later = False
+    else:
+        announce_later = announce
+    timer = threading.Timer(ANNOUNCE_AFTER_S, say) if announce_later else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
     start = _time.perf_counter()
-    p = kernel_params(ContactSimulator())
-    n = 1
-    x = np.zeros((n, NX))
-    x[:, 1] = 0.5
-    step_batch(p, x, np.zeros((n, 4)), 1, np.zeros((n, 2), dtype=np.int64), np.zeros((n, 2), dtype=np.bool_),
-               np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)), np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+    try:
+        p = kernel_params(ContactSimulator())
+        n = 1
+        x = np.zeros((n, NX))
+        x[:, 1] = 0.5
+        step_batch(p, x, np.zeros((n, 4)), 1, np.ones(n, dtype=np.bool_), np.zeros((n, 2), dtype=np.int64),
+                   np.zeros((n, 2), dtype=np.bool_), np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)),
+                   np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+    finally:
+        if timer is not None:
+            timer.cancel()
     elapsed = _time.perf_counter() - start
-    if announce and elapsed > 5.0:
-        print(f"numba: compiled the batched contact kernel in {elapsed:.1f} s (once; cached for later runs)",
-              file=sys.stderr)
+    if announce and sum(step_batch.stats.cache_misses.values()):
+        print(f"numba: compiled in {elapsed:.1f} s; cached for later runs", file=sys.stderr, flush=True)
+    _READY = True
     return elapsed
