@@ -51,6 +51,10 @@ from hsddp_gym.core.contact import (
 )
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
 
+_jit = numba.njit(cache=True, error_model="numpy")
+"""numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
+checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`)."""
+
 # ------------------------------------------------------------------------------ parameter vector layout
 P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
 P_COMZ = 3  # 3 entries: CoM offset along each link's local z [m]
@@ -115,7 +119,7 @@ def kernel_params(sim: ContactSimulator) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ kinematics and dynamics
-@numba.njit(cache=True)
+@_jit
 def kinematics(p, q, pts):
     """World (x, z) of the 12 points (12, 2) for configuration ``q`` (7,)."""
     x, z, th0 = q[0], q[1], q[2]
@@ -150,7 +154,7 @@ def kinematics(p, q, pts):
         pts[base + 4, 1] = kz + c2 * ls
 
 
-@numba.njit(cache=True)
+@_jit
 def point_jacobian(pts, chain, jx, jz):
     """Rows ``x`` and ``z`` (7,) each of the world Jacobian of chain ``chain``'s point (0..4: body CoMs,
     5, 6: front, back foot)."""
@@ -168,38 +172,46 @@ def point_jacobian(pts, chain, jx, jz):
         jz[d] = -(px - pts[o, 0])
 
 
-@numba.njit(cache=True)
-def mass_matrix(p, pts, M, jx, jz):
-    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`."""
+@_jit
+def mass_matrix(p, pts, M, bjx, bjz):
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`; also fills the bodies' CoM
+    Jacobian rows ``bjx``, ``bjz`` (5, 7) that :func:`bias` and :func:`centroidal_rows` read."""
     for i in range(7):
         for j in range(7):
             M[i, j] = 0.0
     for b in range(5):
+        jx = bjx[b]
+        jz = bjz[b]
         point_jacobian(pts, b, jx, jz)
         link = _BODY_LINK[b]
         m = p[P_MASS + link]
         inertia = p[P_INERTIA + link]
         n = _CHAIN_LEN[b]
-        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints
+        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints (increasing)
             da = a if a < 2 else _CHAIN_DOF[b, a - 2]
-            for c in range(n + 2):
+            for c in range(a, n + 2):
                 dc = c if c < 2 else _CHAIN_DOF[b, c - 2]
                 M[da, dc] += m * (jx[da] * jx[dc] + jz[da] * jz[dc])
         for a in range(n):
             da = _CHAIN_DOF[b, a]
-            for c in range(n):
+            for c in range(a, n):
                 M[da, _CHAIN_DOF[b, c]] += inertia
+    for i in range(7):  # the products are symmetric: the lower triangle is the mirror, exactly
+        for j in range(i):
+            M[i, j] = M[j, i]
 
 
-@numba.njit(cache=True)
-def bias(p, pts, v, out, jx, jz):
-    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``."""
+@_jit
+def bias(p, pts, v, out, bjx, bjz):
+    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``,
+    with the body Jacobians ``bjx``, ``bjz`` (5, 7) that :func:`mass_matrix` computed at the same points."""
     w0 = v[2]
     for i in range(7):
         out[i] = 0.0
     g = p[P_GRAVITY]
     for b in range(5):
-        point_jacobian(pts, b, jx, jz)
+        jx = bjx[b]
+        jz = bjz[b]
         m = p[P_MASS + _BODY_LINK[b]]
         n = _CHAIN_LEN[b]
         pt = _CHAIN_POINT[b]
@@ -220,7 +232,7 @@ def bias(p, pts, v, out, jx, jz):
             out[i] += jx[i] * fx + jz[i] * fz
 
 
-@numba.njit(cache=True)
+@_jit
 def potential_energy(p, pts):
     """``sum m g z_com`` [J] at the points ``pts``."""
     e = 0.0
@@ -229,7 +241,7 @@ def potential_energy(p, pts):
     return e * p[P_GRAVITY]
 
 
-@numba.njit(cache=True)
+@_jit
 def kinetic_energy(M, v):
     """``1/2 v^T M v`` [J]."""
     e = 0.0
@@ -241,10 +253,11 @@ def kinetic_energy(M, v):
     return 0.5 * e
 
 
-@numba.njit(cache=True)
-def centroidal_rows(p, pts, P, jx, jz):
+@_jit
+def centroidal_rows(p, pts, P, bjx, bjz):
     """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
-    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts``."""
+    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts`` (body Jacobians from
+    :func:`mass_matrix` at the same points)."""
     mtot = 0.0
     cx = 0.0
     cz = 0.0
@@ -260,7 +273,8 @@ def centroidal_rows(p, pts, P, jx, jz):
         for j in range(7):
             P[r, j] = 0.0
     for b in range(5):
-        point_jacobian(pts, b, jx, jz)
+        jx = bjx[b]
+        jz = bjz[b]
         link = _BODY_LINK[b]
         m = p[P_MASS + link]
         pt = _CHAIN_POINT[b]
@@ -274,7 +288,7 @@ def centroidal_rows(p, pts, P, jx, jz):
             P[2, _CHAIN_DOF[b, k]] += p[P_INERTIA + link]
 
 
-@numba.njit(cache=True)
+@_jit
 def cholesky7(M, L):
     """Lower Cholesky factor ``L`` of ``M`` (7, 7); False if ``M`` is not positive definite."""
     for i in range(7):
@@ -293,7 +307,7 @@ def cholesky7(M, L):
     return True
 
 
-@numba.njit(cache=True)
+@_jit
 def cholesky_solve7(L, b, out):
     """``out = M^-1 b`` (7,) from the factor of :func:`cholesky7`."""
     for i in range(7):
@@ -308,20 +322,28 @@ def cholesky_solve7(L, b, out):
         out[i] = s / L[i, i]
 
 
-@numba.njit(cache=True)
-def inverse7(L, Minv, e, col):
-    """``Minv = M^-1`` (7, 7) from the factor of :func:`cholesky7` (``e``, ``col``: (7,) scratch)."""
-    for c in range(7):
-        for i in range(7):
-            e[i] = 0.0
-        e[c] = 1.0
-        cholesky_solve7(L, e, col)
-        for i in range(7):
-            Minv[i, c] = col[i]
+@_jit
+def cholesky_solve_rows(L, R, m, out):
+    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7), from the factor of :func:`cholesky7`: the
+    operations of :func:`cholesky_solve7` row by row, interleaved (the divisions of different rows overlap)."""
+    for i in range(7):
+        d = L[i, i]
+        for r in range(m):
+            s = R[r, i]
+            for k in range(i):
+                s -= L[i, k] * out[r, k]
+            out[r, i] = s / d
+    for i in range(6, -1, -1):
+        d = L[i, i]
+        for r in range(m):
+            s = out[r, i]
+            for k in range(i + 1, 7):
+                s -= L[k, i] * out[r, k]
+            out[r, i] = s / d
 
 
 # ------------------------------------------------------------------------------ small solves (contact.py's)
-@numba.njit(cache=True)
+@_jit
 def _solve_linear(A, b, n, z):
     """``A z = b`` for the leading ``n x n`` block (n <= 4): contact._solve_linear (closed form for n <= 2,
     Gaussian elimination with partial pivoting otherwise); A, b are overwritten; False if singular."""
@@ -373,7 +395,7 @@ def _solve_linear(A, b, n, z):
     return True
 
 
-@numba.njit(cache=True)
+@_jit
 def _cholesky_small(S, r, n, z, L):
     """contact._solve_spd for n = 3, 4 (upper triangle of S read, as the unrolled version); False if not PD."""
     for i in range(n):
@@ -406,7 +428,7 @@ def _cholesky_small(S, r, n, z, L):
     return True
 
 
-@numba.njit(cache=True)
+@_jit
 def _solve_spd(S, r, n, z, L):
     """contact._solve_spd: ``S z = r`` (n <= 4) for symmetric positive-definite ``S``; S, r may be overwritten."""
     if n <= 2:
@@ -415,7 +437,7 @@ def _solve_spd(S, r, n, z, L):
 
 
 # ------------------------------------------------------------------------------ the LCP (contact.py's)
-@numba.njit(cache=True)
+@_jit
 def _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n, rows):
     """contact._try_states for ``k`` candidate feet with states ``(s0, s1)``; returns the violation
     (inf if singular) and fills ``lam`` (2k,)."""
@@ -484,7 +506,7 @@ def _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n,
     return viol
 
 
-@numba.njit(cache=True)
+@_jit
 def _try_double_stick(G, c, mu, lam, L, rhs, zz):
     """contact._try_double_stick: ``lam = -G^-1 c`` by Cholesky; returns the violation (inf if not PD)."""
     for i in range(4):
@@ -499,24 +521,24 @@ def _try_double_stick(G, c, mu, lam, L, rhs, zz):
     return max(-n0 - _TOL_L, -n1 - _TOL_L, abs(t0) - mu * n0 - _TOL_L, abs(t1) - mu * n1 - _TOL_L) / _TOL_L
 
 
-@numba.njit(cache=True)
-def _try(G, c, mu, k, s0, s1, lam, sc):
+@_jit
+def _try(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows):
     if k == 2 and s0 == STICK and s1 == STICK:
-        return _try_double_stick(G, c, mu, lam, sc.L, sc.rhs, sc.zz)
-    return _try_states(G, c, mu, k, s0, s1, lam, sc.w, sc.A, sc.rhs, sc.zz, sc.cols_j, sc.cols_c, sc.cols_n,
-                       sc.rows)
+        return _try_double_stick(G, c, mu, lam, L, rhs, zz)
+    return _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n, rows)
 
 
-@numba.njit(cache=True)
-def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, sc):
+@_jit
+def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, best_lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows):
     """contact.solve_contact_lcp_lists: the guess ``(g0, g1)`` first, then the fixed order; fills ``lam``
-    (2k,) and ``out_states`` (k,); returns True when exact (False: the least-violating combination)."""
+    (2k,) and ``out_states`` (k,); returns True when exact (False: the least-violating combination). The
+    other arrays are scratch (the :class:`Scratch` fields of the same names; passed one by one, which is
+    cheaper than passing the whole tuple)."""
     best_v = np.inf
     have = False
     b0 = SEPARATE
     b1 = SEPARATE
-    best_lam = sc.best_lam
-    viol = _try(G, c, mu, k, g0, g1, lam, sc)
+    viol = _try(G, c, mu, k, g0, g1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows)
     if viol <= 0.0:
         out_states[0] = g0
         out_states[1] = g1
@@ -537,7 +559,7 @@ def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, sc):
             s1 = _BASE_ORDER[idx % 4]
         if s0 == g0 and (k == 1 or s1 == g1):
             continue
-        viol = _try(G, c, mu, k, s0, s1, lam, sc)
+        viol = _try(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows)
         if viol <= 0.0:
             out_states[0] = s0
             out_states[1] = s1
@@ -563,12 +585,13 @@ def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, sc):
 
 # ------------------------------------------------------------------------------ scratch space
 _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
-    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "Minv": (7, 7), "bvec": (7,), "tau": (7,),
+    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
     "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cached": (1,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
-    "B": (7, 4), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,), "e7": (7,),
+    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,),
+    "e7": (7,),
 }
 _INT_FIELDS = ("cached", "cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -582,108 +605,133 @@ def kernel_scratch() -> Scratch:
 
 
 # ------------------------------------------------------------------------------ one step
-@numba.njit(cache=True)
+@_jit
 def _project_positions(p, q, ncand, cfoot, states, sc):
     """ContactSimulator._project_positions: Newton in the mass metric of the step (``sc.Lm``, at the
     step's start) onto the contact targets; ``sc.pts_old`` holds the kinematics at the start of the step.
     Leaves ``sc.pts`` with the kinematics of the result."""
-    tfoot, taxis, tval = sc.tfoot, sc.taxis, sc.tval
+    s_B = sc.B
+    s_BT = sc.BT
+    s_Jr = sc.Jr
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_S = sc.S
+    s_jx = sc.jx
+    s_jz = sc.jz
+    s_pts = sc.pts
+    s_pts_old = sc.pts_old
+    s_q_old = sc.q_old
+    s_rhs = sc.rhs
+    s_taxis = sc.taxis
+    s_tfoot = sc.tfoot
+    s_tval = sc.tval
+    s_zz = sc.zz
+    tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
     nt = 0
     for i in range(ncand):
         foot = cfoot[i]
         st = states[foot]
         if st == STICK:
             fp = _FOOT_POINT[foot]
-            jz_pitch = -(sc.pts_old[fp, 0] - sc.pts_old[0, 0])  # LWA z row, pitch column, at the step start
+            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, at the step start
             tfoot[nt] = foot
             taxis[nt] = 0
-            tval[nt] = sc.q_old[0] - jz_pitch
+            tval[nt] = s_q_old[0] - jz_pitch
             nt += 1
         if st != SEPARATE:
             tfoot[nt] = foot
             taxis[nt] = 1
             tval[nt] = 0.0
             nt += 1
-    kinematics(p, q, sc.pts)
+    kinematics(p, q, s_pts)
     for i in range(ncand):
         foot = cfoot[i]
-        if states[foot] == SEPARATE and sc.pts[_FOOT_POINT[foot], 1] < 0.0:
+        if states[foot] == SEPARATE and s_pts[_FOOT_POINT[foot], 1] < 0.0:
             tfoot[nt] = foot
             taxis[nt] = 1
             tval[nt] = 0.0
             nt += 1
     if nt == 0:
         return
-    r = sc.rhs
+    r = s_rhs
     for _ in range(_MAX_PROJECTION_ITERATIONS):
         residual = 0.0
         for a in range(nt):
-            r[a] = tval[a] - sc.pts[_FOOT_POINT[tfoot[a]], taxis[a]]
+            r[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
             residual = max(residual, abs(r[a]))
         if residual <= POSITION_TOLERANCE:
             break
         for a in range(nt):
-            point_jacobian(sc.pts, 5 + tfoot[a], sc.jx, sc.jz)
-            row = sc.jx if taxis[a] == 0 else sc.jz
+            point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
+            row = s_jx if taxis[a] == 0 else s_jz
             for j in range(7):
-                sc.Jr[a, j] = row[j]
-        for a in range(nt):  # B = M^-1 Jr^T with the step's M (its factor sc.Lm)
+                s_Jr[a, j] = row[j]
+        cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T with the step's M (its factor s_Lm)
+        for a in range(nt):
             for j in range(7):
-                sc.e7[j] = sc.Jr[a, j]
-            cholesky_solve7(sc.Lm, sc.e7, sc.col)
-            for j in range(7):
-                sc.B[j, a] = sc.col[j]
+                s_B[j, a] = s_BT[a, j]
         for a in range(nt):
             for b in range(nt):
                 acc = 0.0
                 for j in range(7):
-                    acc += sc.Jr[a, j] * sc.B[j, b]
-                sc.S[a, b] = acc
-        if not _solve_spd(sc.S, r, nt, sc.zz, sc.L):
+                    acc += s_Jr[a, j] * s_B[j, b]
+                s_S[a, b] = acc
+        if not _solve_spd(s_S, r, nt, s_zz, s_L):
             break
         for i in range(7):
             acc = 0.0
             for a in range(nt):
-                acc += sc.B[i, a] * sc.zz[a]
+                acc += s_B[i, a] * s_zz[a]
             q[i] += acc
-        kinematics(p, q, sc.pts)
+        kinematics(p, q, s_pts)
 
 
-@numba.njit(cache=True)
+@_jit
 def _project_flight(p, q, v, kinetic, target, sc, counters):
     """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and
     the same centroidal momentum (``sc.pts``, ``sc.M`` at the current q)."""
-    centroidal_rows(p, sc.pts, sc.P, sc.jx, sc.jz)
-    cholesky7(sc.M, sc.Lm)
+    s_B = sc.B
+    s_BT = sc.BT
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_M = sc.M
+    s_P = sc.P
+    s_S = sc.S
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_c = sc.c
+    s_pts = sc.pts
+    s_rhs = sc.rhs
+    s_zz = sc.zz
+    centroidal_rows(p, s_pts, s_P, s_bjx, s_bjz)
+    cholesky7(s_M, s_Lm)
+    cholesky_solve_rows(s_Lm, s_P, 3, s_BT)  # B = M^-1 P^T
     for a in range(3):
         for j in range(7):
-            sc.e7[j] = sc.P[a, j]
-        cholesky_solve7(sc.Lm, sc.e7, sc.col)
-        for j in range(7):
-            sc.B[j, a] = sc.col[j]
-    pm = sc.c
+            s_B[j, a] = s_BT[a, j]
+    pm = s_c
     for a in range(3):
         acc = 0.0
         for j in range(7):
-            acc += sc.P[a, j] * v[j]
+            acc += s_P[a, j] * v[j]
         pm[a] = acc
     for a in range(3):
         for b in range(3):
             acc = 0.0
             for j in range(7):
-                acc += sc.P[a, j] * sc.B[j, b]
-            sc.S[a, b] = acc
-        sc.rhs[a] = pm[a]
-    if not _solve_spd(sc.S, sc.rhs, 3, sc.zz, sc.L):
-        sc.zz[0] = 0.0
-        sc.zz[1] = 0.0
-        sc.zz[2] = 0.0
-    y = sc.zz
+                acc += s_P[a, j] * s_B[j, b]
+            s_S[a, b] = acc
+        s_rhs[a] = pm[a]
+    if not _solve_spd(s_S, s_rhs, 3, s_zz, s_L):
+        s_zz[0] = 0.0
+        s_zz[1] = 0.0
+        s_zz[2] = 0.0
+    y = s_zz
     k_c = 0.5 * (pm[0] * y[0] + pm[1] * y[1] + pm[2] * y[2])
     if target >= k_c and kinetic > k_c:
         factor = math.sqrt((target - k_c) / (kinetic - k_c))
         for j in range(7):
-            vc = sc.B[j, 0] * y[0] + sc.B[j, 1] * y[1] + sc.B[j, 2] * y[2]
+            vc = s_B[j, 0] * y[0] + s_B[j, 1] * y[1] + s_B[j, 2] * y[2]
             v[j] = v[j] * factor + (1.0 - factor) * vc
         return target
     counters[2] += 1
@@ -693,39 +741,74 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     return target
 
 
-@numba.njit(cache=True)
+@_jit
 def substep(p, x, states, contact, total, energy, counters, sc):
     """One step of ``h`` of one robot (``sc.tau`` holds the joint torques (7,)); returns the energy after it
     (the ``energy`` argument: the energy at its start)."""
+    s_A = sc.A
+    s_Ac = sc.Ac
+    s_G = sc.G
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_M = sc.M
+    s_acc = sc.acc
+    s_best_lam = sc.best_lam
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_bvec = sc.bvec
+    s_c = sc.c
+    s_cached = sc.cached
+    s_cfoot = sc.cfoot
+    s_cols_c = sc.cols_c
+    s_cols_j = sc.cols_j
+    s_cols_n = sc.cols_n
+    s_cphi = sc.cphi
+    s_fjx = sc.fjx
+    s_fjz = sc.fjz
+    s_jc = sc.jc
+    s_jx = sc.jx
+    s_jz = sc.jz
+    s_lam = sc.lam
+    s_pts = sc.pts
+    s_pts_old = sc.pts_old
+    s_q_old = sc.q_old
+    s_rhs = sc.rhs
+    s_rhs7 = sc.rhs7
+    s_rows = sc.rows
+    s_sol = sc.sol
+    s_tau = sc.tau
+    s_vf = sc.vf
+    s_w = sc.w
+    s_zz = sc.zz
     q = x[:NQ]
     v = x[NQ:]
     h = p[P_DT]
-    pts = sc.pts
-    if sc.cached[0] == 0:  # sc.pts, sc.M hold the kinematics and inertia of q when set (the previous step's end)
+    pts = s_pts
+    if s_cached[0] == 0:  # s_pts, s_M hold the kinematics and inertia of q when set (the previous step's end)
         kinematics(p, q, pts)
-        mass_matrix(p, pts, sc.M, sc.jx, sc.jz)
-    bias(p, pts, v, sc.bvec, sc.jx, sc.jz)
+        mass_matrix(p, pts, s_M, s_bjx, s_bjz)
+    bias(p, pts, v, s_bvec, s_bjx, s_bjz)
     for i in range(7):
-        sc.rhs7[i] = sc.tau[i] - sc.bvec[i]
-    cholesky7(sc.M, sc.Lm)
-    cholesky_solve7(sc.Lm, sc.rhs7, sc.acc)
-    vf = sc.vf
+        s_rhs7[i] = s_tau[i] - s_bvec[i]
+    cholesky7(s_M, s_Lm)
+    cholesky_solve7(s_Lm, s_rhs7, s_acc)
+    vf = s_vf
     for i in range(7):
-        vf[i] = sc.acc[i] * h + v[i]
+        vf[i] = s_acc[i] * h + v[i]
     # candidate contacts
-    cfoot, cphi = sc.cfoot, sc.cphi
+    cfoot, cphi = s_cfoot, s_cphi
     ncand = 0
     for foot in range(2):
-        point_jacobian(pts, 5 + foot, sc.jx, sc.jz)
+        point_jacobian(pts, 5 + foot, s_jx, s_jz)
         phi = pts[_FOOT_POINT[foot], 1]
         for j in range(7):
-            sc.fjx[foot, j] = sc.jx[j]
-            sc.fjz[foot, j] = sc.jz[j]
+            s_fjx[foot, j] = s_jx[j]
+            s_fjz[foot, j] = s_jz[j]
         if phi > p[P_FAR]:
             continue
         wn = 0.0
         for j in range(7):
-            wn += sc.jz[j] * vf[j]
+            wn += s_jz[j] * vf[j]
         if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
             cfoot[ncand] = foot
             cphi[ncand] = phi
@@ -742,36 +825,32 @@ def substep(p, x, states, contact, total, energy, counters, sc):
         for i in range(ncand):
             foot = cfoot[i]
             for j in range(7):
-                sc.jc[2 * i, j] = sc.fjz[foot, j]
-                sc.jc[2 * i + 1, j] = sc.fjx[foot, j]
-        for r in range(m):  # A = J_c M^-1 (M symmetric: each row is M^-1 applied to a row of J_c)
-            for j in range(7):
-                sc.e7[j] = sc.jc[r, j]
-            cholesky_solve7(sc.Lm, sc.e7, sc.col)
-            for j in range(7):
-                sc.Ac[r, j] = sc.col[j]
+                s_jc[2 * i, j] = s_fjz[foot, j]
+                s_jc[2 * i + 1, j] = s_fjx[foot, j]
+        cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
         for r in range(m):
             for s in range(m):
                 acc = 0.0
                 for k in range(7):
-                    acc += sc.Ac[r, k] * sc.jc[s, k]
-                sc.G[r, s] = acc
+                    acc += s_Ac[r, k] * s_jc[s, k]
+                s_G[r, s] = acc
             acc = 0.0
             for k in range(7):
-                acc += sc.jc[r, k] * vf[k]
-            sc.c[r] = acc
+                acc += s_jc[r, k] * vf[k]
+            s_c[r] = acc
         for i in range(ncand):
             if cphi[i] > 0.0:
-                sc.c[2 * i] += cphi[i] / h
+                s_c[2 * i] += cphi[i] / h
         g0 = states[cfoot[0]]
         g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
-        exact = solve_lcp(sc.G, sc.c, p[P_MU], ncand, g0, g1, sc.lam, sc.sol, sc)
+        exact = solve_lcp(s_G, s_c, p[P_MU], ncand, g0, g1, s_lam, s_sol, s_best_lam, s_w, s_A, s_rhs, s_zz,
+                          s_L, s_cols_j, s_cols_c, s_cols_n, s_rows)
         if not exact:
             counters[0] += 1
         for j in range(7):
             acc = 0.0
             for r in range(m):
-                acc += sc.lam[r] * sc.Ac[r, j]
+                acc += s_lam[r] * s_Ac[r, j]
             v[j] = acc + vf[j]
         states[0] = SEPARATE
         states[1] = SEPARATE
@@ -779,32 +858,32 @@ def substep(p, x, states, contact, total, energy, counters, sc):
         contact[1] = False
         for i in range(ncand):
             foot = cfoot[i]
-            ln, lt = sc.lam[2 * i], sc.lam[2 * i + 1]
-            states[foot] = sc.sol[i]
+            ln, lt = s_lam[2 * i], s_lam[2 * i + 1]
+            states[foot] = s_sol[i]
             total[2 * foot] += lt
             total[2 * foot + 1] += ln
             contact[foot] = ln > 1e-9
     # energy-consistent end of the step (ContactSimulator._finish_consistent)
     for i in range(7):
-        sc.q_old[i] = q[i]
+        s_q_old[i] = q[i]
     for i in range(12):
-        sc.pts_old[i, 0] = pts[i, 0]
-        sc.pts_old[i, 1] = pts[i, 1]
+        s_pts_old[i, 0] = pts[i, 0]
+        s_pts_old[i, 1] = pts[i, 1]
     for i in range(7):
         q[i] += v[i] * h
     if ncand > 0:
         _project_positions(p, q, ncand, cfoot, states, sc)
     else:
-        kinematics(p, q, sc.pts)
-    mass_matrix(p, sc.pts, sc.M, sc.jx, sc.jz)
-    sc.cached[0] = 1  # the next step starts at this q (the energy projection changes only v)
-    kinetic = kinetic_energy(sc.M, v)
-    potential = potential_energy(p, sc.pts)
+        kinematics(p, q, s_pts)
+    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    s_cached[0] = 1  # the next step starts at this q (the energy projection changes only v)
+    kinetic = kinetic_energy(s_M, v)
+    potential = potential_energy(p, s_pts)
     tq = 0.0
     tq_old = 0.0
     for i in range(7):
-        tq += sc.tau[i] * q[i]
-        tq_old += sc.tau[i] * sc.q_old[i]
+        tq += s_tau[i] * q[i]
+        tq_old += s_tau[i] * s_q_old[i]
     allowed = energy + (tq - tq_old)
     if kinetic + potential > allowed:
         counters[1] += 1
@@ -825,22 +904,29 @@ def substep(p, x, states, contact, total, energy, counters, sc):
     return kinetic + potential
 
 
-@numba.njit(cache=True)
+@_jit
 def mechanical_energy(p, x, sc):
     """``1/2 v^T M v + V`` [J] of one state (14,)."""
-    kinematics(p, x[:NQ], sc.pts)
-    mass_matrix(p, sc.pts, sc.M, sc.jx, sc.jz)
-    sc.cached[0] = 1
-    return kinetic_energy(sc.M, x[NQ:]) + potential_energy(p, sc.pts)
+    s_M = sc.M
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_cached = sc.cached
+    s_pts = sc.pts
+    kinematics(p, x[:NQ], s_pts)
+    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    s_cached[0] = 1
+    return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
 
 
-@numba.njit(cache=True)
+@_jit
 def run_one(p, x, u, n, states, contact, total, sc, counters):
     """``n`` steps of one robot with constant commanded torques ``u`` (4,) (ContactSimulator.run): the motor
     law every step, the energy taken at the start; ``total`` (4,) receives the summed impulses."""
+    s_cached = sc.cached
+    s_tau = sc.tau
     for i in range(4):
         total[i] = 0.0
-    sc.cached[0] = 0
+    s_cached[0] = 0
     if n <= 0:
         return
     energy = mechanical_energy(p, x, sc)
@@ -849,7 +935,7 @@ def run_one(p, x, u, n, states, contact, total, sc, counters):
     limit = p[P_TORQUE_LIMIT]
     slope = limit / (w_zero - w_full) if motor else 0.0
     for i in range(3):
-        sc.tau[i] = 0.0
+        s_tau[i] = 0.0
     for _ in range(n):
         for j in range(4):
             uj = u[j]
@@ -859,11 +945,11 @@ def run_one(p, x, u, n, states, contact, total, sc, counters):
                     cap = max(0.0, (w_zero - abs(wj)) * slope)
                     if abs(uj) > cap:
                         uj = cap if uj > 0.0 else -cap
-            sc.tau[3 + j] = uj
+            s_tau[3 + j] = uj
         energy = substep(p, x, states, contact, total, energy, counters, sc)
 
 
-@numba.njit(cache=True)
+@_jit
 def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, counters, sc):
     """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
     untouched): ``x (N, 14)`` in place, ``u (N, 4)`` commanded joint torques, ``states (N, 2)``,
@@ -871,6 +957,8 @@ def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, 
     accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps,
     ``counters (N, 4)`` (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not
     finite are not stepped (NaN heights, no impulse); the caller ends their episodes."""
+    s_cached = sc.cached
+    s_pts = sc.pts
     h = p[P_DT]
     for r in range(x.shape[0]):
         if not active[r]:
@@ -880,7 +968,7 @@ def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, 
         for i in range(NX):
             if not math.isfinite(xr[i]):
                 finite = False
-        sc.cached[0] = 0
+        s_cached[0] = 0
         if finite:
             run_one(p, xr, u[r], n, states[r], contact[r], impulse[r], sc, counters[r])
         else:
@@ -888,9 +976,9 @@ def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, 
                 impulse[r, i] = 0.0
         for _ in range(n):
             sim_time[r] += h
-        kinematics(p, xr[:NQ], sc.pts)
-        heights[r, 0] = sc.pts[6, 1]
-        heights[r, 1] = sc.pts[11, 1]
+        kinematics(p, xr[:NQ], s_pts)
+        heights[r, 0] = s_pts[6, 1]
+        heights[r, 1] = s_pts[11, 1]
 
 
 _READY = False
