@@ -334,3 +334,24 @@ def test_sb3_ppo_trains_through_the_vector_env():
     model = PPO("MlpPolicy", VecMonitor(env), n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(total_timesteps=512)
     assert model.num_timesteps == 512 and len(model.ep_info_buffer) > 0
+
+
+def test_train_sb3_with_the_vector_env_writes_one_monitor_for_all_robots(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from hsddp_gym.learning.sb3 import train_sb3
+
+    res = train_sb3("ppo", 256, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=0,
+                    overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1}, vector_env=True)
+    assert res.summary["vector_env"] is True and res.summary["steps"] == 256
+    assert res.summary["training_episodes"] >= 4  # 30-step episodes of 4 robots, one train.monitor.csv
+    with pytest.raises(TypeError, match="vector_env"):
+        train_sb3("ppo", 10, 0, tmp_path / "bad", vector_env="yes")
+
+
+def test_cli_refuses_vector_env_for_other_learners(tmp_path, capsys):
+    from hsddp_gym import cli
+
+    assert cli.main(["train", "--algo", "dagger", "--expert", "heuristic", "--vector-env",
+                     "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --vector-env:"), err
