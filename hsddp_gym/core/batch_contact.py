@@ -589,11 +589,11 @@ _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
     "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
-    "sol": (2,), "cached": (1,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
+    "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
     "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,),
     "e7": (7,),
 }
-_INT_FIELDS = ("cached", "cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
+_INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
 """Work arrays of the kernel (one set reused for every robot of a batch)."""
 
@@ -605,87 +605,6 @@ def kernel_scratch() -> Scratch:
 
 
 # ------------------------------------------------------------------------------ one step
-@_jit
-def _project_positions(p, q, ncand, cfoot, states, sc):
-    """ContactSimulator._project_positions: Newton in the mass metric of the step (``sc.Lm``, at the
-    step's start) onto the contact targets; ``sc.pts_old`` holds the kinematics at the start of the step.
-    Leaves ``sc.pts`` with the kinematics of the result."""
-    s_B = sc.B
-    s_BT = sc.BT
-    s_Jr = sc.Jr
-    s_L = sc.L
-    s_Lm = sc.Lm
-    s_S = sc.S
-    s_jx = sc.jx
-    s_jz = sc.jz
-    s_pts = sc.pts
-    s_pts_old = sc.pts_old
-    s_q_old = sc.q_old
-    s_rhs = sc.rhs
-    s_taxis = sc.taxis
-    s_tfoot = sc.tfoot
-    s_tval = sc.tval
-    s_zz = sc.zz
-    tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
-    nt = 0
-    for i in range(ncand):
-        foot = cfoot[i]
-        st = states[foot]
-        if st == STICK:
-            fp = _FOOT_POINT[foot]
-            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, at the step start
-            tfoot[nt] = foot
-            taxis[nt] = 0
-            tval[nt] = s_q_old[0] - jz_pitch
-            nt += 1
-        if st != SEPARATE:
-            tfoot[nt] = foot
-            taxis[nt] = 1
-            tval[nt] = 0.0
-            nt += 1
-    kinematics(p, q, s_pts)
-    for i in range(ncand):
-        foot = cfoot[i]
-        if states[foot] == SEPARATE and s_pts[_FOOT_POINT[foot], 1] < 0.0:
-            tfoot[nt] = foot
-            taxis[nt] = 1
-            tval[nt] = 0.0
-            nt += 1
-    if nt == 0:
-        return
-    r = s_rhs
-    for _ in range(_MAX_PROJECTION_ITERATIONS):
-        residual = 0.0
-        for a in range(nt):
-            r[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
-            residual = max(residual, abs(r[a]))
-        if residual <= POSITION_TOLERANCE:
-            break
-        for a in range(nt):
-            point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
-            row = s_jx if taxis[a] == 0 else s_jz
-            for j in range(7):
-                s_Jr[a, j] = row[j]
-        cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T with the step's M (its factor s_Lm)
-        for a in range(nt):
-            for j in range(7):
-                s_B[j, a] = s_BT[a, j]
-        for a in range(nt):
-            for b in range(nt):
-                acc = 0.0
-                for j in range(7):
-                    acc += s_Jr[a, j] * s_B[j, b]
-                s_S[a, b] = acc
-        if not _solve_spd(s_S, r, nt, s_zz, s_L):
-            break
-        for i in range(7):
-            acc = 0.0
-            for a in range(nt):
-                acc += s_B[i, a] * s_zz[a]
-            q[i] += acc
-        kinematics(p, q, s_pts)
-
-
 @_jit
 def _project_flight(p, q, v, kinetic, target, sc, counters):
     """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and
@@ -742,22 +661,47 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
 
 
 @_jit
-def substep(p, x, states, contact, total, energy, counters, sc):
-    """One step of ``h`` of one robot (``sc.tau`` holds the joint torques (7,)); returns the energy after it
-    (the ``energy`` argument: the energy at its start)."""
+def mechanical_energy(p, x, sc):
+    """``1/2 v^T M v + V`` [J] of one state (14,)."""
+    s_M = sc.M
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_pts = sc.pts
+    kinematics(p, x[:NQ], s_pts)
+    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+
+
+@_jit
+def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,
+               counters_batch, sc):
+    """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
+    untouched): ``x_batch (N, 14)`` in place, ``u_batch (N, 4)`` commanded joint torques (ContactSimulator.run:
+    the motor law every step, the energy taken at the start), ``states_batch (N, 2)``, ``contact_batch (N, 2)``,
+    ``impulse_batch (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step, accumulated
+    like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps, ``counters_batch (N, 4)``
+    (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
+    (NaN heights, no impulse); the caller ends their episodes.
+
+    One function for the whole batch (ContactSimulator._step, _finish_consistent and _project_positions
+    written out in line): numba passes a :class:`Scratch` to a call at a cost of about a microsecond (one
+    reference count per array), more than a whole flight step, so it is unpacked here once per batch."""
     s_A = sc.A
     s_Ac = sc.Ac
+    s_B = sc.B
+    s_BT = sc.BT
     s_G = sc.G
+    s_Jr = sc.Jr
     s_L = sc.L
     s_Lm = sc.Lm
     s_M = sc.M
+    s_S = sc.S
     s_acc = sc.acc
     s_best_lam = sc.best_lam
     s_bjx = sc.bjx
     s_bjz = sc.bjz
     s_bvec = sc.bvec
     s_c = sc.c
-    s_cached = sc.cached
     s_cfoot = sc.cfoot
     s_cols_c = sc.cols_c
     s_cols_j = sc.cols_j
@@ -777,208 +721,238 @@ def substep(p, x, states, contact, total, energy, counters, sc):
     s_rows = sc.rows
     s_sol = sc.sol
     s_tau = sc.tau
+    s_taxis = sc.taxis
+    s_tfoot = sc.tfoot
+    s_tval = sc.tval
     s_vf = sc.vf
     s_w = sc.w
     s_zz = sc.zz
-    q = x[:NQ]
-    v = x[NQ:]
     h = p[P_DT]
-    pts = s_pts
-    if s_cached[0] == 0:  # s_pts, s_M hold the kinematics and inertia of q when set (the previous step's end)
-        kinematics(p, q, pts)
-        mass_matrix(p, pts, s_M, s_bjx, s_bjz)
-    bias(p, pts, v, s_bvec, s_bjx, s_bjz)
-    for i in range(7):
-        s_rhs7[i] = s_tau[i] - s_bvec[i]
-    cholesky7(s_M, s_Lm)
-    cholesky_solve7(s_Lm, s_rhs7, s_acc)
-    vf = s_vf
-    for i in range(7):
-        vf[i] = s_acc[i] * h + v[i]
-    # candidate contacts
-    cfoot, cphi = s_cfoot, s_cphi
-    ncand = 0
-    for foot in range(2):
-        point_jacobian(pts, 5 + foot, s_jx, s_jz)
-        phi = pts[_FOOT_POINT[foot], 1]
-        for j in range(7):
-            s_fjx[foot, j] = s_jx[j]
-            s_fjz[foot, j] = s_jz[j]
-        if phi > p[P_FAR]:
-            continue
-        wn = 0.0
-        for j in range(7):
-            wn += s_jz[j] * vf[j]
-        if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
-            cfoot[ncand] = foot
-            cphi[ncand] = phi
-            ncand += 1
-    if ncand == 0:
-        for i in range(7):
-            v[i] = vf[i]
-        states[0] = SEPARATE
-        states[1] = SEPARATE
-        contact[0] = False
-        contact[1] = False
-    else:
-        m = 2 * ncand
-        for i in range(ncand):
-            foot = cfoot[i]
-            for j in range(7):
-                s_jc[2 * i, j] = s_fjz[foot, j]
-                s_jc[2 * i + 1, j] = s_fjx[foot, j]
-        cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
-        for r in range(m):
-            for s in range(m):
-                acc = 0.0
-                for k in range(7):
-                    acc += s_Ac[r, k] * s_jc[s, k]
-                s_G[r, s] = acc
-            acc = 0.0
-            for k in range(7):
-                acc += s_jc[r, k] * vf[k]
-            s_c[r] = acc
-        for i in range(ncand):
-            if cphi[i] > 0.0:
-                s_c[2 * i] += cphi[i] / h
-        g0 = states[cfoot[0]]
-        g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
-        exact = solve_lcp(s_G, s_c, p[P_MU], ncand, g0, g1, s_lam, s_sol, s_best_lam, s_w, s_A, s_rhs, s_zz,
-                          s_L, s_cols_j, s_cols_c, s_cols_n, s_rows)
-        if not exact:
-            counters[0] += 1
-        for j in range(7):
-            acc = 0.0
-            for r in range(m):
-                acc += s_lam[r] * s_Ac[r, j]
-            v[j] = acc + vf[j]
-        states[0] = SEPARATE
-        states[1] = SEPARATE
-        contact[0] = False
-        contact[1] = False
-        for i in range(ncand):
-            foot = cfoot[i]
-            ln, lt = s_lam[2 * i], s_lam[2 * i + 1]
-            states[foot] = s_sol[i]
-            total[2 * foot] += lt
-            total[2 * foot + 1] += ln
-            contact[foot] = ln > 1e-9
-    # energy-consistent end of the step (ContactSimulator._finish_consistent)
-    for i in range(7):
-        s_q_old[i] = q[i]
-    for i in range(12):
-        s_pts_old[i, 0] = pts[i, 0]
-        s_pts_old[i, 1] = pts[i, 1]
-    for i in range(7):
-        q[i] += v[i] * h
-    if ncand > 0:
-        _project_positions(p, q, ncand, cfoot, states, sc)
-    else:
-        kinematics(p, q, s_pts)
-    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
-    s_cached[0] = 1  # the next step starts at this q (the energy projection changes only v)
-    kinetic = kinetic_energy(s_M, v)
-    potential = potential_energy(p, s_pts)
-    tq = 0.0
-    tq_old = 0.0
-    for i in range(7):
-        tq += s_tau[i] * q[i]
-        tq_old += s_tau[i] * s_q_old[i]
-    allowed = energy + (tq - tq_old)
-    if kinetic + potential > allowed:
-        counters[1] += 1
-        target = allowed - potential
-        target -= 1e-13 * (abs(allowed) + abs(potential))
-        if target <= 0.0:
-            counters[3] += 1
-            for i in range(7):
-                v[i] = 0.0
-            kinetic = 0.0
-        elif ncand > 0:
-            s = math.sqrt(target / kinetic)
-            for i in range(7):
-                v[i] *= s
-            kinetic = target
-        else:
-            kinetic = _project_flight(p, q, v, kinetic, target, sc, counters)
-    return kinetic + potential
-
-
-@_jit
-def mechanical_energy(p, x, sc):
-    """``1/2 v^T M v + V`` [J] of one state (14,)."""
-    s_M = sc.M
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
-    s_cached = sc.cached
-    s_pts = sc.pts
-    kinematics(p, x[:NQ], s_pts)
-    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
-    s_cached[0] = 1
-    return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
-
-
-@_jit
-def run_one(p, x, u, n, states, contact, total, sc, counters):
-    """``n`` steps of one robot with constant commanded torques ``u`` (4,) (ContactSimulator.run): the motor
-    law every step, the energy taken at the start; ``total`` (4,) receives the summed impulses."""
-    s_cached = sc.cached
-    s_tau = sc.tau
-    for i in range(4):
-        total[i] = 0.0
-    s_cached[0] = 0
-    if n <= 0:
-        return
-    energy = mechanical_energy(p, x, sc)
     motor = p[P_MOTOR] != 0.0
     w_full, w_zero = p[P_W_FULL], p[P_W_ZERO]
-    limit = p[P_TORQUE_LIMIT]
-    slope = limit / (w_zero - w_full) if motor else 0.0
+    slope = p[P_TORQUE_LIMIT] / (w_zero - w_full) if motor else 0.0
     for i in range(3):
         s_tau[i] = 0.0
-    for _ in range(n):
-        for j in range(4):
-            uj = u[j]
-            if motor:
-                wj = x[NQ + 3 + j]
-                if uj * wj > 0.0 and abs(wj) > w_full:
-                    cap = max(0.0, (w_zero - abs(wj)) * slope)
-                    if abs(uj) > cap:
-                        uj = cap if uj > 0.0 else -cap
-            s_tau[3 + j] = uj
-        energy = substep(p, x, states, contact, total, energy, counters, sc)
-
-
-@_jit
-def step_batch(p, x, u, n, active, states, contact, impulse, sim_time, heights, counters, sc):
-    """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
-    untouched): ``x (N, 14)`` in place, ``u (N, 4)`` commanded joint torques, ``states (N, 2)``,
-    ``contact (N, 2)``, ``impulse (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step,
-    accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps,
-    ``counters (N, 4)`` (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not
-    finite are not stepped (NaN heights, no impulse); the caller ends their episodes."""
-    s_cached = sc.cached
-    s_pts = sc.pts
-    h = p[P_DT]
-    for r in range(x.shape[0]):
-        if not active[r]:
+    for ir in range(x_batch.shape[0]):
+        if not active[ir]:
             continue
-        xr = x[r]
+        x = x_batch[ir]
+        u = u_batch[ir]
+        states = states_batch[ir]
+        contact = contact_batch[ir]
+        total = impulse_batch[ir]
+        counters = counters_batch[ir]
         finite = True
         for i in range(NX):
-            if not math.isfinite(xr[i]):
+            if not math.isfinite(x[i]):
                 finite = False
-        s_cached[0] = 0
-        if finite:
-            run_one(p, xr, u[r], n, states[r], contact[r], impulse[r], sc, counters[r])
-        else:
-            for i in range(4):
-                impulse[r, i] = 0.0
+        for i in range(4):
+            total[i] = 0.0
+        if finite and n > 0:
+            kinematics(p, x[:NQ], s_pts)  # the energy at the start (mechanical_energy)
+            mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+            energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+            for _ in range(n):
+                for j in range(4):
+                    uj = u[j]
+                    if motor:
+                        wj = x[NQ + 3 + j]
+                        if uj * wj > 0.0 and abs(wj) > w_full:
+                            cap = max(0.0, (w_zero - abs(wj)) * slope)
+                            if abs(uj) > cap:
+                                uj = cap if uj > 0.0 else -cap
+                    s_tau[3 + j] = uj
+                # ---- one step of h (ContactSimulator._step and _finish_consistent)
+                q = x[:NQ]
+                v = x[NQ:]
+                pts = s_pts
+                # s_pts, s_M, s_bjx, s_bjz hold the kinematics and inertia of q (computed at the end of the last
+                # step or for the energy at the start)
+                bias(p, pts, v, s_bvec, s_bjx, s_bjz)
+                for i in range(7):
+                    s_rhs7[i] = s_tau[i] - s_bvec[i]
+                cholesky7(s_M, s_Lm)
+                cholesky_solve7(s_Lm, s_rhs7, s_acc)
+                vf = s_vf
+                for i in range(7):
+                    vf[i] = s_acc[i] * h + v[i]
+                # candidate contacts
+                cfoot, cphi = s_cfoot, s_cphi
+                ncand = 0
+                for foot in range(2):
+                    point_jacobian(pts, 5 + foot, s_jx, s_jz)
+                    phi = pts[_FOOT_POINT[foot], 1]
+                    for j in range(7):
+                        s_fjx[foot, j] = s_jx[j]
+                        s_fjz[foot, j] = s_jz[j]
+                    if phi > p[P_FAR]:
+                        continue
+                    wn = 0.0
+                    for j in range(7):
+                        wn += s_jz[j] * vf[j]
+                    if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
+                        cfoot[ncand] = foot
+                        cphi[ncand] = phi
+                        ncand += 1
+                if ncand == 0:
+                    for i in range(7):
+                        v[i] = vf[i]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                else:
+                    m = 2 * ncand
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        for j in range(7):
+                            s_jc[2 * i, j] = s_fjz[foot, j]
+                            s_jc[2 * i + 1, j] = s_fjx[foot, j]
+                    cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
+                    for r in range(m):
+                        for s in range(m):
+                            acc = 0.0
+                            for k in range(7):
+                                acc += s_Ac[r, k] * s_jc[s, k]
+                            s_G[r, s] = acc
+                        acc = 0.0
+                        for k in range(7):
+                            acc += s_jc[r, k] * vf[k]
+                        s_c[r] = acc
+                    for i in range(ncand):
+                        if cphi[i] > 0.0:
+                            s_c[2 * i] += cphi[i] / h
+                    g0 = states[cfoot[0]]
+                    g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
+                    exact = solve_lcp(s_G, s_c, p[P_MU], ncand, g0, g1, s_lam, s_sol, s_best_lam, s_w, s_A, s_rhs, s_zz,
+                                      s_L, s_cols_j, s_cols_c, s_cols_n, s_rows)
+                    if not exact:
+                        counters[0] += 1
+                    for j in range(7):
+                        acc = 0.0
+                        for r in range(m):
+                            acc += s_lam[r] * s_Ac[r, j]
+                        v[j] = acc + vf[j]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        ln, lt = s_lam[2 * i], s_lam[2 * i + 1]
+                        states[foot] = s_sol[i]
+                        total[2 * foot] += lt
+                        total[2 * foot + 1] += ln
+                        contact[foot] = ln > 1e-9
+                # energy-consistent end of the step (ContactSimulator._finish_consistent)
+                for i in range(7):
+                    s_q_old[i] = q[i]
+                for i in range(12):
+                    s_pts_old[i, 0] = pts[i, 0]
+                    s_pts_old[i, 1] = pts[i, 1]
+                for i in range(7):
+                    q[i] += v[i] * h
+                if ncand > 0:
+                    tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
+                    nt = 0
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        st = states[foot]
+                        if st == STICK:
+                            fp = _FOOT_POINT[foot]
+                            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, step start
+                            tfoot[nt] = foot
+                            taxis[nt] = 0
+                            tval[nt] = s_q_old[0] - jz_pitch
+                            nt += 1
+                        if st != SEPARATE:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                    kinematics(p, q, s_pts)
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        if states[foot] == SEPARATE and s_pts[_FOOT_POINT[foot], 1] < 0.0:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                    if nt > 0:
+                        res = s_rhs
+                        for _ in range(_MAX_PROJECTION_ITERATIONS):
+                            residual = 0.0
+                            for a in range(nt):
+                                res[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
+                                residual = max(residual, abs(res[a]))
+                            if residual <= POSITION_TOLERANCE:
+                                break
+                            for a in range(nt):
+                                point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
+                                row = s_jx if taxis[a] == 0 else s_jz
+                                for j in range(7):
+                                    s_Jr[a, j] = row[j]
+                            cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                            for a in range(nt):
+                                for j in range(7):
+                                    s_B[j, a] = s_BT[a, j]
+                            for a in range(nt):
+                                for b in range(nt):
+                                    acc = 0.0
+                                    for j in range(7):
+                                        acc += s_Jr[a, j] * s_B[j, b]
+                                    s_S[a, b] = acc
+                            if not _solve_spd(s_S, res, nt, s_zz, s_L):
+                                break
+                            for i in range(7):
+                                acc = 0.0
+                                for a in range(nt):
+                                    acc += s_B[i, a] * s_zz[a]
+                                q[i] += acc
+                            kinematics(p, q, s_pts)
+                else:
+                    kinematics(p, q, s_pts)
+                mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+                kinetic = kinetic_energy(s_M, v)
+                potential = potential_energy(p, s_pts)
+                tq = 0.0
+                tq_old = 0.0
+                for i in range(7):
+                    tq += s_tau[i] * q[i]
+                    tq_old += s_tau[i] * s_q_old[i]
+                allowed = energy + (tq - tq_old)
+                if kinetic + potential > allowed:
+                    counters[1] += 1
+                    target = allowed - potential
+                    target -= 1e-13 * (abs(allowed) + abs(potential))
+                    if target <= 0.0:
+                        counters[3] += 1
+                        for i in range(7):
+                            v[i] = 0.0
+                        kinetic = 0.0
+                    elif ncand > 0:
+                        s = math.sqrt(target / kinetic)
+                        for i in range(7):
+                            v[i] *= s
+                        kinetic = target
+                    else:
+                        kinetic = _project_flight(p, q, v, kinetic, target, sc, counters)
+                energy = kinetic + potential
+
         for _ in range(n):
-            sim_time[r] += h
-        kinematics(p, xr[:NQ], s_pts)
-        heights[r, 0] = s_pts[6, 1]
-        heights[r, 1] = s_pts[11, 1]
+            sim_time[ir] += h
+        kinematics(p, x[:NQ], s_pts)
+        heights[ir, 0] = s_pts[6, 1]
+        heights[ir, 1] = s_pts[11, 1]
+
+
+def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
+    """``n`` steps of one robot (ContactSimulator.run): :func:`step_batch` on a batch of one. ``x`` (14,) in
+    place, ``u`` (4,) commanded torques, ``states`` (2,) int64, ``contact`` (2,) bool, ``total`` (4,) the summed
+    impulses, ``counters`` (4,) int64 (all updated in place)."""
+    step_batch(p, x.reshape(1, NX), np.asarray(u, dtype=np.float64).reshape(1, 4), int(n), np.ones(1, dtype=np.bool_),
+               states.reshape(1, 2), contact.reshape(1, 2), total.reshape(1, 4), np.zeros(1), np.zeros((1, 2)),
+               counters.reshape(1, 4), sc)
 
 
 _READY = False
