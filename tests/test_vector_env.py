@@ -232,8 +232,9 @@ def _sync(venv, envs):
                                          "frame_skip": 3, "trunk_mass_scale": 1.2, "max_episode_steps": 40,
                                          "exclude_current_positions_from_observation": False}])
 def test_random_action_steps_equal_single_envs_from_identical_states(kwargs):
-    """Random actions make the motion chaotic (a 1e-13 round-off difference grew to 2e-9 within 25 steps for one of 3 robots), so whole episodes
-    agree to 1e-12 only for tens of steps; here every step starts from the single envs' simulator state, with
+    """Random actions make the motion chaotic (a 1e-13 round-off difference grew to 2e-9 within 25 steps for one
+    of 3 robots), so whole episodes agree to 1e-12 only for tens of steps; here every step starts from the single
+    envs' simulator state, with
     falls, time limits and NEXT_STEP autoresets, and each step agrees to 1e-11 relative to the state's size
     (see STEP_TOL)."""
     venv, envs = _pair(4, seed=11, **kwargs)
