@@ -2,6 +2,8 @@
 
 * :mod:`hsddp_gym.core.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
 * :mod:`hsddp_gym.envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
+* :mod:`hsddp_gym.envs.vector`: ``BoundingVectorEnv``, N robots in one compiled call, the ``vector_entry_point`` of
+  ``hsddp_gym/Bounding-v0`` (``gym.make_vec``).
 * :mod:`hsddp_gym.envs.mujoco_twin`: ``MuJoCoBoundingEnv``, the same task on MuJoCo, registered as
   ``hsddp_gym/BoundingMuJoCo-v0`` (optional extra ``mujoco``).
 
@@ -10,6 +12,7 @@ Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {"bounding": ("BoundingEnv",), "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",)}
+_EXPORTS = {"bounding": ("BoundingEnv",), "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",),
+            "vector": ("BoundingVectorEnv",)}
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = ["BoundingEnv", "ContactSimulator", "MuJoCoBoundingEnv"]
+__all__ = ["BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBoundingEnv"]

@@ -3,9 +3,11 @@
 Importing the package registers the Gymnasium environment ``hsddp_gym/Bounding-v0`` (entry point
 ``hsddp_gym.envs.bounding:BoundingEnv``, imported lazily), so both ``import hsddp_gym;
 gym.make("hsddp_gym/Bounding-v0")``
-and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work. ``hsddp_gym/BoundingMuJoCo-v0`` is the same task
-simulated by MuJoCo (optional extra ``mujoco``); ``hsddp_gym/BoundingKKT-v0`` the same task simulated by the
-planner's own hybrid model (pinned feet, KKT contact dynamics, touchdown reset maps).
+and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work; ``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N,
+vectorization_mode="vector_entry_point")`` gives the compiled vector env (``hsddp_gym.envs.vector``).
+``hsddp_gym/BoundingMuJoCo-v0`` is the same task simulated by MuJoCo (optional extra ``mujoco``);
+``hsddp_gym/BoundingKKT-v0`` the same task simulated by the planner's own hybrid model (pinned feet, KKT contact
+dynamics, touchdown reset maps).
 """
 
 __version__ = "0.1.0"
@@ -24,6 +26,7 @@ def _register_envs() -> None:
 
     if BOUNDING_ENV_ID not in gym.registry:
         gym.register(id=BOUNDING_ENV_ID, entry_point="hsddp_gym.envs.bounding:BoundingEnv",
+                     vector_entry_point="hsddp_gym.envs.vector:BoundingVectorEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
     if BOUNDING_MUJOCO_ENV_ID not in gym.registry:
         gym.register(id=BOUNDING_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.mujoco_twin:MuJoCoBoundingEnv",

@@ -293,6 +293,8 @@ def _check_train(args) -> None:
         raise UsageError("--gain-noise", "given without --gain-copies", "with --gain-copies N (N >= 1)")
     if args.n_envs is not None and args.algo not in ("ppo", "sac"):
         raise UsageError("--n-envs", f"given with --algo {args.algo}", "--algo ppo or sac")
+    if args.vector_env and args.algo not in ("ppo", "sac"):
+        raise UsageError("--vector-env", f"given with --algo {args.algo}", "--algo ppo or sac")
     if args.algo in ("ppo", "sac"):
         if args.steps is None:
             raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
@@ -350,7 +352,7 @@ def cmd_train(args) -> int:
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
-                        time_limit=args.time_limit, preset=args.preset)
+                        time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
@@ -454,6 +456,9 @@ def _add_learning_parsers(sub) -> None:
                         "one) or HalfCheetah-v3 (hsddp_gym.learning.sb3.PRESETS; default: %(default)s)")
     p.add_argument("--n-envs", type=_positive_int, default=None,
                    help="ppo/sac: envs stepped together in one DummyVecEnv (default: the preset's, 1)")
+    p.add_argument("--vector-env", action="store_true",
+                   help="ppo/sac: step the --n-envs training robots with the compiled vector env "
+                        "(hsddp_gym.envs.vector, one numba call for all) instead of a DummyVecEnv of single envs")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")

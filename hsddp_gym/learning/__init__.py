@@ -59,6 +59,7 @@ _EXPORTS = {  # module: the public names it defines
         "ALGOS", "ENV_ID", "SB3ModelPolicy", "TrainResult", "as_sb3_policy", "hyperparameters",
         "load_trained_policy", "save_vecnormalize_npz", "train_sb3", "write_curves",
     ),
+    "vector_sb3": ("make_sb3_vec_env",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(name for names in _EXPORTS.values() for name in names)

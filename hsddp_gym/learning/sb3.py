@@ -216,12 +216,21 @@ def _model_kwargs(hp: dict) -> dict:
     return kw
 
 
-def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None):
+def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None,
+               vector_env: bool = False):
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 
     import hsddp_gym  # noqa: F401  (registers the env)
+
+    if vector_env:  # the compiled vector env: one call steps all robots; one monitor file for all
+        from hsddp_gym.envs.bounding import DEFAULT_MAX_EPISODE_STEPS
+        from hsddp_gym.learning.vector_sb3 import make_sb3_vec_env
+
+        steps = DEFAULT_MAX_EPISODE_STEPS if max_episode_steps is None else int(max_episode_steps)
+        return VecMonitor(make_sb3_vec_env(n_envs, seed=seed, max_episode_steps=steps, **env_kwargs),
+                          filename=None if monitor_path is None else str(monitor_path))
 
     def make(i):
         def _init():
@@ -253,7 +262,8 @@ def save_vecnormalize_npz(venv, path) -> Path:
 def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = None,
               max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
               eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
-              verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET) -> TrainResult:
+              verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET,
+              vector_env: bool = False) -> TrainResult:
     """Train PPO or SAC on ``Bounding-v0`` and write the files of the module docstring into ``out``.
 
     Args:
@@ -261,6 +271,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         env_kwargs: ``gym.make`` keyword arguments. max_episode_steps: time-limit override (None: 1000).
         overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``,
             ``{"n_envs": 4}``: that many envs in a ``DummyVecEnv``, stepped together).
+        vector_env: step the ``n_envs`` training robots with the compiled vector env
+            (:class:`hsddp_gym.envs.vector.BoundingVectorEnv` through :mod:`hsddp_gym.learning.vector_sb3`, one
+            ``train.monitor.csv`` for all) instead of a ``DummyVecEnv`` of single envs; the evaluation env stays
+            a single env. Same transitions up to round-off (``tests/test_vector_env.py``).
         preset: the RL-Zoo hyperparameter set (:data:`PRESETS`; default ``"hopper"``, a terminating task).
         eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
             ``max(steps // 10, 1000)``; 0: none).
@@ -291,7 +305,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = dict(env_kwargs or {})
     hp = hyperparameters(algo, overrides, preset)
-    venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv")
+    if not isinstance(vector_env, (bool, np.bool_)):
+        raise TypeError(f"vector_env must be a bool, got {type(vector_env).__name__}")
+    venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv",
+                      vector_env=bool(vector_env))
     eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None)
     if hp["normalize"]:
         gamma = hp.get("gamma", 0.99)
@@ -324,7 +341,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     summary = {
         "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
         "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
-        "preset": preset, "hyperparameters": hp, "wall_time_s": wall, "threads": int(threads), "eval_freq": eval_freq,
+        "preset": preset, "hyperparameters": hp, "vector_env": bool(vector_env), "wall_time_s": wall,
+        "threads": int(threads), "eval_freq": eval_freq,
         "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),
         "eval_episodes": eval_episodes, "files": files,
         "training_episodes": _count_monitor_episodes(out / "train.monitor.csv"),

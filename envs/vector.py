@@ -1,0 +1,437 @@
+"""``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N, vectorization_mode="vector_entry_point")``: N robots of
+:class:`~hsddp_gym.envs.bounding.BoundingEnv` stepped together by one compiled call
+(:mod:`hsddp_gym.core.batch_contact`), with the transitions of N single envs (see :class:`BoundingVectorEnv`)."""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numba
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from hsddp_gym.core import batch_contact
+from hsddp_gym.core.contact import SEPARATE
+from hsddp_gym.core.conventions import IPITCH, IZ, NGRF, NQ, NU, NX
+from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout
+from hsddp_gym.envs.bounding import _MAX_PENETRATION_AT_RESET, DEFAULT_MAX_EPISODE_STEPS, BoundingEnv
+from hsddp_gym.util.validation import check_int, check_positive
+
+UNSUPPORTED_KWARGS = ("render_mode", "width", "height", "render_grf")
+"""BoundingEnv arguments the vector env does not take (it does not render)."""
+_RESET_OPTION_KEYS = ("state", "time", "reset_mask")
+INFO_KEYS = ("x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
+             "grf", "qpos", "qvel", "time", "invalid_state")
+"""The batched ``info`` keys (each with its ``_key`` mask): the single env's keys, one row per robot."""
+
+
+@numba.njit(cache=True)
+def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, stepped, env_p, bounds, low, high, skip,
+            obs, reward, terminated, valid, x_velocity, grf, rewards3):
+    """Observation, reward, termination of the robots with ``stepped[r]`` after their step (BoundingEnv.step).
+
+    ``env_p`` = ``[dt, target_speed, tracking_sigma, forward_w, ctrl_w, healthy_w, terminate_when_unhealthy,
+    zlo, zhi, plo, phi, gait_period]``; ``bounds (14,)`` the valid-state bounds; ``low``, ``high`` the float32
+    observation box; ``values (N, 4)`` the clipped actions."""
+    dt = env_p[0]
+    for r in range(x.shape[0]):
+        if not stepped[r]:
+            continue
+        xr = x[r]
+        ok = True
+        for i in range(NX):
+            if not abs(xr[i]) <= bounds[i]:
+                ok = False
+        valid[r] = ok
+        if not ok:
+            heights[r, 0] = np.nan
+            heights[r, 1] = np.nan
+            contact[r, 0] = False
+            contact[r, 1] = False
+        for i in range(NGRF):
+            grf[r, i] = impulse[r, i] / dt
+        xv = (xr[0] - x_before[r]) / dt
+        x_velocity[r] = xv
+        healthy = ok and env_p[7] < xr[IZ] < env_p[8] and env_p[9] < xr[IPITCH] < env_p[10]
+        a = values[r]
+        ctrl = -env_p[4] * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+        fwd = env_p[3] * math.exp(-((xv - env_p[1]) / env_p[2]) ** 2) if ok else 0.0
+        alive = env_p[5] if healthy else 0.0
+        rewards3[r, 0] = fwd
+        rewards3[r, 1] = ctrl
+        rewards3[r, 2] = alive
+        reward[r] = fwd + ctrl + alive
+        terminated[r] = (not ok) or (env_p[6] != 0.0 and not healthy)
+        _fill_obs(obs[r], xr, contact[r, 0], contact[r, 1], (t0[r] + sim_time[r]) / env_p[11], low, high, skip)
+
+
+@numba.njit(cache=True)
+def _fill_obs(o, xr, front, back, cycles, low, high, skip):
+    """hsddp_gym.core.observation.fill_observation for one robot."""
+    nq = NQ - skip
+    for i in range(nq):
+        o[i] = np.float32(xr[skip + i])
+    for i in range(NQ):
+        o[nq + i] = np.float32(xr[NQ + i])
+    c = nq + NQ
+    o[c] = 1.0 if front else 0.0
+    o[c + 1] = 1.0 if back else 0.0
+    angle = 2.0 * math.pi * cycles
+    o[c + 2] = np.float32(math.sin(angle))
+    o[c + 3] = np.float32(math.cos(angle))
+    for i in range(o.shape[0]):
+        if o[i] != o[i]:  # NaN of an invalid state
+            o[i] = 0.0
+        elif o[i] > high[i]:
+            o[i] = high[i]
+        elif o[i] < low[i]:
+            o[i] = low[i]
+
+
+class BoundingVectorEnv(VectorEnv):
+    """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one :class:`gymnasium.vector.VectorEnv`.
+
+    Every robot follows the single env exactly: the same physics (:mod:`hsddp_gym.core.batch_contact`, the
+    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots; equal to it up to
+    round-off, ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
+    terminates with ``info["invalid_state"]``), observation and info keys, and the registered time limit
+    (``max_episode_steps``, truncation). ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list gives one
+    seed per robot), as :class:`gymnasium.vector.SyncVectorEnv`, so that the transitions equal those of N
+    single envs ``gym.make("hsddp_gym/Bounding-v0")`` reset with the seeds ``s + i``.
+
+    Autoreset: ``autoreset_mode="next_step"`` (the default, as ``SyncVectorEnv``): the step after a robot's
+    episode ended resets it (its action is ignored, reward 0, ``terminated = truncated = False``) and returns
+    the reset observation and info; ``"same_step"``: a robot whose episode ends is reset in the same step, its
+    last observation and info in ``info["final_obs"]`` (object array, None for the others) and
+    ``info["final_info"]`` (batched, with masks), as ``SyncVectorEnv``.
+
+    Args:
+        num_envs: number of robots (>= 1).
+        max_episode_steps: truncate an episode after this many steps (int >= 1), or None for no limit
+            (``gym.make_vec`` passes the registered 1000).
+        autoreset_mode: ``"next_step"`` / ``"same_step"`` (also Gymnasium's ``"NextStep"`` / ``"SameStep"``, or the
+            :class:`AutoresetMode`).
+        **kwargs: the arguments of :class:`~hsddp_gym.envs.bounding.BoundingEnv` (validated by it), except
+            the rendering ones (:data:`UNSUPPORTED_KWARGS`) and ``energy_consistent=False`` (the legacy scheme
+            is not compiled), which raise.
+
+    Spaces: ``single_observation_space`` / ``single_action_space`` are the single env's; observations
+    ``(num_envs, 17)`` float32, actions ``(num_envs, 4)`` (clipped to [-1, 1]; non-finite entries or another
+    shape raise ValueError). ``reset(options=...)`` accepts ``"state"`` ((num_envs, 14): one start state per
+    robot, checked as the single env's ``options["state"]``), ``"time"`` (a float or (num_envs,)), and
+    ``"reset_mask"`` ((num_envs,) bool: reset only those robots); the single env's ``"push"`` is not offered.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int | None = DEFAULT_MAX_EPISODE_STEPS,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs) -> None:
+        self.num_envs = check_int(num_envs, "num_envs", minimum=1)
+        if max_episode_steps is not None:
+            max_episode_steps = check_int(max_episode_steps, "max_episode_steps", minimum=1)
+        self.max_episode_steps = max_episode_steps
+        names = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}
+        if isinstance(autoreset_mode, AutoresetMode):
+            mode = autoreset_mode
+        elif isinstance(autoreset_mode, str) and autoreset_mode.replace("_", "").lower() in names:
+            mode = names[autoreset_mode.replace("_", "").lower()]
+        else:
+            mode = None
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise ValueError(f"autoreset_mode must be 'next_step' or 'same_step', got {autoreset_mode!r} "
+                             "(DISABLED is not offered)")
+        self.autoreset_mode = mode
+        unsupported = sorted(set(kwargs) & set(UNSUPPORTED_KWARGS))
+        if unsupported:
+            raise TypeError(f"BoundingVectorEnv does not render; unsupported argument(s) {unsupported}")
+        if "energy_consistent" in kwargs and kwargs["energy_consistent"] is not True:
+            raise ValueError("BoundingVectorEnv compiles only the energy-consistent scheme: energy_consistent must "
+                             f"be True, got {kwargs['energy_consistent']!r}")
+        try:
+            template = BoundingEnv(**kwargs)  # validates every argument, names the offending one
+        except TypeError as exc:
+            if "unexpected keyword argument" in str(exc):
+                raise TypeError(f"BoundingVectorEnv: {exc}") from exc
+            raise
+        self.template = template
+        """A single :class:`BoundingEnv` built with the same arguments: the validated settings, the robot model,
+        the reset-state checks (it is never stepped)."""
+        self.env_kwargs = dict(kwargs)
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode, "render_fps": template.metadata["render_fps"]}
+        self.render_mode = None
+        self.single_observation_space = template.observation_space
+        self.single_action_space = template.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.observation_layout: ObservationLayout = template.observation_layout
+        self.dt = template.dt
+
+        batch_contact.warm_up()
+        self._p = batch_contact.kernel_params(template.sim)
+        self._env_p = np.array([template.dt, template.target_speed, template.tracking_sigma,
+                                template.forward_reward_weight, template.ctrl_cost_weight,
+                                template.healthy_reward_weight, float(template.terminate_when_unhealthy),
+                                *template.healthy_z_range, *template.healthy_pitch_range, template.gait_period])
+        self._bounds = template._state_bounds.copy()
+        self._low, self._high = (b.astype(np.float32) for b in template.observation_layout.bounds())
+        self._skip = template.observation_layout.skipped_qpos
+        n = self.num_envs
+        self._x = np.tile(template.init_state, (n, 1))
+        self._u = np.zeros((n, NU))
+        self._values = np.zeros((n, NU))
+        self._lcp_states = np.full((n, 2), SEPARATE, dtype=np.int64)
+        self._contact = np.zeros((n, 2), dtype=np.bool_)
+        self._impulse = np.zeros((n, NGRF))
+        self._sim_time = np.zeros(n)
+        self._t0 = np.zeros(n)
+        self._heights = np.zeros((n, 2))
+        self.counters = np.zeros((n, 4), dtype=np.int64)
+        """Per robot ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]`` since creation
+        (:data:`hsddp_gym.core.batch_contact.COUNTER_NAMES`)."""
+        self._scratch = batch_contact.kernel_scratch()
+        self._obs = np.zeros((n, template.observation_layout.size), dtype=np.float32)
+        self._reward = np.zeros(n)
+        self._terminated = np.zeros(n, dtype=np.bool_)
+        self._truncated = np.zeros(n, dtype=np.bool_)
+        self._valid = np.ones(n, dtype=np.bool_)
+        self._x_velocity = np.zeros(n)
+        self._grf = np.zeros((n, NGRF))
+        self._rewards3 = np.zeros((n, 3))
+        self._x_before = np.zeros(n)
+        self._elapsed = np.zeros(n, dtype=np.int64)
+        self._autoreset = np.zeros(n, dtype=np.bool_)
+        self._stepped = np.zeros(n, dtype=np.bool_)
+        self._all = np.ones(n, dtype=np.bool_)
+        self._rngs: list[np.random.Generator | None] = [None] * n
+        self._rng_seeds: list[int | None] = [None] * n
+        self._needs_reset = True
+
+    # ------------------------------------------------------------------ seeding
+    @property
+    def np_random_seed(self) -> tuple:
+        """The seed of each robot's generator, as ``SyncVectorEnv.np_random_seed``."""
+        for i in range(self.num_envs):
+            self._rng(i)
+        return tuple(self._rng_seeds)
+
+    def _rng(self, i: int) -> np.random.Generator:
+        if self._rngs[i] is None:
+            self._rngs[i], self._rng_seeds[i] = seeding.np_random()
+        return self._rngs[i]
+
+    # ------------------------------------------------------------------ reset
+    def _seeds(self, seed) -> list:
+        n = self.num_envs
+        if seed is None:
+            return [None] * n
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [int(seed) + i for i in range(n)]
+        if isinstance(seed, (list, tuple)):
+            if len(seed) != n:
+                raise ValueError(f"seed as a list must have num_envs={n} entries, got {len(seed)}")
+            return list(seed)
+        raise TypeError(f"seed must be None, an int or a list of num_envs ints, got {type(seed).__name__}")
+
+    def _reset_one(self, i: int, seed, state, t0: float) -> None:
+        """BoundingEnv.reset for robot ``i`` (state: a checked (14,) array or None)."""
+        template = self.template
+        if seed is not None:
+            self._rngs[i], self._rng_seeds[i] = seeding.np_random(seed)
+        if state is not None:
+            x = state
+        else:
+            rng = self._rng(i)
+            x = template.init_state.copy()
+            s = template.reset_noise_scale
+            x[:NQ] += rng.uniform(low=-s, high=s, size=NQ)
+            x[NQ:] += s * rng.standard_normal(NQ)
+            lowest = float(template.robot.foot_heights(x[:NQ]).min())
+            if lowest < 0.0:
+                x[IZ] -= lowest
+        self._x[i] = x
+        self._lcp_states[i] = SEPARATE
+        self._sim_time[i] = 0.0
+        self._t0[i] = t0
+        self._elapsed[i] = 0
+        valid = bool((np.abs(x) <= self._bounds).all())
+        self._valid[i] = valid
+        if valid:
+            heights = template.robot.foot_heights(x[:NQ])
+            self._heights[i] = heights
+            self._contact[i] = heights <= RESET_CONTACT_HEIGHT
+        else:  # pragma: no cover - a checked reset state is always valid
+            self._heights[i] = np.nan
+            self._contact[i] = False
+        self._grf[i] = 0.0
+        self._impulse[i] = 0.0
+        self._x_velocity[i] = x[NQ]
+        self._rewards3[i] = 0.0
+        self._reward[i] = 0.0
+        self._terminated[i] = False
+        self._truncated[i] = False
+        self._autoreset[i] = False
+        _fill_obs(self._obs[i], self._x[i], self._contact[i, 0], self._contact[i, 1],
+                  t0 / template.gait_period, self._low, self._high, self._skip)
+
+    def _parse_options(self, options) -> tuple:
+        n = self.num_envs
+        if options is None:
+            return self._all, None, np.zeros(n)
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+        unknown = sorted(set(options) - set(_RESET_OPTION_KEYS))
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown} for BoundingVectorEnv; allowed: "
+                             f"{list(_RESET_OPTION_KEYS)} (the single env's 'push' is not offered)")
+        mask = options.get("reset_mask")
+        if mask is None:
+            mask = self._all
+        else:
+            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}")
+            if not mask.any():
+                raise ValueError("options['reset_mask'] must select at least one robot")
+        states = None
+        if options.get("state") is not None:
+            raw = np.asarray(options["state"], dtype=np.float64) if not isinstance(options["state"], np.ndarray) \
+                else options["state"]
+            if raw.shape != (n, NX):
+                raise ValueError(f"options['state'] must have shape ({n}, {NX}) (one state per robot), got "
+                                 f"{np.shape(raw)}")
+            states = []
+            for i in range(n):
+                if not mask[i]:
+                    states.append(None)
+                    continue
+                try:
+                    x = self.template._check_reset_state(raw[i])
+                except ValueError as exc:
+                    raise ValueError(f"robot {i}: {exc}") from exc
+                heights = self.template.robot.foot_heights(x[:NQ])
+                if heights.min() < -_MAX_PENETRATION_AT_RESET:
+                    raise ValueError(f"robot {i}: options['state'] puts a foot {-heights.min():.4g} m below the "
+                                     f"ground (at most {_MAX_PENETRATION_AT_RESET} m allowed)")
+                states.append(x)
+        t0 = np.zeros(n)
+        if options.get("time") is not None:
+            t = options["time"]
+            if isinstance(t, numbers.Real) and not isinstance(t, bool):
+                t0[:] = check_positive(t, "options['time']", allow_zero=True)
+            else:
+                arr = np.asarray(t, dtype=np.float64)
+                if arr.shape != (n,):
+                    raise ValueError(f"options['time'] must be a number or have shape ({n},), got {arr.shape}")
+                for i in range(n):
+                    t0[i] = check_positive(float(arr[i]), f"options['time'][{i}]", allow_zero=True)
+        return mask, states, t0
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        """Reset every robot (or those of ``options["reset_mask"]``); see the class docstring.
+
+        Returns:
+            ``(observations (num_envs, obs_dim) float32, info)`` (batched info, every key with its mask).
+        """
+        seeds = self._seeds(seed)
+        mask, states, t0 = self._parse_options(options)
+        for i in range(self.num_envs):
+            if mask[i]:
+                self._reset_one(i, seeds[i], None if states is None else states[i], float(t0[i]))
+        self._needs_reset = False
+        return self._obs.copy(), self._info()
+
+    # ------------------------------------------------------------------ step
+    def _check_actions(self, actions) -> np.ndarray:
+        a = actions if isinstance(actions, np.ndarray) else np.asarray(actions)
+        if a.dtype.kind not in "fiu":
+            raise TypeError(f"actions must be real numbers, got dtype {a.dtype}")
+        if a.shape != (self.num_envs, NU):
+            raise ValueError(f"actions must have shape ({self.num_envs}, {NU}), got {a.shape}")
+        values = a.astype(np.float64)
+        if not np.isfinite(values).all():
+            bad = sorted({int(r) for r in np.nonzero(~np.isfinite(values))[0]})
+            raise ValueError(f"actions must be finite; robot(s) {bad} got non-finite entries")
+        np.clip(values, -1.0, 1.0, out=values)
+        return values
+
+    def step(self, actions):
+        """Step every robot (an autoreset robot is reset instead, NEXT_STEP mode); see the class docstring.
+
+        Returns:
+            ``(observations, rewards (num_envs,) float64, terminated, truncated, info)``.
+        """
+        if self._needs_reset:
+            raise RuntimeError("BoundingVectorEnv.step() called before reset()")
+        values = self._check_actions(actions)
+        next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
+        stepped = self._stepped
+        if next_step:
+            np.logical_not(self._autoreset, out=stepped)
+        else:
+            stepped[:] = True
+        self._values[:] = values
+        np.multiply(values, self.template.torque_limit, out=self._u)
+        self._x_before[:] = self._x[:, 0]
+        batch_contact.step_batch(self._p, self._x, self._u, self.template.frame_skip, stepped, self._lcp_states,
+                                 self._contact, self._impulse, self._sim_time, self._heights, self.counters,
+                                 self._scratch)
+        _finish(self._x, self._x_before, self._values, self._contact, self._heights, self._impulse, self._t0,
+                self._sim_time, stepped, self._env_p, self._bounds, self._low, self._high, self._skip, self._obs,
+                self._reward, self._terminated, self._valid, self._x_velocity, self._grf, self._rewards3)
+        self._elapsed[stepped] += 1
+        if self.max_episode_steps is not None:
+            self._truncated[:] = stepped & (self._elapsed >= self.max_episode_steps)
+        else:
+            self._truncated[:] = False
+        done = (self._terminated | self._truncated) & stepped  # a robot reset in this step did not end
+        final = None
+        if next_step:
+            for i in np.nonzero(~stepped)[0]:
+                self._reset_one(int(i), None, None, 0.0)  # clears reward, terminated, truncated
+            self._autoreset[:] = done
+        elif done.any():
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            for i in np.nonzero(done)[0]:
+                final_obs[i] = self._obs[i].copy()
+            final_info = self._info(mask=done)
+            final = (final_obs, final_info, done.copy())
+        obs, reward = self._obs.copy(), self._reward.copy()
+        terminated, truncated = self._terminated.copy(), self._truncated.copy()
+        if final is not None:
+            for i in np.nonzero(final[2])[0]:
+                self._reset_one(int(i), None, None, 0.0)
+            obs = self._obs.copy()
+        info = self._info()
+        if final is not None:
+            info["final_obs"], info["_final_obs"] = final[0], final[2]
+            info["final_info"], info["_final_info"] = final[1], final[2]
+        return obs, reward, terminated, truncated, info
+
+    def _info(self, mask: np.ndarray | None = None) -> dict:
+        """The batched info (the single env's keys, :data:`INFO_KEYS`), each key with its ``_key`` mask."""
+        x = self._x
+        valid = self._valid
+        mask = self._all if mask is None else mask
+        info = {
+            "x_position": x[:, 0].copy(),
+            "x_velocity": self._x_velocity.copy(),
+            "reward_forward": self._rewards3[:, 0].copy(),
+            "reward_ctrl": self._rewards3[:, 1].copy(),
+            "reward_healthy": self._rewards3[:, 2].copy(),
+            "contact": self._contact.copy(),
+            "foot_heights": self._heights.copy(),
+            "grf": self._grf.copy(),
+            "qpos": x[:, :NQ].copy(),
+            "qvel": x[:, NQ:].copy(),
+            "time": self._t0 + self._sim_time,
+            "invalid_state": ~valid,
+        }
+        for key in INFO_KEYS:
+            info["_" + key] = mask.copy()
+        return info
+
+    def close_extras(self, **kwargs) -> None:
+        """Nothing to release (no processes, no windows)."""
+

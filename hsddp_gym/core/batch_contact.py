@@ -1,0 +1,1020 @@
+"""The contact simulation of :mod:`hsddp_gym.core.contact` for ``N`` robots in one compiled (numba) call.
+
+:class:`~hsddp_gym.core.contact.ContactSimulator` steps one robot with Pinocchio calls from Python; this
+module is the same scheme -- semi-implicit Euler velocity step, the exact planar Coulomb LCP by
+enumeration of foot states (the previous states first, then the same fixed order), the mass-metric
+position projection (Newton to :data:`~hsddp_gym.core.contact.POSITION_TOLERANCE`), the energy projection
+(flight: keep the centroidal momentum; contacts: scale ``v``) and the motor torque-speed law -- written
+out in closed form for the planar tree ``x -> z -> pitch -> {front, back} hip -> knee -> foot`` and
+compiled with numba (``cache=True``), one loop over the robots.
+
+The model is still Pinocchio's: :func:`kernel_params` reads every number from the
+:class:`~hsddp_gym.core.model.CheetahModel` (its :class:`~hsddp_gym.core.params.RobotParams`), and
+``tests/test_vector_env.py`` checks the closed-form mass matrix, bias, foot positions and Jacobians,
+centroidal momentum map and energies against ``pin.crba``, ``pin.nonLinearEffects``, frame Jacobians,
+``pin.computeCentroidalMap`` and ``pin.computeMechanicalEnergy`` to 1e-12 at random states, and whole
+steps against ``ContactSimulator`` in every contact combination (flight, front, back, double stance;
+stick and slide): the same foot states and contact flags, states within 1e-11 relative to their size (median
+4e-16; 99.8 % within 1e-12). The LCP's linear solves, the small Cholesky factorizations and the order of the
+projections are contact.py's, written out; Pinocchio's ABA and ``computeMinverse`` are replaced by one
+Cholesky factorization of ``M`` per step, which is where the round-off differences come from (at
+cond(M) ~ 2e4, ``computeMinverse`` and ``inv(crba)`` differ by ~8e-12 themselves).
+
+Speed note: numba passes a tuple of arrays (:class:`Scratch`) to a compiled call at about a microsecond (one
+reference count per array), more than a whole flight step costs, so :func:`step_batch` is one function that
+unpacks it once per batch and has the simulator's step written out in line.
+
+Closed form (world frame, ``R(t) (a, c) = (cos t a + sin t c, -sin t a + cos t c)`` the rotation about
++y): each body's centre of mass ``p`` has the Jacobian columns ``[1, 0]`` (x), ``[0, 1]`` (z) and, for each
+revolute joint of its chain with pivot ``o``, ``[p_z - o_z, -(p_x - o_x)]``; its angular Jacobian is 1 on
+its chain's revolute joints. ``M = sum m J_p^T J_p + I J_w^T J_w``; the bias is
+``b = sum m J_p^T (a_p + [0, g])`` with ``a_p = -sum_k w_k^2 s_k`` (``s_k`` the chain segments, ``w_k``
+their absolute rates: the planar Coriolis/centrifugal acceleration at zero joint accelerations).
+
+Arrays: ``x (N, 14)`` states, ``u (N, 4)`` joint torques, ``states (N, 2)`` int64 foot states
+(``SEPARATE`` ... ``SLIDE_NEG``), ``contact (N, 2)`` bool, ``impulse (N, 4)`` summed ground impulses (grf
+layout), ``time (N,)`` simulated time, ``heights (N, 2)`` foot heights after the step, ``counters (N, 4)``
+int64 ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]``.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import sys
+import time as _time
+
+import numba
+import numpy as np
+
+from hsddp_gym.core.contact import (
+    CONTACT_MARGIN,
+    POSITION_TOLERANCE,
+    SEPARATE,
+    SLIDE_NEG,
+    SLIDE_POS,
+    STICK,
+    ContactSimulator,
+)
+from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
+
+_jit = numba.njit(cache=True, error_model="numpy")
+"""numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
+checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`)."""
+
+# ------------------------------------------------------------------------------ parameter vector layout
+P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
+P_COMZ = 3  # 3 entries: CoM offset along each link's local z [m]
+P_INERTIA = 6  # 3 entries: I_yy about the CoM [kg m^2]
+P_THIGH_LENGTH = 9
+P_SHANK_LENGTH = 10
+P_HIP_X = 11  # 2 entries: hip x in the trunk frame, front (+) and back (-) [m]
+P_GRAVITY = 13
+P_MU = 14
+P_DT = 15
+P_TORQUE_LIMIT = 16
+P_W_FULL = 17
+P_W_ZERO = 18
+P_MOTOR = 19  # 1.0: motor torque-speed law on, 0.0: ideal torque sources
+P_FAR = 20  # a foot higher than this [m] cannot reach the ground within one step (ContactSimulator._far)
+N_PARAMS = 21
+
+# points (rows of the (12, 2) point array): 0 trunk origin, 1 trunk CoM, then per leg hip, thigh CoM, knee,
+# shank CoM, foot (front: 2..6, back: 7..11)
+_FOOT_POINT = np.array([6, 11])
+# chains: bodies 0..4 (trunk, thigh_f, shank_f, thigh_b, shank_b), then the feet 5, 6
+_CHAIN_POINT = np.array([1, 3, 5, 8, 10, 6, 11])
+_CHAIN_LEN = np.array([1, 2, 3, 2, 3, 3, 3])
+_CHAIN_PIVOT = np.array([[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 7, 0], [0, 7, 9], [0, 2, 4], [0, 7, 9]])
+_CHAIN_DOF = np.array([[2, 0, 0], [2, 3, 0], [2, 3, 4], [2, 5, 0], [2, 5, 6], [2, 3, 4], [2, 5, 6]])
+_BODY_LINK = np.array([0, 1, 2, 1, 2])  # index into the mass / com / inertia triples
+_TOL_V = 1e-9
+_TOL_L = 1e-12
+_MAX_PROJECTION_ITERATIONS = 6
+# the LCP's fixed order (contact._BASE_ORDER and its product for two feet)
+_BASE_ORDER = np.array([STICK, SLIDE_POS, SLIDE_NEG, SEPARATE])
+
+COUNTER_NAMES = ("lcp_fallbacks", "energy_projections", "momentum_fallbacks", "energy_deficits")
+
+
+def kernel_params(sim: ContactSimulator) -> np.ndarray:
+    """The parameter vector (N_PARAMS,) of a simulator: its robot's :class:`RobotParams`, friction, gravity,
+    step, torque limit and motor law. Only the energy-consistent scheme is compiled (ValueError otherwise)."""
+    if not isinstance(sim, ContactSimulator):
+        raise TypeError(f"sim must be a ContactSimulator, got {type(sim).__name__}")
+    if not sim.energy_consistent:
+        raise ValueError("the batched kernel implements only the energy-consistent scheme (energy_consistent=True)")
+    prm = sim.robot.params
+    p = np.zeros(N_PARAMS)
+    for i, link in enumerate((prm.trunk, prm.thigh, prm.shank)):
+        p[P_MASS + i] = link.mass
+        p[P_COMZ + i] = link.com_z
+        p[P_INERTIA + i] = link.inertia_yy
+    p[P_THIGH_LENGTH] = prm.thigh.length
+    p[P_SHANK_LENGTH] = prm.shank.length
+    p[P_HIP_X] = FOOT_SIGN[0] * prm.hip_offset
+    p[P_HIP_X + 1] = FOOT_SIGN[1] * prm.hip_offset
+    p[P_GRAVITY] = sim.gravity
+    p[P_MU] = sim.mu
+    p[P_DT] = sim.dt
+    p[P_TORQUE_LIMIT] = sim.torque_limit
+    if sim.motor_speed_limits is not None:
+        p[P_W_FULL], p[P_W_ZERO] = sim.motor_speed_limits
+        p[P_MOTOR] = 1.0
+    p[P_FAR] = sim._far
+    return p
+
+
+# ------------------------------------------------------------------------------ kinematics and dynamics
+@_jit
+def kinematics(p, q, pts):
+    """World (x, z) of the 12 points (12, 2) for configuration ``q`` (7,)."""
+    x, z, th0 = q[0], q[1], q[2]
+    c0, s0 = math.cos(th0), math.sin(th0)
+    pts[0, 0] = x
+    pts[0, 1] = z
+    cz = p[P_COMZ]
+    pts[1, 0] = x + s0 * cz
+    pts[1, 1] = z + c0 * cz
+    for leg in range(2):
+        base = 2 + 5 * leg
+        hx = p[P_HIP_X + leg]
+        hipx = x + c0 * hx
+        hipz = z - s0 * hx
+        pts[base, 0] = hipx
+        pts[base, 1] = hipz
+        th1 = th0 + q[3 + 2 * leg]
+        c1, s1 = math.cos(th1), math.sin(th1)
+        pts[base + 1, 0] = hipx + s1 * p[P_COMZ + 1]
+        pts[base + 1, 1] = hipz + c1 * p[P_COMZ + 1]
+        lt = -p[P_THIGH_LENGTH]
+        kx = hipx + s1 * lt
+        kz = hipz + c1 * lt
+        pts[base + 2, 0] = kx
+        pts[base + 2, 1] = kz
+        th2 = th1 + q[4 + 2 * leg]
+        c2, s2 = math.cos(th2), math.sin(th2)
+        pts[base + 3, 0] = kx + s2 * p[P_COMZ + 2]
+        pts[base + 3, 1] = kz + c2 * p[P_COMZ + 2]
+        ls = -p[P_SHANK_LENGTH]
+        pts[base + 4, 0] = kx + s2 * ls
+        pts[base + 4, 1] = kz + c2 * ls
+
+
+@_jit
+def point_jacobian(pts, chain, jx, jz):
+    """Rows ``x`` and ``z`` (7,) each of the world Jacobian of chain ``chain``'s point (0..4: body CoMs,
+    5, 6: front, back foot)."""
+    for j in range(7):
+        jx[j] = 0.0
+        jz[j] = 0.0
+    jx[0] = 1.0
+    jz[1] = 1.0
+    pt = _CHAIN_POINT[chain]
+    px, pz = pts[pt, 0], pts[pt, 1]
+    for k in range(_CHAIN_LEN[chain]):
+        o = _CHAIN_PIVOT[chain, k]
+        d = _CHAIN_DOF[chain, k]
+        jx[d] = pz - pts[o, 1]
+        jz[d] = -(px - pts[o, 0])
+
+
+@_jit
+def mass_matrix(p, pts, M, bjx, bjz):
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`; also fills the bodies' CoM
+    Jacobian rows ``bjx``, ``bjz`` (5, 7) that :func:`bias` and :func:`centroidal_rows` read."""
+    for i in range(7):
+        for j in range(7):
+            M[i, j] = 0.0
+    for b in range(5):
+        jx = bjx[b]
+        jz = bjz[b]
+        point_jacobian(pts, b, jx, jz)
+        link = _BODY_LINK[b]
+        m = p[P_MASS + link]
+        inertia = p[P_INERTIA + link]
+        n = _CHAIN_LEN[b]
+        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints (increasing)
+            da = a if a < 2 else _CHAIN_DOF[b, a - 2]
+            for c in range(a, n + 2):
+                dc = c if c < 2 else _CHAIN_DOF[b, c - 2]
+                M[da, dc] += m * (jx[da] * jx[dc] + jz[da] * jz[dc])
+        for a in range(n):
+            da = _CHAIN_DOF[b, a]
+            for c in range(a, n):
+                M[da, _CHAIN_DOF[b, c]] += inertia
+    for i in range(7):  # the products are symmetric: the lower triangle is the mirror, exactly
+        for j in range(i):
+            M[i, j] = M[j, i]
+
+
+@_jit
+def bias(p, pts, v, out, bjx, bjz):
+    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``,
+    with the body Jacobians ``bjx``, ``bjz`` (5, 7) that :func:`mass_matrix` computed at the same points."""
+    w0 = v[2]
+    for i in range(7):
+        out[i] = 0.0
+    g = p[P_GRAVITY]
+    for b in range(5):
+        jx = bjx[b]
+        jz = bjz[b]
+        m = p[P_MASS + _BODY_LINK[b]]
+        n = _CHAIN_LEN[b]
+        pt = _CHAIN_POINT[b]
+        ax = 0.0
+        az = 0.0
+        rate = w0
+        for k in range(n):
+            o = _CHAIN_PIVOT[b, k]
+            nxt = _CHAIN_PIVOT[b, k + 1] if k + 1 < n else pt
+            if k > 0:
+                rate += v[_CHAIN_DOF[b, k]]
+            r2 = rate * rate
+            ax -= r2 * (pts[nxt, 0] - pts[o, 0])
+            az -= r2 * (pts[nxt, 1] - pts[o, 1])
+        fx = m * ax
+        fz = m * (az + g)
+        for i in range(7):
+            out[i] += jx[i] * fx + jz[i] * fz
+
+
+@_jit
+def potential_energy(p, pts):
+    """``sum m g z_com`` [J] at the points ``pts``."""
+    e = 0.0
+    for b in range(5):
+        e += p[P_MASS + _BODY_LINK[b]] * pts[_CHAIN_POINT[b], 1]
+    return e * p[P_GRAVITY]
+
+
+@_jit
+def kinetic_energy(M, v):
+    """``1/2 v^T M v`` [J]."""
+    e = 0.0
+    for i in range(7):
+        s = 0.0
+        for j in range(7):
+            s += M[i, j] * v[j]
+        e += v[i] * s
+    return 0.5 * e
+
+
+@_jit
+def centroidal_rows(p, pts, P, bjx, bjz):
+    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
+    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts`` (body Jacobians from
+    :func:`mass_matrix` at the same points)."""
+    mtot = 0.0
+    cx = 0.0
+    cz = 0.0
+    for b in range(5):
+        m = p[P_MASS + _BODY_LINK[b]]
+        pt = _CHAIN_POINT[b]
+        mtot += m
+        cx += m * pts[pt, 0]
+        cz += m * pts[pt, 1]
+    cx /= mtot
+    cz /= mtot
+    for r in range(3):
+        for j in range(7):
+            P[r, j] = 0.0
+    for b in range(5):
+        jx = bjx[b]
+        jz = bjz[b]
+        link = _BODY_LINK[b]
+        m = p[P_MASS + link]
+        pt = _CHAIN_POINT[b]
+        rx = pts[pt, 0] - cx
+        rz = pts[pt, 1] - cz
+        for j in range(7):
+            P[0, j] += m * jx[j]
+            P[1, j] += m * jz[j]
+            P[2, j] += m * (rz * jx[j] - rx * jz[j])
+        for k in range(_CHAIN_LEN[b]):
+            P[2, _CHAIN_DOF[b, k]] += p[P_INERTIA + link]
+
+
+@_jit
+def cholesky7(M, L):
+    """Lower Cholesky factor ``L`` of ``M`` (7, 7); False if ``M`` is not positive definite."""
+    for i in range(7):
+        for j in range(i + 1):
+            s = M[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                if not s > 0.0:
+                    return False
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+        for j in range(i + 1, 7):
+            L[i, j] = 0.0
+    return True
+
+
+@_jit
+def cholesky_solve7(L, b, out):
+    """``out = M^-1 b`` (7,) from the factor of :func:`cholesky7`."""
+    for i in range(7):
+        s = b[i]
+        for k in range(i):
+            s -= L[i, k] * out[k]
+        out[i] = s / L[i, i]
+    for i in range(6, -1, -1):
+        s = out[i]
+        for k in range(i + 1, 7):
+            s -= L[k, i] * out[k]
+        out[i] = s / L[i, i]
+
+
+@_jit
+def cholesky_solve_rows(L, R, m, out):
+    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7), from the factor of :func:`cholesky7`: the
+    operations of :func:`cholesky_solve7` row by row, interleaved (the divisions of different rows overlap)."""
+    for i in range(7):
+        d = L[i, i]
+        for r in range(m):
+            s = R[r, i]
+            for k in range(i):
+                s -= L[i, k] * out[r, k]
+            out[r, i] = s / d
+    for i in range(6, -1, -1):
+        d = L[i, i]
+        for r in range(m):
+            s = out[r, i]
+            for k in range(i + 1, 7):
+                s -= L[k, i] * out[r, k]
+            out[r, i] = s / d
+
+
+# ------------------------------------------------------------------------------ small solves (contact.py's)
+@_jit
+def _solve_linear(A, b, n, z):
+    """``A z = b`` for the leading ``n x n`` block (n <= 4): contact._solve_linear (closed form for n <= 2,
+    Gaussian elimination with partial pivoting otherwise); A, b are overwritten; False if singular."""
+    if n == 1:
+        a = A[0, 0]
+        if abs(a) < 1e-300:
+            return False
+        z[0] = b[0] / a
+        return True
+    if n == 2:
+        a, bb = A[0, 0], A[0, 1]
+        c, d = A[1, 0], A[1, 1]
+        det = a * d - bb * c
+        scale = max(abs(a * d), abs(bb * c), 1e-300)
+        if abs(det) <= 1e-13 * scale:
+            return False
+        z[0] = (b[0] * d - bb * b[1]) / det
+        z[1] = (a * b[1] - c * b[0]) / det
+        return True
+    for col in range(n):
+        piv = col
+        best = abs(A[col, col])
+        for r in range(col + 1, n):
+            if abs(A[r, col]) > best:
+                best = abs(A[r, col])
+                piv = r
+        if abs(A[piv, col]) < 1e-300:
+            return False
+        if piv != col:
+            for j in range(n):
+                t = A[col, j]
+                A[col, j] = A[piv, j]
+                A[piv, j] = t
+            t = b[col]
+            b[col] = b[piv]
+            b[piv] = t
+        pv = A[col, col]
+        for r in range(col + 1, n):
+            f = A[r, col] / pv
+            if f != 0.0:
+                for j in range(col, n):
+                    A[r, j] -= f * A[col, j]
+                b[r] -= f * b[col]
+    for r in range(n - 1, -1, -1):
+        s = b[r]
+        for j in range(r + 1, n):
+            s -= A[r, j] * z[j]
+        z[r] = s / A[r, r]
+    return True
+
+
+@_jit
+def _cholesky_small(S, r, n, z, L):
+    """contact._solve_spd for n = 3, 4 (upper triangle of S read, as the unrolled version); False if not PD."""
+    for i in range(n):
+        for j in range(i + 1):
+            if i == j:
+                d = S[i, i]
+                for k in range(i):
+                    d -= L[i, k] * L[i, k]
+                if i == 0:
+                    if d <= 0.0:
+                        return False
+                elif d <= 1e-12 * S[i, i]:
+                    return False
+                L[i, i] = math.sqrt(d)
+            else:
+                s = S[j, i]
+                for k in range(j):
+                    s -= L[i, k] * L[j, k]
+                L[i, j] = s / L[j, j]
+    for i in range(n):
+        s = r[i]
+        for k in range(i):
+            s -= L[i, k] * z[k]
+        z[i] = s / L[i, i]
+    for i in range(n - 1, -1, -1):
+        s = z[i]
+        for k in range(i + 1, n):
+            s -= L[k, i] * z[k]
+        z[i] = s / L[i, i]
+    return True
+
+
+@_jit
+def _solve_spd(S, r, n, z, L):
+    """contact._solve_spd: ``S z = r`` (n <= 4) for symmetric positive-definite ``S``; S, r may be overwritten."""
+    if n <= 2:
+        return _solve_linear(S, r, n, z)
+    return _cholesky_small(S, r, n, z, L)
+
+
+# ------------------------------------------------------------------------------ the LCP (contact.py's)
+@_jit
+def _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n, rows):
+    """contact._try_states for ``k`` candidate feet with states ``(s0, s1)``; returns the violation
+    (inf if singular) and fills ``lam`` (2k,)."""
+    m = 2 * k
+    ncol = 0
+    nrow = 0
+    for i in range(k):
+        s = s0 if i == 0 else s1
+        n, t = 2 * i, 2 * i + 1
+        if s == STICK:
+            cols_n[ncol] = 1
+            cols_j[ncol, 0] = n
+            cols_c[ncol, 0] = 1.0
+            ncol += 1
+            cols_n[ncol] = 1
+            cols_j[ncol, 0] = t
+            cols_c[ncol, 0] = 1.0
+            ncol += 1
+            rows[nrow] = n
+            rows[nrow + 1] = t
+            nrow += 2
+        elif s == SLIDE_POS or s == SLIDE_NEG:
+            cols_n[ncol] = 2
+            cols_j[ncol, 0] = n
+            cols_c[ncol, 0] = 1.0
+            cols_j[ncol, 1] = t
+            cols_c[ncol, 1] = -mu if s == SLIDE_POS else mu
+            ncol += 1
+            rows[nrow] = n
+            nrow += 1
+    for j in range(m):
+        lam[j] = 0.0
+    if nrow > 0:
+        for a in range(nrow):
+            r = rows[a]
+            for b in range(ncol):
+                acc = 0.0
+                for e in range(cols_n[b]):
+                    acc += cols_c[b, e] * G[r, cols_j[b, e]]
+                A[a, b] = acc
+            rhs[a] = -c[r]
+        if not _solve_linear(A, rhs, nrow, zz):
+            return np.inf
+        for b in range(ncol):
+            for e in range(cols_n[b]):
+                lam[cols_j[b, e]] += cols_c[b, e] * zz[b]
+    for r in range(m):
+        acc = 0.0
+        for j in range(m):
+            acc += G[r, j] * lam[j]
+        w[r] = c[r] + acc
+    viol = 0.0
+    for i in range(k):
+        s = s0 if i == 0 else s1
+        n, t = 2 * i, 2 * i + 1
+        if s == SEPARATE:
+            viol = max(viol, (-w[n] - _TOL_V) / _TOL_V)
+        else:
+            viol = max(viol, (-lam[n] - _TOL_L) / _TOL_L)
+            if s == STICK:
+                viol = max(viol, (abs(lam[t]) - mu * lam[n] - _TOL_L) / _TOL_L)
+            elif s == SLIDE_POS:
+                viol = max(viol, (-w[t] - _TOL_V) / _TOL_V)
+            else:
+                viol = max(viol, (w[t] - _TOL_V) / _TOL_V)
+    return viol
+
+
+@_jit
+def _try_double_stick(G, c, mu, lam, L, rhs, zz):
+    """contact._try_double_stick: ``lam = -G^-1 c`` by Cholesky; returns the violation (inf if not PD)."""
+    for i in range(4):
+        rhs[i] = -c[i]
+    if not _cholesky_small(G, rhs, 4, zz, L):
+        return np.inf
+    n0, t0, n1, t1 = zz[0], zz[1], zz[2], zz[3]
+    lam[0] = n0
+    lam[1] = t0
+    lam[2] = n1
+    lam[3] = t1
+    return max(-n0 - _TOL_L, -n1 - _TOL_L, abs(t0) - mu * n0 - _TOL_L, abs(t1) - mu * n1 - _TOL_L) / _TOL_L
+
+
+@_jit
+def _try(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows):
+    if k == 2 and s0 == STICK and s1 == STICK:
+        return _try_double_stick(G, c, mu, lam, L, rhs, zz)
+    return _try_states(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, cols_j, cols_c, cols_n, rows)
+
+
+@_jit
+def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, best_lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows):
+    """contact.solve_contact_lcp_lists: the guess ``(g0, g1)`` first, then the fixed order; fills ``lam``
+    (2k,) and ``out_states`` (k,); returns True when exact (False: the least-violating combination). The
+    other arrays are scratch (the :class:`Scratch` fields of the same names; passed one by one, which is
+    cheaper than passing the whole tuple)."""
+    best_v = np.inf
+    have = False
+    b0 = SEPARATE
+    b1 = SEPARATE
+    viol = _try(G, c, mu, k, g0, g1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows)
+    if viol <= 0.0:
+        out_states[0] = g0
+        out_states[1] = g1
+        return True
+    if viol < np.inf:
+        best_v = viol
+        have = True
+        b0, b1 = g0, g1
+        for j in range(2 * k):
+            best_lam[j] = lam[j]
+    n_combos = 4 if k == 1 else 16
+    for idx in range(n_combos):
+        if k == 1:
+            s0 = _BASE_ORDER[idx]
+            s1 = SEPARATE
+        else:
+            s0 = _BASE_ORDER[idx // 4]
+            s1 = _BASE_ORDER[idx % 4]
+        if s0 == g0 and (k == 1 or s1 == g1):
+            continue
+        viol = _try(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows)
+        if viol <= 0.0:
+            out_states[0] = s0
+            out_states[1] = s1
+            return True
+        if viol < best_v:
+            best_v = viol
+            have = True
+            b0, b1 = s0, s1
+            for j in range(2 * k):
+                best_lam[j] = lam[j]
+    if not have:
+        for j in range(2 * k):
+            lam[j] = 0.0
+        out_states[0] = SEPARATE
+        out_states[1] = SEPARATE
+        return False
+    for j in range(2 * k):
+        lam[j] = best_lam[j]
+    out_states[0] = b0
+    out_states[1] = b1
+    return False
+
+
+# ------------------------------------------------------------------------------ scratch space
+_SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
+    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
+    "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
+    "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
+    "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
+    "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
+    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,),
+    "e7": (7,),
+}
+_INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
+Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
+"""Work arrays of the kernel (one set reused for every robot of a batch)."""
+
+
+def kernel_scratch() -> Scratch:
+    """A fresh :class:`Scratch` (zeros)."""
+    return Scratch(*[np.zeros(shape, dtype=np.int64 if name in _INT_FIELDS else np.float64)
+                     for name, shape in _SCRATCH_FIELDS.items()])
+
+
+# ------------------------------------------------------------------------------ one step
+@_jit
+def _project_flight(p, q, v, kinetic, target, sc, counters):
+    """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and
+    the same centroidal momentum (``sc.pts``, ``sc.M`` at the current q)."""
+    s_B = sc.B
+    s_BT = sc.BT
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_M = sc.M
+    s_P = sc.P
+    s_S = sc.S
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_c = sc.c
+    s_pts = sc.pts
+    s_rhs = sc.rhs
+    s_zz = sc.zz
+    centroidal_rows(p, s_pts, s_P, s_bjx, s_bjz)
+    cholesky7(s_M, s_Lm)
+    cholesky_solve_rows(s_Lm, s_P, 3, s_BT)  # B = M^-1 P^T
+    for a in range(3):
+        for j in range(7):
+            s_B[j, a] = s_BT[a, j]
+    pm = s_c
+    for a in range(3):
+        acc = 0.0
+        for j in range(7):
+            acc += s_P[a, j] * v[j]
+        pm[a] = acc
+    for a in range(3):
+        for b in range(3):
+            acc = 0.0
+            for j in range(7):
+                acc += s_P[a, j] * s_B[j, b]
+            s_S[a, b] = acc
+        s_rhs[a] = pm[a]
+    if not _solve_spd(s_S, s_rhs, 3, s_zz, s_L):
+        s_zz[0] = 0.0
+        s_zz[1] = 0.0
+        s_zz[2] = 0.0
+    y = s_zz
+    k_c = 0.5 * (pm[0] * y[0] + pm[1] * y[1] + pm[2] * y[2])
+    if target >= k_c and kinetic > k_c:
+        factor = math.sqrt((target - k_c) / (kinetic - k_c))
+        for j in range(7):
+            vc = s_B[j, 0] * y[0] + s_B[j, 1] * y[1] + s_B[j, 2] * y[2]
+            v[j] = v[j] * factor + (1.0 - factor) * vc
+        return target
+    counters[2] += 1
+    s = math.sqrt(target / kinetic)
+    for j in range(7):
+        v[j] *= s
+    return target
+
+
+@_jit
+def mechanical_energy(p, x, sc):
+    """``1/2 v^T M v + V`` [J] of one state (14,)."""
+    s_M = sc.M
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_pts = sc.pts
+    kinematics(p, x[:NQ], s_pts)
+    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+
+
+@_jit
+def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,
+               counters_batch, sc):
+    """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
+    untouched): ``x_batch (N, 14)`` in place, ``u_batch (N, 4)`` commanded joint torques (ContactSimulator.run:
+    the motor law every step, the energy taken at the start), ``states_batch (N, 2)``, ``contact_batch (N, 2)``,
+    ``impulse_batch (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step, accumulated
+    like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps, ``counters_batch (N, 4)``
+    (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
+    (NaN heights, no impulse); the caller ends their episodes.
+
+    One function for the whole batch (ContactSimulator._step, _finish_consistent and _project_positions
+    written out in line): numba passes a :class:`Scratch` to a call at a cost of about a microsecond (one
+    reference count per array), more than a whole flight step, so it is unpacked here once per batch."""
+    s_A = sc.A
+    s_Ac = sc.Ac
+    s_B = sc.B
+    s_BT = sc.BT
+    s_G = sc.G
+    s_Jr = sc.Jr
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_M = sc.M
+    s_S = sc.S
+    s_acc = sc.acc
+    s_best_lam = sc.best_lam
+    s_bjx = sc.bjx
+    s_bjz = sc.bjz
+    s_bvec = sc.bvec
+    s_c = sc.c
+    s_cfoot = sc.cfoot
+    s_cols_c = sc.cols_c
+    s_cols_j = sc.cols_j
+    s_cols_n = sc.cols_n
+    s_cphi = sc.cphi
+    s_fjx = sc.fjx
+    s_fjz = sc.fjz
+    s_jc = sc.jc
+    s_jx = sc.jx
+    s_jz = sc.jz
+    s_lam = sc.lam
+    s_pts = sc.pts
+    s_pts_old = sc.pts_old
+    s_q_old = sc.q_old
+    s_rhs = sc.rhs
+    s_rhs7 = sc.rhs7
+    s_rows = sc.rows
+    s_sol = sc.sol
+    s_tau = sc.tau
+    s_taxis = sc.taxis
+    s_tfoot = sc.tfoot
+    s_tval = sc.tval
+    s_vf = sc.vf
+    s_w = sc.w
+    s_zz = sc.zz
+    h = p[P_DT]
+    motor = p[P_MOTOR] != 0.0
+    w_full, w_zero = p[P_W_FULL], p[P_W_ZERO]
+    slope = p[P_TORQUE_LIMIT] / (w_zero - w_full) if motor else 0.0
+    for i in range(3):
+        s_tau[i] = 0.0
+    for ir in range(x_batch.shape[0]):
+        if not active[ir]:
+            continue
+        x = x_batch[ir]
+        u = u_batch[ir]
+        states = states_batch[ir]
+        contact = contact_batch[ir]
+        total = impulse_batch[ir]
+        counters = counters_batch[ir]
+        finite = True
+        for i in range(NX):
+            if not math.isfinite(x[i]):
+                finite = False
+        for i in range(4):
+            total[i] = 0.0
+        if finite and n > 0:
+            kinematics(p, x[:NQ], s_pts)  # the energy at the start (mechanical_energy)
+            mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+            energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+            for _ in range(n):
+                for j in range(4):
+                    uj = u[j]
+                    if motor:
+                        wj = x[NQ + 3 + j]
+                        if uj * wj > 0.0 and abs(wj) > w_full:
+                            cap = max(0.0, (w_zero - abs(wj)) * slope)
+                            if abs(uj) > cap:
+                                uj = cap if uj > 0.0 else -cap
+                    s_tau[3 + j] = uj
+                # ---- one step of h (ContactSimulator._step and _finish_consistent)
+                q = x[:NQ]
+                v = x[NQ:]
+                pts = s_pts
+                # s_pts, s_M, s_bjx, s_bjz hold the kinematics and inertia of q (computed at the end of the last
+                # step or for the energy at the start)
+                bias(p, pts, v, s_bvec, s_bjx, s_bjz)
+                for i in range(7):
+                    s_rhs7[i] = s_tau[i] - s_bvec[i]
+                cholesky7(s_M, s_Lm)
+                cholesky_solve7(s_Lm, s_rhs7, s_acc)
+                vf = s_vf
+                for i in range(7):
+                    vf[i] = s_acc[i] * h + v[i]
+                # candidate contacts
+                cfoot, cphi = s_cfoot, s_cphi
+                ncand = 0
+                for foot in range(2):
+                    point_jacobian(pts, 5 + foot, s_jx, s_jz)
+                    phi = pts[_FOOT_POINT[foot], 1]
+                    for j in range(7):
+                        s_fjx[foot, j] = s_jx[j]
+                        s_fjz[foot, j] = s_jz[j]
+                    if phi > p[P_FAR]:
+                        continue
+                    wn = 0.0
+                    for j in range(7):
+                        wn += s_jz[j] * vf[j]
+                    if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
+                        cfoot[ncand] = foot
+                        cphi[ncand] = phi
+                        ncand += 1
+                if ncand == 0:
+                    for i in range(7):
+                        v[i] = vf[i]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                else:
+                    m = 2 * ncand
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        for j in range(7):
+                            s_jc[2 * i, j] = s_fjz[foot, j]
+                            s_jc[2 * i + 1, j] = s_fjx[foot, j]
+                    cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
+                    for r in range(m):
+                        for s in range(m):
+                            acc = 0.0
+                            for k in range(7):
+                                acc += s_Ac[r, k] * s_jc[s, k]
+                            s_G[r, s] = acc
+                        acc = 0.0
+                        for k in range(7):
+                            acc += s_jc[r, k] * vf[k]
+                        s_c[r] = acc
+                    for i in range(ncand):
+                        if cphi[i] > 0.0:
+                            s_c[2 * i] += cphi[i] / h
+                    g0 = states[cfoot[0]]
+                    g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
+                    exact = solve_lcp(s_G, s_c, p[P_MU], ncand, g0, g1, s_lam, s_sol, s_best_lam, s_w, s_A, s_rhs, s_zz,
+                                      s_L, s_cols_j, s_cols_c, s_cols_n, s_rows)
+                    if not exact:
+                        counters[0] += 1
+                    for j in range(7):
+                        acc = 0.0
+                        for r in range(m):
+                            acc += s_lam[r] * s_Ac[r, j]
+                        v[j] = acc + vf[j]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        ln, lt = s_lam[2 * i], s_lam[2 * i + 1]
+                        states[foot] = s_sol[i]
+                        total[2 * foot] += lt
+                        total[2 * foot + 1] += ln
+                        contact[foot] = ln > 1e-9
+                # energy-consistent end of the step (ContactSimulator._finish_consistent)
+                for i in range(7):
+                    s_q_old[i] = q[i]
+                for i in range(12):
+                    s_pts_old[i, 0] = pts[i, 0]
+                    s_pts_old[i, 1] = pts[i, 1]
+                for i in range(7):
+                    q[i] += v[i] * h
+                if ncand > 0:
+                    tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
+                    nt = 0
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        st = states[foot]
+                        if st == STICK:
+                            fp = _FOOT_POINT[foot]
+                            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, step start
+                            tfoot[nt] = foot
+                            taxis[nt] = 0
+                            tval[nt] = s_q_old[0] - jz_pitch
+                            nt += 1
+                        if st != SEPARATE:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                    kinematics(p, q, s_pts)
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        if states[foot] == SEPARATE and s_pts[_FOOT_POINT[foot], 1] < 0.0:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                    if nt > 0:
+                        res = s_rhs
+                        for _ in range(_MAX_PROJECTION_ITERATIONS):
+                            residual = 0.0
+                            for a in range(nt):
+                                res[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
+                                residual = max(residual, abs(res[a]))
+                            if residual <= POSITION_TOLERANCE:
+                                break
+                            for a in range(nt):
+                                point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
+                                row = s_jx if taxis[a] == 0 else s_jz
+                                for j in range(7):
+                                    s_Jr[a, j] = row[j]
+                            cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                            for a in range(nt):
+                                for j in range(7):
+                                    s_B[j, a] = s_BT[a, j]
+                            for a in range(nt):
+                                for b in range(nt):
+                                    acc = 0.0
+                                    for j in range(7):
+                                        acc += s_Jr[a, j] * s_B[j, b]
+                                    s_S[a, b] = acc
+                            if not _solve_spd(s_S, res, nt, s_zz, s_L):
+                                break
+                            for i in range(7):
+                                acc = 0.0
+                                for a in range(nt):
+                                    acc += s_B[i, a] * s_zz[a]
+                                q[i] += acc
+                            kinematics(p, q, s_pts)
+                else:
+                    kinematics(p, q, s_pts)
+                mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+                kinetic = kinetic_energy(s_M, v)
+                potential = potential_energy(p, s_pts)
+                tq = 0.0
+                tq_old = 0.0
+                for i in range(7):
+                    tq += s_tau[i] * q[i]
+                    tq_old += s_tau[i] * s_q_old[i]
+                allowed = energy + (tq - tq_old)
+                if kinetic + potential > allowed:
+                    counters[1] += 1
+                    target = allowed - potential
+                    target -= 1e-13 * (abs(allowed) + abs(potential))
+                    if target <= 0.0:
+                        counters[3] += 1
+                        for i in range(7):
+                            v[i] = 0.0
+                        kinetic = 0.0
+                    elif ncand > 0:
+                        s = math.sqrt(target / kinetic)
+                        for i in range(7):
+                            v[i] *= s
+                        kinetic = target
+                    else:
+                        kinetic = _project_flight(p, q, v, kinetic, target, sc, counters)
+                energy = kinetic + potential
+
+        for _ in range(n):
+            sim_time[ir] += h
+        kinematics(p, x[:NQ], s_pts)
+        heights[ir, 0] = s_pts[6, 1]
+        heights[ir, 1] = s_pts[11, 1]
+
+
+def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
+    """``n`` steps of one robot (ContactSimulator.run): :func:`step_batch` on a batch of one. ``x`` (14,) in
+    place, ``u`` (4,) commanded torques, ``states`` (2,) int64, ``contact`` (2,) bool, ``total`` (4,) the summed
+    impulses, ``counters`` (4,) int64 (all updated in place)."""
+    step_batch(p, x.reshape(1, NX), np.asarray(u, dtype=np.float64).reshape(1, 4), int(n), np.ones(1, dtype=np.bool_),
+               states.reshape(1, 2), contact.reshape(1, 2), total.reshape(1, 4), np.zeros(1), np.zeros((1, 2)),
+               counters.reshape(1, 4), sc)
+
+
+_READY = False
+ANNOUNCE_AFTER_S = 5.0
+"""With a cache index on disk, the warm-up still says that numba compiles when it takes longer than this."""
+
+
+def _cache_index_exists() -> bool:
+    """Whether numba's cache index of :func:`step_batch` is on disk (numba internals: False if they moved)."""
+    import os
+
+    try:
+        return os.path.exists(step_batch._cache._cache_file._index_path)
+    except AttributeError:  # pragma: no cover (another numba version)
+        return False
+
+
+def warm_up(announce: bool = True) -> float:
+    """Make the kernel ready before anything is timed: compile it (the first run on a machine, about a minute)
+    or load numba's on-disk cache (``cache=True``; later runs, about a second), once per process. With
+    ``announce``, a line on stderr says when a compile is under way and how long it took. Returns the seconds
+    spent (0 when already done)."""
+    global _READY
+    if _READY:
+        return 0.0
+    import threading
+
+    def say():
+        print("numba: compiling the batched contact kernel, once (the first run on this machine takes about a "
+              f"minute; later runs load it from the cache in {step_batch.stats.cache_path}) ...", file=sys.stderr,
+              flush=True)
+
+    if announce and not _cache_index_exists():
+        say()
+        announce_later = False
+    else:
+        announce_later = announce
+    timer = threading.Timer(ANNOUNCE_AFTER_S, say) if announce_later else None
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    start = _time.perf_counter()
+    try:
+        p = kernel_params(ContactSimulator())
+        n = 1
+        x = np.zeros((n, NX))
+        x[:, 1] = 0.5
+        step_batch(p, x, np.zeros((n, 4)), 1, np.ones(n, dtype=np.bool_), np.zeros((n, 2), dtype=np.int64),
+                   np.zeros((n, 2), dtype=np.bool_), np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)),
+                   np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+    finally:
+        if timer is not None:
+            timer.cancel()
+    elapsed = _time.perf_counter() - start
+    if announce and sum(step_batch.stats.cache_misses.values()):
+        print(f"numba: compiled in {elapsed:.1f} s; cached for later runs", file=sys.stderr, flush=True)
+    _READY = True
+    return elapsed

@@ -1,0 +1,358 @@
+"""The compiled vector env: its kernel against Pinocchio and ContactSimulator, its transitions against N single
+envs, autoreset, seeding, arguments, and SB3 training through it (smoke)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import hsddp_gym  # noqa: F401  (registers the env)
+from hsddp_gym.core import batch_contact as bc
+from hsddp_gym.core.contact import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK, ContactSimulator
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.envs.vector import INFO_KEYS, BoundingVectorEnv
+
+ENV_ID = "hsddp_gym/Bounding-v0"
+TOL = 1e-12
+"""Model quantities (M, b, Jacobians, momentum map, energy) against Pinocchio."""
+STEP_TOL = 1e-11
+"""Whole steps against ContactSimulator, relative to ``1 + max |x|``. Not 1e-12: the contact impulse goes through
+``M^-1``, whose entries reach ~2e3 at cond(M) ~ 2e4, and Pinocchio's own two routes to it
+(``computeMinverse`` and ``inv(crba)``) differ by ~8e-12 there; the median step differs by ~1e-15 and most by
+< 1e-12 (asserted)."""
+
+
+def _close(a, b, scale_of=None) -> float:
+    """Largest ``|a - b|`` relative to ``1 + max |b|`` (the round-off scale of a state whose joint rates reach
+    tens of rad/s)."""
+    b = np.asarray(b, dtype=np.float64)
+    return float(np.max(np.abs(np.asarray(a) - b)) / (1.0 + np.max(np.abs(b if scale_of is None else scale_of))))
+
+
+def _sims():
+    """The default simulator and one with every parameter changed (the kernel reads them all)."""
+    params = dataclasses.replace(DEFAULT_PARAMS, trunk=dataclasses.replace(DEFAULT_PARAMS.trunk, mass=6.5,
+                                                                           com_z=-0.01, inertia_yy=0.13),
+                                 thigh=dataclasses.replace(DEFAULT_PARAMS.thigh, length=0.22, com_z=-0.03),
+                                 shank=dataclasses.replace(DEFAULT_PARAMS.shank, mass=0.2, length=0.18),
+                                 hip_offset=0.2)
+    return [ContactSimulator(motor_speed_limits=(36.0, 50.0)),
+            ContactSimulator(CheetahModel(params), friction=0.3, gravity=7.0, torque_limit=25.0)]
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_kernel_model_matches_pinocchio_at_random_states(which):
+    sim = _sims()[which]
+    p = bc.kernel_params(sim)
+    sc = bc.kernel_scratch()
+    model, data = sim.model, sim.data
+    rng = np.random.default_rng(which)
+    for _ in range(40):
+        q = rng.uniform(-2.0, 2.0, 7)
+        v = rng.uniform(-20.0, 20.0, 7)
+        bc.kinematics(p, q, sc.pts)
+        bc.mass_matrix(p, sc.pts, sc.M, sc.bjx, sc.bjz)
+        assert np.max(np.abs(sc.M - pin.crba(model, data, q))) < TOL
+        bc.bias(p, sc.pts, v, sc.bvec, sc.bjx, sc.bjz)
+        assert np.max(np.abs(sc.bvec - pin.nonLinearEffects(model, data, q, v))) < TOL * 10  # |b| ~ 1e3
+        pin.computeJointJacobians(model, data, q)
+        pin.framesForwardKinematics(model, data, q)
+        for foot, fid in enumerate(sim.robot.foot_frame_ids):
+            J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+            bc.point_jacobian(sc.pts, 5 + foot, sc.jx, sc.jz)
+            assert np.max(np.abs(J[0] - sc.jx)) < TOL and np.max(np.abs(J[2] - sc.jz)) < TOL
+            pos = data.oMf[fid].translation
+            assert abs(pos[0] - sc.pts[bc._FOOT_POINT[foot], 0]) < TOL
+            assert abs(pos[2] - sc.pts[bc._FOOT_POINT[foot], 1]) < TOL
+        bc.centroidal_rows(p, sc.pts, sc.P, sc.bjx, sc.bjz)
+        assert np.max(np.abs(sc.P - pin.computeCentroidalMap(model, data, q)[[0, 2, 4]])) < TOL
+        pin.computeMechanicalEnergy(model, data, q, v)
+        energy = bc.mechanical_energy(p, np.concatenate([q, v]), sc)
+        assert abs(energy - data.kinetic_energy - data.potential_energy) < TOL * (1.0 + abs(energy))
+
+
+def _contact_states(sim, rng, n):
+    """States near the ground: standing on both feet, then tilted, lifted, pushed down, sliding, spinning."""
+    out = []
+    for _ in range(n):
+        q = np.zeros(7)
+        q[2] = rng.uniform(-0.15, 0.15)
+        q[3:] = rng.uniform(-0.4, 0.4, 4)
+        x = np.concatenate([q, np.zeros(7)])
+        x[1] -= sim.robot.foot_heights(q).min()
+        x[7:] += rng.choice([0.02, 1.0]) * rng.normal(0.0, [1.5, 0.5, 2.0, 5.0, 5.0, 5.0, 5.0])  # quiet or not
+        x[1] += rng.choice([0.0, 0.0, 5e-4, -3e-4, 0.02, 0.3])
+        u = rng.uniform(-1.0, 1.0, 4) * sim.torque_limit * rng.choice([0.05, 1.0])
+        out.append((x, u, [int(s) for s in rng.integers(0, 4, 2)]))
+    for _ in range(10):  # standing still on straight legs: double stick at any friction
+        q = np.zeros(7)
+        q[3:] = rng.uniform(-0.02, 0.02, 4)
+        x = np.concatenate([q, rng.normal(0.0, 0.01, 7)])
+        x[1] -= sim.robot.foot_heights(q).min()
+        out.append((x, rng.uniform(-0.5, 0.5, 4), [STICK, STICK]))
+    return out
+
+
+def _category(states) -> str:
+    front, back = states
+    if front == SEPARATE and back == SEPARATE:
+        return "flight"
+    kind = {STICK: "stick", SLIDE_POS: "slide", SLIDE_NEG: "slide"}
+    if back == SEPARATE:
+        return f"front {kind[front]}"
+    if front == SEPARATE:
+        return f"back {kind[back]}"
+    return "double stick" if front == back == STICK else "double slide"
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_kernel_step_matches_contact_simulator_in_every_contact_combination(which):
+    """From the same state and previous foot states: one 1 ms step and a 5-step control step, in flight, front,
+    back and double stance, sticking and sliding: same foot states and contact flags, same state and impulses
+    to 1e-11 relative to the state's size (see STEP_TOL), most to 1e-12."""
+    sim = _sims()[which]
+    p = bc.kernel_params(sim)
+    sc = bc.kernel_scratch()
+    seen = {}
+    errors = []
+    for x, u, prev in _contact_states(sim, np.random.default_rng(10 + which), 250):
+        for n in (1, 5):
+            sim.set_state(x)
+            sim.states[:] = prev
+            impulse = np.array(sim.run(u, n))
+            xs = x.copy()
+            states = np.array(prev, dtype=np.int64)
+            contact = np.zeros(2, dtype=np.bool_)
+            total = np.zeros(4)
+            counters = np.zeros(4, dtype=np.int64)
+            bc.run_one(p, xs, u, n, states, contact, total, sc, counters)
+            assert states.tolist() == list(sim.states) and contact.tolist() == sim.contact.tolist()
+            errors.append(_close(xs, sim.x))
+            assert errors[-1] < STEP_TOL
+            assert np.max(np.abs(total - impulse)) < STEP_TOL * (1.0 + np.max(np.abs(impulse)))
+            cat = _category(sim.states)
+            seen[cat] = seen.get(cat, 0) + 1
+    assert np.median(errors) < 1e-14 and np.mean(np.array(errors) < TOL) > 0.98
+    expected = {"flight", "front stick", "front slide", "back stick", "back slide", "double stick", "double slide"}
+    assert expected <= set(seen), f"contact combinations not reached: {expected - set(seen)} (seen {seen})"
+
+
+def test_kernel_energy_projection_paths_match():
+    """Energy projections in flight (momentum-keeping) and in contact (scaling) are exercised and equal."""
+    sim = ContactSimulator(motor_speed_limits=(36.0, 50.0))
+    p = bc.kernel_params(sim)
+    sc = bc.kernel_scratch()
+    rng = np.random.default_rng(3)
+    projected = np.zeros(4, dtype=np.int64)
+    for x, u, prev in _contact_states(sim, rng, 120):
+        x = x.copy()
+        x[10:] = rng.uniform(-80.0, 80.0, 4)  # fast legs: the semi-implicit step gains energy
+        sim.set_state(x)
+        sim.states[:] = prev
+        sim.run(u, 5)
+        xs, states = x.copy(), np.array(prev, dtype=np.int64)
+        bc.run_one(p, xs, u, 5, states, np.zeros(2, dtype=np.bool_), np.zeros(4), sc, projected)
+        assert _close(xs, sim.x) < STEP_TOL
+    assert projected[1] == sim.energy_projections > 0
+    assert projected[2] == sim.momentum_fallbacks and projected[3] == sim.energy_deficits
+
+
+# ------------------------------------------------------------------------------ the vector env
+def _pair(n, seed, **kwargs):
+    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    envs = [gym.make(ENV_ID, **kwargs) for _ in range(n)]
+    obs_v, info_v = venv.reset(seed=seed)
+    singles = [env.reset(seed=seed + i) for i, env in enumerate(envs)]
+    assert np.array_equal(obs_v, np.stack([o for o, _ in singles]))  # the reset noise: bit-identical
+    for key in INFO_KEYS:
+        assert np.array_equal(info_v[key], np.stack([np.asarray(i[key]) for _, i in singles]))
+        assert info_v["_" + key].all()
+    return venv, envs
+
+
+def _step_singles(envs, actions, pending):
+    """Step the single envs with SyncVectorEnv's NEXT_STEP autoreset."""
+    rows = []
+    for i, env in enumerate(envs):
+        if pending[i]:
+            obs, info = env.reset()
+            rows.append((obs, 0.0, False, False, info))
+        else:
+            rows.append(env.step(actions[i]))
+        pending[i] = rows[-1][2] or rows[-1][3]
+    return rows
+
+
+def _compare(out_v, rows, tol):
+    obs, reward, terminated, truncated, info = out_v
+    assert terminated.tolist() == [r[2] for r in rows] and truncated.tolist() == [r[3] for r in rows]
+    for i, (o, r, _, _, inf) in enumerate(rows):
+        scale = np.concatenate([inf["qpos"], inf["qvel"]])
+        assert _close(info["qpos"][i], inf["qpos"], scale) < tol and _close(info["qvel"][i], inf["qvel"], scale) < tol
+        assert abs(reward[i] - r) < tol * (1.0 + abs(r))
+        assert np.allclose(obs[i], o, rtol=1e-6, atol=1e-6)  # float32 of equal states (1 ulp at most)
+        assert info["contact"][i].tolist() == inf["contact"].tolist()
+        assert info["invalid_state"][i] == inf["invalid_state"]
+        for key in ("x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "time"):
+            assert abs(info[key][i] - inf[key]) < tol * (1.0 + abs(inf[key]) + np.max(np.abs(scale)))
+        for key in ("grf", "foot_heights"):
+            assert np.allclose(info[key][i], inf[key], rtol=1e-9, atol=1e-9 * (1.0 + np.max(np.abs(inf[key]))))
+
+
+def test_whole_episodes_equal_single_envs_with_zero_actions():
+    """Without actions the motion is not chaotic: 3 robots over 1100 steps (dozens of falls and autoresets)
+    follow 3 single envs to 1e-11 in every state, reward, flag and info entry."""
+    venv, envs = _pair(3, seed=3)
+    pending = [False] * 3
+    actions = np.zeros((3, 4), dtype=np.float32)
+    resets = 0
+    for _ in range(1100):
+        rows = _step_singles(envs, actions, pending)
+        _compare(venv.step(actions), rows, 1e-11)
+        resets += sum(pending)
+    assert resets > 20
+
+
+def _sync(venv, envs):
+    """Copy each single env's simulator state (state, foot states, clock) into the vector env."""
+    u = venv.unwrapped
+    for i, env in enumerate(envs):
+        sim = env.unwrapped.sim
+        u._x[i] = sim.x
+        u._lcp_states[i] = sim.states
+        u._sim_time[i] = sim.time
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"target_speed": 2.0, "friction": 0.4, "reset_noise_scale": 0.05,
+                                         "frame_skip": 3, "trunk_mass_scale": 1.2, "max_episode_steps": 40,
+                                         "exclude_current_positions_from_observation": False}])
+def test_random_action_steps_equal_single_envs_from_identical_states(kwargs):
+    """Random actions make the motion chaotic (a 1e-13 round-off difference grew to 2e-9 within 25 steps for one
+    of 3 robots), so whole episodes agree to 1e-12 only for tens of steps; here every step starts from the single
+    envs' simulator state, with
+    falls, time limits and NEXT_STEP autoresets, and each step agrees to 1e-11 relative to the state's size
+    (see STEP_TOL)."""
+    venv, envs = _pair(4, seed=11, **kwargs)
+    pending = [False] * 4
+    rng = np.random.default_rng(0)
+    ends = 0
+    for _ in range(300):
+        actions = rng.uniform(-1.2, 1.2, (4, 4)).astype(np.float32)
+        _sync(venv, envs)
+        rows = _step_singles(envs, actions, pending)
+        _compare(venv.step(actions), rows, STEP_TOL)
+        ends += sum(pending)
+    assert ends >= 4
+
+
+def test_reset_seeding_and_autoreset_noise_follow_single_envs():
+    venv, envs = _pair(3, seed=5)
+    obs, _ = venv.reset(seed=[7, None, 9])
+    assert np.array_equal(obs[0], envs[0].reset(seed=7)[0]) and np.array_equal(obs[2], envs[2].reset(seed=9)[0])
+    assert np.array_equal(obs[1], envs[1].reset()[0])  # None: the generator goes on
+    obs, _ = venv.reset()
+    assert np.array_equal(obs, np.stack([env.reset()[0] for env in envs]))
+    with pytest.raises(ValueError, match="num_envs=3"):
+        venv.reset(seed=[1, 2])
+
+
+def test_same_step_autoreset_reports_the_final_observation():
+    venv = BoundingVectorEnv(num_envs=2, max_episode_steps=3, autoreset_mode="same_step")
+    env = gym.make(ENV_ID, max_episode_steps=3)
+    venv.reset(seed=0)
+    env.reset(seed=0)
+    actions = np.zeros((2, 4), dtype=np.float32)
+    for _ in range(2):
+        _, _, _, truncated, info = venv.step(actions)
+        env.step(actions[0])
+        assert not truncated.any() and "final_obs" not in info
+    obs, _, _, truncated, info = venv.step(actions)
+    last, _, _, last_truncated, last_info = env.step(actions[0])
+    assert truncated.all() and last_truncated and info["_final_obs"].all()
+    assert np.allclose(info["final_obs"][0], last, atol=1e-6)
+    assert abs(info["final_info"]["x_position"][0] - last_info["x_position"]) < 1e-12
+    assert np.array_equal(obs[0], env.reset()[0])  # already reset, with the generator's next noise
+
+
+def test_arguments_and_inputs_are_checked():
+    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", target_speed=1.5)
+    assert isinstance(venv, BoundingVectorEnv) and venv.template.target_speed == 1.5
+    assert venv.max_episode_steps == 1000 and venv.observation_space.shape == (2, 17)
+    with pytest.raises(TypeError, match="render_mode"):
+        BoundingVectorEnv(num_envs=2, render_mode="rgb_array")
+    with pytest.raises(TypeError, match="no_such_argument"):
+        BoundingVectorEnv(num_envs=2, no_such_argument=1)
+    with pytest.raises(ValueError, match="energy_consistent"):
+        BoundingVectorEnv(num_envs=2, energy_consistent=False)
+    with pytest.raises(ValueError, match="friction"):
+        BoundingVectorEnv(num_envs=2, friction=-1.0)
+    with pytest.raises(ValueError, match="num_envs"):
+        BoundingVectorEnv(num_envs=0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        BoundingVectorEnv(num_envs=2, autoreset_mode="disabled")
+    with pytest.raises(RuntimeError, match="reset"):
+        venv.step(np.zeros((2, 4)))
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        venv.step(np.zeros(4))
+    with pytest.raises(ValueError, match=r"robot\(s\) \[1\]"):
+        venv.step(np.array([[0.0] * 4, [0.0, np.nan, 0.0, 0.0]]))
+    with pytest.raises(ValueError, match="push"):
+        venv.reset(options={"push": [1.0, 0.0, 0.0]})
+    state = np.tile(venv.template.init_state, (2, 1))
+    state[1, 10] = 500.0
+    with pytest.raises(ValueError, match=r"robot 1: options\['state'\]\[10\]"):
+        venv.reset(options={"state": state})
+    state[1, 10] = 0.0
+    obs, info = venv.reset(options={"state": state, "time": 0.1, "reset_mask": np.array([False, True])})
+    assert np.array_equal(info["qpos"][1], state[1, :7]) and info["time"][1] == 0.1
+
+
+def test_sb3_ppo_trains_through_the_vector_env():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from hsddp_gym.learning.vector_sb3 import make_sb3_vec_env
+
+    env = make_sb3_vec_env(4, seed=0, max_episode_steps=40)
+    obs = env.reset()
+    assert obs.shape == (4, 17)
+    saw_end = False
+    for _ in range(45):
+        obs, reward, done, infos = env.step(np.zeros((4, 4), dtype=np.float32))
+        for i in np.nonzero(done)[0]:
+            saw_end = True
+            assert infos[i]["terminal_observation"].shape == (17,)
+            assert "TimeLimit.truncated" in infos[i]
+            assert not np.array_equal(infos[i]["terminal_observation"], obs[i])  # obs is the reset one
+    assert saw_end
+    model = PPO("MlpPolicy", VecMonitor(env), n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
+    model.learn(total_timesteps=512)
+    assert model.num_timesteps == 512 and len(model.ep_info_buffer) > 0
+
+
+def test_train_sb3_with_the_vector_env_writes_one_monitor_for_all_robots(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from hsddp_gym.learning.sb3 import train_sb3
+
+    res = train_sb3("ppo", 256, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=0,
+                    overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1}, vector_env=True)
+    assert res.summary["vector_env"] is True and res.summary["steps"] == 256
+    assert res.summary["training_episodes"] >= 4  # 30-step episodes of 4 robots, one train.monitor.csv
+    with pytest.raises(TypeError, match="vector_env"):
+        train_sb3("ppo", 10, 0, tmp_path / "bad", vector_env="yes")
+
+
+def test_cli_refuses_vector_env_for_other_learners(tmp_path, capsys):
+    from hsddp_gym import cli
+
+    assert cli.main(["train", "--algo", "dagger", "--expert", "heuristic", "--vector-env",
+                     "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --vector-env:"), err
