@@ -295,7 +295,8 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     observation only under :class:`~hsddp_gym.envs.perturbations.ObservationNoise`) while ``observations``
     keep the env's (perturbed) ones -- the learner's input: the label is the expert's action at the true state
     of the learner's situation; with DART noise the policy is also told the noisy action that was sent
-    (:func:`inform_sent_action`; without ``privileged`` it is not, as before, so older datasets reproduce). The keys wrappers add to ``info`` (``push``, ``executed_action``:
+    (:func:`inform_sent_action`; without ``privileged`` it is not, as before, so older datasets reproduce).
+    The keys wrappers add to ``info`` (``push``, ``executed_action``:
     :func:`~hsddp_gym.envs.perturbations.wrapper_info_keys`) are not recorded, so the schema stays the env's.
     """
     from hsddp_gym.envs.perturbations import true_observation, wrapper_info_keys

@@ -217,8 +217,10 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
             tasks = [RolloutTask(r, j, expert_factory, learner if r > 0 else None, config, dict(env_kwargs or {}))
                      for j in range(config.episodes_per_round)]
             results = run_parallel(run_rollout_task, tasks, workers=min(workers, len(tasks)))
-            for j, (O, A, ret, ne, speed) in enumerate(results):
-                parts.append(Demonstrations(O, A, np.full(len(O), j), target_speed=np.full(len(O), speed)))
+            for O, A, ret, ne, speed in results:
+                # one episode each (id 0): concat numbers them after the data's, contiguously
+                parts.append(Demonstrations(O, A, np.zeros(len(O), dtype=np.int64),
+                                            target_speed=np.full(len(O), speed)))
                 returns.append(ret)
                 expert_acts += ne
             new = parts[0]
