@@ -1,7 +1,8 @@
 """Imitation learners under the robustness suite: one command, from the MPC's demonstrations to the table.
 
-Builds, in ``--out`` (each step reused when its output exists and the settings in ``OUT/settings.json`` match;
-other settings are refused unless ``--overwrite``):
+Builds, in ``--out`` (each step reused when its output exists and the settings in ``OUT/settings.json`` match,
+the source code included; other settings, or changed code, e.g. a new MPC, are refused unless ``--overwrite``,
+which starts over):
 
 1. ``ds_default``: ``--demos`` MPC episodes of the plain env with DART noise (``--action-noise``) and the plan's
    feedback gains (seeds 1000..);
@@ -269,14 +270,20 @@ def main(argv: list[str] | None = None) -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = {k: getattr(args, k) for k in SETTINGS}
+    from hsddp_gym.datasets.generation import _code_fingerprint
+
+    # the source of hsddp_gym/planners/envs too: after a change of the MPC a rerun must not reuse the old data
+    settings = {**{k: getattr(args, k) for k in SETTINGS}, "code_sha256": _code_fingerprint()}
     sfile = out / "settings.json"
     if sfile.exists():
         old = json.loads(sfile.read_text())
         if old != settings:
             if not args.overwrite:
                 diff = sorted(k for k in settings if old.get(k) != settings[k])
-                p.error(f"{out} holds a run with other settings ({', '.join(diff)}); another --out, or --overwrite")
+                what = [d if d != "code_sha256" else "code_sha256: the source of hsddp_gym/planners/envs changed"
+                        for d in diff]
+                p.error(f"{out} holds a run with other settings ({', '.join(what)}); another --out, or --overwrite "
+                        "(discards its datasets and learners)")
             import shutil
 
             for sub in ("ds_default", "ds_perturbed", "ds_speeds", "learners"):
