@@ -15,7 +15,10 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; seed 
 
 * ``bc``: BC on ``ds_default`` (plain BC from DART demos);
 * ``bc_few``: BC on the first ``--few`` episodes of ``ds_default``;
-* ``bc_gains_few``: the same ``--few`` episodes plus ``--gain-copies`` feedback-gain copies per step;
+* ``bc_gains_few``: the same ``--few`` episodes plus ``--gain-copies`` feedback-gain copies per step (state
+  offsets ``--gain-noise``, default 0.01 / 0.1, the library's);
+* ``bc_gains_few_small``: the same with ``--small-gain-copies`` copies at the smaller offsets
+  ``--small-gain-noise`` (default 2 copies at 0.003 / 0.03);
 * ``bc_perturbed``: BC on ``ds_perturbed``;
 * ``dagger_perturbed``: DAgger from ``ds_perturbed``, ``--dagger-rounds`` rounds of ``--dagger-episodes``
   pure-learner rollouts (beta 0, noise ``--rollout-noise``) cycling over the same perturbations (seeds
@@ -58,7 +61,8 @@ TRAIN_SPEEDS = ("speed_0.5", "default", "speed_1.5", "speed_2.0")
 """The conditions of the speed demonstrations (0.5, 1.0, 1.5, 2.0 m/s; 1.25 m/s is held out)."""
 SPEED_CONDITIONS = ("speed_0.5", "default", "speed_1.25", "speed_1.5", "speed_2.0")
 """Where the speed-tracking goal (within 10 %) is checked."""
-LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_perturbed", "dagger_perturbed", "bc_speed", "bc_speed_perturbed")
+LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed", "dagger_perturbed", "bc_speed",
+            "bc_speed_perturbed")
 FALL_MARGIN = 1
 SPEED_TOLERANCE = 0.10
 
@@ -110,7 +114,13 @@ def train_learners(args, out: Path, data: dict) -> dict:
         "bc": dict(dataset=ds["ds_default"], demos=None, config=base),
         "bc_few": dict(dataset=ds["ds_default"], demos=args.few, config=base),
         "bc_gains_few": dict(dataset=ds["ds_default"], demos=args.few,
-                             config=dataclasses.replace(base, gain_copies=args.gain_copies)),
+                             config=dataclasses.replace(base, gain_copies=args.gain_copies,
+                                                        gain_position_std=args.gain_noise[0],
+                                                        gain_velocity_std=args.gain_noise[1])),
+        "bc_gains_few_small": dict(dataset=ds["ds_default"], demos=args.few,
+                                   config=dataclasses.replace(base, gain_copies=args.small_gain_copies,
+                                                              gain_position_std=args.small_gain_noise[0],
+                                                              gain_velocity_std=args.small_gain_noise[1])),
         "bc_perturbed": dict(dataset=ds["ds_perturbed"], demos=None, config=base),
         "bc_speed": dict(dataset=ds["ds_speeds"], demos=None,
                          config=dataclasses.replace(base, speed_input=True)),
@@ -199,7 +209,8 @@ def markdown(results: dict, reference: dict | None, conditions, goals: dict, com
 
 
 SETTINGS = ("demos", "few", "perturbed_demos", "speed_demos", "dagger_rounds", "dagger_episodes", "rollout_noise",
-            "epochs", "gain_copies", "action_noise", "max_steps")
+            "epochs", "gain_copies", "gain_noise", "small_gain_copies", "small_gain_noise", "action_noise",
+            "max_steps")
 """The arguments the datasets and learners depend on (checked against ``OUT/settings.json`` before reuse)."""
 
 
@@ -223,6 +234,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="DAgger rollouts' action noise (default: %(default)s)")
     p.add_argument("--epochs", type=int, default=100, help="BC epochs (default: %(default)s)")
     p.add_argument("--gain-copies", type=int, default=8, help="bc_gains_few's copies per step (default: %(default)s)")
+    p.add_argument("--gain-noise", type=float, nargs=2, default=[0.01, 0.1], metavar=("POS", "VEL"),
+                   help="bc_gains_few's state offsets [m or rad, m/s or rad/s] (default: %(default)s)")
+    p.add_argument("--small-gain-copies", type=int, default=2,
+                   help="bc_gains_few_small's copies per step (default: %(default)s)")
+    p.add_argument("--small-gain-noise", type=float, nargs=2, default=[0.003, 0.03], metavar=("POS", "VEL"),
+                   help="bc_gains_few_small's state offsets (default: %(default)s)")
     p.add_argument("--action-noise", type=float, default=0.04, help="DART noise of the datasets (default: %(default)s)")
     p.add_argument("--learners", nargs="+", default=list(LEARNERS), choices=LEARNERS,
                    help="learners to train and evaluate (default: all)")
@@ -250,6 +267,11 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--few must be <= --demos ({args.demos}), got {args.few}")
     if "bc_gains_few" in args.learners and args.gain_copies < 1:
         p.error("--gain-copies must be >= 1 for the bc_gains_few learner")
+    if "bc_gains_few_small" in args.learners and args.small_gain_copies < 1:
+        p.error("--small-gain-copies must be >= 1 for the bc_gains_few_small learner")
+    for flag in ("gain_noise", "small_gain_noise"):
+        if not all(v >= 0 for v in getattr(args, flag)):
+            p.error(f"--{flag.replace('_', '-')} must be two numbers >= 0, got {getattr(args, flag)}")
     for name in ("rollout_noise", "action_noise"):
         if not getattr(args, name) >= 0:
             p.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
