@@ -108,6 +108,9 @@ class ActionDelay(gym.Wrapper):
             ``env.get_wrapper_attr("action_delay_steps")``).
     """
 
+    INFO_KEYS = ("executed_action",)
+    """The ``info`` keys this wrapper adds (:func:`wrapper_info_keys`)."""
+
     def __init__(self, env: gym.Env, steps: int = 1) -> None:
         super().__init__(env)
         self.action_delay_steps = check_int(steps, "steps", minimum=0)
@@ -158,6 +161,8 @@ class RandomPush(gym.Wrapper):
     """
 
     SALT = 0x9054
+    INFO_KEYS = ("push",)
+    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
 
     def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0)) -> None:
         super().__init__(env)
@@ -255,6 +260,39 @@ def get_condition(name: str) -> Condition:
     if not isinstance(name, str) or name not in CONDITIONS:
         raise ValueError(f"condition must be one of {list(CONDITIONS)}, got {name!r}")
     return CONDITIONS[name]
+
+
+def check_conditions(names, argument: str = "conditions") -> tuple[str, ...]:
+    """``names`` (a non-empty sequence of :data:`CONDITIONS` names, repeats allowed) as a tuple; ``ValueError``
+    naming ``argument`` and the allowed names otherwise."""
+    if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
+        raise ValueError(f"{argument} must be a non-empty list of condition names, got {names!r}")
+    bad = [n for n in names if not isinstance(n, str) or n not in CONDITIONS]
+    if bad:
+        raise ValueError(f"{argument}: unknown condition(s) {bad}; allowed: {list(CONDITIONS)}")
+    return tuple(names)
+
+
+def wrapper_info_keys(env: gym.Env) -> frozenset:
+    """The ``info`` keys the wrappers of ``env`` add to the unwrapped env's (their ``INFO_KEYS``): the keys a
+    recorder drops to keep the env's own per-step schema (``push`` appears at reset only)."""
+    keys: set = set()
+    e = env
+    while isinstance(e, gym.Wrapper):
+        keys.update(getattr(e, "INFO_KEYS", ()))
+        e = e.env
+    return frozenset(keys)
+
+
+def true_observation(env: gym.Env) -> np.ndarray:
+    """The observation ``(layout.size,)`` float32 of the env's *true* current state (what the unwrapped env
+    returned at the last reset/step, before any :class:`ObservationNoise`), built from the public state,
+    contact flags and clock of ``env.unwrapped``; for an env without observation noise it equals the
+    observation the env returned."""
+    from hsddp_gym.core.observation import build_observation
+
+    u = env.unwrapped
+    return build_observation(u.state, u.contact, u.time, u.gait_period, u.observation_layout)
 
 
 def make_env(condition: str | Condition, **make_kwargs) -> gym.Env:

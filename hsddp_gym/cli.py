@@ -40,6 +40,30 @@ _finite_float = _number(float, -1e300, 1e300, what="a finite number")
 _seed = _number(int, 0, what="an integer >= 0 (a seed)")
 
 
+def _condition(text: str) -> str:
+    """An argparse ``type``: a name of ``hsddp_gym.envs.perturbations.CONDITIONS``."""
+    from hsddp_gym.envs.perturbations import CONDITIONS
+
+    if text not in CONDITIONS:
+        raise argparse.ArgumentTypeError(f"{text} (allowed: {', '.join(CONDITIONS)})")
+    return text
+
+
+_condition.__name__ = "condition"
+
+
+def _check_conditions(args, flag: str = "--condition") -> None:
+    """UsageError when ``args.condition`` and ``--target-speed`` both set the target speed."""
+    if not args.condition or args.target_speed is None:
+        return
+    from hsddp_gym.envs.perturbations import get_condition
+
+    both = [c for c in args.condition if "target_speed" in get_condition(c).env_kwargs]
+    if both:
+        raise UsageError("--target-speed", f"given with {flag} {' '.join(both)}, which set the target speed",
+                         "either --target-speed or speed conditions")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors: ``error: --option: value (allowed: ...)`` on stderr, exit code 2."""
 
@@ -231,6 +255,7 @@ def cmd_dataset(args) -> int:
     if args.dataset_id is not None:
         check_dataset_id(args.dataset_id, "--dataset-id")
     require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
+    _check_conditions(args)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.address is not None and args.backend != "ray":
         raise UsageError("--address", f"{args.address!r} without --backend ray", "only with --backend ray")
@@ -245,7 +270,8 @@ def cmd_dataset(args) -> int:
                                backend=args.backend, address=args.address,
                                dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
                                max_episode_steps=args.max_episode_steps, include_gains=args.gains,
-                               progress=not args.quiet, action_noise=args.action_noise, resume=not args.no_resume)
+                               progress=not args.quiet, action_noise=args.action_noise, resume=not args.no_resume,
+                               conditions=args.condition)
     except FileExistsError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -264,6 +290,9 @@ def cmd_dataset(args) -> int:
              if not res.resumed_episodes else "")
           + f"; {res.total_time_s:.1f} s in all (reference-score episodes {m['reference_time_s']:.1f} s"
           + (f", expert plan {m['plan_time_s']:.1f} s" if m.get("plan_time_s") else "") + ", writing)")
+    if args.condition:
+        counts = {c: m["episode_conditions"].count(c) for c in dict.fromkeys(args.condition)}
+        print("  episodes per condition: " + ", ".join(f"{c} {n}" for c, n in counts.items()))
     print(f"  ref_max_score {m['ref_max_score']:.4g} ({m['ref_max_score_source']}), ref_min_score "
           f"{m['ref_min_score']:.4g} (random policy)")
     print(f"wrote {res.path}/ (minari/, episodes.npz, metadata.json); load with "
@@ -289,6 +318,10 @@ def _check_train(args) -> None:
                         ("--speed-input", args.speed_input)):
         if given and args.algo != "bc":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo bc")
+    for flag, given in (("--condition", args.condition), ("--workers", args.workers is not None)):
+        if given and args.algo != "dagger":
+            raise UsageError(flag, f"given with --algo {args.algo}", "--algo dagger")
+    _check_conditions(args)
     if args.gain_noise is not None and not args.gain_copies:
         raise UsageError("--gain-noise", "given without --gain-copies", "with --gain-copies N (N >= 1)")
     if args.n_envs is not None and args.algo not in ("ppo", "sac"):
@@ -371,13 +404,13 @@ def cmd_train(args) -> int:
         config = DAggerConfig(rounds=args.rounds, episodes_per_round=args.episodes_per_round,
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
                               rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
-                              rollout_steps=args.rollout_steps,
+                              rollout_steps=args.rollout_steps, conditions=tuple(args.condition or ()),
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                           seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config,
                              dataset=None if args.dataset is None else args.dataset[0],
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
-                             env_kwargs=env_kwargs, progress=not args.quiet)
+                             env_kwargs=env_kwargs, progress=not args.quiet, workers=args.workers or 1)
     ev = summary.get("eval") or {}
     used = {"ppo": "steps", "sac": "steps", "bc": "transitions", "dagger": "expert_labels"}[args.algo]
     print(f"{args.algo}: {used} {summary.get(used)}, training wall time {summary.get('wall_time_s', 0.0):.1f} s"
@@ -427,6 +460,12 @@ def _add_learning_parsers(sub) -> None:
                         "(normalized units, e.g. 0.04) and store the clean action in infos/expert_action, the "
                         "label BC/DAgger use; ref_max_score then comes from 5 noise-free episodes (default: 0, "
                         "no noise)")
+    p.add_argument("--condition", type=_condition, nargs="+", default=None, metavar="NAME",
+                   help="demonstrations under perturbations: names of hsddp_gym.envs.perturbations.CONDITIONS "
+                        "(e.g. push obs_noise delay_10ms speed_2.0; repeats weight them); episode i runs in the "
+                        "(i mod n)-th, its perturbation seeded by its seed, recorded in the metadata "
+                        "(episode_conditions, episode_target_speeds). The expert acts on the true state; the "
+                        "stored observations are the perturbed ones (default: the plain env)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
@@ -512,6 +551,14 @@ def _add_learning_parsers(sub) -> None:
                    help="dagger: truncate the relabelling rollouts (rounds >= 1) after this many steps, to spend "
                         "the label budget on many starts (the learner's falls happen early); every labelled step "
                         "counts (default: full episodes)")
+    p.add_argument("--condition", type=_condition, nargs="+", default=None, metavar="NAME",
+                   help="dagger: run the relabelling rollouts under perturbations, names of "
+                        "hsddp_gym.envs.perturbations.CONDITIONS (episode j of a round in the (j mod n)-th); the "
+                        "learner acts on the perturbed observation, the MPC labels the true state and is told the "
+                        "action sent (default: the plain env)")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="dagger: processes running each round's rollouts; results do not depend on it "
+                        "(default: 1)")
     p.add_argument("--warm-start", action="store_true",
                    help="dagger: rounds >= 1 fine-tune the previous round's network (and keep its input "
                         "standardization) for --epochs instead of retraining from scratch")

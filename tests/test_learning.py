@@ -329,7 +329,8 @@ def test_demonstration_labels_are_the_clean_actions_of_a_noisy_dataset(tmp_path)
 # ------------------------------------------------------------------------------------------ DAgger with the MPC
 def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
     """beta = 0: the learner alone drives the round-1 rollouts; every visited observation is labelled with
-    the MPC expert's action there (a fresh MPC replaying those observations gives the same labels)."""
+    the MPC expert's action there (a fresh MPC replaying those observations, told after each one the action
+    the round-0 learner sent, gives the same labels; believing its own actions sent, it does not)."""
     import json
 
     from hsddp_gym.planners.policies.mpc import MPCPolicy
@@ -348,9 +349,22 @@ def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
     d = read_npz(out / "dagger_data.npz")
     learner_obs, labels = d["obs"][d["episode"] == 1], d["actions"][d["episode"] == 1]
     assert 0 < len(learner_obs) <= 16
+    from hsddp_gym.datasets.recording import inform_sent_action
+    from hsddp_gym.learning.demonstrations import Demonstrations
+    from hsddp_gym.planners.policies.base import EnvInterface
+
+    r0 = d["episode"] == 0  # round 0's data; retrained as in the run (same config and seed): the round-1 learner
+    learner0, _ = train_bc(Demonstrations(d["obs"][r0], d["actions"][r0], d["episode"][r0]),
+                           BCConfig(epochs=2, hidden=(16,), seed=0), EnvInterface.from_env(make_env()))
     mpc = MPCPolicy.from_env(make_env())
     mpc.reset()
-    np.testing.assert_array_equal(np.stack([mpc(o) for o in learner_obs]), labels)
+    replay = []
+    for o in learner_obs:
+        replay.append(mpc(o))
+        inform_sent_action(mpc, learner0(o))
+    np.testing.assert_array_equal(np.stack(replay), labels)
+    mpc.reset()
+    assert not np.array_equal(np.stack([mpc(o) for o in learner_obs]), labels)
     # the learner's states are not the expert's own trajectory from the same reset
     env = make_env(max_episode_steps=16)
     obs, _ = env.reset(seed=1000)  # round 1, episode 0: seed + 1000 * round + j

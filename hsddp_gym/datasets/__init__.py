@@ -77,7 +77,8 @@ from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {  # module: the public names it defines
     "collection": (
-        "EpisodeTask", "checkpoint_path", "collect_episodes", "load_episode", "make_env",
+        "EpisodeTask", "check_condition_kwargs", "checkpoint_path", "collect_episodes", "episode_conditions",
+        "load_episode", "make_env",
         "run_episode_task", "save_episode",
     ),
     "generation": (
@@ -86,7 +87,8 @@ _EXPORTS = {  # module: the public names it defines
     ),
     "recording": (
         "DecisionRecorder", "ENV_ID", "EXPERT_PLAN", "Episode", "GAIN_KEY", "NOISE_STREAM", "NONDETERMINISTIC_INFOS",
-        "POLICIES", "PolicySpec", "capture_plan_controls", "record_episode", "solve_expert_plan",
+        "POLICIES", "PolicySpec", "capture_plan_controls", "inform_sent_action", "record_episode",
+        "solve_expert_plan",
     ),
     "storage": (
         "FlatDataset", "default_dataset_id", "episodes_to_arrays", "load_minari", "load_npz", "minari_root",

@@ -24,10 +24,16 @@ class EpisodeTask:
     max_episode_steps: int | None
     include_gains: bool = False
     action_noise: float = 0.0
+    condition: str | None = None
+    """A name of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (None: the plain env); the policy then acts on
+    the true state (``record_episode(privileged=True)``)."""
 
 
-def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None):
-    """``gym.make("hsddp_gym/Bounding-v0", **env_kwargs)`` with an optional time-limit override."""
+def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None, condition: str | None = None):
+    """``gym.make("hsddp_gym/Bounding-v0", **env_kwargs)`` with an optional time-limit override; with
+    ``condition`` (a name of :data:`hsddp_gym.envs.perturbations.CONDITIONS`) that condition's env (its env
+    arguments and wrappers, :func:`hsddp_gym.envs.perturbations.make_env`) with ``env_kwargs`` added (a key
+    both set raises ``ValueError``)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
@@ -35,16 +41,39 @@ def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = Non
     kw = dict(env_kwargs or {})
     if max_episode_steps is not None:
         kw["max_episode_steps"] = int(max_episode_steps)
+    if condition is not None:
+        from hsddp_gym.envs.perturbations import make_env as make_condition_env
+
+        return make_condition_env(condition, **kw)
     return gym.make(ENV_ID, **kw)
+
+
+def episode_conditions(conditions, episodes: int) -> list:
+    """The condition of each of ``episodes`` episodes: episode ``i`` runs in ``conditions[i % len(conditions)]``
+    (the named conditions in turn); ``[None] * episodes`` without conditions."""
+    if not conditions:
+        return [None] * int(episodes)
+    return [conditions[i % len(conditions)] for i in range(int(episodes))]
+
+
+def check_condition_kwargs(conditions, env_kwargs: dict | None) -> None:
+    """``ValueError`` if an env argument of ``env_kwargs`` is also set by one of ``conditions`` (e.g. a target
+    speed given twice)."""
+    from hsddp_gym.envs.perturbations import get_condition
+
+    for name in dict.fromkeys(conditions or ()):
+        both = sorted(set(env_kwargs or {}) & set(get_condition(name).env_kwargs))
+        if both:
+            raise ValueError(f"condition {name!r} sets {both} itself; do not also give them as env arguments")
 
 
 def run_episode_task(task: EpisodeTask) -> Episode:
     """Worker entry point (top level, spawn-safe): a fresh env and policy, one recorded episode."""
-    env = make_env(task.env_kwargs, task.max_episode_steps)
+    env = make_env(task.env_kwargs, task.max_episode_steps, task.condition)
     try:
         policy, options = task.policy_factory(env, task.seed)
         return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains,
-                              action_noise=task.action_noise)
+                              action_noise=task.action_noise, privileged=task.condition is not None)
     finally:
         env.close()
 
@@ -82,7 +111,7 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
                      env_kwargs: dict | None = None, max_episode_steps: int | None = None,
                      include_gains: bool = False, progress: bool = True, desc: str = "episodes",
                      action_noise: float = 0.0, checkpoint_dir=None, checkpoint_prefix: str = "episode",
-                     backend: str = "local", address: str | None = None) -> list[Episode]:
+                     backend: str = "local", address: str | None = None, conditions=None) -> list[Episode]:
     """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` workers.
 
     Args:
@@ -98,6 +127,10 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
             atomically as it arrives) and episodes already saved there are loaded instead of being run again
             (the caller makes sure they were recorded with the same settings; :func:`generate_dataset` does).
         checkpoint_prefix: file-name prefix of the checkpoints.
+        conditions: names of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (None: the plain env): episode ``i``
+            runs in ``conditions[i % len(conditions)]`` (:func:`episode_conditions`), every random draw of its
+            perturbation seeded by its episode seed; the policy acts on the true state, the recorded
+            observations are the perturbed ones (``record_episode(privileged=True)``).
     Returns:
         The episodes in index order (identical for any ``workers``, and whether loaded or recorded).
     """
@@ -107,10 +140,15 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     check_backend(backend, address)
+    if conditions is not None:
+        from hsddp_gym.envs.perturbations import check_conditions
+
+        conditions = check_conditions(conditions, "conditions")
+        check_condition_kwargs(conditions, env_kwargs)
     from tqdm import tqdm
 
     tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
-                         float(action_noise)) for i in range(episodes)]
+                         float(action_noise), cond) for i, cond in enumerate(episode_conditions(conditions, episodes))]
     results: list[Episode | None] = [None] * episodes
     if checkpoint_dir is not None:
         Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)

@@ -168,7 +168,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                      max_episode_steps: int | None = None, policy_options: dict | None = None,
                      include_gains: bool = False, progress: bool = True, policy_name: str | None = None,
                      policy_description: dict | None = None, action_noise: float = 0.0,
-                     resume: bool = True, backend: str = "local", address: str | None = None) -> DatasetResult:
+                     resume: bool = True, backend: str = "local", address: str | None = None,
+                     conditions=None) -> DatasetResult:
     """Generate a demonstration dataset into ``out`` (see the module docstring).
 
     **Interrupted runs and reruns.** Every finished episode is checkpointed (atomically) into the hidden
@@ -205,6 +206,14 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             :data:`REF_MAX_EPISODES` clean episodes of the policy (the expert's score, not the noisy one's).
         resume: resume from the checkpoints of an interrupted run with the same settings (False: discard
             any checkpoints and start over).
+        conditions: demonstrations under perturbations: names of
+            :data:`hsddp_gym.envs.perturbations.CONDITIONS` (repeats allowed, as weights); episode ``i`` runs in
+            ``conditions[i % len(conditions)]``, its perturbation seeded by its episode seed. The policy acts on
+            the true state (under observation noise it sees the clean observation), the dataset's
+            ``observations`` are the perturbed ones the learner will see (``record_episode(privileged=True)``).
+            The metadata record ``conditions`` (names, definitions) and, per episode, ``episode_conditions``
+            and ``episode_target_speeds``. The reference episodes cycle through the same conditions (the random
+            policy's run in the plain env). None: the plain env.
     Raises:
         FileExistsError: ``out`` exists and ``overwrite`` is False; checkpoints with other settings exist
             and neither ``resume=False`` nor ``overwrite``; another run is writing ``out``.
@@ -221,6 +230,12 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     out = Path(out)
     check_target(out, overwrite)
     env_kwargs = dict(env_kwargs or {})
+    if conditions is not None:
+        from hsddp_gym.datasets.collection import check_condition_kwargs
+        from hsddp_gym.envs.perturbations import check_conditions
+
+        conditions = list(check_conditions(conditions, "conditions"))
+        check_condition_kwargs(conditions, env_kwargs)
     partial = partial_dir(out)
     plan_file = partial / "expert_plan.npz"
     if isinstance(policy, str):
@@ -237,6 +252,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                 "policy_factory": _factory_id(spec), "seed": int(seed), "env_kwargs": env_kwargs,
                 "max_episode_steps": max_episode_steps, "include_gains": bool(include_gains),
                 "action_noise": action_noise, "code_sha256": _code_fingerprint()}
+    if conditions is not None:
+        settings["conditions"] = conditions
     parent_dir(out)
     t_start = time.perf_counter()
     with _exclusive(partial):
@@ -249,7 +266,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             eps, metadata, extra, gen_time = _generate(spec, name, describe, episodes, seed, workers, env_kwargs,
                                                        max_episode_steps, include_gains, progress, action_noise,
                                                        dataset_id, partial, plan_file, resumed,
-                                                       {"backend": backend, "address": address})
+                                                       {"backend": backend, "address": address,
+                                                        "conditions": conditions})
             env = make_env(env_kwargs, max_episode_steps)
             try:
                 write_dataset(eps, out, dataset_id, env, metadata, ref_min_score=metadata["ref_min_score"],
@@ -284,16 +302,18 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
     t1 = time.perf_counter()
     eps = collect_episodes(spec, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
                            progress, desc=f"{name} episodes", action_noise=action_noise, checkpoint_dir=partial,
-                           **where)
+                           backend=where["backend"], address=where["address"], conditions=where["conditions"])
     gen_time = time.perf_counter() - t1
     t2 = time.perf_counter()
+    where = dict(where)
+    conditions = where.pop("conditions", None)
     ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed)
     returns = [e.episode_return for e in eps]
     if action_noise > 0:
         n_ref = min(int(episodes), REF_MAX_EPISODES)
         ref_eps = collect_episodes(spec, n_ref, seed, workers, env_kwargs, max_episode_steps, progress=progress,
                                    desc=f"{name} reference episodes (no noise)", checkpoint_dir=partial,
-                                   checkpoint_prefix="reference", **where)
+                                   checkpoint_prefix="reference", conditions=conditions, **where)
         ref_returns = [e.episode_return for e in ref_eps]
         ref_source = (f"mean return of the {name} policy without action noise over {n_ref} episodes, seeds "
                       f"{seed}..{seed + n_ref - 1} (not in the dataset)")
@@ -333,6 +353,7 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         "ref_min_score_source": f"mean return of RandomPolicy over {REF_MIN_EPISODES} episodes, seeds "
                                 f"{seed}..{seed + REF_MIN_EPISODES - 1}",
         "random_returns": random_returns,
+        **_condition_metadata(conditions, len(eps), env_kwargs),
         "infos_schema": {k: [list(v.shape[1:]), str(v.dtype)] for k, v in eps[0].infos.items()},
         "infos_alignment": "row t = observation t (reset info first) and the decision taken at it; the last "
                            "row repeats the last decision with replanned = planner_failed = False",
@@ -352,3 +373,22 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         "hsddp_gym_version": package_version(),
     }
     return eps, metadata, extra, gen_time
+
+
+def _condition_metadata(conditions, episodes: int, env_kwargs: dict) -> dict:
+    """The metadata entries of demonstrations under perturbations (``conditions``; none without)."""
+    if conditions is None:
+        return {}
+    from hsddp_gym.datasets.collection import episode_conditions
+    from hsddp_gym.envs.bounding import DEFAULT_TARGET_SPEED
+    from hsddp_gym.envs.perturbations import get_condition
+
+    names = episode_conditions(conditions, episodes)
+    speeds = [float({**env_kwargs, **get_condition(c).env_kwargs}.get("target_speed", DEFAULT_TARGET_SPEED))
+              for c in names]
+    return {"conditions": {"names": list(conditions),
+                           "definitions": {c: get_condition(c).as_dict() for c in dict.fromkeys(conditions)},
+                           "rule": "episode i runs in names[i % len(names)], its perturbation seeded by its seed",
+                           "expert_observation": "the policy acted on the true state (the observation without "
+                                                 "observation noise); observations are the perturbed ones"},
+            "episode_conditions": names, "episode_target_speeds": speeds}

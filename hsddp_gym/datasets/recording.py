@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import dataclasses
 import functools
@@ -245,6 +246,26 @@ class DecisionRecorder:
         return d
 
 
+def inform_sent_action(policy, action) -> None:
+    """Tell a policy that remembers the actions it returned which action was actually sent to the env in its
+    place (the learner's in a DAgger rollout, or the expert's plus DART noise).
+
+    :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy` feeds its last returned actions to its state filter (the
+    action executed over the last control period) and to its latency compensation (the actions still in the
+    env's delay queue); when another action was sent, its prediction of the state would follow an action
+    the env never executed. A policy's public ``note_sent_action(action)`` is called when it has one;
+    otherwise the newest entry of the MPC's record of sent actions (its ``_sent`` deque) is replaced. Other
+    policies are left alone.
+    """
+    note = getattr(policy, "note_sent_action", None)
+    if callable(note):
+        note(action)
+        return
+    sent = getattr(policy, "_sent", None)
+    if isinstance(sent, collections.deque) and len(sent):
+        sent[-1] = np.array(action, dtype=np.float32).reshape(NU)
+
+
 def _info_schema(info: dict) -> dict:
     return {k: (np.asarray(v).shape, np.asarray(v).dtype) for k, v in info.items()}
 
@@ -258,7 +279,7 @@ def _check_info(info: dict, schema: dict, step: int) -> None:
 
 
 def record_episode(env, policy, seed: int, options: dict | None = None, index: int = 0,
-                   include_gains: bool = False, action_noise: float = 0.0) -> Episode:
+                   include_gains: bool = False, action_noise: float = 0.0, privileged: bool = False) -> Episode:
     """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)``.
 
     ``policy`` is any callable ``obs -> action`` with an optional ``reset()``; planner statistics and the
@@ -268,11 +289,30 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     ``clip(a + action_noise * N(0, I), -1, 1)`` with ``a`` the policy's action, the noise drawn from
     ``np.random.default_rng([NOISE_STREAM, seed])``; ``a`` itself is stored in ``infos["expert_action"]``
     (row t: the clean action at observation t; the last row repeats the last one) -- the label for imitation.
+
+    ``privileged=True`` (demonstrations under a perturbation, ``hsddp-gym dataset --condition``): the policy
+    acts on :func:`hsddp_gym.envs.perturbations.true_observation` (the true state; it differs from the env's
+    observation only under :class:`~hsddp_gym.envs.perturbations.ObservationNoise`) while ``observations``
+    keep the env's (perturbed) ones -- the learner's input: the label is the expert's action at the true state
+    of the learner's situation; with DART noise the policy is also told the noisy action that was sent
+    (:func:`inform_sent_action`; without ``privileged`` it is not, as before, so older datasets reproduce).
+    The keys wrappers add to ``info`` (``push``, ``executed_action``:
+    :func:`~hsddp_gym.envs.perturbations.wrapper_info_keys`) are not recorded, so the schema stays the env's.
     """
+    from hsddp_gym.envs.perturbations import true_observation, wrapper_info_keys
+
     action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
+    if not isinstance(privileged, (bool, np.bool_)):
+        raise TypeError(f"privileged must be a bool, got {type(privileged).__name__}")
+    drop = wrapper_info_keys(env)
+
+    def env_info(i: dict) -> dict:
+        return {k: v for k, v in i.items() if k not in drop} if drop else i
+
     noise_rng = np.random.default_rng([NOISE_STREAM, int(seed)]) if action_noise > 0 else None
     t0 = time.perf_counter()
     obs, info = env.reset(seed=int(seed), options=options)
+    info = env_info(info)
     if hasattr(policy, "reset"):
         policy.reset()
     schema = _info_schema(info)
@@ -281,13 +321,16 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     observations, actions, rewards, terms, truncs, rows = [obs], [], [], [], [], []
     with capture_plan_controls() as slot:
         while True:
-            action, decision = rec.act(obs, slot)
+            action, decision = rec.act(true_observation(env) if privileged else obs, slot)
             if noise_rng is not None:
                 decision = {**decision, "expert_action": action.copy()}
                 action = np.clip(action + action_noise * noise_rng.standard_normal(action.shape), -1.0,
                                  1.0).astype(np.float32)
+                if privileged:
+                    inform_sent_action(policy, action)
             rows.append({**info, **decision})
             obs, reward, terminated, truncated, info = env.step(action)
+            info = env_info(info)
             _check_info(info, schema, len(actions))
             observations.append(obs)
             actions.append(action)

@@ -112,6 +112,12 @@ class MLPPolicy(Policy):
         if self.clock is not None:
             self.clock.reset()
 
+    def with_interface(self, interface: EnvInterface) -> MLPPolicy:
+        """The same network acting in another env (``interface``: e.g. its target speed for ``speed_input``),
+        with a fresh memory."""
+        return MLPPolicy(interface, weights=self.weights, obs_mean=self.obs_mean, obs_std=self.obs_std,
+                         config=self.config, info=self.info, clock=self.clock)
+
     def _reset_copy_state(self) -> None:
         if self.clock is not None:
             self.clock = self.clock.copy()

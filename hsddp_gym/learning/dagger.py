@@ -36,6 +36,14 @@ class DAggerConfig:
             expert's clean action (0: none).
         warm_start: rounds >= 1 start training from the previous round's network and input standardization
             (``epochs`` per round, lr schedule restarted) instead of a fresh initialization.
+        conditions: names of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (empty: the plain env):
+            episode ``j`` of every round runs in ``conditions[j % len(conditions)]`` (its perturbation seeded by
+            its episode seed), so the learner is relabelled in the perturbed states it reaches. The expert
+            runs alongside on the *true* state (:func:`hsddp_gym.envs.perturbations.true_observation`: without
+            the observation noise) and is told the action actually sent
+            (:func:`hsddp_gym.datasets.recording.inform_sent_action`), so under latency its prediction of
+            the pending actions holds the learner's; the learner acts on (and the labels are stored with) the
+            perturbed observation.
         rollout_steps: truncate the relabelling rollouts of rounds >= 1 after this many steps (None: run to
             the end of the episode). The learner's falls happen in the first ~150 steps (the start transient
             from the reset noise), so short rollouts spend the label budget on many initial states instead of
@@ -51,8 +59,17 @@ class DAggerConfig:
     rollout_noise: float = 0.0
     warm_start: bool = False
     rollout_steps: int | None = None
+    conditions: tuple = ()
 
     def __post_init__(self) -> None:
+        if self.conditions:
+            from hsddp_gym.envs.perturbations import check_conditions
+
+            object.__setattr__(self, "conditions", check_conditions(list(self.conditions), "conditions"))
+        elif not isinstance(self.conditions, (tuple, list)):
+            raise ValueError(f"conditions must be a list of condition names, got {self.conditions!r}")
+        else:
+            object.__setattr__(self, "conditions", ())
         if int(self.bc.gain_copies):
             raise ValueError("bc.gain_copies must be 0 for DAgger: its relabelled rounds have no feedback gains "
                              "(gain labels are a behaviour-cloning option)")
@@ -89,15 +106,21 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
                    ) -> tuple[np.ndarray, np.ndarray, float, int]:
     """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
     observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
-    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). Returns ``(obs (T, d),
-    expert actions (T, 4), return, expert acts)``."""
+    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the
+    true state (:func:`hsddp_gym.envs.perturbations.true_observation`; the env's observation unless it is
+    wrapped in observation noise) and is told the action sent (:func:`inform_sent_action`); the learner acts
+    on the env's observation, which is what is stored. Returns ``(obs (T, d), expert actions (T, 4), return,
+    expert acts)``."""
+    from hsddp_gym.datasets.recording import inform_sent_action
+    from hsddp_gym.envs.perturbations import true_observation
+
     obs, _ = env.reset(seed=int(seed), options=options)
     expert.reset()
     if learner is not None:
         learner.reset()
     O, A, ret, n_expert = [], [], 0.0, 0
     while True:
-        label = np.asarray(expert(obs), dtype=np.float32)
+        label = np.asarray(expert(true_observation(env)), dtype=np.float32)
         O.append(np.asarray(obs, dtype=np.float32))
         A.append(label)
         use_expert = learner is None or rng.random() < beta
@@ -105,6 +128,7 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
         action = label if use_expert else np.asarray(learner(obs), dtype=np.float32)
         if noise > 0:
             action = np.clip(action + noise * rng.standard_normal(action.shape), -1.0, 1.0).astype(np.float32)
+        inform_sent_action(expert, action)
         obs, reward, terminated, truncated, _ = env.step(action)
         ret += float(reward)
         if terminated or truncated or (max_steps is not None and len(O) >= int(max_steps)):
@@ -112,9 +136,51 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     return np.array(O), np.array(A), ret, n_expert
 
 
+@dataclasses.dataclass(frozen=True)
+class RolloutTask:
+    """One relabelling rollout (picklable, for a worker process): round ``round_index``, episode ``j``."""
+
+    round_index: int
+    j: int
+    expert_factory: Callable
+    learner: MLPPolicy | None
+    config: DAggerConfig
+    env_kwargs: dict
+
+    @property
+    def seed(self) -> int:
+        return int(self.config.seed) + 1000 * int(self.round_index) + int(self.j)
+
+    @property
+    def condition(self) -> str | None:
+        c = self.config.conditions
+        return c[self.j % len(c)] if c else None
+
+
+def run_rollout_task(task: RolloutTask) -> tuple:
+    """Worker entry point: a fresh env (the task's condition) and expert, one :func:`dagger_rollout`; the
+    learner acts with the env's interface (its target speed). Returns ``(obs, labels, return, expert acts,
+    target speed)``."""
+    from hsddp_gym.datasets.collection import make_env
+
+    cfg, r = task.config, task.round_index
+    env = make_env(task.env_kwargs, cfg.max_episode_steps, task.condition)
+    try:
+        learner = task.learner.with_interface(EnvInterface.from_env(env)) if task.learner is not None else None
+        expert, options = task.expert_factory(env, task.seed)
+        O, A, ret, ne = dagger_rollout(env, learner, expert, cfg.beta(r), task.seed,
+                                       np.random.default_rng([cfg.seed, r, task.j]), options,
+                                       noise=float(cfg.rollout_noise) if r > 0 else 0.0,
+                                       max_steps=cfg.rollout_steps if r > 0 else None)
+        return O, A, ret, ne, float(env.unwrapped.target_speed)
+    finally:
+        env.close()
+
+
 def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig(),
                  initial: Demonstrations | None = None, env_kwargs: dict | None = None,
-                 evaluate: Callable | None = None, progress: bool = True, clock=None) -> DAggerResult:
+                 evaluate: Callable | None = None, progress: bool = True, clock=None,
+                 workers: int = 1) -> DAggerResult:
     """DAgger with any expert (see the module docstring).
 
     Args:
@@ -123,11 +189,18 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
         initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
         evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
         clock: the gait clock of ``gait_clock`` features (default: the default MPC's, :func:`make_gait_clock`).
+        workers: processes running a round's rollouts (:func:`hsddp_gym.util.parallel.run_parallel`; each
+            rollout has its own env, expert and seeds, so the result does not depend on it).
     """
     from tqdm import tqdm
 
-    from hsddp_gym.datasets.collection import make_env
+    from hsddp_gym.datasets.collection import check_condition_kwargs, make_env
+    from hsddp_gym.util.parallel import run_parallel
 
+    workers = int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    check_condition_kwargs(config.conditions, env_kwargs)
     t0 = time.perf_counter()
     env = make_env(env_kwargs, config.max_episode_steps)
     interface = EnvInterface.from_env(env)
@@ -141,14 +214,13 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
         new, returns, expert_acts, n_eps = None, [], 0, 0
         if r > 0 or data is None:
             parts = []
-            for j in range(config.episodes_per_round):
-                seed = config.seed + 1000 * r + j
-                expert, options = expert_factory(env, seed)
-                O, A, ret, ne = dagger_rollout(env, learner if r > 0 else None, expert, beta, seed,
-                                               np.random.default_rng([config.seed, r, j]), options,
-                                               noise=float(config.rollout_noise) if r > 0 else 0.0,
-                                               max_steps=config.rollout_steps if r > 0 else None)
-                parts.append(Demonstrations(O, A, np.full(len(O), j)))
+            tasks = [RolloutTask(r, j, expert_factory, learner if r > 0 else None, config, dict(env_kwargs or {}))
+                     for j in range(config.episodes_per_round)]
+            results = run_parallel(run_rollout_task, tasks, workers=min(workers, len(tasks)))
+            for O, A, ret, ne, speed in results:
+                # one episode each (id 0): concat numbers them after the data's, contiguously
+                parts.append(Demonstrations(O, A, np.zeros(len(O), dtype=np.int64),
+                                            target_speed=np.full(len(O), speed)))
                 returns.append(ret)
                 expert_acts += ne
             new = parts[0]
@@ -179,13 +251,15 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
 
 def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
                demos: int | None = None, fmt: str = "minari", eval_episodes: int = 10,
-               env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True) -> dict:
+               env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True,
+               workers: int = 1) -> dict:
     """DAgger with a built-in expert (``heuristic``, ``mpc`` or ``expert``) and write into ``out``:
     ``policy.npz``, ``dagger_data.npz`` (aggregate labels), ``summary.json``, ``curve.csv`` / ``curve.png``
     (evaluation return after each round vs expert labels).
 
     Args:
         dataset: optional dataset directory whose first ``demos`` episodes are the round-0 demonstrations.
+        workers: processes for each round's rollouts (the result does not depend on it).
     """
     from hsddp_gym.datasets.recording import PolicySpec, solve_expert_plan
     from hsddp_gym.util.extras import require
@@ -219,7 +293,8 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         env = make_env(env_kwargs, config.max_episode_steps)
         clock = make_gait_clock(EnvInterface.from_env(env), mpc_options if expert == "mpc" else None)
         env.close()
-    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock)
+    res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock,
+                       workers=workers)
     res.policy.save(out / "policy.npz")
     write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode)
     rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],
@@ -237,7 +312,8 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         "initial_dataset": None if dataset is None else str(dataset), "initial_demonstrations":
         None if initial is None else initial.n_episodes, "expert_labels": res.expert_labels,
         "transitions": len(res.data), "history": res.history, "wall_time_s": res.wall_time_s,
-        "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files}
+        "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files,
+        "conditions": list(config.conditions), "workers": int(workers)}
     if plan is not None:
         summary["expert_plan"] = plan
     if res.history and res.history[-1].get("eval"):

@@ -127,7 +127,7 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         p = Path(source)
         meta_file = (p.parent if p.is_file() else p) / "metadata.json"
         if meta_file.exists():
-            speed = _target_speed(datasets.read_metadata(meta_file.parent))
+            speed = _target_speeds(datasets.read_metadata(meta_file.parent))
         if p.is_file():
             source = datasets.load_npz(p)
         elif fmt == "npz":
@@ -139,7 +139,7 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
     if episodes is not None and not 1 <= int(episodes) <= available:
         raise ValueError(f"episodes must be in 1 .. {available} (the dataset's episodes), got {episodes}")
     if isinstance(source, datasets.FlatDataset):
-        speed = _target_speed(source.metadata) if speed is None and source.metadata else speed
+        speed = _target_speeds(source.metadata) if speed is None and source.metadata else speed
         n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
         for i in range(n):
             e = source.episode(i)
@@ -165,15 +165,26 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         feedback = laws[0]
         for law in laws[1:]:
             feedback = FeedbackLaw.concat(feedback, law)
-    n_pairs = sum(len(o) for o in obs)
+    if isinstance(speed, float):
+        speed = [speed] * len(obs)
+    if speed is not None:
+        if len(speed) < len(obs):
+            raise ValueError(f"the dataset's metadata give {len(speed)} episode target speeds for {len(obs)} "
+                             "episodes")
+        speed = np.concatenate([np.full(len(o), speed[i]) for i, o in enumerate(obs)])
     return Demonstrations(np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32),
-                          np.concatenate(ep).astype(np.int64), feedback,
-                          None if speed is None else np.full(n_pairs, speed))
+                          np.concatenate(ep).astype(np.int64), feedback, speed)
 
 
-def _target_speed(metadata: dict) -> float | None:
-    """The target speed [m/s] of a dataset's env (its ``env_kwargs``, else the env's default)."""
-    if not isinstance(metadata, dict) or "env_kwargs" not in metadata:
+def _target_speeds(metadata: dict) -> list[float] | float | None:
+    """The target speed [m/s] of each episode of a dataset: ``episode_target_speeds`` (datasets recorded under
+    named conditions, ``hsddp-gym dataset --condition``), else that of its env for all of them (one float:
+    ``env_kwargs``, else the env's default); None when the metadata say nothing."""
+    if not isinstance(metadata, dict):
+        return None
+    if metadata.get("episode_target_speeds") is not None:
+        return [float(v) for v in metadata["episode_target_speeds"]]
+    if "env_kwargs" not in metadata:
         return None
     from hsddp_gym.envs.bounding import DEFAULT_TARGET_SPEED
 

@@ -1,0 +1,168 @@
+"""Demonstrations and DAgger rollouts under the perturbation conditions (issue 18): the expert on the true state,
+the learner's (perturbed) observation stored, the condition and target speed of every episode recorded."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from hsddp_gym.datasets.collection import collect_episodes, episode_conditions
+from hsddp_gym.datasets.recording import PolicySpec, inform_sent_action
+from hsddp_gym.envs.perturbations import check_conditions, make_env, true_observation, wrapper_info_keys
+
+
+def test_true_observation_is_the_env_observation_without_its_noise():
+    env = make_env("default", max_episode_steps=20)
+    obs, _ = env.reset(seed=3)
+    np.testing.assert_array_equal(true_observation(env), obs)
+    for _ in range(5):
+        obs, *_ = env.step(np.full(4, 0.2, dtype=np.float32))
+        np.testing.assert_array_equal(true_observation(env), obs)
+    noisy = make_env("obs_noise", max_episode_steps=20)
+    nobs, _ = noisy.reset(seed=3)
+    obs, _ = env.reset(seed=3)  # same seed: same true state
+    np.testing.assert_array_equal(true_observation(noisy), obs)
+    assert not np.array_equal(nobs, obs)
+
+
+def test_wrapper_info_keys_and_condition_names():
+    assert wrapper_info_keys(make_env("push")) == {"push"}
+    assert wrapper_info_keys(make_env("delay_10ms")) == {"executed_action"}
+    assert wrapper_info_keys(make_env("default")) == frozenset()
+    assert check_conditions(["push", "push", "default"]) == ("push", "push", "default")
+    with pytest.raises(ValueError, match=r"--condition: unknown condition\(s\) \['pushed'\]; allowed: \['default'"):
+        check_conditions(["push", "pushed"], "--condition")
+    with pytest.raises(ValueError, match="non-empty list"):
+        check_conditions("push")
+    assert episode_conditions(("a", "b"), 5) == ["a", "b", "a", "b", "a"]
+    assert episode_conditions(None, 2) == [None, None]
+
+
+def test_under_observation_noise_the_expert_acts_on_the_true_state():
+    """Observation noise does not change the dynamics: an expert acting on the true state drives the same
+    trajectory as in the plain env, while the stored observations are the noisy ones."""
+    plain = collect_episodes(PolicySpec("heuristic"), 1, seed=11, max_episode_steps=60, progress=False)[0]
+    noisy, fast = collect_episodes(PolicySpec("heuristic"), 2, seed=11, max_episode_steps=60, progress=False,
+                                   conditions=["obs_noise", "speed_2.0"])
+    np.testing.assert_array_equal(noisy.actions, plain.actions)
+    np.testing.assert_array_equal(noisy.infos["qpos"], plain.infos["qpos"])
+    assert np.abs(noisy.observations - plain.observations).max() > 0.01
+    assert fast.seed == 12 and not np.array_equal(fast.actions[:40], plain.actions[:40])
+
+
+def test_push_and_delay_episodes_record_the_env_schema():
+    eps = collect_episodes(PolicySpec("heuristic"), 2, seed=0, max_episode_steps=15, progress=False,
+                           conditions=["push", "delay_10ms"])
+    base = collect_episodes(PolicySpec("heuristic"), 1, seed=0, max_episode_steps=15, progress=False)[0]
+    for ep in eps:
+        assert set(ep.infos) == set(base.infos) and ep.length == 15
+    with pytest.raises(ValueError, match="sets \\['target_speed'\\] itself"):
+        collect_episodes(PolicySpec("heuristic"), 1, env_kwargs={"target_speed": 1.5}, conditions=["speed_2.0"],
+                         progress=False)
+
+
+def test_dataset_metadata_give_each_episode_its_condition_and_target_speed(tmp_path):
+    from hsddp_gym.datasets.generation import generate_dataset
+    from hsddp_gym.learning.demonstrations import load_demonstrations
+
+    out = tmp_path / "ds"
+    generate_dataset("heuristic", 3, out, seed=5, max_episode_steps=12, progress=False,
+                     conditions=["speed_0.5", "obs_noise"])
+    meta = json.loads((out / "metadata.json").read_text())
+    assert meta["episode_conditions"] == ["speed_0.5", "obs_noise", "speed_0.5"]
+    assert meta["episode_target_speeds"] == [0.5, 1.0, 0.5]
+    assert meta["conditions"]["definitions"]["obs_noise"]["observation_noise"] == [0.01, 0.1]
+    for fmt in ("npz", "minari"):
+        d = load_demonstrations(out, fmt=fmt)
+        np.testing.assert_array_equal(d.target_speed, np.repeat([0.5, 1.0, 0.5], 12))
+
+
+def test_an_mpc_expert_is_told_the_action_sent_in_its_place():
+    """The MPC predicts the state from the actions it believes were sent (state filter, latency compensation):
+    after being told another action, its next decision differs from the one it takes believing its own."""
+    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+    from hsddp_gym.planners.policies.mpc import MPCPolicy
+
+    env = make_env("delay_10ms", max_episode_steps=50)
+    obs, _ = env.reset(seed=2)
+    told, own = MPCPolicy.from_env(env), MPCPolicy.from_env(env)
+    a = told(obs)
+    np.testing.assert_array_equal(a, own(obs))
+    sent = -np.ones(4, dtype=np.float32)
+    inform_sent_action(told, sent)
+    obs, *_ = env.step(sent)
+    told(obs), own(obs)
+    assert not np.allclose(told.last_prediction, own.last_prediction)
+    inform_sent_action(HeuristicPolicy.from_env(env), sent)  # no memory of actions: nothing to do
+
+
+def test_dagger_under_conditions_labels_the_true_state_and_keeps_the_target_speed():
+    pytest.importorskip("torch")
+    from hsddp_gym.learning.bc import BCConfig
+    from hsddp_gym.learning.dagger import DAggerConfig, train_dagger
+
+    cfg = DAggerConfig(rounds=1, episodes_per_round=2, beta_decay=0.0, max_episode_steps=30, rollout_steps=20,
+                       conditions=("obs_noise", "speed_2.0"), bc=BCConfig(hidden=(16,), epochs=2, speed_input=True))
+    res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
+    d = res.data
+    assert d.n_episodes == 4 and len(d) == 30 + 30 + 20 + 20
+    np.testing.assert_array_equal(d.target_speed, np.repeat([1.0, 2.0, 1.0, 2.0], [30, 30, 20, 20]))
+    # round 0 (expert only) under observation noise: the labels are the plain-env expert's actions
+    plain = collect_episodes(PolicySpec("heuristic"), 1, seed=cfg.seed, max_episode_steps=30, progress=False)[0]
+    np.testing.assert_array_equal(d.actions[:30], plain.actions)
+    assert np.abs(d.obs[:30] - plain.observations[:30]).max() > 0.01
+    two = train_dagger(PolicySpec("heuristic"), cfg, progress=False, workers=2)
+    np.testing.assert_array_equal(two.data.obs, d.obs)
+    np.testing.assert_array_equal(two.data.actions, d.actions)
+    with pytest.raises(ValueError, match="unknown condition"):
+        DAggerConfig(conditions=("nope",))
+    with pytest.raises(ValueError, match="sets \\['target_speed'\\] itself"):
+        train_dagger(PolicySpec("heuristic"), cfg, env_kwargs={"target_speed": 1.0}, progress=False)
+
+
+def test_cli_condition_errors(capsys):
+    from hsddp_gym.cli import main
+
+    for argv, msg in (
+            (["dataset", "--condition", "bogus", "--out", "x"], "--condition: bogus (allowed: default, "),
+            (["dataset", "--condition", "speed_2.0", "--target-speed", "1", "--out", "x"],
+             "--target-speed: given with --condition speed_2.0"),
+            (["train", "--algo", "bc", "--dataset", "x", "--condition", "push", "--out", "y"],
+             "--condition: given with --algo bc"),
+            (["train", "--algo", "bc", "--dataset", "x", "--workers", "2", "--out", "y"],
+             "--workers: given with --algo bc")):
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code
+        assert code == 2
+        assert msg in capsys.readouterr().err
+
+
+def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
+    """``experiments/imitation_robustness.py`` end to end at a tiny size: datasets (one under the perturbation
+    cycle, one at several speeds), learners, the table and the goal check; a rerun reuses everything, other
+    settings are refused."""
+    pytest.importorskip("torch")
+    script = experiment("imitation_robustness")
+    out = tmp_path / "run"
+    argv = ["--out", str(out), "--demos", "1", "--few", "1", "--perturbed-demos", "2", "--speed-demos", "1",
+            "--dagger-rounds", "1", "--dagger-episodes", "1", "--epochs", "1", "--seeds", "1", "--max-steps", "8",
+            "--learners", "bc", "dagger_perturbed", "bc_speed", "--conditions", "default", "speed_2.0", "--quiet"]
+    assert script.main(argv) == 0
+    res = json.loads((out / "imitation_robustness.json").read_text())
+    assert set(res["results"]) == {"bc", "dagger_perturbed", "bc_speed"}
+    assert res["datasets"]["ds_perturbed"]["conditions"] == list(script.TRAIN_PERTURBATIONS)
+    meta = json.loads((out / "ds_speeds" / "metadata.json").read_text())
+    assert meta["episode_target_speeds"] == [0.5, 1.0, 1.5, 2.0]
+    for label, cells in res["results"].items():
+        assert cells["speed_2.0"]["target_speed"] == 2.0 and cells["default"]["episodes"] == 1
+        assert res["goals"][label]["falls_beyond_mpc_plus_1"] == {}  # 8 steps: nobody falls
+    table = (out / "imitation_robustness.md").read_text()
+    assert "| condition | mpc (ref.) | heuristic (ref.) | bc | dagger_perturbed | bc_speed |" in table
+    assert "* **bc_speed**: falls met; speed " in table
+    assert script.main(argv) == 0  # reuses the datasets and the learners
+    with pytest.raises(SystemExit):
+        script.main([a if a != "8" else "9" for a in argv])
