@@ -129,8 +129,8 @@ def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_spe
         assert policy.plan_speed(x) == pytest.approx(expected)
     assert MPCPolicy(options=MPCOptions(speed_ramp=None)).plan_speed(x) == 1.0
     assert MPCPolicy().weights == "paper"
-    assert MPCPolicy(EnvInterface(target_speed=1.5)).weights == "later"  # the authors' 1.5 m/s code
-    assert MPCPolicy(EnvInterface(target_speed=1.5), MPCOptions(weights="paper")).weights == "paper"
+    assert MPCPolicy(EnvInterface(target_speed=2.0)).weights == "paper"  # one gait at every speed
+    assert MPCPolicy(EnvInterface(target_speed=2.0), MPCOptions(weights="later")).weights == "later"
     for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5},
                 {"weights": "mine"}):
         with pytest.raises((ValueError, TypeError), match=next(iter(bad))):
