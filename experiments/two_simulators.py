@@ -1,4 +1,5 @@
-"""Every policy in both simulators: hsddp_gym/Bounding-v0 (exact-LCP contacts) and its MuJoCo twin
+"""Every policy in three simulators: the planner's own hybrid model hsddp_gym/BoundingKKT-v0 (pinned feet, KKT
+contact dynamics, touchdown reset maps), hsddp_gym/Bounding-v0 (exact-LCP contacts) and its MuJoCo twin
 hsddp_gym/BoundingMuJoCo-v0 (soft contacts), same protocol as ``compare_policies.py`` (``--episodes`` seeded
 0, 1, ..., default env settings, 1000-step limit, deterministic actions).
 
@@ -22,23 +23,50 @@ from tqdm import tqdm
 
 from hsddp_gym.util.io import atomic_path, write_json
 
-ENVS = {"exact LCP (Bounding-v0)": "hsddp_gym/Bounding-v0", "MuJoCo (BoundingMuJoCo-v0)": "hsddp_gym/BoundingMuJoCo-v0"}
+ENVS = {"planner's model (BoundingKKT-v0)": "hsddp_gym/BoundingKKT-v0",
+        "exact LCP (Bounding-v0)": "hsddp_gym/Bounding-v0",
+        "MuJoCo (BoundingMuJoCo-v0)": "hsddp_gym/BoundingMuJoCo-v0"}
+REFERENCE = "exact LCP (Bounding-v0)"
+"""The column the "kept" ratio divides by."""
+MUJOCO = "MuJoCo (BoundingMuJoCo-v0)"
 POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 
 
 def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
-    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes."""
+    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes; for the
+    planner's model also its friction demand: ``friction_over_mu`` (fraction of control steps in which a pinned
+    foot needed ``|f_x| > mu f_z``) and ``max_friction_ratio`` (the largest ``|f_x| / f_z``)."""
     import gymnasium as gym
 
-    import hsddp_gym  # noqa: F401  (registers both ids)
+    import hsddp_gym  # noqa: F401  (registers the ids)
     from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
+    class FrictionDemand(gym.Wrapper):
+        """Counts the control steps whose ``info["friction_ratio"]`` exceeds the env's ``mu``."""
+
+        def __init__(self, inner):
+            super().__init__(inner)
+            self.steps, self.over, self.worst = 0, 0, 0.0
+
+        def step(self, action):
+            out = self.env.step(action)
+            ratio = out[-1].get("friction_ratio")
+            if ratio is not None:
+                self.steps += 1
+                self.over += ratio > self.env.unwrapped.sim.mu
+                self.worst = max(self.worst, ratio)
+            return out
+
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
-    env = gym.make(env_id, **limit)
+    env = FrictionDemand(gym.make(env_id, **limit))
     try:
-        return summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
+        summary = summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
     finally:
         env.close()
+    if env.steps:
+        summary["friction_over_mu"] = env.over / env.steps
+        summary["max_friction_ratio"] = env.worst
+    return summary
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,9 +103,13 @@ def main(argv: list[str] | None = None) -> int:
         cells = []
         for label in ENVS:
             s = by_env[label]
-            cells.append(f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
-                         f"{s['mean_forward_speed']:.3f} m/s")
-        a, b = (by_env[label]["mean_return"] for label in ENVS)
+            cell = (f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, "
+                    f"{s['mean_forward_speed']:.3f} m/s")
+            if "friction_over_mu" in s:
+                cell += (f"; \\|f_x\\|/f_z > μ in {100.0 * s['friction_over_mu']:.1f} % of control steps "
+                         f"(max {s['max_friction_ratio']:.2f})")
+            cells.append(cell)
+        a, b = by_env[REFERENCE]["mean_return"], by_env[MUJOCO]["mean_return"]
         lines.append(f"| {name} | " + " | ".join(cells) + f" | {100.0 * b / a:.1f} % |")
     table = "\n".join(lines + [""] + notes)
     print(table)

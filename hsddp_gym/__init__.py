@@ -4,7 +4,8 @@ Importing the package registers the Gymnasium environment ``hsddp_gym/Bounding-v
 ``hsddp_gym.envs.bounding:BoundingEnv``, imported lazily), so both ``import hsddp_gym;
 gym.make("hsddp_gym/Bounding-v0")``
 and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work. ``hsddp_gym/BoundingMuJoCo-v0`` is the same task
-simulated by MuJoCo (optional extra ``mujoco``).
+simulated by MuJoCo (optional extra ``mujoco``); ``hsddp_gym/BoundingKKT-v0`` the same task simulated by the
+planner's own hybrid model (pinned feet, KKT contact dynamics, touchdown reset maps).
 """
 
 __version__ = "0.1.0"
@@ -12,6 +13,8 @@ __version__ = "0.1.0"
 BOUNDING_ENV_ID = "hsddp_gym/Bounding-v0"
 BOUNDING_MUJOCO_ENV_ID = "hsddp_gym/BoundingMuJoCo-v0"
 """The same task simulated by MuJoCo (``hsddp_gym.envs.mujoco_twin``; needs the extra ``mujoco``)."""
+BOUNDING_KKT_ENV_ID = "hsddp_gym/BoundingKKT-v0"
+"""The same task simulated by the planner's hybrid model (``hsddp_gym.envs.kkt_twin``)."""
 BOUNDING_MAX_EPISODE_STEPS = 1000
 """1000 control steps = 5 s at the default 200 Hz (about 17 bounding cycles)."""
 
@@ -24,6 +27,9 @@ def _register_envs() -> None:
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
     if BOUNDING_MUJOCO_ENV_ID not in gym.registry:
         gym.register(id=BOUNDING_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.mujoco_twin:MuJoCoBoundingEnv",
+                     max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
+    if BOUNDING_KKT_ENV_ID not in gym.registry:
+        gym.register(id=BOUNDING_KKT_ENV_ID, entry_point="hsddp_gym.envs.kkt_twin:KKTBoundingEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
 
 

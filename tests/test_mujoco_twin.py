@@ -122,7 +122,7 @@ def test_build_mjcf_validates():
 
 
 def test_two_simulator_table_experiment(tmp_path, experiment):
-    """``experiments/two_simulators.py``: one row per policy with both simulators, missing models noted."""
+    """``experiments/two_simulators.py``: one row per policy with the three simulators, missing models noted."""
     import json
 
     experiment("two_simulators").main(["--out", str(tmp_path), "--policies", "heuristic", "sac", "--episodes", "2",
@@ -131,7 +131,7 @@ def test_two_simulator_table_experiment(tmp_path, experiment):
     assert "| heuristic |" in table and "sac: skipped" in table
     data = json.loads((tmp_path / "two_simulators.json").read_text())
     runs = data["results"]["heuristic"]
-    assert set(runs) == {"exact LCP (Bounding-v0)", "MuJoCo (BoundingMuJoCo-v0)"}
+    assert set(runs) == {"planner's model (BoundingKKT-v0)", "exact LCP (Bounding-v0)", "MuJoCo (BoundingMuJoCo-v0)"}
     assert all(r["episodes"] == 2 for r in runs.values())
 
 

@@ -75,12 +75,20 @@ one: sticking stance trajectories of the two agree to O(h) (tested: halving ``h`
 Motors (optional, ``motor_speed_limits``): a torque that drives its joint in the direction it moves is
 capped at ``torque_limit`` up to ``w_full`` and linearly down to zero at ``w_zero`` (evaluated every step).
 
-Cost per 1 ms step: one ABA, joint Jacobians and two frame Jacobians; with contacts also ``M^-1`` and three
-small products; the LCP is pure Python (an unrolled 4x4 Cholesky for two sticking feet). The energy-consistent
-scheme adds one energy evaluation per step (kinematics, kinetic and potential energy), with contacts the
-position projection (joint Jacobians at ``q+``, one or two Newton corrections, an unrolled Cholesky) and,
-when a step gains energy in flight, the centroidal map and ``M^-1`` (``experiments/bench_env.py`` times both
-schemes: about 0.7x the legacy env steps/s under random actions, 0.5x in a collapsing double stance).
+Cost per 1 ms step: one ABA, joint Jacobians and two frame Jacobians; with contacts also ``M^-1`` and three small
+products; the LCP is pure Python (an unrolled 4x4 Cholesky for two sticking feet). The energy-consistent scheme adds
+one energy evaluation per step (one ``computeMechanicalEnergy``: kinematics, kinetic and potential energy), with
+contacts the position projection: joint and frame Jacobians at ``q+`` (which also give the foot positions), one
+Newton correction (two small products, an unrolled Cholesky, one product) whose energy evaluation doubles as the
+kinematics of the result, and an exact bound on the Newton remainder
+(:meth:`ContactSimulator._newton_remainder_bound`) that makes the final placement check unnecessary (in 90 % of the
+double-stick steps of a collapsing stance); two sticking feet take a straight-line version of the first Newton step.
+When a step gains energy in flight it adds the centroidal map and ``M^-1``. ``experiments/bench_env.py`` times both
+schemes, interleaved: on a loaded 2-core machine (load average 5-5.7) the default made 0.65-0.76x the legacy env
+steps/s under random actions (0.70x both with and without these shortcuts in the one run that timed both) and
+0.54-0.56x in a collapsing double stance (0.50x before), short of the 0.8x goal: the remaining gap is the Python and
+NumPy call overhead of the projection (about 40 % glue, 27 % the 4x4 solve with its list conversion, 20 % the small
+NumPy products, 15 % the Pinocchio calls of a double-stance step, line_profiler).
 
 Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.core.conventions`
 (``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``, the force of the ground on the robot).
@@ -93,7 +101,7 @@ import itertools
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.conventions import FEET, NQ, NU, NV, NX
+from hsddp_gym.core.conventions import FEET, FOOT_JOINTS, IPITCH, NQ, NU, NV, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_in_range, check_positive, check_vector
 
@@ -433,7 +441,8 @@ class ContactSimulator:
         energy_projections: steps whose energy projection removed energy; momentum_fallbacks: flight
             projections that had to scale all of ``v`` (0 in the tests); energy_deficits: steps whose positions
             alone exceeded the allowed energy, so ``v`` was zeroed (0 in the tests); projection_residual: the
-            largest position-projection residual so far [m].
+            largest position-projection residual so far [m] (or, after a Newton step, its exact upper bound
+            ``_newton_remainder_bound`` when that is below half the tolerance).
     """
 
     def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
@@ -476,11 +485,15 @@ class ContactSimulator:
         self._buffers = {k: (np.zeros((2 * k, NV)), np.zeros((2 * k, NV)), np.zeros((2 * k, 2 * k)),
                              np.zeros(2 * k)) for k in (1, 2)}
         self._lam = {k: np.zeros(2 * k) for k in (1, 2)}
+        # position projection with m constraint rows: J (m, 7), J M^-1 (m, 7), J M^-1 J^T (m, m)
+        self._proj_buffers = {m: (np.zeros((m, NV)), np.zeros((m, NV)), np.zeros((m, m))) for m in (1, 2, 3, 4)}
         self._had_contact = False
         self._minv = None
         self._q_old = np.zeros(NQ)
         self._energy = 0.0
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
+        p = self.robot.params
+        self._link_lengths = (abs(p.hip_offset), abs(p.thigh.length), abs(p.shank.length))  # |c_0|, |c_1|, |c_2|
         # A foot farther than this above the ground cannot reach it within one step at < 50 m/s.
         self._far = 50.0 * self.dt
 
@@ -633,21 +646,22 @@ class ContactSimulator:
     def _finish_consistent(self, cand: list) -> None:
         """End of an energy-consistent step: ``q+ = q + h v+``, then the position projection of the contact
         feet, then the energy projection of ``v+``; see the module docstring (*Energy-consistent stepping*)."""
-        model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt
-        tau = self._tau
-        q_old = self._q_old
-        q_old[:] = q
-        np.multiply(v, h, out=self._dq)
-        q += self._dq
-        if cand:
-            self._project_positions(cand, q_old)
-            kinetic = pin.computeKineticEnergy(model, data)  # data: kinematics of (q, v) from the projection
-            potential = pin.computePotentialEnergy(model, data)
-        else:
-            pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
-            kinetic, potential = data.kinetic_energy, data.potential_energy
+        model, data, q, v = self.model, self.data, self.q, self.v
+        tau, dq = self._tau, self._dq
+        np.multiply(v, self.dt, out=dq)
         # work of the joint torques over the step (tau is constant during it; its base entries are 0)
-        allowed = self._energy + (tau.dot(q) - tau.dot(q_old))
+        if cand:
+            q_old = self._q_old
+            q_old[:] = q
+            q += dq
+            self._project_positions(cand, q_old)  # leaves the mechanical energy of the result in data
+            work = tau.dot(q) - tau.dot(q_old)
+        else:
+            q += dq
+            pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
+            work = tau.dot(dq)  # the displacement is h v+ (equal to tau . (q+ - q) up to round-off)
+        kinetic, potential = data.kinetic_energy, data.potential_energy
+        allowed = self._energy + work
         if kinetic + potential > allowed:
             self.energy_projections += 1
             target = allowed - potential
@@ -695,46 +709,150 @@ class ContactSimulator:
         contact (or ending below the ground) is at height 0 and every sticking foot at its position at the start
         of the step. Newton iterations with the exact Jacobians at the current ``q`` (quadratic: one iteration
         in practice) until the residual is below :data:`POSITION_TOLERANCE`. Leaves ``data`` with the
-        kinematics (``q``, ``v``) of the result."""
+        kinematics (``q``, ``v``) of the result and its mechanical energy (``data.kinetic_energy``,
+        ``data.potential_energy``).
+
+        Hot path: the foot positions at ``q+`` come from the LWA frame Jacobians the first Newton step needs
+        anyway (foot ``x = q_x - J[2, 2]``, ``z = q_z + J[0, 2]``); the check after a Newton step evaluates the
+        kinematics with the velocities and the energy in one Pinocchio call, so a converged projection leaves
+        the energy of the result at hand."""
         model, data, q, v = self.model, self.data, self.q, self.v
         fids = self._fids
         states = self.states
-        targets = []  # (foot, axis of the translation (0: x, 2: z), target, Jacobian row (0: x, 2: z))
+        iterations = _MAX_PROJECTION_ITERATIONS
+        if len(cand) == 2 and states[0] == STICK and states[1] == STICK:
+            if self._project_double_stick(cand, q_old):
+                return
+            iterations -= 1  # one Newton step done; go on with the general iteration
+        rows = []  # (foot, axis of the translation (0: x, 2: z), target)
+        x_old = q_old.item(0)
         for foot, J, _ in cand:
             state = states[foot]
             if state == STICK:
-                targets.append((foot, 0, float(q_old[0] - J[2, 2])))  # LWA Jacobian: foot x = x - J[2, 2]
+                rows.append((foot, 0, x_old - J.item(2, 2)))  # LWA Jacobian: foot x = x - J[2, 2]
             if state != SEPARATE:
-                targets.append((foot, 2, 0.0))
+                rows.append((foot, 2, 0.0))
         pin.computeJointJacobians(model, data, q)
         for foot, _, _ in cand:  # a separating candidate foot that ends below the ground is lifted onto it
             if states[foot] == SEPARATE and pin.updateFramePlacement(model, data, fids[foot]).translation[2] < 0.0:
-                targets.append((foot, 2, 0.0))
+                rows.append((foot, 2, 0.0))
+        if not rows:
+            pin.computeMechanicalEnergy(model, data, q, v)
+            return
+        m = len(rows)
+        Jr, A, S = self._proj_buffers[m]
+        feet = (rows[0][0],) if rows[-1][0] == rows[0][0] else (0, 1)
         fresh = True  # data holds the joint Jacobians of the current q
         residual = 0.0
-        if targets:
-            minv = self._minv
-            feet = sorted({t[0] for t in targets})
-            for _ in range(_MAX_PROJECTION_ITERATIONS):
-                pos = {foot: pin.updateFramePlacement(model, data, fids[foot]).translation for foot in feet}
-                r = [target - float(pos[foot][axis]) for foot, axis, target in targets]
-                residual = max(map(abs, r))
-                if residual <= POSITION_TOLERANCE:
-                    break
-                if not fresh:
-                    pin.computeJointJacobians(model, data, q)
-                jac = {foot: pin.getFrameJacobian(model, data, fids[foot], _LWA) for foot in feet}
-                Jr = np.array([jac[foot][axis] for foot, axis, _ in targets])
-                B = minv @ Jr.T
-                mu = _solve_spd((Jr @ B).tolist(), r)  # J M^-1 J^T: symmetric positive definite
-                if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
-                    break
-                q += B @ mu
-                pin.forwardKinematics(model, data, q, v)
-                fresh = False
-            self.projection_residual = max(self.projection_residual, residual)
+        for _ in range(iterations):
+            if fresh:  # positions from the Jacobians, which the Newton step needs
+                jac = [None, None]
+                for foot in feet:
+                    jac[foot] = pin.getFrameJacobian(model, data, fids[foot], _LWA)
+                qx, qz = q.item(0), q.item(1)
+                r = [target - (qx - jac[foot].item(2, 2) if axis == 0 else qz + jac[foot].item(0, 2))
+                     for foot, axis, target in rows]
+            else:
+                pos = [None, None]
+                for foot in feet:
+                    pos[foot] = pin.updateFramePlacement(model, data, fids[foot]).translation.tolist()
+                r = [target - pos[foot][axis] for foot, axis, target in rows]
+            residual = max(map(abs, r))
+            if residual <= POSITION_TOLERANCE:
+                break
+            if not fresh:
+                pin.computeJointJacobians(model, data, q)
+                jac = [None, None]
+                for foot in feet:
+                    jac[foot] = pin.getFrameJacobian(model, data, fids[foot], _LWA)
+            if m == 4 and rows[0][1] == 0 and rows[2][1] == 0:  # both feet sticking: rows x, z of each foot
+                Jr[0:2] = jac[rows[0][0]][0:3:2]
+                Jr[2:4] = jac[rows[2][0]][0:3:2]
+            else:
+                for i, (foot, axis, _) in enumerate(rows):
+                    Jr[i] = jac[foot][axis]
+            np.dot(Jr, self._minv, out=A)  # J M^-1 (m, 7)
+            np.dot(A, Jr.T, out=S)  # J M^-1 J^T (m, m): symmetric positive definite
+            mu = _solve_spd(S.tolist(), r)
+            if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
+                break
+            dq = np.dot(mu, A)
+            q += dq
+            pin.computeMechanicalEnergy(model, data, q, v)  # kinematics (q, v) and the energy of the new q
+            fresh = False
+            # Exact bound on the new residual (see _newton_remainder_bound): when it is far below the tolerance
+            # the check would stop the iteration anyway, so the foot placements need not be evaluated.
+            bound = self._newton_remainder_bound(dq.tolist(), feet)
+            if bound <= 0.5 * POSITION_TOLERANCE:
+                residual = bound
+                break
+        self.projection_residual = max(self.projection_residual, residual)
         if fresh:
-            pin.forwardKinematics(model, data, q, v)
+            pin.computeMechanicalEnergy(model, data, q, v)
+
+    def _project_double_stick(self, cand: list, q_old: np.ndarray) -> bool:
+        """The first Newton step of :meth:`_project_positions` for its commonest case, both feet sticking (rows
+        ``x, z`` of the front foot, then of the back foot), in straight-line code. Returns True when the
+        projection is finished (residual or its exact bound below the tolerance; ``data`` then holds the
+        kinematics and the energy of the result), False when the general iteration must go on from ``q``."""
+        model, data, q = self.model, self.data, self.q
+        fid0, fid1 = self._fids
+        (_, Ja, _), (_, Jb, _) = cand  # the Jacobians at the start of the step (candidates in FEET order)
+        x_old = q_old.item(0)
+        pin.computeJointJacobians(model, data, q)
+        J0 = pin.getFrameJacobian(model, data, fid0, _LWA)
+        J1 = pin.getFrameJacobian(model, data, fid1, _LWA)
+        qx, qz = q.item(0), q.item(1)
+        r = [(x_old - Ja.item(2, 2)) - (qx - J0.item(2, 2)), 0.0 - (qz + J0.item(0, 2)),
+             (x_old - Jb.item(2, 2)) - (qx - J1.item(2, 2)), 0.0 - (qz + J1.item(0, 2))]
+        residual = max(abs(r[0]), abs(r[1]), abs(r[2]), abs(r[3]))
+        if residual <= POSITION_TOLERANCE:
+            pin.computeMechanicalEnergy(model, data, q, self.v)
+            self.projection_residual = max(self.projection_residual, residual)
+            return True
+        Jr, A, S = self._proj_buffers[4]
+        Jr[0:2] = J0[0:3:2]
+        Jr[2:4] = J1[0:3:2]
+        np.dot(Jr, self._minv, out=A)  # J M^-1 (4, 7)
+        np.dot(A, Jr.T, out=S)  # J M^-1 J^T (4, 4)
+        mu = _solve_spd(S.tolist(), r)
+        if mu is None:  # pragma: no cover - the contact rows of this robot are never dependent
+            return False
+        dq = np.dot(mu, A)
+        q += dq
+        pin.computeMechanicalEnergy(model, data, q, self.v)
+        d = dq.tolist()
+        c0, c1, c2 = self._link_lengths
+        (hf, kf), (hb, kb) = FOOT_JOINTS
+        d0 = d[IPITCH]
+        a1 = d0 + d[hf]
+        a2 = a1 + d[kf]
+        b1 = d0 + d[hb]
+        b2 = b1 + d[kb]
+        t0 = c0 * d0 * d0
+        bound = max(0.5 * (t0 + c1 * a1 * a1 + c2 * a2 * a2), 0.5 * (t0 + c1 * b1 * b1 + c2 * b2 * b2))
+        if bound <= 0.5 * POSITION_TOLERANCE:
+            self.projection_residual = max(self.projection_residual, bound)
+            return True
+        return False
+
+    def _newton_remainder_bound(self, dq: list, feet: tuple) -> float:
+        """An upper bound [m] on every foot coordinate's residual after a Newton step ``dq`` (7,) of the position
+        projection. The step solves the linearised constraints (``J dq = r`` to round-off), so what remains is
+        the Taylor remainder of the foot kinematics. A foot is ``(x, z) + sum_i R(phi_i) c_i`` with the trunk
+        vector ``c_0`` (hip offset, angle ``phi_0`` = pitch), the thigh ``c_1`` (``phi_0 + hip``) and the shank
+        ``c_2`` (``phi_0 + hip + knee``); along ``dq`` each term's second derivative has norm
+        ``|c_i| dphi_i^2`` exactly, so the remainder of either coordinate is at most
+        ``1/2 sum_i |c_i| dphi_i^2``."""
+        c0, c1, c2 = self._link_lengths
+        d0 = dq[IPITCH]
+        worst = 0.0
+        for foot in feet:
+            hip, knee = FOOT_JOINTS[foot]
+            d1 = d0 + dq[hip]
+            d2 = d1 + dq[knee]
+            worst = max(worst, 0.5 * (c0 * d0 * d0 + c1 * d1 * d1 + c2 * d2 * d2))
+        return worst
 
     def _correct_penetration(self, pen: list, G: list, A: np.ndarray) -> None:
         """Split-impulse position correction: move ``q`` by ``M^-1 J_n^T mu`` (``A = J M^-1``) so that each
