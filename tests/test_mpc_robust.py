@@ -309,3 +309,18 @@ def test_contact_events_trigger_a_replan_at_once():
     assert changes >= 4 and policy.stats["event_replans"] == changes
     with pytest.raises(TypeError, match="replan_on_contact"):
         MPCOptions(replan_on_contact="yes")
+
+
+def test_note_sent_action_replaces_the_action_the_predictions_use():
+    env = make_env("delay_5ms", max_episode_steps=50)
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=508)
+    policy.reset()
+    policy(obs)
+    sent = np.array([0.1, -0.2, 0.3, -0.4], dtype=np.float32)
+    policy.note_sent_action(sent)
+    np.testing.assert_array_equal(policy._sent[-1], sent)
+    with pytest.raises(ValueError, match="action"):
+        policy.note_sent_action([0.0, np.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match="action"):
+        policy.note_sent_action([0.0, 0.0])

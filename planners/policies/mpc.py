@@ -890,6 +890,15 @@ class MPCPolicy(Policy):
         self._sent.append(action)
         return action
 
+    def note_sent_action(self, action) -> None:
+        """Tell the MPC that ``action`` (4,) (normalized, as :meth:`act` returns them) was sent to the env in place
+        of the one it returned last (a learner's action in a DAgger rollout, the expert's action plus DART noise):
+        its state filter and latency compensation then predict with the action the env executes."""
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape != (NU,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be a finite vector of shape ({NU},), got {a!r}")
+        self._sent[-1] = a.copy()
+
     def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode) -> tuple[np.ndarray, Mode]:
         """Latency compensation (``MPCOptions.latency_compensation``): the state (14,) ``action_delay`` control
         steps after the observed ``x``, under the actions already sent, and the gait clock advanced over the
