@@ -195,3 +195,132 @@ def test_plans_keep_a_friction_margin():
     assert full._problem.constraints.friction == 0.6
     with pytest.raises(ValueError, match="plan_friction"):
         MPCOptions(plan_friction=0.0)
+
+
+def test_speed_integral_moves_the_reference_by_the_cycle_mean_error():
+    policy = MPCPolicy(EnvInterface(target_speed=1.5))
+    policy.reset()
+    n = policy._vx_window.maxlen
+    assert n == round(sum(policy.durations) / policy.interface.control_dt)
+    policy._start_speed = 1.5  # already at the target: no ramp
+    policy._time = 0.02
+    policy._update_speed_bias()
+    assert policy.speed_bias == 0.0  # no whole cycle observed yet
+    for _ in range(n):
+        policy._vx_window.append(1.3)
+        policy._ref_window.append(policy.reference_speed())
+    policy._time = 0.04
+    policy._update_speed_bias()  # 0.02 s since the last update, mean error 0.2 m/s
+    gain = policy.options.speed_integral_gain
+    assert policy.speed_bias == pytest.approx(gain * 0.02 * 0.2)
+    x = np.zeros(14)
+    x[7] = 1.3
+    assert policy.plan_speed(x) == pytest.approx(1.5 + policy.speed_bias)
+    policy._time = 100.0
+    policy._update_speed_bias()
+    assert policy.speed_bias == pytest.approx(policy.options.speed_bias_limit)  # clipped
+    assert policy.plan_speed(x) == pytest.approx(1.3 + policy.options.speed_ramp)  # the governor still applies
+
+
+def test_speed_integral_is_not_wound_up_by_a_tracked_ramp():
+    policy = MPCPolicy(EnvInterface(target_speed=2.0))
+    policy.reset()
+    policy._start_speed = 0.9
+    for k in range(policy._vx_window.maxlen):  # a robot that follows the ramping reference exactly
+        policy._time = k * policy.interface.control_dt
+        policy._vx_window.append(policy.reference_speed())
+        policy._ref_window.append(policy.reference_speed())
+    policy._update_speed_bias()
+    assert policy.speed_bias == pytest.approx(0.0, abs=1e-12)
+    off = MPCPolicy(EnvInterface(target_speed=2.0), MPCOptions(speed_integral_gain=None))
+    off.reset()
+    for _ in range(off._vx_window.maxlen):
+        off._vx_window.append(1.0)
+        off._ref_window.append(2.0)
+    off._time = 1.0
+    off._update_speed_bias()
+    assert off.speed_bias == 0.0
+    with pytest.raises(ValueError, match="speed_integral_gain"):
+        MPCOptions(speed_integral_gain=-1.0)
+    with pytest.raises(ValueError, match="speed_bias_limit"):
+        MPCOptions(speed_bias_limit=-0.1)
+
+
+def test_plans_are_fine_in_their_first_phases_and_coarse_beyond():
+    env = gym.make(ENV_ID)
+    obs, _ = env.reset(seed=506)
+    policy = MPCPolicy.from_env(env, options=MPCOptions(planner_dt=0.005, fine_dt=0.0025))
+    policy.reset()
+    policy(obs)
+    o = policy.options
+    problem = policy._problem
+    assert problem.n_phases > o.fine_phases
+    np.testing.assert_allclose(problem.phase_dt[:o.fine_phases], o.fine_dt, rtol=1e-9)
+    np.testing.assert_allclose(problem.phase_dt[o.fine_phases:], o.planner_dt, rtol=1e-9)
+    assert policy._heuristic_controls(problem).shape == (problem.n_knots, 4)
+    uniform = MPCPolicy.from_env(env, options=MPCOptions(planner_dt=0.005))
+    uniform.reset()
+    uniform(obs)
+    np.testing.assert_allclose(uniform._problem.phase_dt, o.planner_dt, rtol=1e-9)
+    assert uniform._problem.n_knots < problem.n_knots
+    with pytest.raises(ValueError, match="fine_dt"):
+        MPCOptions(fine_dt=0.01)  # coarser than planner_dt
+    with pytest.raises(ValueError, match="fine_dt"):
+        MPCOptions(planner_dt=0.005, fine_dt=0.002)  # does not divide it
+    with pytest.raises(ValueError, match="fine_phases"):
+        MPCOptions(fine_phases=0)
+
+
+def test_mpc_tracks_a_fast_target_speed():
+    """2 m/s, the fastest target of the robustness suite: the stride-period mean speed after the start-up ramp
+    is within 5 % of the target (before the integral action and the multi-rate grid: -12 %)."""
+    env = gym.make(ENV_ID, target_speed=2.0, max_episode_steps=600)
+    policy = MPCPolicy.from_env(env)
+    obs, info = env.reset(seed=502)
+    policy.reset()
+    xs = []
+    for _ in range(600):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        assert not terminated
+        xs.append(float(info["qpos"][0]))
+        if truncated:
+            break
+    speed = (xs[-1] - xs[399]) / (200 * env.unwrapped.dt)
+    assert speed == pytest.approx(2.0, rel=0.05)
+
+
+def test_contact_events_trigger_a_replan_at_once():
+    env = gym.make(ENV_ID, max_episode_steps=120)
+    policy = MPCPolicy.from_env(env, options=MPCOptions(replan_on_contact=True, replan_period=0.04))
+    obs, _ = env.reset(seed=507)
+    policy.reset()
+    changes = 0
+    for _ in range(120):
+        phase = policy.clock.phase
+        replans = policy.stats["replans"] + policy.stats["planner_failures"]
+        obs, _, terminated, truncated, _ = env.step(policy(obs))
+        assert not terminated
+        if phase is not None and policy.clock.phase != phase:  # a touchdown, a lift-off or a phase's end
+            changes += 1
+            assert policy.stats["replans"] + policy.stats["planner_failures"] == replans + 1
+            assert policy._since_replan == pytest.approx(policy.interface.control_dt)  # the period restarts
+        if truncated:
+            break
+    assert changes >= 4 and policy.stats["event_replans"] == changes
+    with pytest.raises(TypeError, match="replan_on_contact"):
+        MPCOptions(replan_on_contact="yes")
+
+
+def test_note_sent_action_replaces_the_action_the_predictions_use():
+    env = make_env("delay_5ms", max_episode_steps=50)
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=508)
+    policy.reset()
+    policy(obs)
+    sent = np.array([0.1, -0.2, 0.3, -0.4], dtype=np.float32)
+    policy.note_sent_action(sent)
+    np.testing.assert_array_equal(policy._sent[-1], sent)
+    with pytest.raises(ValueError, match="action"):
+        policy.note_sent_action([0.0, np.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match="action"):
+        policy.note_sent_action([0.0, 0.0])

@@ -229,10 +229,12 @@ class HybridProblem:
     def bounding(cls, cycles: int = 5, durations=None, x0: np.ndarray | None = None, speed: float = 1.0,
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
-                 z_velocity: str = "paper", weights: str = "paper", terminal_half: bool = True) -> HybridProblem:
+                 z_velocity: str = "paper", weights: str = "paper", terminal_half: bool = True,
+                 knots=None) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B); ``running_reference``, ``grf_tracking``,
-        ``z_velocity``, ``weights``, ``terminal_half`` see :func:`bounding_phase_cost`."""
+        ``z_velocity``, ``weights``, ``terminal_half`` see :func:`bounding_phase_cost`; ``knots`` (n,) the
+        knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases)."""
         from hsddp_gym.core.references import paper_initial_state
         from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -245,7 +247,7 @@ class HybridProblem:
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0
-        return cls(dynamics, schedule, costs, x0, constraints)
+        return cls(dynamics, schedule, costs, x0, constraints, knots=knots)
 
     @classmethod
     def bounding_periodic(cls, durations=PERIODIC_BOUNDING_DURATIONS, periodic_weight: float = 1e5,

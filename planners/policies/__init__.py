@@ -25,7 +25,7 @@ _EXPORTS = {  # module: the public names it defines
         "HeuristicPolicy",
     ),
     "mpc": (
-        "DOUBLE_STANCE_PHASE", "FAST_BOUNDING_DURATIONS", "FAST_GAIT_SPEED", "GaitClock", "MPCOptions", "MPCPolicy",
+        "DOUBLE_STANCE_PHASE", "FAST_BOUNDING_DURATIONS", "GaitClock", "MPCOptions", "MPCPolicy",
     ),
     "random_policy": ("RandomPolicy",),
     "tracking": ("PlanTracker", "tracking_error",),

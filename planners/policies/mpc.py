@@ -66,9 +66,7 @@ _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
 """:attr:`GaitClock.phase` of a double stance (outside the bounding cycle's phases 0-3)."""
 FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
-"""The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD)."""
-FAST_GAIT_SPEED = 1.2
-"""Above this target speed [m/s] the MPC defaults to the authors' 1.5 m/s gait: its durations and weights."""
+"""The authors' 1.5 m/s bounding durations (original_code_facts §3.2, MH HEAD); ``MPCOptions(durations=...)``."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -78,17 +76,23 @@ class MPCOptions:
     Attributes:
         horizon: planned time at least [s] (None: one gait cycle of the durations).
         planner_dt: knot spacing of the planner [s] (coarser than the simulator's 1 ms is allowed).
+        fine_dt: knot spacing [s] of the plan's first ``fine_phases`` phases (the current one and the next; None:
+            ``planner_dt`` everywhere): a multi-rate grid, fine where the plan is acted on and its contact timing
+            matters, coarse beyond. ``planner_dt`` divided by a whole number; every phase's duration stays on the
+            ``planner_dt`` grid, so a phase keeps its duration when it moves onto the fine grid.
+        fine_phases: number of leading phases on the ``fine_dt`` grid (>= 1).
+        replan_on_contact: re-plan at once when the gait clock changes phase (a touchdown, a lift-off, a phase's
+            end), then every ``replan_period`` from there (counted in ``stats["event_replans"]``).
         replan_period: env time between re-plans [s].
         max_iterations: DDP iterations per re-plan. warmup_iterations: for the first plan of an episode.
         time_budget: wall-clock limit of one re-plan [s] (None: none).
         latency_steps: control steps between the start of a re-plan and the moment its plan is used.
-        durations: nominal (back stance, flight, front stance, flight) durations [s]; None picks them from
-            the target speed: the paper's 80/72/72/72 ms up to FAST_GAIT_SPEED (1.2 m/s), the authors' 1.5 m/s gait
-            80/100/80/100 ms above (their MHPC bounding code).
-        weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`); None picks them like
-            the durations: ``"paper"`` up to 1.2 m/s, above it ``"later"``, the weights the authors' code runs with
-            its 1.5 m/s gait (with the paper's weights, whose terminal forward-speed weight is 3x larger, the
-            MPC fell in the start-up transient from the paper's 0.9 m/s initial state on 3 of 3 seeds).
+        durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
+            80/72/72/72 ms at every target speed; the speed comes from the stride, see ``speed_integral_gain``).
+        weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`; None: ``"paper"``).
+            Measured on the development seeds 500-509 at 2 m/s (README, "Robustness"): the authors' 1.5 m/s gait
+            (80/100/80/100 ms, their later weights), which this MPC used above 1.2 m/s before, fell on more seeds than
+            the paper's gait once the plans' speed reference is integral-corrected.
         min_phase: shortest remaining duration given to the current phase [s].
         method: HS-DDP constraint handling ("al-reb", "al" or "ddp").
         sigma_max: cap of the AL penalty carried across re-plans.
@@ -165,10 +169,20 @@ class MPCOptions:
             innovations beyond ``filter_position_gate`` [m, rad] / ``filter_velocity_gate`` [m/s, rad/s] and
             velocities at an unpredicted contact change are taken whole). With exact observations of the nominal
             robot the estimate is the observation (to round-off). False: use the observation as the state.
+        speed_integral_gain: integral action on the plans' forward-speed reference [1/s] (None: off): at every
+            re-plan, once a whole gait cycle has been observed, :attr:`MPCPolicy.speed_bias` moves by
+            ``gain * (time since the last re-plan) * (mean reference - mean estimated speed over the last cycle)``
+            and is added to the reference (offset-free tracking: at 1.5 / 2 m/s the closed loop otherwise runs
+            11-13 % slow, whatever the cause: the cost's trade-offs, model error). Cycle means on both sides, so
+            the bounding's within-cycle speed swing and a ramping reference (``speed_acceleration``) do not wind
+            it up.
+        speed_bias_limit: the largest ``|speed_bias|`` [m/s].
     """
 
     horizon: float | None = None
-    planner_dt: float = 0.005
+    planner_dt: float = 0.0025
+    fine_dt: float | None = None
+    fine_phases: int = 2
     replan_period: float = 0.02
     max_iterations: int = 3
     warmup_iterations: int = 30
@@ -209,6 +223,9 @@ class MPCOptions:
     filter_velocity_gain: float = 0.3
     filter_position_gate: float = 0.05
     filter_velocity_gate: float = 0.5
+    speed_integral_gain: float | None = 1.5
+    replan_on_contact: bool = False
+    speed_bias_limit: float = 0.5
 
     PUSH_RECOVERY_PLANNER_DT = 0.0025
     """The planner step of :meth:`push_recovery` [s]."""
@@ -228,6 +245,13 @@ class MPCOptions:
     def __post_init__(self) -> None:
         if self.horizon is not None:
             check_positive(self.horizon, "horizon")
+        if self.fine_dt is not None:
+            check_positive(self.fine_dt, "fine_dt")
+            ratio = self.planner_dt / self.fine_dt
+            if self.fine_dt > self.planner_dt or abs(ratio - round(ratio)) > 1e-9:
+                raise ValueError(f"fine_dt must be None or planner_dt ({self.planner_dt}) divided by a whole number, "
+                                 f"got {self.fine_dt!r}")
+        check_int(self.fine_phases, "fine_phases", minimum=1)
         for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait", "recovery_threshold",
                      "recovery_window"):
             check_positive(getattr(self, name), name)
@@ -264,7 +288,10 @@ class MPCOptions:
             check_in_range(getattr(self, name), 1e-6, 1.0, name)
         for name in ("filter_position_gate", "filter_velocity_gate"):
             check_positive(getattr(self, name), name)
-        for name in ("latency_compensation", "state_filter"):
+        if self.speed_integral_gain is not None:
+            check_positive(self.speed_integral_gain, "speed_integral_gain")
+        check_positive(self.speed_bias_limit, "speed_bias_limit", allow_zero=True)
+        for name in ("latency_compensation", "state_filter", "replan_on_contact"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if self.method not in ("ddp", "al", "al-reb"):
@@ -457,12 +484,11 @@ class MPCPolicy(Policy):
         if not isinstance(options, MPCOptions):
             raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
         self.options = options
-        fast = interface.target_speed > FAST_GAIT_SPEED
         if options.durations is not None:
             self.durations = tuple(float(d) for d in options.durations)
         else:
-            self.durations = FAST_BOUNDING_DURATIONS if fast else PAPER_BOUNDING_DURATIONS
-        self.weights = options.weights if options.weights is not None else ("later" if fast else "paper")
+            self.durations = PAPER_BOUNDING_DURATIONS
+        self.weights = options.weights if options.weights is not None else "paper"
         self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
         self.action_delay = options.action_delay if options.action_delay is not None else interface.action_delay_steps
@@ -520,8 +546,15 @@ class MPCPolicy(Policy):
         self._since_replan = np.inf
         self._fallback.reset()
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
-                      "fallback_steps": 0, "time_budget_stops": 0}
+                      "fallback_steps": 0, "time_budget_stops": 0,
+                      "event_replans": 0}
         self._time = 0.0  # env time since reset [s]
+        self.speed_bias = 0.0
+        """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
+        n_cycle = max(1, round(sum(self.durations) / self.interface.control_dt))
+        self._vx_window = collections.deque(maxlen=n_cycle)  # estimated forward speeds of the last gait cycle
+        self._ref_window = collections.deque(maxlen=n_cycle)  # the speed references at the same steps
+        self._bias_time = 0.0
         self._recovery_until = -np.inf
         self._use_fallback = False
 
@@ -570,9 +603,18 @@ class MPCPolicy(Policy):
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
             durs.append(self.durations[j])
+        # every duration on the coarse grid, so that a phase keeps its duration when it moves onto the fine grid of
+        # the first phases at a later re-plan (fine_dt divides planner_dt)
         h = o.planner_dt
         durs = [max(1, round(d / h)) * h for d in durs]
         return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
+
+    def _phase_steps(self, n: int) -> list[float]:
+        """The knot spacing [s] of each of ``n`` plan phases: ``fine_dt`` for the first ``fine_phases``, then
+        ``planner_dt``."""
+        o = self.options
+        fine = o.planner_dt if o.fine_dt is None else o.fine_dt
+        return [fine if i < o.fine_phases else o.planner_dt for i in range(n)]
 
     def _stance_before_double(self, j: int) -> tuple[int, float] | None:
         """For a sinking trunk in phase ``j``: ``(stance phase, time left in it)`` to follow with a double
@@ -643,7 +685,17 @@ class MPCPolicy(Policy):
         traj = rollout(problem.dynamics, problem.schedule, problem.x0, controller=ctrl)
         if not traj.is_finite:
             raise RuntimeError("heuristic warm start diverged")
-        return traj.U
+        if traj.U.shape[0] == problem.n_knots:
+            return traj.U
+        # a multi-rate plan: sample the uniform-grid rollout at the times of the plan's knots, phase by phase
+        src = np.concatenate([[0], np.cumsum(problem.schedule.knots(problem.dt))])
+        U = np.empty((problem.n_knots, NU))
+        for j in range(problem.n_phases):
+            a, b = problem.phase_start[j], problem.phase_start[j + 1]
+            n_src = src[j + 1] - src[j]
+            for k in range(a, b):
+                U[k] = traj.U[src[j] + min(int((k - a) * problem.phase_dt[j] / problem.dt + 1e-9), n_src - 1)]
+        return U
 
     # ------------------------------------------------------------------ re-plan
     @property
@@ -662,14 +714,34 @@ class MPCPolicy(Policy):
         d[2] *= self._pitch_length
         return float(np.linalg.norm(d))
 
-    def plan_speed(self, x: np.ndarray) -> float:
-        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): the target speed, moved at most
-        ``speed_ramp`` from the measured speed (None: the target)."""
+    def reference_speed(self) -> float:
+        """The forward speed [m/s] the robot should have now: the target, reached from the episode's start speed
+        at ``speed_acceleration`` at most."""
         target = self.interface.target_speed
         acc = self.options.speed_acceleration
         if acc is not None and self._start_speed is not None:
             reach = acc * self._time
             target = min(max(target, self._start_speed - reach), self._start_speed + reach)
+        return float(target)
+
+    def _update_speed_bias(self) -> None:
+        """Integral action (``speed_integral_gain``): once a whole gait cycle has been observed, move
+        :attr:`speed_bias` by ``gain * elapsed * (mean reference - mean estimated speed)`` over the last cycle
+        (both means over the same steps, so a ramping reference does not wind it up), clipped to
+        ``speed_bias_limit``. Offset-free tracking of the speed whatever makes the closed loop lag its plans
+        (the cost's trade-offs at high speed, model error)."""
+        gain = self.options.speed_integral_gain
+        elapsed, self._bias_time = self._time - self._bias_time, self._time
+        if gain is None or len(self._vx_window) < self._vx_window.maxlen:
+            return
+        err = (sum(self._ref_window) - sum(self._vx_window)) / len(self._vx_window)
+        lim = self.options.speed_bias_limit
+        self.speed_bias = float(min(max(self.speed_bias + gain * elapsed * err, -lim), lim))
+
+    def plan_speed(self, x: np.ndarray) -> float:
+        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): :meth:`reference_speed` plus
+        :attr:`speed_bias`, moved at most ``speed_ramp`` from the measured speed (None: not moved)."""
+        target = self.reference_speed() + self.speed_bias
         ramp = self.options.speed_ramp
         if ramp is None:
             return float(target)
@@ -683,9 +755,11 @@ class MPCPolicy(Policy):
         sinking = (self.recovering and o.recovery_double_stance is not None
                    and float(x[NQ + 1]) < -o.recovery_sink_speed)
         schedule = self._schedule(sinking)
+        knots = [max(1, round(d / h)) for d, h in zip(schedule.durations, self._phase_steps(len(schedule)))]
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, constraints=self._constraints,
-                                         z_velocity=o.z_velocity, weights=self.weights)
+                                         z_velocity=o.z_velocity, weights=self.weights,
+                                         knots=np.array(knots, dtype=np.int64))
         first = self.last_solution is None
         recovering = self.recovering
         iters = o.warmup_iterations if first else (o.recovery_iterations if recovering else o.max_iterations)
@@ -765,7 +839,13 @@ class MPCPolicy(Policy):
             self._start_speed = float(x_obs[NQ])
         self._first_obs = False
         self.last_estimate = x_obs
+        self._vx_window.append(float(x_obs[NQ]))
+        self._ref_window.append(self.reference_speed())
+        phase_before = self.clock.phase
         eff = self._update_clock(mode, x_obs)
+        if self.options.replan_on_contact and phase_before is not None and self.clock.phase != phase_before:
+            self._since_replan = np.inf  # a contact event (or a phase's end): re-plan from the new phase now
+            self.stats["event_replans"] += 1
         x, eff = self._predict_ahead(x_obs, mode, eff)
         self.last_prediction = x.copy()
         if self.tracker is not None:
@@ -785,6 +865,7 @@ class MPCPolicy(Policy):
             self._since_replan = np.inf  # the schedule changed against the cycle: re-plan now
         if self._since_replan >= self.options.replan_period - 1e-9:
             self._since_replan = 0.0
+            self._update_speed_bias()
             if self.replan(x, eff) and (self.tracker is None or self._pending[4] == 0):
                 self._activate_pending()
         elif self._pending is not None:
@@ -808,6 +889,15 @@ class MPCPolicy(Policy):
         action = self.interface.action_from_torque(u)
         self._sent.append(action)
         return action
+
+    def note_sent_action(self, action) -> None:
+        """Tell the MPC that ``action`` (4,) (normalized, as :meth:`act` returns them) was sent to the env in place
+        of the one it returned last (a learner's action in a DAgger rollout, the expert's action plus DART noise):
+        its state filter and latency compensation then predict with the action the env executes."""
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape != (NU,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be a finite vector of shape ({NU},), got {a!r}")
+        self._sent[-1] = a.copy()
 
     def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode) -> tuple[np.ndarray, Mode]:
         """Latency compensation (``MPCOptions.latency_compensation``): the state (14,) ``action_delay`` control
