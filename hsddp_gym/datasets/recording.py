@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import dataclasses
 import functools
@@ -248,22 +247,15 @@ class DecisionRecorder:
 
 def inform_sent_action(policy, action) -> None:
     """Tell a policy that remembers the actions it returned which action was actually sent to the env in its
-    place (the learner's in a DAgger rollout, or the expert's plus DART noise).
-
-    :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy` feeds its last returned actions to its state filter (the
-    action executed over the last control period) and to its latency compensation (the actions still in the
-    env's delay queue); when another action was sent, its prediction of the state would follow an action
-    the env never executed. A policy's public ``note_sent_action(action)`` is called when it has one;
-    otherwise the newest entry of the MPC's record of sent actions (its ``_sent`` deque) is replaced. Other
-    policies are left alone.
+    place (the learner's in a DAgger rollout, or the expert's plus DART noise), through its public
+    ``note_sent_action(action)`` when it has one
+    (:meth:`~hsddp_gym.planners.policies.mpc.MPCPolicy.note_sent_action`: the MPC feeds its last returned actions to
+    its state filter and latency compensation, which would otherwise predict with an action the env never
+    executed). Other policies are left alone.
     """
     note = getattr(policy, "note_sent_action", None)
     if callable(note):
         note(action)
-        return
-    sent = getattr(policy, "_sent", None)
-    if isinstance(sent, collections.deque) and len(sent):
-        sent[-1] = np.array(action, dtype=np.float32).reshape(NU)
 
 
 def _info_schema(info: dict) -> dict:
