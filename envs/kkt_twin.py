@@ -41,8 +41,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.contact import SEPARATE, STICK, check_motor_speed_limits, motor_torques
-from hsddp_gym.core.conventions import FEET, NGRF, NQ, NU, NX, Mode
+from hsddp_gym.core.contact import SEPARATE, STICK, SimulatorQueries, check_motor_speed_limits, motor_torques
+from hsddp_gym.core.conventions import FEET, NGRF, NQ, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import BoundingEnv
@@ -51,7 +51,7 @@ from hsddp_gym.util.validation import check_positive, check_vector
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
-class KKTSimulator:
+class KKTSimulator(SimulatorQueries):
     """The planner's hybrid model (:mod:`hsddp_gym.core.dynamics`) with state-based mode switching, behind the
     interface :class:`~hsddp_gym.envs.bounding.BoundingEnv` uses of its simulator (``x``/``q``/``v`` views,
     ``set_state``, ``run``, ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...). See the module
@@ -141,36 +141,12 @@ class KKTSimulator:
             out.append((float(z), float(vz)))
         return out
 
-    def foot_positions(self) -> np.ndarray:
-        """World ``(x, z)`` of both feet (2, 2) [m]."""
-        return self.robot.foot_positions(self.q)
-
-    def foot_heights(self) -> np.ndarray:
-        """Heights of both feet (2,) [m]."""
-        return self.robot.foot_heights(self.q)
-
-    def foot_heights_fast(self) -> tuple[float, float]:
-        h = self.robot.foot_heights(self.q)
-        return float(h[0]), float(h[1])
-
-    def foot_velocities(self) -> np.ndarray:
-        """World ``(vx, vz)`` of both feet (2, 2) [m/s]."""
-        return self.robot.foot_velocities(self.x)
-
     def energy(self) -> float:
         """Mechanical energy [J] of the current state (this world's gravity)."""
         pin.computeMechanicalEnergy(self._model, self._data, self.q, self.v)
         return float(self._data.kinetic_energy + self._data.potential_energy)
 
-    def applied_torque(self, u: np.ndarray) -> np.ndarray:
-        """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
-        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
-
     # ------------------------------------------------------------------ stepping
-    def step(self, u: np.ndarray) -> None:
-        """One step of ``h`` with joint torques ``u`` (4,) [N m] (checked)."""
-        self.run(check_vector(u, NU, "u"), 1)
-
     def run(self, u: np.ndarray, n: int) -> list:
         """``n`` steps with constant commanded joint torques ``u`` (4,) (unchecked: the env validates).
 

@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hsddp_gym.core.contact import check_motor_speed_limits, motor_torques
-from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NU, NX
+from hsddp_gym.core.contact import SimulatorQueries, check_motor_speed_limits
+from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
 from hsddp_gym.envs.bounding import BoundingEnv
@@ -112,7 +112,7 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float = 1e-3, fri
 '''
 
 
-class MuJoCoSimulator:
+class MuJoCoSimulator(SimulatorQueries):
     """The MuJoCo model behind the interface :class:`~hsddp_gym.envs.bounding.BoundingEnv` uses of
     :class:`~hsddp_gym.envs.contact.ContactSimulator` (``x``/``q``/``v`` views, ``set_state``, ``run``,
     ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...).
@@ -186,33 +186,11 @@ class MuJoCoSimulator:
         self.data.qpos[:] = self.q
         self.data.qvel[:] = self.v
 
-    def foot_positions(self) -> np.ndarray:
-        """World ``(x, z)`` of both feet (2, 2) [m] (the Pinocchio kinematics of the current state)."""
-        return self.robot.foot_positions(self.q)
-
-    def foot_heights(self) -> np.ndarray:
-        """Heights of both feet (2,) [m]."""
-        return self.robot.foot_heights(self.q)
-
-    def foot_heights_fast(self) -> tuple[float, float]:
-        h = self.robot.foot_heights(self.q)
-        return float(h[0]), float(h[1])
-
-    def foot_velocities(self) -> np.ndarray:
-        return self.robot.foot_velocities(self.x)
-
     def energy(self) -> float:
         """Mechanical energy [J] of the current state (Pinocchio, this world's gravity)."""
         pin = self._pin
         return float(pin.computeKineticEnergy(self._pmodel, self._pdata, self.q, self.v)
                      + pin.computePotentialEnergy(self._pmodel, self._pdata, self.q))
-
-    def applied_torque(self, u: np.ndarray) -> np.ndarray:
-        """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
-        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
-
-    def step(self, u: np.ndarray) -> None:
-        self.run(check_vector(u, NU, "u"), 1)
 
     def run(self, u: np.ndarray, n: int) -> list:
         """``n`` MuJoCo steps with commanded joint torques ``u`` (4,).

@@ -407,7 +407,39 @@ def check_motor_speed_limits(value, name: str = "motor_speed_limits") -> tuple[f
     return w_full, w_zero
 
 
-class ContactSimulator:
+class SimulatorQueries:
+    """The state queries and the checked one-step call that every simulator of the task shares (the env reads
+    them): :class:`ContactSimulator`, the MuJoCo twin's and the planner's-model twin's simulators. A subclass
+    provides ``robot`` (a :class:`CheetahModel`), the state views ``x`` (14,), ``q`` (7,), ``v`` (7,),
+    ``motor_speed_limits``, ``torque_limit`` and ``run(u, n)``."""
+
+    def foot_positions(self) -> np.ndarray:
+        """World ``(x, z)`` of both feet at the current state (2, 2) [m]."""
+        return self.robot.foot_positions(self.q)
+
+    def foot_heights(self) -> np.ndarray:
+        """Heights of both feet above the ground at the current state (2,) [m]."""
+        return self.robot.foot_heights(self.q)
+
+    def foot_heights_fast(self) -> tuple[float, float]:
+        """:meth:`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
+        h = self.robot.foot_heights(self.q)
+        return float(h[0]), float(h[1])
+
+    def foot_velocities(self) -> np.ndarray:
+        """World ``(vx, vz)`` of both feet at the current state (2, 2) [m/s]."""
+        return self.robot.foot_velocities(self.x)
+
+    def applied_torque(self, u: np.ndarray) -> np.ndarray:
+        """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
+        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
+
+    def step(self, u: np.ndarray) -> None:
+        """One step of ``h`` with joint torques ``u`` (4,) [N m] (checked)."""
+        self.run(check_vector(u, NU, "u"), 1)
+
+
+class ContactSimulator(SimulatorQueries):
     """Time-stepping simulation of the planar Mini Cheetah with state-based point-foot contacts.
 
     See the module docstring for the scheme. The simulator owns its state and scratch buffers; call
@@ -507,24 +539,12 @@ class ContactSimulator:
         self.contact[:] = False
         self._had_contact = False
 
-    def foot_heights(self) -> np.ndarray:
-        """Heights of both feet above the ground at the current state (2,) [m]."""
-        return self.robot.foot_heights(self.q)
-
     def foot_heights_fast(self) -> tuple[float, float]:
         """Unchecked :meth:`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, self.q)
         return (pin.updateFramePlacement(model, data, self._fids[0]).translation[2],
                 pin.updateFramePlacement(model, data, self._fids[1]).translation[2])
-
-    def foot_positions(self) -> np.ndarray:
-        """World ``(x, z)`` of both feet at the current state (2, 2) [m]."""
-        return self.robot.foot_positions(self.q)
-
-    def foot_velocities(self) -> np.ndarray:
-        """World ``(vx, vz)`` of both feet at the current state (2, 2) [m/s]."""
-        return self.robot.foot_velocities(self.x)
 
     def energy(self) -> float:
         """Mechanical energy ``1/2 v^T M v + potential`` [J] at the current state (with this world's gravity)."""
@@ -533,10 +553,6 @@ class ContactSimulator:
         return kinetic + float(pin.computePotentialEnergy(self.model, self.data, self.q))
 
     # ------------------------------------------------------------------ stepping
-    def step(self, u: np.ndarray) -> None:
-        """One step of ``h`` with joint torques ``u`` (4,) [N m] (checked)."""
-        self.run(check_vector(u, NU, "u"), 1)
-
     def run(self, u: np.ndarray, n: int) -> list:
         """``n`` steps with constant joint torques ``u`` (4,) (unchecked: the env validates).
 
@@ -567,10 +583,6 @@ class ContactSimulator:
                 tau[3 + j] = uj
             self._step(total)
         return total
-
-    def applied_torque(self, u: np.ndarray) -> np.ndarray:
-        """The torques (4,) the motors would apply for commanded ``u`` (4,) at the current joint rates."""
-        return motor_torques(check_vector(u, NU, "u"), self.v[3:], self.motor_speed_limits, self.torque_limit)
 
     def _step(self, total: list) -> None:
         model, data, q, v, h = self.model, self.data, self.q, self.v, self.dt
