@@ -90,7 +90,7 @@ class MPCOptions:
         durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
             80/72/72/72 ms at every target speed; the speed comes from the stride, see ``speed_integral_gain``).
         weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`; None: ``"paper"``).
-            Measured on the development seeds 500-509 at 2 m/s (README, "Robustness"): the authors' 1.5 m/s gait
+            Measured on the development seeds 500-519 at 2 m/s (README, "Robustness"): the authors' 1.5 m/s gait
             (80/100/80/100 ms, their later weights), which this MPC used above 1.2 m/s before, fell on more seeds than
             the paper's gait once the plans' speed reference is integral-corrected.
         min_phase: shortest remaining duration given to the current phase [s].
@@ -245,6 +245,9 @@ class MPCOptions:
     def __post_init__(self) -> None:
         if self.horizon is not None:
             check_positive(self.horizon, "horizon")
+        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait", "recovery_threshold",
+                     "recovery_window"):
+            check_positive(getattr(self, name), name)
         if self.fine_dt is not None:
             check_positive(self.fine_dt, "fine_dt")
             ratio = self.planner_dt / self.fine_dt
@@ -252,9 +255,6 @@ class MPCOptions:
                 raise ValueError(f"fine_dt must be None or planner_dt ({self.planner_dt}) divided by a whole number, "
                                  f"got {self.fine_dt!r}")
         check_int(self.fine_phases, "fine_phases", minimum=1)
-        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait", "recovery_threshold",
-                     "recovery_window"):
-            check_positive(getattr(self, name), name)
         check_int(self.max_iterations, "max_iterations", minimum=1)
         check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
         check_int(self.recovery_iterations, "recovery_iterations", minimum=1)
