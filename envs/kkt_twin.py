@@ -41,12 +41,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.contact import SEPARATE, STICK, SimulatorQueries, check_motor_speed_limits, motor_torques
+from hsddp_gym.core.contact import SEPARATE, STICK, SimulatorQueries, motor_torques
 from hsddp_gym.core.conventions import FEET, NGRF, NQ, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import BoundingEnv
-from hsddp_gym.util.validation import check_positive, check_vector
+from hsddp_gym.util.validation import check_vector
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -80,16 +80,8 @@ class KKTSimulator(SimulatorQueries):
         if not isinstance(stabilize, (bool, np.bool_)):
             raise TypeError(f"stabilize must be a bool, got {type(stabilize).__name__}")
         self.stabilize = bool(stabilize)
-        robot = robot if robot is not None else CheetahModel()
-        if not isinstance(robot, CheetahModel):
-            raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
+        robot = self._set_common(robot, timestep, friction, gravity, torque_limit, motor_speed_limits)
         params = robot.params
-        self.dt = check_positive(timestep, "timestep")
-        self.mu = check_positive(params.friction if friction is None else friction, "friction", allow_zero=True)
-        self.gravity = check_positive(params.gravity if gravity is None else gravity, "gravity", allow_zero=True)
-        self.torque_limit = check_positive(params.torque_limit if torque_limit is None else torque_limit,
-                                           "torque_limit")
-        self.motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
         if self.gravity != params.gravity:  # a private copy of the model in this world's gravity
             robot = CheetahModel(params)
             robot.model.gravity = pin.Motion(np.array([0.0, 0.0, -self.gravity]), np.zeros(3))

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hsddp_gym.core.contact import SimulatorQueries, check_motor_speed_limits
+from hsddp_gym.core.contact import SimulatorQueries
 from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
@@ -128,16 +128,8 @@ class MuJoCoSimulator(SimulatorQueries):
                  solref=DEFAULT_SOLREF) -> None:
         mujoco = _import_mujoco()
         self._mj = mujoco
-        self.robot = robot if robot is not None else CheetahModel()
-        if not isinstance(self.robot, CheetahModel):
-            raise TypeError(f"robot must be a CheetahModel, got {type(self.robot).__name__}")
+        self.robot = self._set_common(robot, timestep, friction, gravity, torque_limit, motor_speed_limits)
         params = self.robot.params
-        self.dt = check_positive(timestep, "timestep")
-        self.mu = check_positive(params.friction if friction is None else friction, "friction", allow_zero=True)
-        self.gravity = check_positive(params.gravity if gravity is None else gravity, "gravity", allow_zero=True)
-        self.torque_limit = check_positive(params.torque_limit if torque_limit is None else torque_limit,
-                                           "torque_limit")
-        self.motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
         self.xml = build_mjcf(params, self.dt, self.mu, self.gravity, solref)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)

@@ -413,6 +413,22 @@ class SimulatorQueries:
     provides ``robot`` (a :class:`CheetahModel`), the state views ``x`` (14,), ``q`` (7,), ``v`` (7,),
     ``motor_speed_limits``, ``torque_limit`` and ``run(u, n)``."""
 
+    def _set_common(self, robot, timestep, friction, gravity, torque_limit, motor_speed_limits) -> CheetahModel:
+        """Check and store the settings every simulator takes: ``dt``, ``mu``, ``gravity``, ``torque_limit``,
+        ``motor_speed_limits`` (defaults from the robot's parameters); returns the robot (default: the paper's),
+        checked to be a :class:`CheetahModel` (errors name the argument)."""
+        robot = robot if robot is not None else CheetahModel()
+        if not isinstance(robot, CheetahModel):
+            raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
+        params = robot.params
+        self.dt = check_positive(timestep, "timestep")
+        self.mu = check_positive(params.friction if friction is None else friction, "friction", allow_zero=True)
+        self.gravity = check_positive(params.gravity if gravity is None else gravity, "gravity", allow_zero=True)
+        self.torque_limit = check_positive(params.torque_limit if torque_limit is None else torque_limit,
+                                           "torque_limit")
+        self.motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
+        return robot
+
     def foot_positions(self) -> np.ndarray:
         """World ``(x, z)`` of both feet at the current state (2, 2) [m]."""
         return self.robot.foot_positions(self.q)
@@ -480,17 +496,8 @@ class ContactSimulator(SimulatorQueries):
     def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
                  gravity: float | None = None, erp: float = 1.0, motor_speed_limits=None,
                  torque_limit: float | None = None, energy_consistent: bool = True) -> None:
-        self.robot = robot if robot is not None else CheetahModel()
-        if not isinstance(self.robot, CheetahModel):
-            raise TypeError(f"robot must be a CheetahModel, got {type(self.robot).__name__}")
-        self.dt = check_positive(timestep, "timestep")
-        params = self.robot.params
-        self.mu = check_positive(params.friction if friction is None else friction, "friction", allow_zero=True)
-        self.gravity = check_positive(params.gravity if gravity is None else gravity, "gravity", allow_zero=True)
+        self.robot = self._set_common(robot, timestep, friction, gravity, torque_limit, motor_speed_limits)
         self.erp = check_in_range(erp, 0.0, 1.0, "erp")
-        self.torque_limit = check_positive(params.torque_limit if torque_limit is None else torque_limit,
-                                           "torque_limit")
-        self.motor_speed_limits = check_motor_speed_limits(motor_speed_limits)
         if not isinstance(energy_consistent, (bool, np.bool_)):
             raise TypeError(f"energy_consistent must be a bool, got {type(energy_consistent).__name__}")
         self.energy_consistent = bool(energy_consistent)
