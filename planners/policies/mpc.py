@@ -196,7 +196,7 @@ class MPCOptions:
     warm_start_kd: float = 0.1
     debounce_steps: int = 2
     min_flight: float = 0.3
-    max_wait: float = 0.03
+    max_wait: float | None = None
     reb_delta: float = 0.2
     reb_eps: float = 1e-4
     z_velocity: str = "code"
@@ -245,7 +245,7 @@ class MPCOptions:
     def __post_init__(self) -> None:
         if self.horizon is not None:
             check_positive(self.horizon, "horizon")
-        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "max_wait", "recovery_threshold",
+        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "recovery_threshold",
                      "recovery_window"):
             check_positive(getattr(self, name), name)
         if self.fine_dt is not None:
@@ -264,6 +264,8 @@ class MPCOptions:
         if self.recovery_double_stance is not None:
             check_positive(self.recovery_double_stance, "recovery_double_stance")
         check_positive(self.recovery_sink_speed, "recovery_sink_speed")
+        if self.max_wait is not None:
+            check_positive(self.max_wait, "max_wait", allow_zero=True)
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
         if self.recovery_min_flight is not None and not (0.0 <= self.recovery_min_flight <= 1.0):
@@ -329,14 +331,14 @@ class GaitClock:
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
-                 max_wait: float = 0.03, lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
+                 max_wait: float | None = None, lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
         if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
             raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
         self.durations = tuple(float(d) for d in durations)
         self.dt = check_positive(dt, "dt")
         self.debounce_steps = check_int(debounce_steps, "debounce_steps", minimum=1)
         self.min_flight = float(min_flight)
-        self.max_wait = float(max_wait)
+        self.max_wait = None if max_wait is None else check_positive(max_wait, "max_wait", allow_zero=True)
         self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
         self.double_stance = check_positive(double_stance, "double_stance", allow_zero=True)
         """Duration [s] of a double stance entered now (0: the clock never enters one)."""
@@ -393,10 +395,12 @@ class GaitClock:
             self.double_duration = self.double_stance
             self.phase, self.tau, self.resynced = DOUBLE_STANCE_PHASE, 0.0, True
             return self.mode
+        touched = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
             touched = self._contact_steps[landing] >= self.debounce_steps
-            advance = (touched and self.tau >= self.min_flight * nominal) or self.tau >= nominal + self.max_wait
+            advance = (touched and self.tau >= self.min_flight * nominal) or (
+                self.max_wait is not None and self.tau >= nominal + self.max_wait)
         else:
             stance_foot = BACK if j == 0 else FRONT
             advance = self.tau >= nominal - 1e-9
@@ -416,7 +420,8 @@ class GaitClock:
         if advance:
             self.phase = (j + 1) % 4
             self.tau = 0.0
-            self._stance_touched = False
+            # a stance that starts at its foot's touchdown has touched: if the foot bounces off, it is lost
+            self._stance_touched = touched
         return _CYCLE[self.phase]
 
     @property
