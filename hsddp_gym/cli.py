@@ -196,11 +196,9 @@ def cmd_rollout(args) -> int:
         _check_push(args.push, args.max_episode_steps)
         t, dvx, dvz, dw = args.push
         push = {"delta_v": [dvx, dvz, dw], "time": t}
-    if args.mpc_recovery and args.policy != "mpc":
-        raise UsageError("--mpc-recovery", f"given with --policy {args.policy}", "--policy mpc")
     summary = run_rollouts(args.policy, args.episodes, args.seed, out, video=args.video, env_kwargs=env_kwargs,
                            push=push, quiet=args.quiet, max_episode_steps=args.max_episode_steps,
-                           mpc_recovery=args.mpc_recovery, env_id=ROLLOUT_ENVS[args.simulator == "mujoco"])
+                           env_id=ROLLOUT_ENVS[args.simulator == "mujoco"])
     for k in ("mean_return", "std_return", "falls", "mean_forward_speed", "mean_episode_length", "real_time_factor",
               "replans", "planner_failures", "mean_replan_ms"):
         v = summary.get(k)
@@ -637,11 +635,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="push at episode time T [s]: add (DVX, DVZ) [m/s] and DPITCH [rad/s] to the trunk velocity")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit in control steps of 5 ms (default: the env's 1000)")
-    p.add_argument("--mpc-recovery", action="store_true",
-                   help="with --policy mpc: the push-robust settings (MPCOptions.push_recovery(): a 2.5 ms planner "
-                        "grid and the push recovery: an immediate re-plan with more iterations when the trunk velocity "
-                        "leaves the plan, a double stance when the trunk sinks, the heuristic while a re-plan has "
-                        "failed); summary.json then also counts recoveries and fallback_steps")
     p.add_argument("--simulator", choices=("lcp", "mujoco"), default="lcp",
                    help="lcp: hsddp_gym/Bounding-v0 (exact-LCP contacts); mujoco: its MuJoCo twin "
                         "hsddp_gym/BoundingMuJoCo-v0 (soft contacts; needs the extra 'mujoco') (default: %(default)s)")

@@ -151,15 +151,13 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
-                 max_episode_steps: int | None = None, mpc_recovery: bool = False, mpc_options=None,
+                 max_episode_steps: int | None = None, mpc_options=None,
                  env_id: str = "hsddp_gym/Bounding-v0") -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
-    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_recovery`` runs the
-    MPC with its push-robust settings (:meth:`hsddp_gym.planners.policies.mpc.MPCOptions.push_recovery`),
-    ``mpc_options`` with any
-    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (not both). ``env_id``: ``hsddp_gym/Bounding-v0`` (the
-    exact-LCP env) or ``hsddp_gym/BoundingMuJoCo-v0`` (its MuJoCo twin)."""
+    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_options``: the MPC's
+    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (None: the defaults; for ``policy_name`` "mpc" only).
+    ``env_id``: ``hsddp_gym/Bounding-v0`` (the exact-LCP env) or ``hsddp_gym/BoundingMuJoCo-v0`` (its MuJoCo twin)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -172,10 +170,8 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     out = check_output_dir(out, "out")
     if env_id not in ROLLOUT_ENVS:
         raise ValueError(f"env_id must be one of {ROLLOUT_ENVS}, got {env_id!r}")
-    if (mpc_recovery or mpc_options is not None) and policy_name != "mpc":
-        raise ValueError(f"mpc_recovery and mpc_options apply to the mpc policy only, got policy {policy_name!r}")
-    if mpc_recovery and mpc_options is not None:
-        raise ValueError("give mpc_recovery or mpc_options, not both")
+    if mpc_options is not None and policy_name != "mpc":
+        raise ValueError(f"mpc_options applies to the mpc policy only, got policy {policy_name!r}")
     require(required_modules(policy_name) + (["PIL"] if video else []), f"rollouts of {policy_name}"
             + (" with a video" if video else ""))
     out.mkdir(parents=True, exist_ok=True)
@@ -183,10 +179,6 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    if mpc_recovery:
-        from hsddp_gym.planners.policies.mpc import MPCOptions
-
-        mpc_options = MPCOptions.push_recovery()
     policy, options = make_policy(policy_name, env, seed, mpc_options=mpc_options)
     if push is not None:
         options = dict(options or {})
@@ -196,14 +188,11 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))
     summary = summarize(results)
     summary.update(policy=policy_name, env_id=env_id, env_kwargs=env_kwargs, push=push, first_seed=seed,
-                   max_episode_steps=env.spec.max_episode_steps, mpc_recovery=bool(mpc_recovery))
+                   max_episode_steps=env.spec.max_episode_steps)
     if mpc_options is not None:
         import dataclasses
 
         summary["mpc_options"] = dataclasses.asdict(mpc_options)
-    if mpc_options is not None or mpc_recovery:
-        summary.update(recoveries=sum((r.policy_stats or {}).get("recoveries", 0) for r in results),
-                       fallback_steps=sum((r.policy_stats or {}).get("fallback_steps", 0) for r in results))
     if video and results and results[0].frames:
         from hsddp_gym.viz.render import gif_timing, save_gif
 

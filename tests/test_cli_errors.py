@@ -118,7 +118,6 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["rollout", "--policy", "foo", "--out", out], "--policy"),
         (["rollout", "--policy", "bc:" + str(tmp / "missing"), "--out", out], "--policy"),
         (["rollout", "--policy", "sb3:" + str(ds), "--out", out], "--policy"),
-        (["rollout", "--policy", "heuristic", "--mpc-recovery", "--out", out], "--mpc-recovery"),
     ]
 
 
