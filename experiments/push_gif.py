@@ -1,10 +1,10 @@
-"""A side-by-side GIF of one push: the contact-event heuristic (left) and the MPC with push recovery (right),
-same seed, same push, from shortly before the push until ``--after`` seconds after it (or the fall).
+"""A side-by-side GIF of one push: the contact-event heuristic (left) and the default HS-DDP MPC (right), same
+seed, same push, from shortly before the push until ``--after`` seconds after it (or the fall).
 
 Each panel is :func:`hsddp_gym.viz.render.render_state` of the episode's states, captioned with the policy, the
 env time and, once it has happened, "FELL". Every ``--stride``-th control step is drawn and the GIF plays in
-real time. The default is the +10 rad/s nose-down push of the README on seed 103 (the heuristic falls, the
-recovering MPC bounds on with its own actions, tested in ``tests/test_mpc_recovery.py``).
+real time. The default is the +10 rad/s nose-down push of the README on seed 103 (the heuristic falls, the MPC
+bounds on; the heuristic's fall is tested in ``tests/test_mpc_push.py``).
 
 Usage::
 
@@ -21,19 +21,20 @@ import numpy as np
 
 
 def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple[np.ndarray, bool, float]:
-    """``(states (T+1, 14), fell, control period [s])`` of one pushed episode."""
+    """``(states (T+1, 14), fell, control period [s])`` of one pushed episode of ``policy_name`` ("heuristic" or
+    "mpc")."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
     from hsddp_gym.planners.policies.evaluation import run_episode
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+    from hsddp_gym.planners.policies.mpc import MPCPolicy
 
     env = gym.make("hsddp_gym/Bounding-v0")
     if policy_name == "heuristic":
         policy = HeuristicPolicy.from_env(env)
     else:
-        policy = MPCPolicy.from_env(env, options=MPCOptions.push_recovery())
+        policy = MPCPolicy.from_env(env)
     res = run_episode(env, policy, seed, options={"push": push}, max_steps=steps)
     dt = env.unwrapped.dt
     env.close()
@@ -62,7 +63,7 @@ def main(argv=None) -> int:
 
     push = {"delta_v": list(args.push[1:]), "time": t_push}
     panels = []
-    for name, label in (("heuristic", "contact-event heuristic"), ("mpc-recovery", "HS-DDP MPC, recovery")):
+    for name, label in (("heuristic", "contact-event heuristic"), ("mpc", "HS-DDP MPC")):
         steps = int(round((t_push + args.after) / (DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP)))
         states, fell, dt = episode_states(name, args.seed, push, steps)
         print(f"{label}: {'fell' if fell else 'bounded on'} ({states.shape[0] - 1} steps)", flush=True)

@@ -7,10 +7,9 @@ push, time) runs ``--seeds`` seeded episodes of ``--steps`` control steps (defau
 counts as a fall when it terminates (unhealthy) before its last step.
 
 Writes ``OUT/push_robustness.json`` (per policy and push: falls, episodes, and per episode the seed, push
-time, fall, fall time and, for the MPC policies, the control steps acted by the heuristic fallback and the
-planner failures) and ``push_robustness.md`` (a table of falls / episodes). The default grid holds pushes
-along each axis of growing size. Episodes are independent: ``--workers`` runs them in parallel processes
-with the same results.
+time, fall, fall time and, for the MPC policies, the planner failures) and ``push_robustness.md`` (a table of
+falls / episodes). The default grid holds pushes along each axis of growing size. Episodes are independent:
+``--workers`` runs them in parallel processes with the same results.
 
 Usage::
 
@@ -34,11 +33,9 @@ DEFAULT_PUSHES = [
 ]
 
 
-POLICIES = ("mpc", "mpc-recovery", "mpc-recovery-5ms", "mpc-handover", "mpc-options", "heuristic", "random")
-"""``mpc-recovery``: the MPC with its push-robust settings ``MPCOptions.push_recovery()`` (recovery on, 2.5 ms
-planner grid); ``mpc-recovery-5ms``: ``MPCOptions(recovery=True)`` at the default 5 ms grid; ``mpc-handover``:
-the push-robust settings with ``recovery_handover=True`` (the heuristic acts for the whole recovery window);
-``mpc-options``: ``MPCOptions(**OPTIONS)`` from ``--mpc-options`` (ablations)."""
+POLICIES = ("mpc", "mpc-options", "heuristic", "random")
+"""``mpc``: the MPC with its default options; ``mpc-options``: ``MPCOptions(**OPTIONS)`` from ``--mpc-options``
+(ablations); ``heuristic``: the contact-event heuristic; ``random``: uniform actions."""
 
 
 def make_policy(name: str, env, mpc_options: dict | None = None):
@@ -48,12 +45,6 @@ def make_policy(name: str, env, mpc_options: dict | None = None):
 
     if name == "mpc-options":
         return MPCPolicy.from_env(env, options=MPCOptions(**(mpc_options or {})))
-    if name == "mpc-recovery":
-        return MPCPolicy.from_env(env, options=MPCOptions.push_recovery())
-    if name == "mpc-recovery-5ms":
-        return MPCPolicy.from_env(env, options=MPCOptions(recovery=True))
-    if name == "mpc-handover":
-        return MPCPolicy.from_env(env, options=MPCOptions.push_recovery(recovery_handover=True))
     factories = {"mpc": MPCPolicy, "heuristic": HeuristicPolicy, "random": RandomPolicy}
     if name not in factories:
         raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
@@ -80,7 +71,6 @@ def run_one(task: tuple) -> dict:
         stats = getattr(policy, "stats", {})
         return {"seed": seed, "push_time_s": push_time, "fell": bool(res.fell),
                 "fall_time_s": res.length * env.unwrapped.dt if res.fell else None,
-                "fallback_steps": int(stats.get("fallback_steps", 0)),
                 "planner_failures": int(stats.get("planner_failures", 0))}
     finally:
         env.close()
@@ -89,8 +79,7 @@ def run_one(task: tuple) -> dict:
 def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: int, workers: int = 1,
              progress: bool = True, mpc_options: dict | None = None, backend: str = "local",
              address: str | None = None) -> dict:
-    """``{policy: {push label: {"delta_v", "falls", "episodes", "fallback_episodes", "runs": [per episode]}}}``
-    (``fallback_episodes``: survived episodes in which the heuristic fallback acted; ``mpc_options``: the
+    """``{policy: {push label: {"delta_v", "falls", "episodes", "runs": [per episode]}}}`` (``mpc_options``: the
     fields of the ``mpc-options`` policy; ``backend``/``address``: :func:`hsddp_gym.util.parallel.run_parallel`)."""
     tasks = [(name, tuple(dv), seed, float(t), steps, mpc_options) for name in policies for dv in pushes
              for t in push_times for seed in range(first_seed, first_seed + seeds)]
@@ -107,7 +96,6 @@ def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: i
         for label, cell in results[name].items():
             cell["episodes"] = len(cell["runs"])
             cell["falls"] = sum(r["fell"] for r in cell["runs"])
-            cell["fallback_episodes"] = sum(1 for r in cell["runs"] if r["fallback_steps"] and not r["fell"])
             if progress:
                 print(f"{name:<13} push {label:<18} falls {cell['falls']}/{cell['episodes']}", flush=True)
     return results
@@ -126,10 +114,6 @@ def markdown(results: dict, push_times, steps: int, dt: float) -> str:
     totals = [f"{sum(c['falls'] for c in results[p].values())}/{sum(c['episodes'] for c in results[p].values())}"
               for p in policies]
     lines.append("| total | " + " | ".join(totals) + " |")
-    helped = {p: sum(c["fallback_episodes"] for c in results[p].values()) for p in policies if p.startswith("mpc")}
-    if any(helped.values()):
-        lines += ["", "Survived episodes in which the heuristic fallback acted: "
-                  + ", ".join(f"{p} {n}" for p, n in helped.items())]
     return "\n".join(lines) + "\n"
 
 
@@ -146,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="control steps per episode, push included (default: %(default)s = 2.5 s)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
                    help='MPCOptions fields of the mpc-options policy as a JSON object, e.g. '
-                        '\'{"recovery": true, "recovery_double_stance": null}\' (default: none)')
+                        '\'{"planner_dt": 0.005, "speed_integral_gain": null}\' (default: none)')
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes (or the CPUs of the local Ray instance); the results do not "
                         "depend on it (default: %(default)s)")
