@@ -155,3 +155,30 @@ def test_double_stance_rule():
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
     with pytest.raises(ValueError, match="double_stance"):
         GaitClock(durs, 0.005, double_stance=-0.01)
+
+
+def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
+    """``MPCOptions(double_stance=0.04)``: the MPC's clock always has that double stance, and a plan's schedule
+    built while the clock is in it starts with it, then the stance of the foot that landed; the default MPC never
+    enters one. The learner's rebuilt clock keeps the setting."""
+    from hsddp_gym.learning.features import clock_from_params, clock_params
+
+    ds = Mode.DOUBLE_STANCE
+    policy = MPCPolicy(EnvInterface(), MPCOptions(double_stance=0.04))
+    assert policy.clock.double_stance == 0.04
+    policy.clock.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(policy.clock, ds, 2, ds, 0)  # the front foot lands in the back stance (debounced)
+    assert policy.clock.phase == DOUBLE_STANCE_PHASE and policy.clock.after_double == 2
+    schedule = policy._schedule()
+    assert schedule.modes[0] == ds and schedule.modes[1] == Mode.FRONT_STANCE
+    assert schedule.durations[0] == pytest.approx(0.04)
+    assert clock_from_params(clock_params(policy.clock)).double_stance == 0.04
+    # the default: no double stance, the clock stays in the back stance and so does the plan
+    default = MPCPolicy(EnvInterface())
+    assert MPCOptions().double_stance is None and default.clock.double_stance == 0.0
+    default.clock.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(default.clock, ds, 2, ds, 0)
+    assert default.clock.phase == 0 and default._schedule().modes[0] == Mode.BACK_STANCE
+    for bad in (0.0, -0.01):
+        with pytest.raises(ValueError, match="double_stance"):
+            MPCOptions(double_stance=bad)

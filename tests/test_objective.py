@@ -263,8 +263,9 @@ def test_bounding_weights_are_the_authors():
 
 
 def test_double_stance_cost_and_reference():
-    """Double stance (the recovering MPC's, not the authors' gait): the touchdown posture of the foot that stays
-    with zero vertical velocity, stance weights on both legs, the weight shared by the two feet."""
+    """Double stance (the MPC's with ``MPCOptions.double_stance``, not the authors' gait): the touchdown posture of
+    the foot that stays with zero vertical velocity, stance weights on both legs, the weight shared by the two
+    feet."""
     from hsddp_gym.core.conventions import BACK, FRONT, NQ, Mode, grf_slice
     from hsddp_gym.core.references import end_of_mode_reference
     from hsddp_gym.core.schedule import ModeSchedule

@@ -24,7 +24,7 @@ def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict 
     return MPCPolicy(interface, o).clock.copy()
 
 
-_CLOCK_EXTRA = ("lost_stance_steps",)
+_CLOCK_EXTRA = ("lost_stance_steps", "double_stance")
 """Optional :class:`hsddp_gym.planners.policies.mpc.GaitClock` settings, saved (and passed back) only when the clock
 has them."""
 

@@ -8,8 +8,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 2. a bounding :class:`~hsddp_gym.core.schedule.ModeSchedule` starts with the current mode for the rest of its
    nominal duration (at least ``min_phase`` seconds) and continues the bounding cycle to cover at least
    ``horizon`` seconds (default one gait cycle); the plan's speed reference is the target speed moved at
-   most ``speed_ramp`` from the measured speed (a reference governor for pushes), and a stance whose foot
-   has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`);
+   most ``speed_ramp`` from the measured speed (a reference governor for pushes), a stance whose foot
+   has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`), and with
+   ``double_stance`` set, both feet on the ground start a planned double stance;
 3. the previous plan, aligned by phase with the contact events
    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
@@ -26,17 +27,8 @@ action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' spee
 start speed toward the target at a bounded rate (``speed_acceleration``).
 
 A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
-feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`.
-
-**Push recovery** (``MPCOptions(recovery=True)``, off by default). After a push the 3-iteration re-plans warm
-started from the shifted plan no longer converge (costs grow 10-1000x, switching violations reach 0.1-0.4,
-re-plans fail or return a plan whose gains failed) while the stale plan's feedback law acts on a state far
-from its nominal. With recovery on, a trunk-velocity deviation from the plan's prediction above
-``recovery_threshold`` opens a recovery window: an immediate re-plan, ``recovery_iterations`` per re-plan,
-plans whose gains failed rejected, a flight ended by any touchdown of its landing foot, a double stance planned
-when the trunk sinks or both feet touch, and the contact-event heuristic acting while the latest re-plan has
-failed (``recovery_handover``: for the whole window). Without a push (at 0.5 and 1 m/s) the deviation stays
-below the threshold and the actions are those of the plain MPC; in the 1.5 m/s gait it is crossed.
+feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`. Only while no plan exists yet
+(the episode's first re-plan failed) does the schedule-driven heuristic act instead (a start-up controller).
 """
 
 from __future__ import annotations
@@ -50,7 +42,6 @@ import numpy as np
 
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
-from hsddp_gym.core.params import DEFAULT_PARAMS
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
@@ -58,7 +49,7 @@ from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpe
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
-from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains, HeuristicPolicy
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.tracking import PlanTracker
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive
 
@@ -110,41 +101,14 @@ class MPCOptions:
             the one-shot solve's shrinking delta makes warm-started re-plans needlessly stiff).
         warm_start_kd: joint damping of the heuristic controller that warm-starts the first plan (the
             heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
-        recovery: push recovery (default off: the unpushed behaviour is that of the plain MPC, bit for bit).
-            When the measured trunk velocity is far from the plan's prediction at the cursor
-            (:meth:`MPCPolicy.plan_deviation` above ``recovery_threshold``, e.g. after a push), the MPC
-            re-plans at once instead of waiting for ``replan_period``, and for the next ``recovery_window``
-            seconds every re-plan gets ``recovery_iterations`` DDP iterations and rejects plans whose gains
-            failed (their open-loop controls, K = 0, come from a diverged rollout); a rejected or failed
-            re-plan hands the torques to the contact-event heuristic (``recovery_fallback``) until the next
-            successful re-plan. See :meth:`MPCPolicy.act`.
-        recovery_threshold: trigger of the recovery: the deviation [m/s] of
-            ``(vx, vz, pitch_length * pitch_rate)`` from the plan.
-        recovery_iterations: DDP iterations per re-plan during a recovery. recovery_window: its length [s]
-            (0.3 s: with 0.2 s the window closed in the middle of the double stance that caught a downward push).
-        recovery_fallback: act with the contact-event heuristic while a recovery re-plan has failed.
-        recovery_handover: act with the contact-event heuristic for the whole recovery window (the MPC keeps
-            re-planning from the measured states and takes over when the window closes).
-        recovery_max_wait: the gait clock's ``max_wait`` during a recovery (None: ``max_wait``): a longer
-            wait keeps the clock, and so the planned schedule, in flight until the landing foot really touches
-            down after a push has lengthened the flight (measured on 6 pushes x 3 seeds: no fewer falls).
-        recovery_min_flight: the gait clock's ``min_flight`` during a recovery (None: ``min_flight``). The
-            default 0 ends a flight as soon as its landing foot touches down: after a nose-down pitch push the
-            front foot hits the ground 5-10 ms after the back foot's lift-off, and a clock that took that for a
-            graze planned flight dynamics for a foot on the ground while the trunk pitched over.
-        recovery_double_stance: during a recovery, the duration [s] of a double stance (None: never plan one;
-            the authors' bounding gait has none). The gait clock enters one when both feet touch down
-            (:class:`GaitClock`), and while the trunk sinks faster than ``recovery_sink_speed`` [m/s] the plan
-            follows the current stance (or, in a flight whose lift-off has not happened, a ``min_phase`` rest of
-            the stance before it) with a double stance instead of a flight: after a downward push one leg
-            cannot stop the fall with 33 N m, and the plan reaches the swing foot down to share the load
-            (:meth:`MPCPolicy._schedule`).
-        recovery_after: env time [s] before which no recovery triggers (the start-up transient from the
-            reset noise is the warm-up plan's job; its deviations reach those of a push).
         lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
             gait clock takes the stance as lost (0: never; see :class:`GaitClock`): after a push that lifts the
             stance foot early in its stance, the clock goes back to the flight that lands it and the MPC
             re-plans at once, instead of planning stance dynamics for a foot in the air.
+        double_stance: duration [s] of a planned double stance (None: never; the authors' bounding gait has
+            none). When set, the gait clock enters a double stance when both feet touch down (:class:`GaitClock`),
+            the MPC re-plans at once, and its plans start with the double stance, then the stance of the foot that
+            landed (:meth:`MPCPolicy._schedule`).
         speed_ramp: the largest difference [m/s] between a plan's forward-speed reference and the measured
             forward speed (:meth:`MPCPolicy.plan_speed`; None: always the target). A reference governor: after a
             push that changes the speed by more than this, the plan does not demand the whole change within
@@ -200,18 +164,8 @@ class MPCOptions:
     reb_delta: float = 0.2
     reb_eps: float = 1e-4
     z_velocity: str = "code"
-    recovery: bool = False
-    recovery_threshold: float = 0.5
-    recovery_iterations: int = 15
-    recovery_window: float = 0.3
-    recovery_fallback: bool = True
-    recovery_handover: bool = False
-    recovery_after: float = 0.5
-    recovery_max_wait: float | None = None
     lost_stance_steps: int = 2
-    recovery_min_flight: float | None = 0.0
-    recovery_double_stance: float | None = 0.04
-    recovery_sink_speed: float = 0.5
+    double_stance: float | None = None
     speed_ramp: float | None = 0.5
     weights: str | None = None
     action_delay: int | None = None
@@ -227,26 +181,10 @@ class MPCOptions:
     replan_on_contact: bool = False
     speed_bias_limit: float = 0.5
 
-    PUSH_RECOVERY_PLANNER_DT = 0.0025
-    """The planner step of :meth:`push_recovery` [s]."""
-
-    @classmethod
-    def push_recovery(cls, **changes) -> MPCOptions:
-        """The push-robust settings: ``recovery=True`` and a 2.5 ms planner grid (``planner_dt``), with any
-        other field given in ``changes``.
-
-        Measured (README, "Pushes"): over 13 pushes x 6 gait phases x 2 seeds the recovery took the falls from
-        95 to 60 of 156 on the default 5 ms grid, and to 43 on the 2.5 ms grid (the heuristic: 32); the finer
-        grid alone barely helps (the plain MPC fell on 49 of the 60 episodes of the five hardest pushes, 53 on
-        5 ms). Unpushed bounding is as good (10 seeds: return 1447.5) with re-plans twice as long (real-time
-        factor 1.8 instead of 2.9)."""
-        return cls(**{"recovery": True, "planner_dt": cls.PUSH_RECOVERY_PLANNER_DT, **changes})
-
     def __post_init__(self) -> None:
         if self.horizon is not None:
             check_positive(self.horizon, "horizon")
-        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max", "recovery_threshold",
-                     "recovery_window"):
+        for name in ("planner_dt", "replan_period", "min_phase", "sigma_max"):
             check_positive(getattr(self, name), name)
         if self.fine_dt is not None:
             check_positive(self.fine_dt, "fine_dt")
@@ -257,19 +195,15 @@ class MPCOptions:
         check_int(self.fine_phases, "fine_phases", minimum=1)
         check_int(self.max_iterations, "max_iterations", minimum=1)
         check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
-        check_int(self.recovery_iterations, "recovery_iterations", minimum=1)
         check_int(self.latency_steps, "latency_steps", minimum=0)
         check_int(self.debounce_steps, "debounce_steps", minimum=1)
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
-        if self.recovery_double_stance is not None:
-            check_positive(self.recovery_double_stance, "recovery_double_stance")
-        check_positive(self.recovery_sink_speed, "recovery_sink_speed")
+        if self.double_stance is not None:
+            check_positive(self.double_stance, "double_stance")
         if self.max_wait is not None:
             check_positive(self.max_wait, "max_wait", allow_zero=True)
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
-        if self.recovery_min_flight is not None and not (0.0 <= self.recovery_min_flight <= 1.0):
-            raise ValueError(f"recovery_min_flight must be None or in [0, 1], got {self.recovery_min_flight!r}")
         check_positive(self.reb_delta, "reb_delta")
         check_positive(self.reb_eps, "reb_eps")
         if self.time_budget is not None:
@@ -326,8 +260,8 @@ class GaitClock:
         durations: nominal (back stance, flight, front stance, flight) durations [s].
         dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
         debounce_steps, min_flight, max_wait, lost_stance_steps: the rules above (see :class:`MPCOptions`).
-        double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC sets it to
-            ``MPCOptions.recovery_double_stance`` during a push recovery).
+        double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC's clock has
+            ``MPCOptions.double_stance``).
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
@@ -442,10 +376,6 @@ class GaitClock:
         swing = FRONT if j == 0 else BACK
         return self._contact_steps[swing] >= self.debounce_steps
 
-    def touching(self, foot: int) -> bool:
-        """Whether ``foot`` touched the ground in the last observation."""
-        return self._contact_steps[foot] > 0
-
     def tick(self) -> None:
         """One control period has passed."""
         self.tau += self.dt
@@ -477,10 +407,10 @@ class MPCPolicy(Policy):
         options: :class:`MPCOptions`.
 
     Attributes:
-        stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``recoveries``
-            (push recoveries triggered), ``fallback_steps`` (control steps acted by the heuristic fallback),
+        stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list),
             ``time_budget_stops`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
-            MPC does, and counted here rather than as failures).
+            MPC does, and counted here rather than as failures), ``event_replans`` (re-plans brought forward by a
+            gait-clock phase change, ``replan_on_contact``).
         last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
     """
 
@@ -503,7 +433,9 @@ class MPCPolicy(Policy):
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
-        self._fallback = HeuristicPolicy(interface)
+        self._startup_controller = HeuristicBoundingController(gains=HeuristicGains(speed=interface.target_speed))
+        """Acts while no plan exists yet (the episode's first re-plan failed): the schedule-driven heuristic
+        (stateless, ``torque(x, mode)``), fed the gait clock's mode."""
         self._warm_controller = HeuristicBoundingController(
             gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
         self.reset()
@@ -525,7 +457,6 @@ class MPCPolicy(Policy):
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
-        self._fallback = self._fallback.spawn()
 
     def reset(self) -> None:
         self._solver = HSDDP(SolverOptions(method=self.options.method))
@@ -534,8 +465,9 @@ class MPCPolicy(Policy):
         self.last_solution = None
         self._problem = None
         self._cs: ConstraintState | None = None
-        self.clock = GaitClock(self.durations, self.interface.control_dt, self.options.debounce_steps,
-                               self.options.min_flight, self.options.max_wait, self.options.lost_stance_steps)
+        o = self.options
+        self.clock = GaitClock(self.durations, self.interface.control_dt, o.debounce_steps, o.min_flight, o.max_wait,
+                               o.lost_stance_steps, o.double_stance or 0.0)
         self._plan_clock = self.clock
         # the last action_delay + 1 actions returned (oldest first): the oldest was executed over the last control
         # period, the others are still to be executed (zeros before the first ones, as the env's delay queue)
@@ -549,9 +481,7 @@ class MPCPolicy(Policy):
         """The state (14,) the last action was computed for: the observed state, or with latency compensation
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
-        self._fallback.reset()
-        self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "recoveries": 0,
-                      "fallback_steps": 0, "time_budget_stops": 0,
+        self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "time_budget_stops": 0,
                       "event_replans": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
@@ -560,8 +490,6 @@ class MPCPolicy(Policy):
         self._vx_window = collections.deque(maxlen=n_cycle)  # estimated forward speeds of the last gait cycle
         self._ref_window = collections.deque(maxlen=n_cycle)  # the speed references at the same steps
         self._bias_time = 0.0
-        self._recovery_until = -np.inf
-        self._use_fallback = False
 
     # ------------------------------------------------------------------ gait clock
     @property
@@ -574,31 +502,15 @@ class MPCPolicy(Policy):
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
-        o = self.options
-        if o.recovery and o.recovery_max_wait is not None:
-            self.clock.max_wait = o.recovery_max_wait if self.recovering else o.max_wait
-        if o.recovery and o.recovery_min_flight is not None:
-            self.clock.min_flight = o.recovery_min_flight if self.recovering else o.min_flight
-        if o.recovery and o.recovery_double_stance is not None:
-            self.clock.double_stance = o.recovery_double_stance if self.recovering else 0.0
         return self.clock.update(mode, float(x[NQ + IPITCH]))
 
-    def _schedule(self, sinking: bool = False) -> ModeSchedule:
+    def _schedule(self) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
-        ``min_phase``), then the bounding cycle until ``horizon`` is covered, ending after a stance.
-
-        ``sinking`` (a recovery with the trunk falling): the stance (or, in a flight whose lift-off has not
-        happened, the stance before it, for ``min_phase``) is followed by a double stance instead of a flight.
-        """
+        ``min_phase``; a double stance for the rest of its duration, then the stance that follows it), then the
+        bounding cycle until ``horizon`` is covered, ending after a stance."""
         o = self.options
         j = self._phase_j
-        stance = self._stance_before_double(j) if sinking else None
-        if stance is not None:  # the stance, a double stance, then the cycle from the other stance
-            s, left = stance
-            j = (s + 2) % 4
-            modes = [_CYCLE[s], Mode.DOUBLE_STANCE, _CYCLE[j]]
-            durs = [left, o.recovery_double_stance, self.durations[j]]
-        elif j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
+        if j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
             j = self._plan_clock.after_double
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
             durs = [max(self._plan_clock.double_duration - self._tau, o.min_phase), self.durations[j]]
@@ -620,18 +532,6 @@ class MPCPolicy(Policy):
         o = self.options
         fine = o.planner_dt if o.fine_dt is None else o.fine_dt
         return [fine if i < o.fine_phases else o.planner_dt for i in range(n)]
-
-    def _stance_before_double(self, j: int) -> tuple[int, float] | None:
-        """For a sinking trunk in phase ``j``: ``(stance phase, time left in it)`` to follow with a double
-        stance: the current stance, or, in a flight whose lift-off foot still touches, the stance before it for
-        ``min_phase``; None in a flight with both feet up and in a double stance."""
-        o = self.options
-        if j == DOUBLE_STANCE_PHASE:
-            return None
-        if _CYCLE[j] != Mode.FLIGHT:
-            return j, max(self.durations[j] - self._tau, o.min_phase)
-        lifting = BACK if j == 1 else FRONT
-        return (j - 1, o.min_phase) if self._plan_clock.touching(lifting) else None
 
     # ------------------------------------------------------------------ warm start
     def _warm_start(self, problem: HybridProblem, x: np.ndarray):
@@ -703,22 +603,6 @@ class MPCPolicy(Policy):
         return U
 
     # ------------------------------------------------------------------ re-plan
-    @property
-    def recovering(self) -> bool:
-        """True inside a push recovery window (``MPCOptions.recovery``)."""
-        return self.options.recovery and self._time < self._recovery_until - 1e-9
-
-    def plan_deviation(self, x: np.ndarray) -> float:
-        """Distance [m/s] of the measured trunk velocity ``(vx, vz, pitch_length * pitch_rate)`` from the
-        plan's state at the cursor (0 without a plan); ``pitch_length`` is half the hip spacing, so the
-        pitch term is the hips' vertical speed."""
-        if self.tracker is None:
-            return 0.0
-        xn = self.tracker.X[self.tracker.knot]
-        d = np.asarray(x[NQ:NQ + 3], dtype=np.float64) - xn[NQ:NQ + 3]
-        d[2] *= self._pitch_length
-        return float(np.linalg.norm(d))
-
     def reference_speed(self) -> float:
         """The forward speed [m/s] the robot should have now: the target, reached from the episode's start speed
         at ``speed_acceleration`` at most."""
@@ -757,17 +641,14 @@ class MPCPolicy(Policy):
         """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
         o = self.options
         t0 = time.perf_counter()
-        sinking = (self.recovering and o.recovery_double_stance is not None
-                   and float(x[NQ + 1]) < -o.recovery_sink_speed)
-        schedule = self._schedule(sinking)
+        schedule = self._schedule()
         knots = [max(1, round(d / h)) for d, h in zip(schedule.durations, self._phase_steps(len(schedule)))]
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
                                          knots=np.array(knots, dtype=np.int64))
         first = self.last_solution is None
-        recovering = self.recovering
-        iters = o.warmup_iterations if first else (o.recovery_iterations if recovering else o.max_iterations)
+        iters = o.warmup_iterations if first else o.max_iterations
         self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
                                              max_total_ddp_iterations=iters, time_limit=o.time_budget,
                                              max_al_iterations=4 if first else 2)
@@ -789,27 +670,22 @@ class MPCPolicy(Policy):
                         sol = self._solver.solve(problem, U, X_init=X_init, K_init=K_init, constraint_state=cs)
                     except ValueError:
                         sol = None
-                    if sol is not None and not (recovering and sol.status == "gains_failed"):
+                    if sol is not None:
                         break
-                    sol = None
             if sol is None:
                 sol = self._solver.solve(problem, self._heuristic_controls(problem))
-            if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged" or (
-                    recovering and sol.status == "gains_failed"):
+            if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged":
                 raise RuntimeError(f"planner status {sol.status}")
         except (RuntimeError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             self.last_failure = f"{type(exc).__name__}: {exc}"
             self.stats["planner_failures"] += 1
             self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
-            if recovering and o.recovery_fallback:
-                self._use_fallback = True
             return False
         cs = self._solver.last_constraint_state
         if cs is not None and o.method != "ddp" and sol.switching_violation > sol.options.al_tolerance:
             cs.lam = cs.lam + cs.sigma * sol.switching  # continue the outer loop across re-plans (eq. 24)
             cs.sigma = min(cs.sigma * sol.options.beta, o.sigma_max)
         self._cs = cs
-        self._use_fallback = False
         self.stats["replans"] += 1
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
         self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
@@ -828,13 +704,9 @@ class MPCPolicy(Policy):
 
     # ------------------------------------------------------------------ act
     def act(self, obs: np.ndarray) -> np.ndarray:
-        """The plan's feedback law at the cursor, re-planning every ``replan_period``.
-
-        With ``MPCOptions.recovery``: a plan deviation (:meth:`plan_deviation`) above ``recovery_threshold``
-        outside a recovery window opens one and re-plans now; while a recovery re-plan has failed, the
-        contact-event heuristic (fed every observation, so its stance/swing timers follow the real
-        touchdowns) acts instead of the stale plan (``recovery_handover``: for the whole window).
-        """
+        """The plan's feedback law at the cursor, re-planning every ``replan_period`` (at once after a lost stance,
+        a double stance's start or, with ``replan_on_contact``, any phase change of the gait clock); before the
+        first plan exists, the start-up controller (:attr:`_startup_controller`)."""
         x_obs, mode, _ = self._parse(obs)
         o = self.options
         if o.state_filter:
@@ -855,17 +727,6 @@ class MPCPolicy(Policy):
         self.last_prediction = x.copy()
         if self.tracker is not None:
             self.tracker.sync(eff)
-        if (o.recovery and not self.recovering and self._time >= o.recovery_after - 1e-9
-                and self.plan_deviation(x) > o.recovery_threshold):
-            self._recovery_until = self._time + o.recovery_window
-            self._since_replan = np.inf
-            self.stats["recoveries"] += 1
-        u_fallback = None
-        if o.recovery and (o.recovery_fallback or o.recovery_handover):
-            # the heuristic sees every observation so that its stance/swing timers follow the real contacts
-            u_fallback = self._fallback.gait.torque(x, (mode.in_contact(FRONT), mode.in_contact(BACK)))
-        if self._use_fallback and not self.recovering:
-            self._use_fallback = False  # the window closed: back to the (last successful) plan
         if self.clock.resynced or self._plan_clock.resynced:
             self._since_replan = np.inf  # the schedule changed against the cycle: re-plan now
         if self._since_replan >= self.options.replan_period - 1e-9:
@@ -881,13 +742,10 @@ class MPCPolicy(Policy):
                 self._pending = (tracker, sol, problem, lam, self.options.latency_steps)
                 self._activate_pending()
         if self.tracker is None:
-            u = self._fallback.controller.torque(x, eff)
+            u = self._startup_controller.torque(x, eff)
         else:
             u = self.tracker.control(x)
             self.tracker.advance(self.interface.control_dt)
-        if u_fallback is not None and self.recovering and (self._use_fallback or o.recovery_handover):
-            u = u_fallback
-            self.stats["fallback_steps"] += 1
         self.clock.tick()
         self._since_replan += self.interface.control_dt
         self._time += self.interface.control_dt
@@ -925,5 +783,3 @@ class MPCPolicy(Policy):
         return xp, eff
 
     _prev_lam = None
-    _pitch_length = DEFAULT_PARAMS.hip_offset
-    """Half the hip spacing of the planar Mini Cheetah [m] (``plan_deviation``'s pitch-rate scale)."""
