@@ -92,7 +92,8 @@ class MPCOptions:
         debounce_steps: control steps the landing foot must touch before a flight phase ends.
         min_flight: fraction of the nominal flight before which a touchdown is taken for a graze.
         max_wait: how long past its nominal end a flight waits for the touchdown before the gait clock
-            moves on anyway [s].
+            moves on anyway [s]; None (default): until the touchdown -- the plan never puts a foot that is in the
+            air into a stance (after a late touchdown, a push, a heavier trunk), its flight ending ``min_phase`` ahead.
         z_velocity: vertical-velocity references at the phase ends (see
             :func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): "code" (default; the authors' +-1 m/s,
             real flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
@@ -238,9 +239,12 @@ class GaitClock:
     """The MPC's gait clock: the bounding phase ``phase`` (index into (back stance, flight, front stance,
     flight)) and the time ``tau`` spent in it, a deterministic function of the observation history.
 
-    The phase changes on time, except that a flight ends when its landing foot has touched for
-    ``debounce_steps`` control steps (early touchdown, once ``min_flight`` of it has passed) or ``max_wait``
-    after its nominal end (late touchdown); grazes of other feet are ignored. A stance is *lost* when its
+    The plan's phase follows the contacts: a stance ends on time, a flight ends when its landing foot has touched
+    for ``debounce_steps`` control steps (early, once ``min_flight`` of it has passed; late, however late: with
+    ``max_wait`` None the clock never assumes a touchdown that has not happened, otherwise it moves on ``max_wait``
+    after the flight's nominal end). When instead the foot of the stance before the flight comes down again
+    (``debounce_steps``, once ``min_flight`` of the flight has passed), the clock goes back to that stance with
+    half of it to go (:attr:`resynced`); shorter grazes are ignored. A stance is *lost* when its
     foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
     half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
     foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
@@ -335,6 +339,17 @@ class GaitClock:
             touched = self._contact_steps[landing] >= self.debounce_steps
             advance = (touched and self.tau >= self.min_flight * nominal) or (
                 self.max_wait is not None and self.tau >= nominal + self.max_wait)
+            other = BACK if landing == FRONT else FRONT
+            if (not advance and self.tau >= self.min_flight * nominal
+                    and self._contact_steps[other] >= self.debounce_steps):
+                # the foot of the stance before this flight came down again first (after a pitch push, a short
+                # hop): that stance again, with half of it to go -- the plan never models a flight for a foot
+                # that is on the ground
+                self.phase = (j - 1) % 4
+                self.tau = 0.5 * self.durations[self.phase]
+                self._stance_touched = True
+                self.resynced = True
+                return _CYCLE[self.phase]
         else:
             stance_foot = BACK if j == 0 else FRONT
             advance = self.tau >= nominal - 1e-9
