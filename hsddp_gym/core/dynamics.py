@@ -424,7 +424,9 @@ class Linearization:
       Jacobians (zero rows for feet in the air).
 
     The raw Pinocchio outputs (``a_q, a_v, a_tau (N, 7, 7)``, ``lam6_* (N, 6, 7)``, ``lam6 (N, 6)``,
-    ``acc (N, 7)``) stay available for callers that need continuous-time quantities.
+    ``acc (N, 7)``) stay available for callers that need continuous-time quantities; ``knot_views`` holds the
+    same eight arrays as lists of their ``capacity`` per-knot rows (views), for writers that fill them knot by
+    knot (the solver's rollout: indexing a list costs a fraction of indexing an array).
     """
 
     def __init__(self, capacity: int) -> None:
@@ -443,6 +445,8 @@ class Linearization:
         self.grf = np.zeros((n, NGRF))
         self.grf_x = np.zeros((n, NGRF, NX))
         self.grf_u = np.zeros((n, NGRF, NU))
+        self.knot_views = tuple(list(a) for a in (self.a_q, self.a_v, self.a_tau, self.lam6_q, self.lam6_v,
+                                                  self.lam6_tau, self.lam6, self.acc))
 
     def finish(self, n: int, modes: np.ndarray, h, integrator: str, contact_sets: dict) -> None:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots (vectorized)."""

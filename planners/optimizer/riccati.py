@@ -21,6 +21,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from hsddp_gym.planners.optimizer.kernels import KERNELS, warm_up_kernels
+
 
 @numba.njit(cache=True, fastmath=False)
 def _cholesky_solve_4(A, B, L, out):
@@ -230,11 +232,12 @@ stale cache; loading a valid one takes well under a second, a few on a loaded ma
 
 
 def _cache_index_exists() -> bool:
-    """Whether numba's cache index of the backward pass is on disk (numba internals: False if they moved)."""
+    """Whether numba's cache indexes of the backward pass and of the cost kernels
+    (:mod:`~hsddp_gym.planners.optimizer.kernels`) are all on disk (numba internals: False if they moved)."""
     import os
 
     try:
-        return os.path.exists(backward_pass._cache._cache_file._index_path)
+        return all(os.path.exists(k._cache._cache_file._index_path) for k in (backward_pass, *KERNELS))
     except AttributeError:  # pragma: no cover (another numba version)
         return False
 
@@ -243,9 +246,11 @@ def warm_up(announce: bool = True) -> float:
     """Make the compiled kernels ready before anything is timed: compile them (the first run on a machine,
     10-20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
     process, on a 2-knot problem with the dtypes and layouts the solver passes (so its calls reuse this
-    specialization). With ``announce``, a line on stderr says when a compile is under way and how long it
-    took. Returns the seconds spent (0 when already done). :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP`
-    calls it before its clock starts, so compile time never lands in ``solve_time_s``."""
+    specialization): the backward pass and the objective's kernels
+    (:func:`hsddp_gym.planners.optimizer.kernels.warm_up_kernels`). With ``announce``, a line on stderr says
+    when a compile is under way and how long it took. Returns the seconds spent (0 when already done).
+    :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP` calls it before its clock starts, so compile time never
+    lands in ``solve_time_s``."""
     global _READY
     if _READY:
         return 0.0
@@ -254,9 +259,9 @@ def warm_up(announce: bool = True) -> float:
     import time
 
     def say():
-        print(f"numba: compiling the HS-DDP backward pass, once (the first run on this machine takes 10-20 s; "
-              f"later runs load it from the cache in {backward_pass.stats.cache_path}) ...", file=sys.stderr,
-              flush=True)
+        print(f"numba: compiling the HS-DDP backward pass and cost kernels, once (the first run on this machine "
+              f"takes 10-20 s; later runs load them from the cache in {backward_pass.stats.cache_path}) ...",
+              file=sys.stderr, flush=True)
 
     if announce and not _cache_index_exists():
         say()  # nothing cached: this compiles
@@ -275,11 +280,12 @@ def warm_up(announce: bool = True) -> float:
                       np.broadcast_to(np.eye(nu), (n, nu, nu)).copy(), np.zeros((n, nu, nx)), np.zeros((1, nx)),
                       np.eye(nx)[None].copy(), np.eye(nx)[None].copy(), np.array([0, n], dtype=np.int64), 0.0,
                       np.zeros((n, nu)), np.zeros((n, nu, nx)), np.zeros((n + 1, nx)), np.zeros((n + 1, nx, nx)))
+        warm_up_kernels()
     finally:
         if timer is not None:
             timer.cancel()
     elapsed = time.perf_counter() - t0
-    if announce and sum(backward_pass.stats.cache_misses.values()):
+    if announce and any(sum(k.stats.cache_misses.values()) for k in (backward_pass, *KERNELS)):
         print(f"numba: compiled in {elapsed:.1f} s (not counted in solver timings); cached for later runs",
               file=sys.stderr, flush=True)
     _READY = True
