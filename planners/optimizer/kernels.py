@@ -22,6 +22,7 @@ import numba
 import numpy as np
 
 from hsddp_gym.core.conventions import NGRF, NQ, NU, NX
+from hsddp_gym.core.dynamics import assemble_linearization
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -169,8 +170,14 @@ def warm_up_kernels() -> None:
     barrier_values(z((n, NU)), z((n, 6)), 1.0, 0.1, 0.1, 0.0, 0.0, z((n, 2 * NU + 6)), z((n, 6)), z((n, NU)),
                    z((n, NU)), z((n, 6)))
     integrate(z(NQ), z(NX), z(NX), 0.1, True)
+    assemble_linearization(z((n, NQ, NQ)), z((n, NQ, NQ)), z((n, NQ, NQ)), z((n, 6)), z((n, 6, NQ)), z((n, 6, NQ)),
+                           z((n, 6, NQ)), np.zeros(n, dtype=np.int64), np.ones(n), True,
+                           np.zeros((4, NGRF, 2), dtype=np.int64), np.zeros(4, dtype=np.int64), z((n, NX, NX)),
+                           z((n, NX, NU)), z((n, NGRF)), z((n, NGRF, NX)), z((n, NGRF, NU)))
 
 
 KERNELS = (quadratic_derivatives, torque_barrier_derivatives, force_barrier_derivatives, barrier_safe, barrier_values,
-           integrate)
-"""The compiled entry points (their numba caches are checked by the warm-up)."""
+           integrate, assemble_linearization)
+"""The compiled entry points the solver calls besides the backward pass, with the linearization's assembly of
+:mod:`hsddp_gym.core.dynamics` (:meth:`~hsddp_gym.core.dynamics.Linearization.finish`): all warmed up by
+:func:`warm_up_kernels`, their numba caches checked by the warm-up."""
