@@ -111,6 +111,14 @@ class CheetahModel:
         """Height above the ground of both feet, ``g_c(x)`` of the paper: (2,)."""
         return self.foot_positions(q)[:, 1]
 
+    def foot_height(self, q: np.ndarray, foot: int) -> float:
+        """Height above the ground of one foot for a configuration ``q`` (7,): ``foot_heights(q)[foot]`` (bit for
+        bit), from the placement of that foot's frame alone (the solver's switching constraints)."""
+        q = check_vector(q, NQ, "q")
+        _check_foot(foot)
+        pin.forwardKinematics(self.model, self._data, q)
+        return float(pin.updateFramePlacement(self.model, self._data, self.foot_frame_ids[foot]).translation[2])
+
     def foot_velocities(self, x: np.ndarray) -> np.ndarray:
         """World ``(vx, vz)`` of both feet for a state ``x`` (14,): ``(2, 2)``."""
         x = check_vector(x, NX, "x")

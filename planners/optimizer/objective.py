@@ -112,7 +112,7 @@ class Objective:
         g = np.zeros(self.problem.n_phases)
         for i, foot in enumerate(self.problem.touchdown):
             if foot >= 0:
-                g[i] = self.robot.foot_heights(X_pre[i, :7])[foot]
+                g[i] = self.robot.foot_height(X_pre[i, :7], foot)
         return g
 
     # --------------------------------------------------------------- values
