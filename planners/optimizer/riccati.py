@@ -21,6 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from hsddp_gym.core.conventions import NU, NX
 from hsddp_gym.planners.optimizer.kernels import KERNELS, warm_up_kernels
 
 
@@ -63,15 +64,29 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
 
     Writes the feed-forward terms ``k_ff (N, 4)``, gains ``K (N, 4, 14)``, and the value gradient /
     Hessian at every knot ``V_x_out (N+1, 14)``, ``V_xx_out (N+1, 14, 14)`` (knot N: the final state).
+    Any state and control sizes are accepted; the robot's (14, 4) run a copy compiled with those sizes as
+    constants (fixed trip counts: about 15 % faster, the same operations in the same order).
 
     Returns:
         ``(ok, failed_knot, dV1, dV2)``: the expected cost change of a step ``eps`` is
         ``eps * dV1 + eps^2 / 2 * dV2``. ``ok`` is False (with the knot) when ``Q_uu + mu I`` is not
         positive definite.
     """
-    n_phase = phase_start.shape[0] - 1
     nx = f_x.shape[1]
     nu = f_u.shape[2]
+    if nx == NX and nu == NU:
+        return _backward_pass(NX, NU, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu,
+                              k_ff, K, V_x_out, V_xx_out)
+    return _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu, k_ff,
+                          K, V_x_out, V_xx_out)
+
+
+@numba.njit(cache=True, inline="always")
+def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu, k_ff, K,
+                   V_x_out, V_xx_out):
+    """:func:`backward_pass` for ``nx`` states and ``nu`` controls (inlined into it, where constant sizes
+    specialize it)."""
+    n_phase = phase_start.shape[0] - 1
     Vx = np.empty(nx)
     Vxx = np.empty((nx, nx))
     tmp_xx = np.empty((nx, nx))
