@@ -23,7 +23,7 @@ import dataclasses
 
 import numpy as np
 
-from hsddp_gym.core.conventions import NGRF, NU
+from hsddp_gym.core.conventions import NGRF, NU, NX
 from hsddp_gym.planners.optimizer import kernels as kernels
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 
@@ -105,6 +105,7 @@ class Objective:
         self._b_up = np.empty((n, NU))
         self._b_lo = np.empty((n, NU))
         self._b_f = np.empty((n, 6))
+        self._hxx = np.empty((n, NX, NX))  # grf_x^T W grf_x of the derivatives
 
     # --------------------------------------------------------------- switching constraints
     def switching_values(self, X_pre: np.ndarray) -> np.ndarray:
@@ -189,8 +190,8 @@ class Objective:
         l_x += np.einsum("nyx,ny->nx", grf_x, gy)
         l_u += np.einsum("nyu,ny->nu", grf_u, gy)
         WGx = W @ grf_x
-        l_xx += gxT @ WGx
-        l_ux[:] = grf_u.transpose(0, 2, 1) @ WGx
+        l_xx += np.matmul(gxT, WGx, out=self._hxx)  # a 0.3 MB temporary per call costs as much as the product
+        np.matmul(grf_u.transpose(0, 2, 1), WGx, out=l_ux)
         l_uu += grf_u.transpose(0, 2, 1) @ (W @ grf_u)
         # the augmented-Lagrangian term on the terminal costs
         if cs.use_al and pr.constraints.switching:
