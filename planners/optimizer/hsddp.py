@@ -35,22 +35,19 @@ from hsddp_gym.util.validation import check_array
 
 
 class _Traj:
-    """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4).
+    """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4), for N = ``n_knots`` knots and
+    n = ``n_phases`` phases, or fewer (:meth:`resize`: they are the leading views of buffers of that capacity).
 
-    They are the leading views of buffers for ``knot_capacity`` knots and ``phase_capacity`` phases (default: N, n;
-    :meth:`resize` moves them to another size within those). ``x_views``, ``q_views``, ``v_views`` (capacity + 1
-    rows of (14,), (7,), (7,)) and ``u_views`` (capacity rows of (4,)) are the per-knot rows of the buffers, for
-    the rollout's knot-by-knot writes (indexing a list costs a fraction of indexing an array).
+    ``x_views``, ``q_views``, ``v_views`` (N + 1 rows of (14,), (7,), (7,)) and ``u_views`` (N rows of (4,)) are the
+    per-knot rows of the buffers, for the rollout's knot-by-knot writes (indexing a list costs a fraction of
+    indexing an array).
     """
 
-    def __init__(self, n_knots: int, n_phases: int, knot_capacity: int | None = None,
-                 phase_capacity: int | None = None) -> None:
-        cn = n_knots if knot_capacity is None else knot_capacity
-        cm = n_phases if phase_capacity is None else phase_capacity
-        self._X = np.zeros((cn + 1, NX))
-        self._X_pre = np.zeros((cm, NX))
-        self._U = np.zeros((cn, NU))
-        self._GRF = np.zeros((cn, NGRF))
+    def __init__(self, n_knots: int, n_phases: int) -> None:
+        self._X = np.zeros((n_knots + 1, NX))
+        self._X_pre = np.zeros((n_phases, NX))
+        self._U = np.zeros((n_knots, NU))
+        self._GRF = np.zeros((n_knots, NGRF))
         self.x_views = list(self._X)
         self.q_views = [x[:NQ] for x in self.x_views]
         self.v_views = [x[NQ:] for x in self.x_views]
@@ -58,7 +55,8 @@ class _Traj:
         self.resize(n_knots, n_phases)
 
     def resize(self, n_knots: int, n_phases: int) -> None:
-        """Make ``X``, ``X_pre``, ``U``, ``GRF`` the views of ``n_knots`` knots and ``n_phases`` phases."""
+        """Make ``X``, ``X_pre``, ``U``, ``GRF`` the views of ``n_knots`` knots and ``n_phases`` phases (within the
+        capacity, else ``ValueError``)."""
         if not (1 <= n_knots <= self._U.shape[0] and 1 <= n_phases <= self._X_pre.shape[0]):
             raise ValueError(f"n_knots, n_phases must be in 1 .. {self._U.shape[0]}, 1 .. {self._X_pre.shape[0]} "
                              f"(the capacity), got {n_knots}, {n_phases}")
@@ -141,15 +139,15 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
         c = U_ref - np.einsum("nux,nx->nu", K, X_ref[:N])
         if k_ff is not None and eps != 0.0:
             c += eps * k_ff
-        Ks = list(K)
+        K_rows = list(K)
     else:
         c = U_ref if (k_ff is None or eps == 0.0) else U_ref + eps * k_ff
-    cs_ = list(c)
+    c_rows = list(c)
     if lin is not None:
-        a_q, a_v, a_t, l_q, l_v, l_t, lams, acc = lin.knot_views
+        a_q, a_v, a_t, l_q, l_v, l_t, lam_rows, acc = lin.knot_views
     else:
         lam6 = np.zeros((N, 6)) if lam6 is None else lam6
-        lams = list(lam6)
+        lam_rows = list(lam6)
     X[0] = problem.x0
     ps = problem.phase_start
     e = problem.restitution
@@ -164,23 +162,23 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             x = xs[k]
             u = us[k]
             if K is not None:
-                Ks[k].dot(x, out=u)  # the method: np.dot's array-function dispatch costs a third of the product
-                np.add(u, cs_[k], out=u)
+                K_rows[k].dot(x, out=u)  # the method: np.dot's array-function dispatch costs a third of the product
+                np.add(u, c_rows[k], out=u)
             else:
-                u[...] = cs_[k]
+                u[...] = c_rows[k]
             tau_u[...] = u
             q = qs[k]
             v = vs[k]
             if lin is None:
                 if mode:
                     a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
-                    lams[k][:nl] = data.lambda_c
+                    lam_rows[k][:nl] = data.lambda_c
                 else:
                     a = pin.aba(model, free, q, v, tau)
             elif mode:
                 a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
                 acc[k][...] = a
-                lams[k][:nl] = data.lambda_c
+                lam_rows[k][:nl] = data.lambda_c
                 dq, dv, dt_, lq, lv, lt = pin.computeConstraintDynamicsDerivatives(model, data, cms, cds, prox)
                 a_q[k][...] = dq
                 a_v[k][...] = dv
