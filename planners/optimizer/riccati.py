@@ -57,6 +57,49 @@ def _cholesky_solve_4(A, B, L, out):
     return True
 
 
+@numba.njit(cache=True, inline="always")
+def _accumulate(M, a, R, b, n, s0, s1, s2, s3):
+    """``s_j + sum_c M[a, c] R[c, b + j]`` for j = 0..3 over ``c < n`` ascending, skipping ``M[a, c] == 0``."""
+    for c in range(n):
+        v = M[a, c]
+        if v != 0.0:
+            s0 += v * R[c, b]
+            s1 += v * R[c, b + 1]
+            s2 += v * R[c, b + 2]
+            s3 += v * R[c, b + 3]
+    return s0, s1, s2, s3
+
+
+@numba.njit(cache=True, inline="always")
+def _accumulate1(M, a, R, b, n, s):
+    """``s + sum_c M[a, c] R[c, b]`` over ``c < n`` ascending, skipping ``M[a, c] == 0``."""
+    for c in range(n):
+        v = M[a, c]
+        if v != 0.0:
+            s += v * R[c, b]
+    return s
+
+
+@numba.njit(cache=True, inline="always")
+def _product(M, R, init, out, m, n, p):
+    """``out[a, b] = init[a, b] + sum_c M[a, c] R[c, b]`` (``init`` None: 0) for ``a < m``, ``b < p``, the sum over
+    ``c < n`` ascending, skipping ``M[a, c] == 0``: four columns at a time in registers."""
+    p4 = p - p % 4
+    for a in range(m):
+        for b in range(0, p4, 4):
+            if init is None:
+                s0 = s1 = s2 = s3 = 0.0
+            else:
+                s0, s1, s2, s3 = init[a, b], init[a, b + 1], init[a, b + 2], init[a, b + 3]
+            s0, s1, s2, s3 = _accumulate(M, a, R, b, n, s0, s1, s2, s3)
+            out[a, b] = s0
+            out[a, b + 1] = s1
+            out[a, b + 2] = s2
+            out[a, b + 3] = s3
+        for b in range(p4, p):
+            out[a, b] = _accumulate1(M, a, R, b, n, 0.0 if init is None else init[a, b])
+
+
 @numba.njit(cache=True)
 def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu,
                   k_ff, K, V_x_out, V_xx_out):
@@ -140,20 +183,9 @@ def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, 
         for k in range(phase_start[i + 1] - 1, phase_start[i] - 1, -1):
             A = f_x[k]
             B = f_u[k]
-            # VxxFx = Vxx A, VxxFu = Vxx B
-            # row-major products (inner loops contiguous, SIMD-friendly)
-            for a in range(nx):
-                for b in range(nx):
-                    VxxFx[a, b] = 0.0
-                for b in range(nu):
-                    VxxFu[a, b] = 0.0
-                for c in range(nx):
-                    v = Vxx[a, c]
-                    if v != 0.0:
-                        for b in range(nx):
-                            VxxFx[a, b] += v * A[c, b]
-                        for b in range(nu):
-                            VxxFu[a, b] += v * B[c, b]
+            # VxxFx = Vxx A, VxxFu = Vxx B (each element summed over c ascending, four columns at a time)
+            _product(Vxx, A, None, VxxFx, nx, nx, nx)
+            _product(Vxx, B, None, VxxFu, nx, nx, nu)
             for a in range(nx):
                 s = l_x[k, a]
                 for c in range(nx):
@@ -164,15 +196,7 @@ def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, 
                 for c in range(nx):
                     s += B[c, a] * Vx[c]
                 Qu[a] = s
-            for a in range(nx):
-                for b in range(nx):
-                    Qxx[a, b] = l_xx[k, a, b]
-            for c in range(nx):
-                for a in range(nx):
-                    v = A[c, a]
-                    if v != 0.0:
-                        for b in range(nx):
-                            Qxx[a, b] += v * VxxFx[c, b]
+            _product(A.T, VxxFx, l_xx[k], Qxx, nx, nx, nx)
             for a in range(nu):
                 for b in range(a, nu):
                     s = l_uu[k, a, b]
@@ -180,13 +204,7 @@ def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, 
                         s += B[c, a] * VxxFu[c, b]
                     Quu[a, b] = s
                     Quu[b, a] = s
-                for b in range(nx):
-                    Qux[a, b] = l_ux[k, a, b]
-                for c in range(nx):
-                    v = B[c, a]
-                    if v != 0.0:
-                        for b in range(nx):
-                            Qux[a, b] += v * VxxFx[c, b]
+            _product(B.T, VxxFx, l_ux[k], Qux, nu, nx, nx)
             for a in range(nu):
                 for b in range(nu):
                     Quu_reg[a, b] = Quu[a, b]
