@@ -453,8 +453,15 @@ class Linearization:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots: one compiled pass
         (:func:`assemble_linearization`), the numbers of :func:`assemble_step_jacobians` and
         :func:`grf_from_lambda`."""
+        if not 0 <= n <= self.capacity:
+            raise ValueError(f"n must be in 0 .. {self.capacity} (the capacity), got {n}")
         h = np.asarray(h, dtype=np.float64)
         h = np.full(n, float(h)) if h.ndim == 0 else np.ascontiguousarray(h[:n])
+        if h.shape != (n,):
+            raise ValueError(f"h must be a scalar or hold at least n = {n} steps, got shape {h.shape}")
+        modes = np.ascontiguousarray(modes[:n], dtype=np.int64)
+        if modes.shape != (n,) or (n and (modes.min() < min(_MODE_VALUES) or modes.max() > max(_MODE_VALUES))):
+            raise ValueError(f"modes must hold at least n = {n} contact modes {list(_MODE_VALUES)}, got {modes!r}")
         row_map = np.zeros((len(_MODE_VALUES), NGRF, 2), dtype=np.int64)
         n_rows = np.zeros(len(_MODE_VALUES), dtype=np.int64)
         for mode, cs in contact_sets.items():
@@ -463,8 +470,8 @@ class Linearization:
             row_map[int(mode), :k, 0] = cs.grf_rows
             row_map[int(mode), :k, 1] = cs.lam_rows
         assemble_linearization(self.a_q, self.a_v, self.a_tau, self.lam6, self.lam6_q, self.lam6_v, self.lam6_tau,
-                               np.ascontiguousarray(modes[:n], dtype=np.int64), h, integrator != "euler", row_map,
-                               n_rows, self.f_x, self.f_u, self.grf, self.grf_x, self.grf_u)
+                               modes, h, integrator != "euler", row_map, n_rows, self.f_x, self.f_u, self.grf,
+                               self.grf_x, self.grf_u)
 
 
 @numba.njit(cache=True, error_model="numpy")
