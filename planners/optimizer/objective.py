@@ -153,6 +153,8 @@ class Objective:
     def _barrier_value(self, U, GRF, cs):
         """``eps_torque sum B(torque rows) + eps_grf sum mask B(force rows)`` for ``U``, ``GRF`` (N, 4)."""
         U = np.ascontiguousarray(U, dtype=np.float64)
+        N = self.problem.n_knots
+        _check_shapes(("U", U, (N, NU)), ("GRF", GRF, (N, NGRF)))
         d_t, d_f = _relaxation(cs.delta_torque, "delta_torque"), _relaxation(cs.delta_grf, "delta_grf")
         c = GRF @ self.A_grf.T
         safe, b_up, b_lo, b_f = self._safe, self._b_up, self._b_lo, self._b_f
@@ -180,6 +182,10 @@ class Objective:
         ``Phi_xx (n, 14, 14)``) including the AL and barrier terms (Gauss-Newton for the force terms)."""
         pr = self.problem
         X, X_pre, U, GRF = (np.ascontiguousarray(a, dtype=np.float64) for a in (X, X_pre, U, GRF))
+        N, n = pr.n_knots, pr.n_phases
+        _check_shapes(("X", X[:N], (N, NX)), ("X_pre", X_pre, (n, NX)), ("U", U, (N, NU)), ("GRF", GRF, (N, NGRF)),
+                      ("l_x", l_x, (N, NX)), ("l_u", l_u, (N, NU)), ("l_xx", l_xx, (N, NX, NX)),
+                      ("l_uu", l_uu, (N, NU, NU)), ("Phi_x", Phi_x, (n, NX)), ("Phi_xx", Phi_xx, (n, NX, NX)))
         # quadratic terms (state, control, ground-force tracking in force space) and the terminal costs
         gy = self._gy
         W = self._W
@@ -219,3 +225,11 @@ def _relaxation(delta, name: str) -> float:
     if not (0.0 < d < np.inf):
         raise ValueError(f"cs.{name} must be finite and > 0, got {delta!r}")
     return d
+
+
+def _check_shapes(*arrays: tuple) -> None:
+    """``(name, array, shape)`` triples: each array must have its shape (the compiled kernels do not bounds-check);
+    ``ValueError`` naming the first that has not."""
+    for name, arr, shape in arrays:
+        if arr.shape != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
