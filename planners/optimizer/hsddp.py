@@ -151,7 +151,10 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
     X[0] = problem.x0
     ps = problem.phase_start
     e = problem.restitution
-    integrate = kernels.integrate
+    # locals, not module attributes, in the per-knot loop
+    add, integrate = np.add, kernels.integrate
+    constraint_dynamics, aba = pin.constraintDynamics, pin.aba
+    cd_derivatives, aba_derivatives = pin.computeConstraintDynamicsDerivatives, pin.computeABADerivatives
     for i in range(problem.n_phases):
         mode = int(problem.schedule.modes[i])
         h = float(h_phase[i])
@@ -162,8 +165,8 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             x = xs[k]
             u = us[k]
             if K is not None:
-                K_rows[k].dot(x, out=u)  # the method: np.dot's array-function dispatch costs a third of the product
-                np.add(u, c_rows[k], out=u)
+                K_rows[k].dot(x, u)  # the method: np.dot's array-function dispatch costs a third of the product
+                add(u, c_rows[k], u)
             else:
                 u[...] = c_rows[k]
             tau_u[...] = u
@@ -171,15 +174,15 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             v = vs[k]
             if lin is None:
                 if mode:
-                    a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+                    a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
                     lam_rows[k][:nl] = data.lambda_c
                 else:
-                    a = pin.aba(model, free, q, v, tau)
+                    a = aba(model, free, q, v, tau)
             elif mode:
-                a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
+                a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
                 acc[k][...] = a
                 lam_rows[k][:nl] = data.lambda_c
-                dq, dv, dt_, lq, lv, lt = pin.computeConstraintDynamicsDerivatives(model, data, cms, cds, prox)
+                dq, dv, dt_, lq, lv, lt = cd_derivatives(model, data, cms, cds, prox)
                 a_q[k][...] = dq
                 a_v[k][...] = dv
                 a_t[k][...] = dt_
@@ -187,7 +190,7 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
                 l_v[k][:nl] = lv
                 l_t[k][:nl] = lt
             else:
-                dq, dv, minv = pin.computeABADerivatives(model, free, q, v, tau)
+                dq, dv, minv = aba_derivatives(model, free, q, v, tau)
                 a_q[k][...] = dq
                 a_v[k][...] = dv
                 a_t[k][...] = minv
