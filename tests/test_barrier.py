@@ -109,3 +109,49 @@ def test_far_inside_the_constraint_no_overflow_far_outside_an_infinite_barrier()
     np.testing.assert_allclose(value, -np.log([1e200, 2.0]))
     with np.errstate(over="ignore"):
         assert relaxed_barrier(np.array([-1e200]), 0.2)[0][0] == np.inf
+
+
+@pytest.mark.parametrize("delta", DELTAS)
+def test_compiled_kernels_are_bit_identical_to_relaxed_barrier(delta, rng):
+    """The objective's fused kernels (:mod:`hsddp_gym.planners.optimizer.kernels`) give, bit for bit, what the
+    NumPy expressions of the objective give with :func:`relaxed_barrier` -- on both branches, exactly at delta,
+    far inside and far outside (overflows), at +-inf and nan."""
+    from hsddp_gym.planners.optimizer import kernels
+
+    umax, eps, n = 33.0, 7e-4, 40
+    special = np.array([delta, umax - delta, umax + delta, 0.0, -0.0, 1e200, -1e200, np.inf, -np.inf, np.nan,
+                        np.nextafter(delta, 0.0), np.nextafter(delta, 1.0)])
+    U = np.concatenate([umax * rng.uniform(-1.2, 1.2, 4 * n - special.size), special]).reshape(n, 4)
+    c = np.concatenate([delta * rng.uniform(-30.0, 30.0, 6 * n - special.size), special]).reshape(n, 6)
+    mask = (rng.uniform(size=(n, 6)) > 0.3).astype(float)
+    with np.errstate(all="ignore"):
+        v_up, d_up, dd_up = relaxed_barrier(umax - U, delta)
+        v_lo, d_lo, dd_lo = relaxed_barrier(umax + U, delta)
+        v_f, d_f, dd_f = relaxed_barrier(c, delta)
+        l_u, l_uu = rng.normal(size=(n, 4)), rng.normal(size=(n, 4, 4))
+        want_l_u = l_u + eps * (d_lo - d_up)
+        want_l_uu = l_uu.copy()
+        want_l_uu[:, range(4), range(4)] += eps * (dd_up + dd_lo)
+        kernels.torque_barrier_derivatives(U, umax, delta, eps, l_u, l_uu)
+        _assert_same_bits(l_u, want_l_u)
+        _assert_same_bits(l_uu, want_l_uu)
+        dc, ddc = np.empty((n, 6)), np.empty((n, 6))
+        kernels.force_barrier_derivatives(c, delta, eps, mask, dc, ddc)
+        _assert_same_bits(dc, d_f * (eps * mask))
+        _assert_same_bits(ddc, dd_f * (eps * mask))
+        safe = np.empty((n, 14))
+        kernels.barrier_safe(U, c, umax, delta, delta, safe)
+        np.log(safe, out=safe)
+        b_up, b_lo, b_f = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 6))
+        log_delta = float(np.log(delta))
+        kernels.barrier_values(U, c, umax, delta, delta, log_delta, log_delta, safe, mask, b_up, b_lo, b_f)
+        _assert_same_bits(b_up, v_up)
+        _assert_same_bits(b_lo, v_lo)
+        _assert_same_bits(b_f, v_f * mask)
+
+
+def _assert_same_bits(actual, expected):
+    """Equal as IEEE bit patterns (signed zeros and nan payloads included)."""
+    actual, expected = np.ascontiguousarray(actual), np.ascontiguousarray(expected)
+    assert actual.shape == expected.shape
+    np.testing.assert_array_equal(actual.view(np.uint64), expected.view(np.uint64))

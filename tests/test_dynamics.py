@@ -207,6 +207,35 @@ def test_linearize_with_per_knot_steps(robot, rng, tools, integrator):
         np.testing.assert_allclose(lin.grf_x[k], grf_x, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+@pytest.mark.parametrize("per_knot_h", [False, True])
+def test_compiled_finish_is_bit_identical_to_the_numpy_assembly(robot, rng, integrator, per_knot_h):
+    """:meth:`Linearization.finish` (compiled) gives the numbers of :func:`assemble_step_jacobians` and
+    :func:`grf_from_lambda` with the ground-force rows copied per mode, bit for bit, over stale rows of other modes."""
+    from hsddp_gym.core.dynamics import assemble_step_jacobians, grf_from_lambda
+
+    dyn = HybridDynamics(robot, integrator=integrator)
+    n = 40
+    lin = Linearization(n + 5)
+    for name in ("a_q", "a_v", "a_tau", "lam6_q", "lam6_v", "lam6_tau", "lam6"):
+        getattr(lin, name)[:] = rng.normal(size=getattr(lin, name).shape)
+    lin.a_v[0, 2, 2] = -0.0
+    modes = rng.integers(0, 4, n)
+    h = rng.uniform(1e-3, 5e-3, n) if per_knot_h else 2.5e-3
+    lin.finish(n, modes, h, integrator, dyn._contact)
+    f_x, f_u, grf = np.empty((n, NX, NX)), np.empty((n, NX, NU)), np.empty((n, NGRF))
+    assemble_step_jacobians(lin.a_q[:n], lin.a_v[:n], lin.a_tau[:n, :, 3:], h, integrator, f_x, f_u)
+    grf_from_lambda(lin.lam6[:n], modes, dyn._contact, grf)
+    grf_x, grf_u = np.zeros((n, NGRF, NX)), np.zeros((n, NGRF, NU))
+    for mode, cs in dyn._contact.items():
+        idx = np.flatnonzero(modes == int(mode))
+        for g, r in zip(cs.grf_rows, cs.lam_rows):
+            grf_x[idx, g] = np.concatenate([lin.lam6_q[idx, r], lin.lam6_v[idx, r]], axis=1)
+            grf_u[idx, g] = lin.lam6_tau[idx, r, 3:]
+    for got, want in ((lin.f_x, f_x), (lin.f_u, f_u), (lin.grf, grf), (lin.grf_x, grf_x), (lin.grf_u, grf_u)):
+        np.testing.assert_array_equal(got[:n].view(np.uint64), want.view(np.uint64))
+
+
 # ----------------------------------------------------------------------------------------- contact physics
 @pytest.mark.parametrize("mode", CONTACT_MODES, ids=[m.name for m in CONTACT_MODES])
 def test_stance_feet_do_not_accelerate(robot, dynamics, rng, tools, mode):

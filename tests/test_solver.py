@@ -350,6 +350,28 @@ def test_identical_solves_are_bit_identical(method, warm_start):
     assert_identical(solver.solve(fresh_problem(), warm_start), a)
 
 
+def test_a_reused_workspace_of_another_size_changes_nothing(warm_start):
+    """One solver through problems of several sizes (its workspace grows once, then serves smaller problems with
+    the stale arrays of larger ones behind its views) gives, bit for bit, a fresh solver's solutions."""
+    opt = SolverOptions(max_al_iterations=2, max_ddp_iterations=4)
+
+    def problem(scale):
+        return HybridProblem.bounding(cycles=1, durations=scale * np.array([0.080, 0.072, 0.072, 0.072]))
+
+    def controls(p):
+        ctrl = HeuristicBoundingController(p.dynamics.robot).as_schedule_controller(p.schedule)
+        return rollout(p.dynamics, p.schedule, p.x0, controller=ctrl).U
+
+    solver = HSDDP(opt)
+    capacities = []
+    for scale in (0.75, 1.0, 1.2, 0.9, 0.75):  # 222, 296, 354, 267, 222 knots
+        p = problem(scale)
+        got = solver.solve(p, controls(p))
+        capacities.append(solver._ws.knot_capacity)
+        assert_identical(got, HSDDP(opt).solve(problem(scale), controls(p)))
+    assert capacities[1] > capacities[0] and capacities[2:] == capacities[1:2] * 3  # grew once, then reused
+
+
 # ----------------------------------------------------------------------------------------- persistence
 
 

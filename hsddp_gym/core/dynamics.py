@@ -22,6 +22,7 @@ Pinocchio leaves derivative state in a ``Data``; each algorithm here owns its ow
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pinocchio as pin
 
@@ -424,7 +425,9 @@ class Linearization:
       Jacobians (zero rows for feet in the air).
 
     The raw Pinocchio outputs (``a_q, a_v, a_tau (N, 7, 7)``, ``lam6_* (N, 6, 7)``, ``lam6 (N, 6)``,
-    ``acc (N, 7)``) stay available for callers that need continuous-time quantities.
+    ``acc (N, 7)``) stay available for callers that need continuous-time quantities; ``knot_views`` holds the
+    same eight arrays as lists of their ``capacity`` per-knot rows (views), for writers that fill them knot by
+    knot (the solver's rollout: indexing a list costs a fraction of indexing an array).
     """
 
     def __init__(self, capacity: int) -> None:
@@ -443,27 +446,77 @@ class Linearization:
         self.grf = np.zeros((n, NGRF))
         self.grf_x = np.zeros((n, NGRF, NX))
         self.grf_u = np.zeros((n, NGRF, NU))
+        self.knot_views = tuple(list(a) for a in (self.a_q, self.a_v, self.a_tau, self.lam6_q, self.lam6_v,
+                                                  self.lam6_tau, self.lam6, self.acc))
 
     def finish(self, n: int, modes: np.ndarray, h, integrator: str, contact_sets: dict) -> None:
-        """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots (vectorized)."""
+        """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots: one compiled pass
+        (:func:`assemble_linearization`), the numbers of :func:`assemble_step_jacobians` and
+        :func:`grf_from_lambda`."""
+        if not 0 <= n <= self.capacity:
+            raise ValueError(f"n must be in 0 .. {self.capacity} (the capacity), got {n}")
         h = np.asarray(h, dtype=np.float64)
-        assemble_step_jacobians(self.a_q[:n], self.a_v[:n], self.a_tau[:n, :, 3:], h[:n] if h.ndim else h, integrator,
-                                self.f_x[:n], self.f_u[:n])
-        grf_from_lambda(self.lam6[:n], modes[:n], contact_sets, self.grf[:n])
-        self.grf_x[:n] = 0.0
-        self.grf_u[:n] = 0.0
-        modes = np.asarray(modes[:n])
+        h = np.full(n, float(h)) if h.ndim == 0 else np.ascontiguousarray(h[:n])
+        if h.shape != (n,):
+            raise ValueError(f"h must be a scalar or hold at least n = {n} steps, got shape {h.shape}")
+        modes = np.ascontiguousarray(modes[:n], dtype=np.int64)
+        if modes.shape != (n,) or (n and (modes.min() < min(_MODE_VALUES) or modes.max() > max(_MODE_VALUES))):
+            raise ValueError(f"modes must hold at least n = {n} contact modes {list(_MODE_VALUES)}, got {modes!r}")
+        row_map = np.zeros((len(_MODE_VALUES), NGRF, 2), dtype=np.int64)
+        n_rows = np.zeros(len(_MODE_VALUES), dtype=np.int64)
         for mode, cs in contact_sets.items():
-            idx = np.flatnonzero(modes == int(mode))
-            if idx.size == 0:
-                continue
-            nrow = 2 * len(cs.feet)
-            lam_rows = cs.lam_rows
-            for j in range(nrow):
-                g, r = cs.grf_rows[j], lam_rows[j]
-                self.grf_x[idx, g, :NQ] = self.lam6_q[idx, r]
-                self.grf_x[idx, g, NQ:] = self.lam6_v[idx, r]
-                self.grf_u[idx, g] = self.lam6_tau[idx, r, 3:]
+            k = len(cs.grf_rows)
+            n_rows[int(mode)] = k
+            row_map[int(mode), :k, 0] = cs.grf_rows
+            row_map[int(mode), :k, 1] = cs.lam_rows
+        assemble_linearization(self.a_q, self.a_v, self.a_tau, self.lam6, self.lam6_q, self.lam6_v, self.lam6_tau,
+                               modes, h, integrator != "euler", row_map, n_rows, self.f_x, self.f_u, self.grf,
+                               self.grf_x, self.grf_u)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def assemble_linearization(a_q, a_v, a_tau, lam6, lam6_q, lam6_v, lam6_tau, modes, h, semi_implicit, row_map, n_rows,
+                           f_x, f_u, grf, grf_x, grf_u):
+    """:meth:`Linearization.finish` compiled: for each knot ``k < n = len(modes)`` (``modes (n,)`` int64, steps
+    ``h (n,)``), the discrete Jacobians ``f_x (., 14, 14)``, ``f_u (., 14, 4)`` from ``a_q, a_v, a_tau
+    (., 7, 7)`` (elementwise the operations of :func:`assemble_step_jacobians`, so bit-identical to it) and the
+    ground forces ``grf (., 4)`` with their Jacobians ``grf_x (., 4, 14)``, ``grf_u (., 4, 4)`` copied from the
+    rows of ``lam6 (., 6)``, ``lam6_q, lam6_v, lam6_tau (., 6, 7)`` (zero for feet in the air): mode ``m`` has
+    ``n_rows[m]`` rows, ``row_map[m, j] = (grf row, Pinocchio row)``."""
+    for k in range(modes.shape[0]):
+        hk = h[k]
+        hh = hk * hk
+        for i in range(NV):
+            for j in range(NQ):
+                e = 1.0 if i == j else 0.0
+                f_x[k, NQ + i, j] = hk * a_q[k, i, j]
+                f_x[k, NQ + i, NQ + j] = e + hk * a_v[k, i, j]
+                if semi_implicit:
+                    f_x[k, i, j] = e + hh * a_q[k, i, j]
+                    f_x[k, i, NQ + j] = hk * e + hh * a_v[k, i, j]
+                else:
+                    f_x[k, i, j] = e
+                    f_x[k, i, NQ + j] = hk * e
+            for j in range(NU):
+                f_u[k, NQ + i, j] = hk * a_tau[k, i, 3 + j]
+                f_u[k, i, j] = hh * a_tau[k, i, 3 + j] if semi_implicit else 0.0
+        for g in range(NGRF):
+            grf[k, g] = 0.0
+            for j in range(NX):
+                grf_x[k, g, j] = 0.0
+            for j in range(NU):
+                grf_u[k, g, j] = 0.0
+        m = modes[k]
+        for j in range(n_rows[m]):
+            g = row_map[m, j, 0]
+            r = row_map[m, j, 1]
+            grf[k, g] = lam6[k, r]
+            for c in range(NQ):
+                grf_x[k, g, c] = lam6_q[k, r, c]
+            for c in range(NV):
+                grf_x[k, g, NQ + c] = lam6_v[k, r, c]
+            for c in range(NU):
+                grf_u[k, g, c] = lam6_tau[k, r, 3 + c]
 
 
 def grf_from_lambda(lam6: np.ndarray, modes: np.ndarray, contact_sets: dict, out: np.ndarray) -> None:

@@ -111,6 +111,14 @@ class CheetahModel:
         """Height above the ground of both feet, ``g_c(x)`` of the paper: (2,)."""
         return self.foot_positions(q)[:, 1]
 
+    def foot_height(self, q: np.ndarray, foot: int) -> float:
+        """Height above the ground of one foot for a configuration ``q`` (7,): ``foot_heights(q)[foot]`` (bit for
+        bit), from the placement of that foot's frame alone (the solver's switching constraints)."""
+        q = check_vector(q, NQ, "q")
+        _check_foot(foot)
+        pin.forwardKinematics(self.model, self._data, q)
+        return float(pin.updateFramePlacement(self.model, self._data, self.foot_frame_ids[foot]).translation[2])
+
     def foot_velocities(self, x: np.ndarray) -> np.ndarray:
         """World ``(vx, vz)`` of both feet for a state ``x`` (14,): ``(2, 2)``."""
         x = check_vector(x, NX, "x")
@@ -168,14 +176,15 @@ class CheetahModel:
         """
         q = check_vector(np.asarray(q)[:NQ] if np.ndim(q) == 1 and np.size(q) == NX else q, NQ, "q")
         _check_foot(foot)
-        pin.forwardKinematics(self.model, self._data, q)
-        pin.updateFramePlacement(self.model, self._data, self.foot_frame_ids[foot])
-        p = self._data.oMf[self.foot_frame_ids[foot]].translation
+        data = self._data
+        pin.forwardKinematics(self.model, data, q)
+        p = pin.updateFramePlacement(self.model, data, self.foot_frame_ids[foot]).translation.tolist()
         knee = self.foot_joint_ids[foot]
-        hip = self.model.parents[knee]
+        hip = self._hip_joint_ids()[foot]
         hip_q, knee_q = FOOT_JOINTS[foot]
-        pivots = ((IPITCH, self._data.oMi[3].translation), (hip_q, self._data.oMi[hip].translation),
-                  (knee_q, self._data.oMi[knee].translation))
+        oMi = data.oMi
+        pivots = ((IPITCH, oMi[3].translation.tolist()), (hip_q, oMi[hip].translation.tolist()),
+                  (knee_q, oMi[knee].translation.tolist()))
         g_x = np.zeros(NX)
         g_xx = np.zeros((NX, NX))
         g_x[IZ] = 1.0

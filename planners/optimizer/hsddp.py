@@ -12,7 +12,7 @@
    shrink the barrier relaxations (``delta <- delta_factor delta``) and grow their weights, until
    ``sum g^2 <= al_tolerance`` (and, with ``al_max_abs_tolerance`` set, ``max |g| <= al_max_abs_tolerance``).
 
-The workspace (Pinocchio data, per-horizon arrays) is allocated once per problem size and reused.
+The workspace (per-horizon arrays) is allocated with room to spare and reused by later solves that fit in it.
 Solves are deterministic: the same inputs give bit-identical outputs.
 """
 
@@ -23,8 +23,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.conventions import NGRF, NU, NX
+from hsddp_gym.core.conventions import NGRF, NQ, NU, NX
 from hsddp_gym.core.dynamics import Linearization, grf_from_lambda
+from hsddp_gym.planners.optimizer import kernels
 from hsddp_gym.planners.optimizer.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from hsddp_gym.planners.optimizer.objective import ConstraintState, CostBreakdown, Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
@@ -34,43 +35,78 @@ from hsddp_gym.util.validation import check_array
 
 
 class _Traj:
-    """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4)."""
+    """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4), for N = ``n_knots`` knots and
+    n = ``n_phases`` phases, or fewer (:meth:`resize`: they are the leading views of buffers of that capacity).
+
+    ``x_views``, ``q_views``, ``v_views`` (N + 1 rows of (14,), (7,), (7,)) and ``u_views`` (N rows of (4,)) are the
+    per-knot rows of the buffers, for the rollout's knot-by-knot writes (indexing a list costs a fraction of
+    indexing an array).
+    """
 
     def __init__(self, n_knots: int, n_phases: int) -> None:
-        self.X = np.zeros((n_knots + 1, NX))
-        self.X_pre = np.zeros((n_phases, NX))
-        self.U = np.zeros((n_knots, NU))
-        self.GRF = np.zeros((n_knots, NGRF))
+        self._X = np.zeros((n_knots + 1, NX))
+        self._X_pre = np.zeros((n_phases, NX))
+        self._U = np.zeros((n_knots, NU))
+        self._GRF = np.zeros((n_knots, NGRF))
+        self.x_views = list(self._X)
+        self.q_views = [x[:NQ] for x in self.x_views]
+        self.v_views = [x[NQ:] for x in self.x_views]
+        self.u_views = list(self._U)
+        self.resize(n_knots, n_phases)
+
+    def resize(self, n_knots: int, n_phases: int) -> None:
+        """Make ``X``, ``X_pre``, ``U``, ``GRF`` the views of ``n_knots`` knots and ``n_phases`` phases (within the
+        capacity, else ``ValueError``)."""
+        if not (1 <= n_knots <= self._U.shape[0] and 1 <= n_phases <= self._X_pre.shape[0]):
+            raise ValueError(f"n_knots, n_phases must be in 1 .. {self._U.shape[0]}, 1 .. {self._X_pre.shape[0]} "
+                             f"(the capacity), got {n_knots}, {n_phases}")
+        self.X = self._X[:n_knots + 1]
+        self.X_pre = self._X_pre[:n_phases]
+        self.U = self._U[:n_knots]
+        self.GRF = self._GRF[:n_knots]
 
 
 class Workspace:
-    """Everything a solve allocates, sized for one problem layout (reuse it across solves, e.g. in MPC)."""
+    """Everything a solve allocates, for problems of up to ``knot_capacity`` knots and ``phase_capacity`` phases
+    (default: ``problem``'s size). Its arrays are the leading views of one problem's size (:meth:`use`), so one
+    workspace serves solves of varying sizes (MPC re-plans) without allocating."""
 
-    def __init__(self, problem: HybridProblem) -> None:
-        n, m = problem.n_knots, problem.n_phases
-        self.n_knots, self.n_phases = n, m
+    _SHAPES = {"l_x": (0, NX), "l_u": (0, NU), "l_xx": (0, NX, NX), "l_uu": (0, NU, NU), "l_ux": (0, NU, NX),
+               "Phi_x": (1, NX), "Phi_xx": (1, NX, NX), "P_x": (1, NX, NX), "k_ff": (0, NU), "K": (0, NU, NX),
+               "V_x": (2, NX), "V_xx": (2, NX, NX), "lam6": (0, 6)}
+    """Array name -> (0: N rows, 1: n rows, 2: N + 1 rows; then the shape of a row)."""
+
+    def __init__(self, problem: HybridProblem, knot_capacity: int | None = None,
+                 phase_capacity: int | None = None) -> None:
+        n = problem.n_knots if knot_capacity is None else max(int(knot_capacity), problem.n_knots)
+        m = problem.n_phases if phase_capacity is None else max(int(phase_capacity), problem.n_phases)
+        self.knot_capacity, self.phase_capacity = n, m
         self.nominal = _Traj(n, m)
         self.candidate = _Traj(n, m)
         self.lin = Linearization(n)
         self.lin_candidate = Linearization(n)
-        self.lin_valid = False
-        """True when ``lin`` already holds the dynamics derivatives at ``nominal`` (speculative rollout)."""
-        self.l_x = np.zeros((n, NX))
-        self.l_u = np.zeros((n, NU))
-        self.l_xx = np.zeros((n, NX, NX))
-        self.l_uu = np.zeros((n, NU, NU))
-        self.l_ux = np.zeros((n, NU, NX))
-        self.Phi_x = np.zeros((m, NX))
-        self.Phi_xx = np.zeros((m, NX, NX))
-        self.P_x = np.zeros((m, NX, NX))
-        self.k_ff = np.zeros((n, NU))
-        self.K = np.zeros((n, NU, NX))
-        self.V_x = np.zeros((n + 1, NX))
-        self.V_xx = np.zeros((n + 1, NX, NX))
-        self.lam6 = np.zeros((n, 6))
+        self._buffers = {name: np.zeros(((n, m, n + 1)[rows], *shape))
+                         for name, (rows, *shape) in self._SHAPES.items()}
+        self.use(problem)
 
     def fits(self, problem: HybridProblem) -> bool:
-        return self.n_knots == problem.n_knots and self.n_phases == problem.n_phases
+        """Whether ``problem`` is within the capacity."""
+        return problem.n_knots <= self.knot_capacity and problem.n_phases <= self.phase_capacity
+
+    def use(self, problem: HybridProblem) -> None:
+        """Size the workspace's arrays for ``problem`` (within the capacity: else ``ValueError``); forgets the
+        linearization (``lin_valid``)."""
+        if not self.fits(problem):
+            raise ValueError(f"problem has {problem.n_knots} knots and {problem.n_phases} phases, more than the "
+                             f"workspace's capacity ({self.knot_capacity}, {self.phase_capacity})")
+        n, m = problem.n_knots, problem.n_phases
+        self.n_knots, self.n_phases = n, m
+        self.nominal.resize(n, m)
+        self.candidate.resize(n, m)
+        self.lin_valid = False
+        """True when ``lin`` already holds the dynamics derivatives at ``nominal`` (speculative rollout)."""
+        for name, (rows, *_) in self._SHAPES.items():
+            setattr(self, name, self._buffers[name][:(n, m, n + 1)[rows]])
 
 
 def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
@@ -79,8 +115,10 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
     """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` (eq. 8) through the hybrid system.
 
     The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``, so each
-    knot costs one 4x14 product, one Pinocchio call and the Euler update. Writes ``out``; returns False
-    (leaving NaNs) as soon as a phase ends in a non-finite state.
+    knot costs one 4x14 product, its Pinocchio calls and the integrator step (compiled:
+    :func:`~hsddp_gym.planners.optimizer.kernels.integrate`); per-knot rows are taken from lists of views
+    (``out``'s, ``lin.knot_views``). Writes ``out``; returns False (leaving NaNs) as soon as a phase ends in a
+    non-finite state.
 
     Args:
         lam6: optional ``(N, 6)`` scratch for Pinocchio's contact forces.
@@ -89,75 +127,76 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
             saves a second pass over the horizon when the full step is accepted).
     """
     dyn = problem.dynamics
-    model, prox = dyn.model, dyn._prox
+    model, prox, free = dyn.model, dyn._prox, dyn._free
     h_phase = problem.phase_dt
     tau = dyn._tau
+    tau_u = tau[3:]
     semi = dyn.integrator == "semi_implicit"
     N = problem.n_knots
-    X, U = out.X, out.U
+    X = out.X
+    xs, qs, vs, us = out.x_views, out.q_views, out.v_views, out.u_views
     if K is not None:
         c = U_ref - np.einsum("nux,nx->nu", K, X_ref[:N])
         if k_ff is not None and eps != 0.0:
             c += eps * k_ff
+        K_rows = list(K)
     else:
         c = U_ref if (k_ff is None or eps == 0.0) else U_ref + eps * k_ff
+    c_rows = list(c)
     if lin is not None:
-        lam6 = lin.lam6
-        a_q, a_v, a_t, l_q, l_v, l_t = lin.a_q, lin.a_v, lin.a_tau, lin.lam6_q, lin.lam6_v, lin.lam6_tau
-        acc = lin.acc
-    lam6 = np.zeros((N, 6)) if lam6 is None else lam6
+        a_q, a_v, a_t, l_q, l_v, l_t, lam_rows, acc = lin.knot_views
+    else:
+        lam6 = np.zeros((N, 6)) if lam6 is None else lam6
+        lam_rows = list(lam6)
     X[0] = problem.x0
     ps = problem.phase_start
-    u = np.empty(NU)
-    tmp = np.empty(NX // 2)
-    free = dyn._free
     e = problem.restitution
+    # locals, not module attributes, in the per-knot loop
+    add, integrate = np.add, kernels.integrate
+    constraint_dynamics, aba = pin.constraintDynamics, pin.aba
+    cd_derivatives, aba_derivatives = pin.computeConstraintDynamicsDerivatives, pin.computeABADerivatives
     for i in range(problem.n_phases):
         mode = int(problem.schedule.modes[i])
         h = float(h_phase[i])
         if mode:
-            cs = dyn._contact[mode]
-            data, cms, cds, nl = cs.data, cs.models, cs.datas, 3 * len(cs.feet)
+            cset = dyn._contact[mode]
+            data, cms, cds, nl = cset.data, cset.models, cset.datas, 3 * len(cset.feet)
         for k in range(ps[i], ps[i + 1]):
-            x = X[k]
+            x = xs[k]
+            u = us[k]
             if K is not None:
-                np.dot(K[k], x, out=u)
-                u += c[k]
+                K_rows[k].dot(x, u)  # the method: np.dot's array-function dispatch costs a third of the product
+                add(u, c_rows[k], u)
             else:
-                u[:] = c[k]
-            U[k] = u
-            tau[3:] = u
-            q = x[:7]
-            v = x[7:]
+                u[...] = c_rows[k]
+            tau_u[...] = u
+            q = qs[k]
+            v = vs[k]
             if lin is None:
                 if mode:
-                    a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
-                    lam6[k, :nl] = data.lambda_c
+                    a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
+                    lam_rows[k][:nl] = data.lambda_c
                 else:
-                    a = pin.aba(model, free, q, v, tau)
+                    a = aba(model, free, q, v, tau)
             elif mode:
-                a = pin.constraintDynamics(model, data, q, v, tau, cms, cds, prox)
-                acc[k] = a
-                lam6[k, :nl] = data.lambda_c
-                dq, dv, dt_, lq, lv, lt = pin.computeConstraintDynamicsDerivatives(model, data, cms, cds, prox)
-                a_q[k] = dq
-                a_v[k] = dv
-                a_t[k] = dt_
-                l_q[k, :nl] = lq
-                l_v[k, :nl] = lv
-                l_t[k, :nl] = lt
+                a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
+                acc[k][...] = a
+                lam_rows[k][:nl] = data.lambda_c
+                dq, dv, dt_, lq, lv, lt = cd_derivatives(model, data, cms, cds, prox)
+                a_q[k][...] = dq
+                a_v[k][...] = dv
+                a_t[k][...] = dt_
+                l_q[k][:nl] = lq
+                l_v[k][:nl] = lv
+                l_t[k][:nl] = lt
             else:
-                dq, dv, minv = pin.computeABADerivatives(model, free, q, v, tau)
-                a_q[k] = dq
-                a_v[k] = dv
-                a_t[k] = minv
+                dq, dv, minv = aba_derivatives(model, free, q, v, tau)
+                a_q[k][...] = dq
+                a_v[k][...] = dv
+                a_t[k][...] = minv
                 a = free.ddq
-                acc[k] = a
-            xn = X[k + 1]
-            np.multiply(a, h, out=tmp)
-            np.add(v, tmp, out=xn[7:])
-            np.multiply(xn[7:] if semi else v, h, out=tmp)
-            np.add(q, tmp, out=xn[:7])
+                acc[k][...] = a
+            integrate(a, x, xs[k + 1], h, semi)
         x = X[ps[i + 1]]
         if not np.isfinite(x).all():
             X[ps[i + 1]:] = np.nan
@@ -246,7 +285,10 @@ class HSDDP:
             raise ValueError(f"sigma must be a finite number > 0, got {sigma!r}")
         sigma = float(sigma)
         if self._ws is None or not self._ws.fits(problem):
-            self._ws = Workspace(problem)
+            # room for a quarter more knots and phases: the next problems (MPC re-plans) vary in size
+            self._ws = Workspace(problem, problem.n_knots + problem.n_knots // 4, problem.n_phases + 2)
+        else:
+            self._ws.use(problem)
         ws = self._ws
         objective = Objective(problem)
         cs = ConstraintState(sigma=sigma, lam=lam, use_al=opt.use_al, use_reb=opt.use_reb,
@@ -360,8 +402,9 @@ class HSDDP:
         # a warm start far off (an MPC re-plan after a push) can overflow the barrier terms: the non-finite
         # derivatives then fail the backward pass, which the solver's status reports (no warning spam)
         with np.errstate(over="ignore", invalid="ignore"):
-            objective.derivatives(tr.X, tr.X_pre, tr.U, tr.GRF, ws.lin.grf_x, ws.lin.grf_u, cs, ws.l_x, ws.l_u,
-                                  ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx)
+            N = problem.n_knots
+            objective.derivatives(tr.X, tr.X_pre, tr.U, tr.GRF, ws.lin.grf_x[:N], ws.lin.grf_u[:N], cs, ws.l_x,
+                                  ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx)
         t4 = time.perf_counter()
         timings["linearize"] += t2 - t
         timings["reset_jacobians"] += t3 - t2
@@ -370,8 +413,9 @@ class HSDDP:
     def _backward(self, problem, mu, timings):
         ws = self._ws
         t = time.perf_counter()
-        out = backward_pass(ws.lin.f_x, ws.lin.f_u, ws.l_x, ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x, ws.Phi_xx,
-                            ws.P_x, problem.phase_start, mu, ws.k_ff, ws.K, ws.V_x, ws.V_xx)
+        N = problem.n_knots
+        out = backward_pass(ws.lin.f_x[:N], ws.lin.f_u[:N], ws.l_x, ws.l_u, ws.l_xx, ws.l_uu, ws.l_ux, ws.Phi_x,
+                            ws.Phi_xx, ws.P_x, problem.phase_start, mu, ws.k_ff, ws.K, ws.V_x, ws.V_xx)
         timings["backward"] += time.perf_counter() - t
         return out
 

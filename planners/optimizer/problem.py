@@ -69,6 +69,16 @@ class PhaseCost:
                 raise ValueError(f"PhaseCost.{name} must be >= 0 (diagonal weights), got {arr}")
             object.__setattr__(self, name, arr)
 
+    @classmethod
+    def _checked_by_caller(cls, **arrays: np.ndarray) -> PhaseCost:
+        """A PhaseCost of the arrays as given, without :meth:`__post_init__`'s checks: for arrays the caller built
+        to pass them (finite float64 of the right shapes, weights >= 0; :func:`bounding_phase_cost`, once per phase
+        of every MPC re-plan)."""
+        cost = object.__new__(cls)
+        for name, arr in arrays.items():
+            object.__setattr__(cost, name, arr)
+        return cost
+
 
 def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
                         running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper",
@@ -118,8 +128,10 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
     later = weights == "later"
     qf = np.concatenate([_QF_BASE_LATER if later else _QF_BASE, _QF_RATES[mode]]) * (1.0 if terminal_half else 2.0)
     r = np.array(_R[mode], dtype=float) * (0.5 if later else 1.0)
-    return PhaseCost(x_ref=x_ref, q=(_Q_LATER if later else _Q).copy(), r=r, grf_ref=grf_ref, s=s,
-                     x_final=x_final, qf=qf)
+    # float64 arrays of the right shapes by construction, finite (end_of_mode_reference checks the speed and the
+    # parameters are finite), weights >= 0 (the constants above)
+    return PhaseCost._checked_by_caller(x_ref=x_ref, q=(_Q_LATER if later else _Q).copy(), r=r, grf_ref=grf_ref,
+                                        s=s, x_final=x_final, qf=qf)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -197,7 +209,7 @@ class HybridProblem:
         self.knots = knots.astype(np.int64)
         self.phase_start = np.concatenate([[0], np.cumsum(self.knots)]).astype(np.int64)
         self.phase_of_knot = np.repeat(np.arange(len(schedule)), self.knots)
-        self.modes = np.array([int(schedule.modes[i]) for i in self.phase_of_knot], dtype=np.int64)
+        self.modes = np.array([int(m) for m in schedule.modes], dtype=np.int64)[self.phase_of_knot]
         self.n_knots = int(self.modes.shape[0])
         self.n_phases = len(schedule)
         self.phase_dt = schedule.durations / self.knots
@@ -222,7 +234,8 @@ class HybridProblem:
             td.append(feet[0] if feet else -1)
         self.touchdown = np.array(td, dtype=np.int64)
         # stance feet per knot (for friction-cone constraints): (N, 2) bool
-        self.stance = np.array([[Mode(m).in_contact(f) for f in (0, 1)] for m in self.modes], dtype=bool)
+        self.stance = np.array([[m.in_contact(f) for f in (0, 1)] for m in schedule.modes],
+                               dtype=bool)[self.phase_of_knot]
         self.stance_any = self.stance.any(axis=1)
 
     @classmethod

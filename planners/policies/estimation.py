@@ -83,14 +83,14 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.
     feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
     if not feet:
         return x
-    rows = [robot.foot_height_derivatives(x[:NQ], f) for f in feet]
-    if max(abs(r[0]) for r in rows) <= CONTACT_TOLERANCE:
+    heights = [robot.foot_height(x[:NQ], f) for f in feet]  # the common case needs no derivatives
+    if max(abs(g) for g in heights) <= CONTACT_TOLERANCE:
         return x
     if len(feet) == 1:
-        x[1] -= rows[0][0]
+        x[1] -= heights[0]
         return x
-    A = np.array([[g[1], g[2]] for _, g, _ in rows])
-    h = np.array([r[0] for r in rows])
+    A = np.array([[g[1], g[2]] for _, g, _ in (robot.foot_height_derivatives(x[:NQ], f) for f in feet)])
+    h = np.array(heights)
     try:
         dz, dpitch = np.linalg.solve(A, -h)
     except np.linalg.LinAlgError:

@@ -568,22 +568,21 @@ class MPCPolicy(Policy):
         for j in range(problem.n_phases):
             a, b = problem.phase_start[j], problem.phase_start[j + 1]
             p = p0 + j
+            local = np.arange(b - a)  # knot index within the phase
             if p < tr.n_phases and tr.modes[p] == problem.schedule.modes[j]:
                 lam[j] = self._prev_lam[p] if self._prev_lam is not None else 0.0
                 offset = offset0 if j == 0 else 0.0
-                for k in range(a, b):
-                    t_local = offset + (k - a) * problem.phase_dt[j]
-                    kp = prev.phase_start[p] + min(int(t_local / tr.phase_dt[p] + 1e-9), prev_len[p] - 1)
-                    U[k], X[k], K[k] = prev.U[kp], prev.X[kp], prev.K[kp]
-                    have[k] = True
+                t_local = offset + local * problem.phase_dt[j]
+                kp = prev.phase_start[p] + np.minimum((t_local / tr.phase_dt[p] + 1e-9).astype(np.int64),
+                                                      prev_len[p] - 1)
+                U[a:b], X[a:b], K[a:b] = prev.U[kp], prev.X[kp], prev.K[kp]
+                have[a:b] = True
             elif j >= 4:
                 lam[j] = lam[j - 4]
                 src = problem.phase_start[j - 4]
-                n_src = problem.phase_start[j - 3] - src
-                for k in range(a, b):
-                    ks = src + min(k - a, n_src - 1)
-                    U[k], X[k], K[k] = U[ks], X[ks], K[ks]
-                    have[k] = have[ks]
+                ks = src + np.minimum(local, problem.phase_start[j - 3] - src - 1)  # all before a
+                U[a:b], X[a:b], K[a:b] = U[ks], X[ks], K[ks]
+                have[a:b] = have[ks]
         if not have.all():
             return None
         X[N] = X[N - 1]
