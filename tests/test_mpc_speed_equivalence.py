@@ -1,9 +1,11 @@
-"""The speed work on the solver and the MPC loop changes no result: a closed-loop MPC episode, one with an action
-delay (latency compensation through the contact-model predictor) and a one-shot al-reb solve give bit-identical
-numbers to the reference recorded from the code before it (commit 1ab71c2).
+"""A regression pin of the solver and the MPC loop: a closed-loop MPC episode, one with an action delay (latency
+compensation through the contact-model predictor) and a one-shot al-reb solve give the numbers of the reference
+recorded from the code (first from commit 1ab71c2 before the speed work, which left every number bit-identical;
+re-recorded when the MPC's defaults changed to one DDP iteration per re-plan).
 
-The reference ``tests/data/mpc_speed_reference.npz`` is written by running this file as a script
-(``python tests/test_mpc_speed_equivalence.py``) on that code; only do so again when a result is meant to change.
+Compared to round-off (``rtol`` 1e-9): on this machine the numbers are bit-identical; another CPU or BLAS may
+round differently. The reference ``tests/data/mpc_speed_reference.npz`` is written (atomically) by running this
+file as a script (``python tests/test_mpc_speed_equivalence.py``); only do so when a result is meant to change.
 """
 
 from __future__ import annotations
@@ -96,15 +98,18 @@ def current() -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("prefix", ["mpc_", "delay_", "solve_"])
-def test_bit_identical_to_reference(reference, current, prefix):
+def test_matches_reference_to_round_off(reference, current, prefix):
     keys = sorted(k for k in reference if k.startswith(prefix))
     assert keys and keys == sorted(k for k in current if k.startswith(prefix))
     for k in keys:
-        assert current[k].dtype == reference[k].dtype, k
-        np.testing.assert_array_equal(current[k], reference[k], err_msg=k, strict=True)
+        assert current[k].dtype == reference[k].dtype and current[k].shape == reference[k].shape, k
+        scale = float(np.max(np.abs(reference[k]), initial=1.0))
+        np.testing.assert_allclose(current[k], reference[k], rtol=1e-9, atol=1e-12 * scale, err_msg=k)
 
 
 if __name__ == "__main__":
-    REFERENCE.parent.mkdir(exist_ok=True)
-    np.savez(REFERENCE, **record())
+    from hsddp_gym.util.io import atomic_path
+
+    with atomic_path(REFERENCE, suffix=".npz") as tmp:
+        np.savez(tmp, **record())
     print(f"wrote {REFERENCE}", file=sys.stderr)
