@@ -182,3 +182,38 @@ def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
     for bad in (0.0, -0.01):
         with pytest.raises(ValueError, match="double_stance"):
             MPCOptions(double_stance=bad)
+
+
+def test_a_flight_waits_for_its_landing_foot_however_late():
+    """With ``max_wait`` None (the MPC's default) the clock never moves into a stance whose foot is in the air; with a
+    number it moves on that long after the flight's nominal end."""
+    durs = (0.04, 0.03, 0.04, 0.03)
+    assert MPCOptions().max_wait is None
+    c = GaitClock(durs, 0.005)
+    c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
+    assert c.phase == 1
+    _stance_then(c, Mode.FLIGHT, 40, Mode.FLIGHT, 0)  # 0.2 s, almost 7 nominal flights
+    assert c.phase == 1 and c.tau == pytest.approx(0.2)
+    _stance_then(c, Mode.FRONT_STANCE, 2, Mode.FRONT_STANCE, 0)  # the touchdown, debounced
+    assert c.phase == 2 and c.tau == 0.0
+    late = GaitClock(durs, 0.005, max_wait=0.01)
+    late.update(Mode.FLIGHT, 1.0)
+    _stance_then(late, Mode.FLIGHT, 8, Mode.FLIGHT, 0)  # 0.04 s >= 0.03 + 0.01
+    assert late.phase == 2
+    with pytest.raises(ValueError, match="max_wait"):
+        GaitClock(durs, 0.005, max_wait=-0.01)
+    with pytest.raises(ValueError, match="max_wait"):
+        MPCOptions(max_wait=-1.0)
+
+
+def test_a_foot_that_bounces_off_at_touchdown_is_a_lost_stance():
+    """A stance entered at its foot's touchdown counts as touched: if the foot leaves the ground again early in the
+    stance, the clock goes back to the flight that lands it (before, such a stance was planned on a foot in the
+    air for its whole duration)."""
+    durs = (0.08, 0.072, 0.072, 0.072)
+    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c.update(Mode.FLIGHT, -1.0)  # flight 3 (lands the back foot)
+    _stance_then(c, Mode.FLIGHT, 10, Mode.BACK_STANCE, 2)  # touchdown, debounced: back stance
+    assert c.phase == 0 and c.tau == 0.0
+    _stance_then(c, Mode.FLIGHT, 2, Mode.FLIGHT, 0)  # the foot bounced off at once
+    assert c.phase == 3 and c.resynced and c.tau == pytest.approx(0.5 * durs[3])

@@ -66,7 +66,7 @@ def mpc_episode(steps: int, delay: int, prefix: str) -> dict[str, np.ndarray]:
 
 def one_shot_solve() -> dict[str, np.ndarray]:
     """The al-reb solve of one bounding cycle (h = 1 ms) from the heuristic warm start: the outer AL loop, the line
-    search's backtracking and the final gains, which the MPC's 2-iteration re-plans rarely reach. Keys ``solve_*``:
+    search's backtracking and the final gains, which the MPC's one-iteration re-plans never reach. Keys ``solve_*``:
     ``X (N+1, 14)``, ``U (N, 4)``, ``K (ceil(N / 8), 4, 14)`` (every 8th knot's gains), ``multipliers (n,)``,
     ``log (L, 13)`` (the numeric log)."""
     problem = HybridProblem.bounding(1)
