@@ -185,17 +185,24 @@ def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
 
 
 def test_a_flight_waits_for_its_landing_foot_however_late():
-    """With ``max_wait`` None (the MPC's default) the clock never moves into a stance whose foot is in the air; with a
-    number it moves on that long after the flight's nominal end."""
+    """With ``max_wait`` None (the MPC's default) the clock never moves into a stance whose foot is in the air, and a
+    late flight ends at the landing foot's first contact step (a flickering soft contact); with a number it moves on
+    that long after the flight's nominal end."""
     durs = (0.04, 0.03, 0.04, 0.03)
-    assert MPCOptions().max_wait is None
+    assert MPCOptions().max_wait is None and MPCPolicy().clock.max_wait is None
     c = GaitClock(durs, 0.005)
     c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
     assert c.phase == 1
     _stance_then(c, Mode.FLIGHT, 40, Mode.FLIGHT, 0)  # 0.2 s, almost 7 nominal flights
     assert c.phase == 1 and c.tau == pytest.approx(0.2)
-    _stance_then(c, Mode.FRONT_STANCE, 2, Mode.FRONT_STANCE, 0)  # the touchdown, debounced
+    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)  # one contact step past the nominal end
     assert c.phase == 2 and c.tau == 0.0
+    early = GaitClock(durs, 0.005)
+    early.update(Mode.FLIGHT, 1.0)
+    _stance_then(early, Mode.FLIGHT, 2, Mode.FRONT_STANCE, 1)  # before the nominal end one step is a graze
+    assert early.phase == 1
+    _stance_then(early, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)
+    assert early.phase == 2
     late = GaitClock(durs, 0.005, max_wait=0.01)
     late.update(Mode.FLIGHT, 1.0)
     _stance_then(late, Mode.FLIGHT, 8, Mode.FLIGHT, 0)  # 0.04 s >= 0.03 + 0.01
