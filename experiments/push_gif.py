@@ -3,12 +3,12 @@ seed, same push, from shortly before the push until ``--after`` seconds after it
 
 Each panel is :func:`hsddp_gym.viz.render.render_state` of the episode's states, captioned with the policy, the
 env time and, once it has happened, "FELL". Every ``--stride``-th control step is drawn and the GIF plays in
-real time. The default is a +10 rad/s nose-down push at t = 1.1 s on seed 100, one of the README's push sweep
+real time. The default is a +8 rad/s nose-down push at t = 1.05 s on seed 100, one of the README's push sweep
 (``experiments/push_robustness.py``) where the heuristic falls and the MPC bounds on.
 
 Usage::
 
-    python experiments/push_gif.py --out docs/figures/push_nose_down.gif [--seed 100] [--push 1.1 0 0 10]
+    python experiments/push_gif.py --out docs/figures/push_nose_down.gif [--seed 100] [--push 1.05 0 0 8]
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/push_gif/push.gif", help="output GIF (default: %(default)s)")
     p.add_argument("--seed", type=int, default=100, help="episode seed (default: %(default)s)")
-    p.add_argument("--push", type=float, nargs=4, default=(1.1, 0.0, 0.0, 10.0), metavar=("T", "DVX", "DVZ", "DPITCH"),
+    p.add_argument("--push", type=float, nargs=4, default=(1.05, 0.0, 0.0, 8.0), metavar=("T", "DVX", "DVZ", "DPITCH"),
                    help="push time [s] and velocity change (m/s, m/s, rad/s) (default: %(default)s)")
     p.add_argument("--before", type=float, default=0.2, help="seconds shown before the push (default: %(default)s)")
     p.add_argument("--after", type=float, default=1.0, help="seconds shown after the push (default: %(default)s)")
