@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import hsddp_gym  # noqa: F401
+from hsddp_gym.core.conventions import NQ
 from hsddp_gym.envs.perturbations import ActionDelay, make_env
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor
@@ -131,28 +132,64 @@ def test_state_filter_reduces_velocity_noise():
     assert est_err.std() < 0.9 * raw_err.std()  # all (the light legs' rates are filtered less)
 
 
-def test_state_filter_takes_large_innovations_whole():
-    pred = ContactModelPredictor(0.005)
-    from hsddp_gym.planners.policies.estimation import VelocityFilter
+def test_kalman_gain_is_the_riccati_fixed_point_and_follows_the_noise_model():
+    from hsddp_gym.planners.policies.estimation import steady_state_kalman_gain
 
-    filt = VelocityFilter(pred, 0.5, 0.3, 0.05, 0.5)
+    dt = 0.005
+    L, S = steady_state_kalman_gain(dt, 0.01, 0.1, 10.0)
+    # fixed point: the posterior covariance propagated once and corrected again gives the same gain
+    A = np.array([[1.0, dt], [0.0, 1.0]])
+    G = np.array([0.5 * dt * dt, dt])
+    R = np.diag([0.01**2, 0.1**2])
+    prior = S - R
+    P = (np.eye(2) - L) @ prior
+    prior2 = A @ P @ A.T + np.outer(G, G) * 100.0
+    assert np.allclose(prior2, prior, rtol=1e-9, atol=1e-15)
+    assert np.allclose(L, prior @ np.linalg.inv(prior + R), rtol=1e-12)
+    # the integrated velocity says more about the position than a 1 cm measurement: a small position gain
+    assert 0.0 < L[0, 0] < 0.1 and 0.2 < L[1, 1] < 0.6
+    # a model trusted less follows the measurements more closely; a noisier sensor less closely
+    L_loose, _ = steady_state_kalman_gain(dt, 0.01, 0.1, 100.0)
+    L_noisy, _ = steady_state_kalman_gain(dt, 0.01, 0.3, 10.0)
+    assert L_loose[1, 1] > L[1, 1] > L_noisy[1, 1]
+    with pytest.raises(ValueError, match="acceleration_noise"):
+        steady_state_kalman_gain(dt, 0.01, 0.1, 0.0)
+
+
+def test_state_filter_corrects_by_the_kalman_gain_and_restarts_on_a_push():
+    from hsddp_gym.planners.policies.estimation import StateFilter
+
+    pred = ContactModelPredictor(0.005)
+    filt = StateFilter(pred, 0.01, 0.1, 10.0, 35.0)
+    L = filt.gain
     x = gym.make(ENV_ID).unwrapped.init_state.copy()
     x[1] += 0.1  # in the air
     u = np.zeros(4)
     filt.update(x, 0, None)
     prior, _ = pred.step(x, u)
     y = prior.copy()
-    y[7] += 2.0  # a push: 2 m/s more
-    y[8] += 0.05  # within the gate: filtered
+    y[2] += 0.01  # pitch: one sensor standard deviation
+    y[8] += 0.05  # vertical speed
     est = filt.update(y, 0, u)
-    assert est[7] == pytest.approx(y[7])
-    assert est[8] == pytest.approx(prior[8] + 0.3 * 0.05)
-    with pytest.raises(ValueError, match="velocity_gain"):
-        VelocityFilter(pred, 0.5, 0.0)
-    with pytest.raises(ValueError, match="filter_velocity_gate"):
-        MPCOptions(filter_velocity_gate=0.0)
-    with pytest.raises(ValueError, match="filter_position_gain"):
-        MPCOptions(filter_position_gain=1.5)
+    assert est[2] == pytest.approx(prior[2] + L[0, 0] * 0.01, abs=1e-12)
+    assert est[8] == pytest.approx(prior[8] + L[1, 1] * 0.05, abs=1e-12)
+    assert est[NQ + 2] == pytest.approx(prior[NQ + 2] + L[1, 0] * 0.01, abs=1e-12)  # pitch rate
+    assert filt.restarts == 0
+    # a push: 0.8 m/s more, far beyond the assumed noise: the estimate restarts from the observation
+    prior, _ = pred.step(est, u)
+    y = prior.copy()
+    y[7] += 0.8
+    est = filt.update(y, 0, u)
+    assert filt.restarts == 1
+    assert np.allclose(est[1:], y[1:])
+    with pytest.raises(ValueError, match="innovation_gate"):
+        StateFilter(pred, innovation_gate=0.0)
+    with pytest.raises(TypeError, match="predictor"):
+        StateFilter(None)
+    for name in ("filter_position_noise", "filter_velocity_noise", "filter_acceleration_noise",
+                 "filter_innovation_gate"):
+        with pytest.raises(ValueError, match=name):
+            MPCOptions(**{name: 0.0})
     with pytest.raises(TypeError, match="state_filter"):
         MPCOptions(state_filter=1)
 

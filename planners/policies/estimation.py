@@ -5,9 +5,10 @@
   under known torques.
 * :meth:`ContactModelPredictor.predict` over the actions already sent but not yet executed gives the state at
   the moment a new action will act: the MPC's latency compensation.
-* :class:`VelocityFilter`: a fixed-gain (steady-state Kalman-like) observer: the estimate is propagated one
-  control step with the model and the executed torques, then corrected toward the measurement,
-  ``x = x_prior + L (y - x_prior)`` with separate gains for positions and velocities. The contact flags of the
+* :class:`StateFilter`: a steady-state Kalman filter: the estimate is propagated one control step with the
+  model and the executed torques, then corrected toward the measurement pair by pair (each coordinate's position
+  and velocity) with the Kalman gain of a stated noise model (:func:`steady_state_kalman_gain`); an innovation
+  far beyond that noise (a push, another model) restarts it from the measurement. The contact flags of the
   observation (clean) set the prior's mode; at a measured mode change the correction is complete for the
   velocities (the impact is where the model is least sure).
 """
@@ -21,7 +22,7 @@ import numpy as np
 from hsddp_gym.core.contact import ContactSimulator
 from hsddp_gym.core.conventions import NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
-from hsddp_gym.util.validation import check_in_range, check_positive, check_vector
+from hsddp_gym.util.validation import check_positive, check_vector
 
 
 class ContactModelPredictor:
@@ -100,42 +101,87 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.
     return x
 
 
-class VelocityFilter:
-    """Fixed-gain observer of the state from noisy observations (see the module docstring).
+def steady_state_kalman_gain(dt: float, position_noise: float, velocity_noise: float,
+                             acceleration_noise: float) -> tuple[np.ndarray, np.ndarray]:
+    """The steady-state Kalman filter of one coordinate measured in position and velocity.
+
+    The coordinate ``(q, v)`` follows the model exactly up to an unmodelled acceleration, white with standard
+    deviation ``acceleration_noise`` and held over each period ``dt`` (``q += v dt + a dt^2 / 2``, ``v += a dt``);
+    ``q`` and ``v`` are measured with independent noise of standard deviations ``position_noise`` and
+    ``velocity_noise``. Returns ``(L, S)``: the gain ``L (2, 2)`` (the correction of ``(q, v)`` is
+    ``L @ innovation``) and the covariance ``S (2, 2)`` of the innovation, both at the fixed point of the Riccati
+    recursion.
+    """
+    dt = check_positive(dt, "dt")
+    sp = check_positive(position_noise, "position_noise")
+    sv = check_positive(velocity_noise, "velocity_noise")
+    sa = check_positive(acceleration_noise, "acceleration_noise")
+    A = np.array([[1.0, dt], [0.0, 1.0]])
+    G = np.array([0.5 * dt * dt, dt])
+    Q = np.outer(G, G) * sa * sa
+    R = np.diag([sp * sp, sv * sv])
+    P = R.copy()
+    for _ in range(100_000):
+        prior = A @ P @ A.T + Q
+        S = prior + R
+        L = prior @ np.linalg.inv(S)
+        P_next = (np.eye(2) - L) @ prior
+        if np.abs(P_next - P).max() <= 1e-15 * np.abs(P).max():
+            break
+        P = P_next
+    return L, S
+
+
+class StateFilter:
+    """Contact-aware Kalman filter of the state from noisy observations (see the module docstring).
 
     Each observation ``y`` (14,) is compared with the prior ``x_prior`` (the previous estimate propagated one
-    control period with the model and the torque the env executed); the estimate is
-    ``x = x_prior + L (y - x_prior)`` per component, with ``L = position_gain`` for positions and
-    ``velocity_gain`` for velocities, except that an innovation ``|y - x_prior|`` beyond ``position_gate`` /
-    ``velocity_gate`` (far more than sensor noise: the model is wrong, e.g. a slip, a push, another friction or
-    mass) is taken whole (``L = 1``), as is every velocity when the observed contact mode differs from the
-    predicted one (an impact the model placed elsewhere). The feet the (clean) contact flags report on the
-    ground are put on it (:func:`project_onto_contacts`: trunk height, and pitch for two feet), so that the
-    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. With
-    exact observations and the exact model the estimate is the observation (to round-off).
+    control period with the model and the torque the env executed). Every coordinate's (position, velocity) pair
+    is corrected by the steady-state Kalman gain of :func:`steady_state_kalman_gain` (a coordinate whose position
+    the model integrates from its velocity: the velocity measurement, integrated, says more about the position than
+    the position measurement does), ``x = x_prior + L (y - x_prior)`` pair by pair. Two cases take the measurement
+    instead of the model:
+
+    * the **innovation test**: the normalized innovation squared ``sum_i e_i^T S^-1 e_i`` over the observed
+      coordinates (13: the trunk ``x`` is not observed) exceeds ``innovation_gate`` -- far more than the assumed
+      sensor noise explains (the default 35 is exceeded by chance once in ~1000 observations): the model is wrong
+      (a push, a slip, another friction, mass or contact model), and the estimate restarts from the measurement;
+    * an observed contact **mode change the model did not predict**: the velocities are taken whole (the impact is
+      where the model is least sure).
+
+    The feet the (clean) contact flags report on the ground are put on it (:func:`project_onto_contacts`: trunk
+    height, and pitch for two feet), so that the prior's contact model neither lifts nor sinks them through noise
+    in the measured heights and angles. With exact observations and the exact model the estimate is the
+    observation (to round-off).
 
     Args:
-        predictor: the model used for the prior.
-        position_gain, velocity_gain: the correction gains in (0, 1] (1: no filtering).
-        position_gate, velocity_gate: innovations beyond these [m or rad, m/s or rad/s] are not filtered.
+        predictor: the model used for the prior (its ``control_dt`` is the filter's period).
+        position_noise: assumed standard deviation of a measured position [m or rad] (> 0).
+        velocity_noise: assumed standard deviation of a measured velocity [m/s or rad/s] (> 0).
+        acceleration_noise: standard deviation of the accelerations the model misses [m/s^2 or rad/s^2] (> 0):
+            larger trusts the model less (gains toward 1).
+        innovation_gate: threshold of the innovation test (> 0).
+
+    Attributes:
+        gain: ``L (2, 2)``; innovation_covariance: ``S (2, 2)``; restarts: the observations taken whole by the
+            innovation test since :meth:`reset`.
     """
 
-    def __init__(self, predictor: ContactModelPredictor, position_gain: float = 0.5, velocity_gain: float = 0.3,
-                 position_gate: float = 0.05, velocity_gate: float = 0.5) -> None:
+    def __init__(self, predictor: ContactModelPredictor, position_noise: float = 0.01, velocity_noise: float = 0.1,
+                 acceleration_noise: float = 3.0, innovation_gate: float = 35.0) -> None:
         if not isinstance(predictor, ContactModelPredictor):
             raise TypeError(f"predictor must be a ContactModelPredictor, got {type(predictor).__name__}")
         self.predictor = predictor
-        self.position_gain = check_in_range(position_gain, 1e-6, 1.0, "position_gain")
-        self.velocity_gain = check_in_range(velocity_gain, 1e-6, 1.0, "velocity_gain")
-        self.position_gate = check_positive(position_gate, "position_gate")
-        self.velocity_gate = check_positive(velocity_gate, "velocity_gate")
-        self._gain = np.concatenate([np.full(NQ, self.position_gain), np.full(NX - NQ, self.velocity_gain)])
-        self._gate = np.concatenate([np.full(NQ, self.position_gate), np.full(NX - NQ, self.velocity_gate)])
+        self.innovation_gate = check_positive(innovation_gate, "innovation_gate")
+        self.gain, self.innovation_covariance = steady_state_kalman_gain(
+            predictor.control_dt, position_noise, velocity_noise, acceleration_noise)
+        self._s_inv = np.linalg.inv(self.innovation_covariance)
         self.reset()
 
     def reset(self) -> None:
         """Forget the estimate (the next observation is taken as it is)."""
         self.x: np.ndarray | None = None
+        self.restarts = 0
 
     def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None) -> np.ndarray:
         """The estimate (14,) after measuring ``y`` (14,) in the (clean) contact ``mode``; ``u_executed`` (4,)
@@ -151,12 +197,23 @@ class VelocityFilter:
         except (ArithmeticError, ValueError, RuntimeError):
             self.x = project_onto_contacts(robot, y, mode)
             return self.x.copy()
-        innovation = y - prior
-        innovation[0] = 0.0  # the trunk x is not observed
-        gain = np.where(np.abs(innovation) > self._gate, 1.0, self._gain)
-        if prior_mode != mode:
-            gain[NQ:] = 1.0
-        x = project_onto_contacts(robot, prior + gain * innovation, mode)
+        eq = y[:NQ] - prior[:NQ]
+        eq[0] = 0.0  # the trunk x is not observed
+        ev = y[NQ:] - prior[NQ:]
+        si = self._s_inv
+        nis = float(np.sum(si[0, 0] * eq * eq + 2.0 * si[0, 1] * eq * ev + si[1, 1] * ev * ev))
+        # the trunk x: only its velocity is measured (its pair's position term is zero above, the cross term too,
+        # and its velocity term uses S_vv alone)
+        nis += float(ev[0] * ev[0] * (1.0 / self.innovation_covariance[1, 1] - si[1, 1]))
+        if nis > self.innovation_gate:
+            self.restarts += 1
+            x = project_onto_contacts(robot, y, mode)
+        else:
+            L = self.gain
+            x = prior.copy()
+            x[:NQ] += L[0, 0] * eq + L[0, 1] * ev
+            x[NQ:] += ev if prior_mode != mode else L[1, 0] * eq + L[1, 1] * ev
+            x = project_onto_contacts(robot, x, mode)
         x[0] = y[0]
         self.x = x
         return x.copy()

@@ -48,10 +48,10 @@ from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor, VelocityFilter
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.tracking import PlanTracker
-from hsddp_gym.util.validation import check_in_range, check_int, check_positive
+from hsddp_gym.util.validation import check_int, check_positive
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
@@ -138,11 +138,18 @@ class MPCOptions:
         plan_friction: the friction coefficient of the plans' friction cones (default 0.45; None: the model's
             0.6): a friction margin, the ground forces planned inside a narrower cone than the model's.
         state_filter: estimate the state from the observations with the model
-            (:class:`~hsddp_gym.planners.policies.estimation.VelocityFilter`: each observation corrects the previous
-            estimate propagated with the executed torques, by ``filter_position_gain`` / ``filter_velocity_gain``;
-            innovations beyond ``filter_position_gate`` [m, rad] / ``filter_velocity_gate`` [m/s, rad/s] and
-            velocities at an unpredicted contact change are taken whole). With exact observations of the nominal
-            robot the estimate is the observation (to round-off). False: use the observation as the state.
+            (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`: a steady-state Kalman filter; each
+            observation corrects the previous estimate propagated with the executed torques, by the Kalman gain of
+            the noise model below, and an innovation far beyond that noise restarts it from the observation). With
+            exact observations of the nominal robot the estimate is the observation (to round-off). False: use the
+            observation as the state.
+        filter_position_noise, filter_velocity_noise: the sensor noise the filter assumes, standard deviations of an
+            observed position [m, rad] and velocity [m/s, rad/s] (the defaults are the robustness suite's
+            ``obs_noise``).
+        filter_acceleration_noise: standard deviation of the accelerations the model misses [m/s^2, rad/s^2]
+            (larger: the estimate follows the observations more closely).
+        filter_innovation_gate: threshold of the filter's innovation test (normalized innovation squared over 13
+            observed coordinates; 35 is exceeded by chance about once in 1000 observations).
         speed_integral_gain: integral action on the plans' forward-speed reference [1/s] (None: off): at every
             re-plan, once a whole gait cycle has been observed, :attr:`MPCPolicy.speed_bias` moves by
             ``gain * (time since the last re-plan) * (mean reference - mean estimated speed over the last cycle)``
@@ -183,10 +190,10 @@ class MPCOptions:
     state_filter: bool = True
     speed_acceleration: float | None = 1.0
     plan_friction: float | None = 0.45
-    filter_position_gain: float = 0.5
-    filter_velocity_gain: float = 0.3
-    filter_position_gate: float = 0.05
-    filter_velocity_gate: float = 0.5
+    filter_position_noise: float = 0.01
+    filter_velocity_noise: float = 0.1
+    filter_acceleration_noise: float = 3.0
+    filter_innovation_gate: float = 35.0
     speed_integral_gain: float | None = 1.5
     replan_on_contact: bool = False
     speed_bias_limit: float = 0.5
@@ -230,9 +237,8 @@ class MPCOptions:
             check_positive(self.speed_acceleration, "speed_acceleration")
         if self.plan_friction is not None:
             check_positive(self.plan_friction, "plan_friction")
-        for name in ("filter_position_gain", "filter_velocity_gain"):
-            check_in_range(getattr(self, name), 1e-6, 1.0, name)
-        for name in ("filter_position_gate", "filter_velocity_gate"):
+        for name in ("filter_position_noise", "filter_velocity_noise", "filter_acceleration_noise",
+                     "filter_innovation_gate"):
             check_positive(getattr(self, name), name)
         if self.speed_integral_gain is not None:
             check_positive(self.speed_integral_gain, "speed_integral_gain")
@@ -458,13 +464,13 @@ class MPCPolicy(Policy):
         return ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
                                      torque_limit=i.torque_limit)
 
-    def _make_filter(self) -> VelocityFilter:
+    def _make_filter(self) -> StateFilter:
         o = self.options
-        return VelocityFilter(ContactModelPredictor(self.interface.control_dt,
-                                                    motor_speed_limits=self.interface.motor_speed_limits,
-                                                    torque_limit=self.interface.torque_limit),
-                              o.filter_position_gain, o.filter_velocity_gain, o.filter_position_gate,
-                              o.filter_velocity_gate)
+        return StateFilter(ContactModelPredictor(self.interface.control_dt,
+                                                 motor_speed_limits=self.interface.motor_speed_limits,
+                                                 torque_limit=self.interface.torque_limit),
+                           o.filter_position_noise, o.filter_velocity_noise, o.filter_acceleration_noise,
+                           o.filter_innovation_gate)
 
     def _reset_copy_state(self) -> None:
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
