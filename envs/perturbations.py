@@ -39,6 +39,10 @@ from hsddp_gym.core.conventions import NU
 from hsddp_gym.util.validation import check_int, check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
+SIMULATORS = {"bounding": "hsddp_gym/Bounding-v0", "mujoco": "hsddp_gym/BoundingMuJoCo-v0",
+              "kkt": "hsddp_gym/BoundingKKT-v0"}
+"""The simulators a condition runs in (``Condition.make(simulator=...)``): the exact-LCP env (default), its MuJoCo
+twin (soft contacts; the optional extra ``mujoco``) and the planner's own hybrid model (pinned feet)."""
 
 
 def _episode_rng(wrapper, seed, salt: int) -> np.random.Generator:
@@ -210,15 +214,18 @@ class Condition:
     action_delay: int = 0
     push: dict | None = None
 
-    def make(self, **make_kwargs) -> gym.Env:
-        """``gym.make`` the env with :attr:`env_kwargs` (``make_kwargs`` may add others, e.g. ``render_mode``,
-        ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it."""
+    def make(self, simulator: str = "bounding", **make_kwargs) -> gym.Env:
+        """``gym.make`` the env of ``simulator`` (a key of :data:`SIMULATORS`) with :attr:`env_kwargs`
+        (``make_kwargs`` may add others, e.g. ``render_mode``, ``max_episode_steps``; a key of both raises
+        ``ValueError``) and wrap it."""
         import hsddp_gym  # noqa: F401  (registers the env)
 
+        if simulator not in SIMULATORS:
+            raise ValueError(f"simulator must be one of {sorted(SIMULATORS)}, got {simulator!r}")
         both = sorted(set(make_kwargs) & set(self.env_kwargs))
         if both:
             raise ValueError(f"condition {self.name!r} sets {both} itself; do not pass them to make()")
-        env = gym.make(ENV_ID, **self.env_kwargs, **make_kwargs)
+        env = gym.make(SIMULATORS[simulator], **self.env_kwargs, **make_kwargs)
         if self.push is not None:
             env = RandomPush(env, **self.push)
         if self.action_delay:

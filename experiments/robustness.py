@@ -75,12 +75,12 @@ def make_policy(spec: dict, env):
 
 
 def run_one(task: tuple) -> dict:
-    """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None)``."""
+    """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None, simulator)``."""
     from hsddp_gym.envs.perturbations import make_env
     from hsddp_gym.planners.policies.evaluation import run_episode
 
-    label, spec, condition, seed, max_steps = task
-    env = make_env(condition)
+    label, spec, condition, seed, max_steps, simulator = task
+    env = make_env(condition, simulator=simulator)
     try:
         policy = make_policy(spec, env)
         res = run_episode(env, policy, seed, max_steps=max_steps)
@@ -114,12 +114,14 @@ def summarize_cell(runs: list[dict]) -> dict:
 
 
 def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True,
-                  backend: str = "local", address: str | None = None) -> dict:
+                  backend: str = "local", address: str | None = None, simulator: str = "bounding") -> dict:
     """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``; the episodes run on
-    :func:`hsddp_gym.util.parallel.run_parallel` (``backend`` "local" or "ray", ``address`` a Ray cluster)."""
+    :func:`hsddp_gym.util.parallel.run_parallel` (``backend`` "local" or "ray", ``address`` a Ray cluster) in
+    ``simulator`` (a key of ``hsddp_gym.envs.perturbations.SIMULATORS``)."""
     from tqdm import tqdm
 
-    tasks = [(label, spec, c, s, max_steps) for c in conditions for label, spec in policies.items() for s in seeds]
+    tasks = [(label, spec, c, s, max_steps, simulator) for c in conditions for label, spec in policies.items()
+             for s in seeds]
     with tqdm(total=len(tasks), desc="episodes", disable=not progress, smoothing=0.05) as bar:
         runs = run_parallel(run_one, tasks, workers=workers, backend=backend, address=address,
                             on_result=lambda i, r: bar.update(1))
@@ -206,7 +208,7 @@ def combine(paths, out: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hsddp_gym.envs.perturbations import CONDITIONS
+    from hsddp_gym.envs.perturbations import CONDITIONS, SIMULATORS
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/robustness", help="output directory (default: %(default)s)")
@@ -227,6 +229,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes; results do not depend on it (default: %(default)s)")
     add_backend_arguments(p)
+    p.add_argument("--simulator", default="bounding", choices=sorted(SIMULATORS),
+                   help="the simulator every condition runs in: bounding (hsddp_gym/Bounding-v0, exact LCP), mujoco "
+                        "(its MuJoCo twin, soft contacts; needs the extra 'mujoco') or kkt (the planner's own model) "
+                        "(default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
                    help="run nothing: merge these robustness.json files into one table in --out")
@@ -277,10 +283,11 @@ def main(argv: list[str] | None = None) -> int:
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     t0 = time.perf_counter()
     results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet,
-                            args.backend, args.address)
+                            args.backend, args.address, args.simulator)
     out = Path(args.out)
     write_json(out / "robustness.json", {
         "command": " ".join(["python", *sys.argv]), "seeds": seeds, "max_steps": args.max_steps,
+        "simulator": args.simulator,
         "policies": policies, "skipped": skipped, "wall_time_s": time.perf_counter() - t0,
         "conditions": {c: CONDITIONS[c].as_dict() for c in args.conditions}, "results": results})
     table = markdown(results, args.conditions)

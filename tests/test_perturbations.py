@@ -175,6 +175,26 @@ def test_registry_builds_every_condition_and_rejects_unknown_ones():
                                      "push"}
 
 
+def test_conditions_run_in_every_simulator():
+    """``make_env(condition, simulator=...)``: the same perturbation (kwargs, wrappers) on the MuJoCo twin and the
+    planner's own model; an unknown simulator is named in the error."""
+    from hsddp_gym.envs.perturbations import SIMULATORS
+
+    pytest.importorskip("mujoco")
+    for simulator, env_id in SIMULATORS.items():
+        env = make_env("friction_0.4", simulator=simulator)
+        assert env.spec.id == env_id and env.unwrapped.sim.mu == 0.4
+        env.close()
+    env = make_env("mass_+15", simulator="mujoco")
+    base = make_env("default", simulator="mujoco")
+    assert env.unwrapped.sim.model.body_mass[1] == pytest.approx(1.15 * base.unwrapped.sim.model.body_mass[1])
+    env = make_env("push", simulator="mujoco")
+    obs, info = env.reset(seed=3)
+    assert "push" in info and isinstance(env, RandomPush)
+    with pytest.raises(ValueError, match="simulator"):
+        make_env("default", simulator="isaac")
+
+
 def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experiment):
     import json
 
@@ -204,6 +224,6 @@ def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experime
                                 "--out", str(skipped)]) == 0
     assert "bc" in json.loads((skipped / "robustness.json").read_text())["skipped"]
     for bad in (["--workers", "0"], ["--learned", "xyz=dir"], ["--policies", "mpc-options"],
-                ["--combine", str(tmp_path / "missing.json")]):
+                ["--combine", str(tmp_path / "missing.json")], ["--simulator", "isaac"]):
         with pytest.raises(SystemExit):
             rob.main(["--out", str(tmp_path / "e"), *bad])
