@@ -286,6 +286,30 @@ def test_mpc_survives_planner_failures(monkeypatch):
     assert policy.tracker is not None  # the last valid plan keeps acting
 
 
+def test_mpc_replans_from_scratch_with_the_first_plans_iterations(monkeypatch):
+    """A re-plan the previous plan cannot warm-start (its phases do not cover the new schedule) is solved from
+    scratch with ``warmup_iterations``, not the shifted plan's ``max_iterations``; when the heuristic's rollout
+    that warm-starts it diverges, it starts from zero torques instead of failing."""
+    env = make_env()
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=0)
+    for _ in range(8):
+        obs, *_ = env.step(policy(obs))
+    assert set(policy.stats["iterations"][1:]) == {1}  # shifted plans: one iteration each
+    monkeypatch.setattr(policy, "_warm_start", lambda problem, x: None)
+
+    def diverged(problem):
+        raise RuntimeError("heuristic warm start diverged")
+
+    monkeypatch.setattr(policy, "_heuristic_controls", diverged)
+    n = len(policy.stats["iterations"])
+    for _ in range(4):
+        obs, _, terminated, _, _ = env.step(policy(obs))
+        assert not terminated
+    assert len(policy.stats["iterations"]) == n + 1 and policy.stats["planner_failures"] == 0
+    assert policy.stats["iterations"][-1] > policy.options.max_iterations
+
+
 def test_mpc_counts_replans_stopped_by_the_time_budget():
     """A re-plan that hits ``time_budget`` uses its best iterate (any-time MPC) and is counted, not hidden."""
     env = make_env()

@@ -101,6 +101,17 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.
     return x
 
 
+def _noise_model(dt: float, position_noise: float, velocity_noise: float, acceleration_noise: float):
+    """``(A, Q, R)`` (2, 2) each of one coordinate ``(q, v)``: transition, process and measurement covariances."""
+    dt = check_positive(dt, "dt")
+    sp = check_positive(position_noise, "position_noise")
+    sv = check_positive(velocity_noise, "velocity_noise")
+    sa = check_positive(acceleration_noise, "acceleration_noise")
+    A = np.array([[1.0, dt], [0.0, 1.0]])
+    G = np.array([0.5 * dt * dt, dt])
+    return A, np.outer(G, G) * sa * sa, np.diag([sp * sp, sv * sv])
+
+
 def steady_state_kalman_gain(dt: float, position_noise: float, velocity_noise: float,
                              acceleration_noise: float) -> tuple[np.ndarray, np.ndarray]:
     """The steady-state Kalman filter of one coordinate measured in position and velocity.
@@ -110,16 +121,9 @@ def steady_state_kalman_gain(dt: float, position_noise: float, velocity_noise: f
     ``q`` and ``v`` are measured with independent noise of standard deviations ``position_noise`` and
     ``velocity_noise``. Returns ``(L, S)``: the gain ``L (2, 2)`` (the correction of ``(q, v)`` is
     ``L @ innovation``) and the covariance ``S (2, 2)`` of the innovation, both at the fixed point of the Riccati
-    recursion.
+    recursion (which :class:`StateFilter` runs step by step).
     """
-    dt = check_positive(dt, "dt")
-    sp = check_positive(position_noise, "position_noise")
-    sv = check_positive(velocity_noise, "velocity_noise")
-    sa = check_positive(acceleration_noise, "acceleration_noise")
-    A = np.array([[1.0, dt], [0.0, 1.0]])
-    G = np.array([0.5 * dt * dt, dt])
-    Q = np.outer(G, G) * sa * sa
-    R = np.diag([sp * sp, sv * sv])
+    A, Q, R = _noise_model(dt, position_noise, velocity_noise, acceleration_noise)
     P = R.copy()
     for _ in range(100_000):
         prior = A @ P @ A.T + Q
@@ -137,15 +141,19 @@ class StateFilter:
 
     Each observation ``y`` (14,) is compared with the prior ``x_prior`` (the previous estimate propagated one
     control period with the model and the torque the env executed). Every coordinate's (position, velocity) pair
-    is corrected by the steady-state Kalman gain of :func:`steady_state_kalman_gain` (a coordinate whose position
-    the model integrates from its velocity: the velocity measurement, integrated, says more about the position than
-    the position measurement does), ``x = x_prior + L (y - x_prior)`` pair by pair. Two cases take the measurement
+    is corrected by the Kalman gain of the noise model of :func:`steady_state_kalman_gain`, ``x = x_prior + L (y -
+    x_prior)`` pair by pair, with the covariance ``P (2, 2)`` of the estimate carried from step to step (the same for
+    every coordinate: they share the noise model): right after a start or a restart the estimate is one observation
+    and the gain is high; it settles to the steady-state gain within a few steps. (A coordinate whose position the
+    model integrates from its velocity: the velocity measurement, integrated, says more about the position than
+    the position measurement does, so the steady-state position gain is small.) Two cases take the measurement
     instead of the model:
 
     * the **innovation test**: the normalized innovation squared ``sum_i e_i^T S^-1 e_i`` over the observed
-      coordinates (13: the trunk ``x`` is not observed) exceeds ``innovation_gate`` -- far more than the assumed
-      sensor noise explains (the default 35 is exceeded by chance once in ~1000 observations): the model is wrong
-      (a push, a slip, another friction, mass or contact model), and the estimate restarts from the measurement;
+      coordinates (13: the trunk ``x`` is not observed; ``S = P_prior + R``) exceeds ``innovation_gate`` -- far
+      more than the assumed noise explains (the default 35 is exceeded by chance once in ~1000 observations): the
+      model is wrong (a push, a slip, another friction, mass or contact model), and the estimate restarts from the
+      measurement (``P = R``);
     * an observed contact **mode change the model did not predict**: the velocities are taken whole (the impact is
       where the model is least sure).
 
@@ -163,8 +171,9 @@ class StateFilter:
         innovation_gate: threshold of the innovation test (> 0).
 
     Attributes:
-        gain: ``L (2, 2)``; innovation_covariance: ``S (2, 2)``; restarts: the observations taken whole by the
-            innovation test since :meth:`reset`.
+        gain, innovation_covariance: the steady-state ``L (2, 2)`` and ``S (2, 2)``; covariance: the current ``P (2,
+        2)`` (None before the first observation); restarts: the observations taken whole by the innovation test
+        since :meth:`reset`.
     """
 
     def __init__(self, predictor: ContactModelPredictor, position_noise: float = 0.01, velocity_noise: float = 0.1,
@@ -173,47 +182,61 @@ class StateFilter:
             raise TypeError(f"predictor must be a ContactModelPredictor, got {type(predictor).__name__}")
         self.predictor = predictor
         self.innovation_gate = check_positive(innovation_gate, "innovation_gate")
+        self._A, self._Q, self._R = _noise_model(predictor.control_dt, position_noise, velocity_noise,
+                                                 acceleration_noise)
         self.gain, self.innovation_covariance = steady_state_kalman_gain(
             predictor.control_dt, position_noise, velocity_noise, acceleration_noise)
-        self._s_inv = np.linalg.inv(self.innovation_covariance)
         self.reset()
 
     def reset(self) -> None:
         """Forget the estimate (the next observation is taken as it is)."""
         self.x: np.ndarray | None = None
+        self.covariance: np.ndarray | None = None
         self.restarts = 0
+
+    def _take(self, y: np.ndarray, mode: Mode) -> np.ndarray:
+        self.x = project_onto_contacts(self.predictor.robot, y, mode)
+        self.covariance = self._R.copy()
+        return self.x.copy()
 
     def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None) -> np.ndarray:
         """The estimate (14,) after measuring ``y`` (14,) in the (clean) contact ``mode``; ``u_executed`` (4,)
         [N m] is the torque the env executed over the last control period (None: take ``y`` as it is)."""
         y = check_vector(y, NX, "y")
         mode = Mode(mode)
-        robot = self.predictor.robot
         if self.x is None or u_executed is None:
-            self.x = project_onto_contacts(robot, y, mode)
-            return self.x.copy()
+            return self._take(y, mode)
         try:
             prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64))
         except (ArithmeticError, ValueError, RuntimeError):
-            self.x = project_onto_contacts(robot, y, mode)
-            return self.x.copy()
+            return self._take(y, mode)
+        A = self._A
+        P_prior = A @ self.covariance @ A.T + self._Q
+        S = P_prior + self._R
+        si = np.linalg.inv(S)
         eq = y[:NQ] - prior[:NQ]
         eq[0] = 0.0  # the trunk x is not observed
         ev = y[NQ:] - prior[NQ:]
-        si = self._s_inv
         nis = float(np.sum(si[0, 0] * eq * eq + 2.0 * si[0, 1] * eq * ev + si[1, 1] * ev * ev))
         # the trunk x: only its velocity is measured (its pair's position term is zero above, the cross term too,
         # and its velocity term uses S_vv alone)
-        nis += float(ev[0] * ev[0] * (1.0 / self.innovation_covariance[1, 1] - si[1, 1]))
+        nis += float(ev[0] * ev[0] * (1.0 / S[1, 1] - si[1, 1]))
         if nis > self.innovation_gate:
             self.restarts += 1
-            x = project_onto_contacts(robot, y, mode)
+            x = self._take(y, mode)
         else:
-            L = self.gain
+            L = P_prior @ si
             x = prior.copy()
             x[:NQ] += L[0, 0] * eq + L[0, 1] * ev
-            x[NQ:] += ev if prior_mode != mode else L[1, 0] * eq + L[1, 1] * ev
-            x = project_onto_contacts(robot, x, mode)
+            P = (np.eye(2) - L) @ P_prior
+            if prior_mode != mode:
+                x[NQ:] = y[NQ:]
+                P[0, 1] = P[1, 0] = 0.0
+                P[1, 1] = self._R[1, 1]
+            else:
+                x[NQ:] += L[1, 0] * eq + L[1, 1] * ev
+            self.covariance = P
+            x = project_onto_contacts(self.predictor.robot, x, mode)
         x[0] = y[0]
         self.x = x
         return x.copy()

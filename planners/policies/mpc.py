@@ -80,7 +80,8 @@ class MPCOptions:
             ``replan_period`` converge together as the horizon moves; more iterations per re-plan fit each plan
             harder to one noisy state estimate: on the development seeds 10 iterations fell in 13 of 100 episodes
             of the hardest conditions where 1 fell in 3 and 3 in 4, README "Robustness"; and it is the cheapest).
-            warmup_iterations: for the first plan of an episode.
+            warmup_iterations: for a plan from scratch: the episode's first, or one the previous plan cannot warm-start
+            (its phases do not cover the new schedule, e.g. after a lost stance).
         time_budget: wall-clock limit of one re-plan [s] (None: none).
         latency_steps: control steps between the start of a re-plan and the moment its plan is used.
         durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
@@ -318,8 +319,12 @@ class GaitClock:
             self._stance_touched
         return twin
 
-    def update(self, mode: Mode, pitch_rate: float) -> Mode:
-        """Advance by the observed contact ``mode``; return the mode of the current gait phase."""
+    def update(self, mode: Mode, pitch_rate: float, elapsed=None) -> Mode:
+        """Advance by the observed contact ``mode``; return the mode of the current gait phase.
+
+        ``elapsed``: on the first observation, a function ``elapsed(phase, duration) -> float`` giving the time [s]
+        already spent in the phase the observation starts (e.g. :func:`stance_elapsed` of the state); None: 0 (the
+        phase has just begun). Ignored afterwards."""
         self.resynced = False
         for foot in (FRONT, BACK):
             self._contact_steps[foot] = self._contact_steps[foot] + 1 if mode.in_contact(foot) else 0
@@ -331,6 +336,8 @@ class GaitClock:
                 self.phase = 0 if mode.in_contact(BACK) and not mode.in_contact(FRONT) else (
                     2 if not mode.in_contact(BACK) else 0)
             self.tau = 0.0
+            if elapsed is not None and mode != Mode.DOUBLE_STANCE:
+                self.tau = float(elapsed(self.phase, self.durations[self.phase]))
             return _CYCLE[self.phase]
         j = self.phase
         if j == DOUBLE_STANCE_PHASE:
@@ -416,6 +423,21 @@ class GaitClock:
         frac = (sum(self.durations[:j]) + min(tau, self.durations[j])) / sum(self.durations)
         f[5], f[6] = math.sin(2 * math.pi * frac), math.cos(2 * math.pi * frac)
         return f
+
+
+def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed: float = 0.25) -> float:
+    """The time [s] already spent in bounding ``phase`` (0 back stance, 2 front stance; 0 for a flight) of nominal
+    ``duration`` [s] at state ``x`` (14,), from where the stance foot is relative to its hip: a bounding stance sweeps
+    its foot backward under the hip at the forward speed, symmetric about it (Raibert's neutral point), so
+    ``duration / 2 - (x_foot - x_hip) / vx`` (``vx`` at least ``min_speed``), clipped to ``[0, 0.9 duration]``.
+    The gait clock's start from a stance: the paper's initial state is mid back stance, not its start."""
+    if _CYCLE[phase] == Mode.FLIGHT:
+        return 0.0
+    foot = BACK if phase == 0 else FRONT
+    q = x[:NQ]
+    offset = float(robot.foot_positions(q)[foot, 0] - robot.hip_positions(q)[foot, 0])
+    tau = 0.5 * duration - offset / max(float(x[NQ]), min_speed)
+    return float(min(max(tau, 0.0), 0.9 * duration))
 
 
 class MPCPolicy(Policy):
@@ -521,7 +543,9 @@ class MPCPolicy(Policy):
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
-        return self.clock.update(mode, float(x[NQ + IPITCH]))
+        robot = self.dynamics.robot
+        return self.clock.update(mode, float(x[NQ + IPITCH]),
+                                 elapsed=lambda phase, duration: stance_elapsed(robot, x, phase, duration))
 
     def _schedule(self) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -665,14 +689,19 @@ class MPCPolicy(Policy):
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
                                          knots=np.array(knots, dtype=np.int64))
-        first = self.last_solution is None
-        iters = o.warmup_iterations if first else o.max_iterations
+        try:
+            ws = None if self.last_solution is None else self._warm_start(problem, x)
+        except ValueError:
+            ws = None
+        # a plan from scratch (the episode's first, or the previous plan does not cover this schedule's phases, e.g.
+        # after a lost stance at start-up) gets the first plan's iterations; a shifted plan, max_iterations
+        cold = ws is None
+        iters = o.warmup_iterations if cold else o.max_iterations
         self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
                                              max_total_ddp_iterations=iters, time_limit=o.time_budget,
-                                             max_al_iterations=4 if first else 2)
+                                             max_al_iterations=4 if cold else 2)
         try:
             sol = None
-            ws = None if first else self._warm_start(problem, x)
             if ws is not None:
                 U, X, K, lam = ws
                 cs = self._cs.copy() if self._cs is not None else None
@@ -691,7 +720,11 @@ class MPCPolicy(Policy):
                     if sol is not None:
                         break
             if sol is None:
-                sol = self._solver.solve(problem, self._heuristic_controls(problem))
+                try:
+                    U0 = self._heuristic_controls(problem)
+                except RuntimeError:  # the heuristic's rollout diverged from this state: start from zero torques
+                    U0 = np.zeros((problem.n_knots, NU))
+                sol = self._solver.solve(problem, U0)
             if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged":
                 raise RuntimeError(f"planner status {sol.status}")
         except (RuntimeError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
