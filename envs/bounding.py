@@ -278,7 +278,18 @@ class BoundingEnv(gym.Env):
         self._update_feet(at_reset=True)
 
     def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
-        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it."""
+        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it.
+
+        The energy-consistent scheme (the default) steps through the compiled kernel of the vector env
+        (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, one robot), so that this env and
+        :class:`~hsddp_gym.envs.vector.BoundingVectorEnv` give bit-identical transitions; the legacy scheme is
+        :class:`~hsddp_gym.core.contact.ContactSimulator` (Python). ``contact_erp`` acts on the legacy scheme only."""
+        if energy_consistent:
+            from hsddp_gym.core.batch_contact import CompiledContactSimulator  # numba: imported on first use
+
+            return CompiledContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction,
+                                            gravity=gravity, motor_speed_limits=motor_speed_limits,
+                                            torque_limit=self.torque_limit)
         return ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
                                 erp=contact_erp, motor_speed_limits=motor_speed_limits,
                                 torque_limit=self.torque_limit, energy_consistent=energy_consistent)
@@ -471,8 +482,8 @@ class BoundingEnv(gym.Env):
         healthy = self._healthy(finite)
         ctrl = -self.ctrl_cost_weight * sum(v * v for v in values)
         if finite:
-            fwd = self.forward_reward_weight * math.exp(-((self._x_velocity - self.target_speed)
-                                                          / self.tracking_sigma) ** 2)
+            d = (self._x_velocity - self.target_speed) / self.tracking_sigma
+            fwd = self.forward_reward_weight * math.exp(-(d * d))  # d * d, as the vector env's compiled _finish
         else:
             fwd = 0.0
         alive = self.healthy_reward_weight if healthy else 0.0

@@ -58,7 +58,8 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
         healthy = ok and env_p[7] < xr[IZ] < env_p[8] and env_p[9] < xr[IPITCH] < env_p[10]
         a = values[r]
         ctrl = -env_p[4] * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-        fwd = env_p[3] * math.exp(-((xv - env_p[1]) / env_p[2]) ** 2) if ok else 0.0
+        d = (xv - env_p[1]) / env_p[2]
+        fwd = env_p[3] * math.exp(-(d * d)) if ok else 0.0  # d * d: the single env's arithmetic, exactly
         alive = env_p[5] if healthy else 0.0
         rewards3[r, 0] = fwd
         rewards3[r, 1] = ctrl
