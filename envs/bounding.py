@@ -180,7 +180,12 @@ class BoundingEnv(gym.Env):
     braking torques are not limited. None: ideal torque sources, the planner's model.
     (3) :mod:`hsddp_gym.core.contact`: a mass-metric position projection (sticking feet do not creep, contact
     feet end each step on the ground) and an energy projection, so that per simulation step
-    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates.
+    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates. The env
+    steps it through the vector env's compiled kernel
+    (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, equal to the reference
+    ``ContactSimulator`` to round-off), so ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
+    gives bit-identical transitions; the kernel is compiled once per machine (about a minute, announced on
+    stderr, cached on disk).
     (4) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
     than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
 

@@ -96,8 +96,9 @@ class BoundingVectorEnv(VectorEnv):
     """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one :class:`gymnasium.vector.VectorEnv`.
 
     Every robot follows the single env exactly: the same physics (:mod:`hsddp_gym.core.batch_contact`, the
-    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots; equal to it up to
-    round-off, ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
+    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots, equal to it up to
+    round-off; the single env steps through the same compiled code, so the transitions are bit-identical,
+    ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
     terminates with ``info["invalid_state"]``), observation and info keys, and the registered time limit
     (``max_episode_steps``, truncation). ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list gives one
     seed per robot), as :class:`gymnasium.vector.SyncVectorEnv`, so that the transitions equal those of N

@@ -1046,7 +1046,8 @@ class CompiledContactSimulator(ContactSimulator):
     :meth:`run` call (the last step's for ``run(u, 1)``), which is also what :meth:`run` returns (an array, reused
     by the next call); ``projection_residual`` is not tracked (stays 0). :meth:`foot_heights_fast` returns the
     kernel's foot heights of the state the last :meth:`run` left (Pinocchio's after :meth:`set_state`; pushes
-    change only ``v``). :meth:`energy` and the other queries are Pinocchio's, as in :class:`ContactSimulator`.
+    change only ``v``). ``_tau`` holds the torques the motors applied in the last step, as in
+    :class:`ContactSimulator`. :meth:`energy` and the other queries are Pinocchio's, as in :class:`ContactSimulator`.
     The kernel is compiled once per machine (:func:`warm_up`, announced on stderr) when the first one is built.
     """
 
@@ -1079,6 +1080,7 @@ class CompiledContactSimulator(ContactSimulator):
         self._u = self._ub[0]
         self._p = kernel_params(self)
         self._sc = kernel_scratch()
+        self._tau = self._sc.tau  # the applied torques of the last step (the kernel's), as ContactSimulator's
         warm_up()
 
     # state kept in the kernel's arrays
