@@ -1072,16 +1072,25 @@ class CompiledContactSimulator(ContactSimulator):
         self._heights_valid = False
         super().__init__(robot, timestep=timestep, friction=friction, gravity=gravity,
                          motor_speed_limits=motor_speed_limits, torque_limit=torque_limit, energy_consistent=True)
+        self._p = kernel_params(self)
+        self._sc = kernel_scratch()
+        self._link_views()
+        warm_up()
+
+    def _link_views(self) -> None:
+        """The attributes that are views of the batch-of-one arrays (again after a copy, which copies views
+        as separate arrays)."""
         self.x = self._xb[0]
         self.q = self.x[:NQ]
         self.v = self.x[NQ:]
         self.contact = self._contact_b[0]
         self._total = self._total_b[0]
         self._u = self._ub[0]
-        self._p = kernel_params(self)
-        self._sc = kernel_scratch()
         self._tau = self._sc.tau  # the applied torques of the last step (the kernel's), as ContactSimulator's
-        warm_up()
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._link_views()
 
     # state kept in the kernel's arrays
     @property
