@@ -180,7 +180,12 @@ class BoundingEnv(gym.Env):
     braking torques are not limited. None: ideal torque sources, the planner's model.
     (3) :mod:`hsddp_gym.core.contact`: a mass-metric position projection (sticking feet do not creep, contact
     feet end each step on the ground) and an energy projection, so that per simulation step
-    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates.
+    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates. The env
+    steps it through the vector env's compiled kernel
+    (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, equal to the reference
+    ``ContactSimulator`` to round-off), so ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
+    gives bit-identical transitions; the kernel is compiled once per machine (about a minute, announced on
+    stderr, cached on disk).
     (4) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
     than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
 
@@ -278,7 +283,18 @@ class BoundingEnv(gym.Env):
         self._update_feet(at_reset=True)
 
     def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
-        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it."""
+        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it.
+
+        The energy-consistent scheme (the default) steps through the compiled kernel of the vector env
+        (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, one robot), so that this env and
+        :class:`~hsddp_gym.envs.vector.BoundingVectorEnv` give bit-identical transitions; the legacy scheme is
+        :class:`~hsddp_gym.core.contact.ContactSimulator` (Python). ``contact_erp`` acts on the legacy scheme only."""
+        if energy_consistent:
+            from hsddp_gym.core.batch_contact import CompiledContactSimulator  # numba: imported on first use
+
+            return CompiledContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction,
+                                            gravity=gravity, motor_speed_limits=motor_speed_limits,
+                                            torque_limit=self.torque_limit)
         return ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
                                 erp=contact_erp, motor_speed_limits=motor_speed_limits,
                                 torque_limit=self.torque_limit, energy_consistent=energy_consistent)
@@ -471,8 +487,8 @@ class BoundingEnv(gym.Env):
         healthy = self._healthy(finite)
         ctrl = -self.ctrl_cost_weight * sum(v * v for v in values)
         if finite:
-            fwd = self.forward_reward_weight * math.exp(-((self._x_velocity - self.target_speed)
-                                                          / self.tracking_sigma) ** 2)
+            d = (self._x_velocity - self.target_speed) / self.tracking_sigma
+            fwd = self.forward_reward_weight * math.exp(-(d * d))  # d * d, as the vector env's compiled _finish
         else:
             fwd = 0.0
         alive = self.healthy_reward_weight if healthy else 0.0

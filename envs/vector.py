@@ -58,7 +58,8 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
         healthy = ok and env_p[7] < xr[IZ] < env_p[8] and env_p[9] < xr[IPITCH] < env_p[10]
         a = values[r]
         ctrl = -env_p[4] * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-        fwd = env_p[3] * math.exp(-((xv - env_p[1]) / env_p[2]) ** 2) if ok else 0.0
+        d = (xv - env_p[1]) / env_p[2]
+        fwd = env_p[3] * math.exp(-(d * d)) if ok else 0.0  # d * d: the single env's arithmetic, exactly
         alive = env_p[5] if healthy else 0.0
         rewards3[r, 0] = fwd
         rewards3[r, 1] = ctrl
@@ -95,8 +96,9 @@ class BoundingVectorEnv(VectorEnv):
     """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one :class:`gymnasium.vector.VectorEnv`.
 
     Every robot follows the single env exactly: the same physics (:mod:`hsddp_gym.core.batch_contact`, the
-    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots; equal to it up to
-    round-off, ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
+    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots, equal to it up to
+    round-off; the single env steps through the same compiled code, so the transitions are bit-identical,
+    ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
     terminates with ``info["invalid_state"]``), observation and info keys, and the registered time limit
     (``max_episode_steps``, truncation). ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list gives one
     seed per robot), as :class:`gymnasium.vector.SyncVectorEnv`, so that the transitions equal those of N

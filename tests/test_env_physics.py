@@ -1,5 +1,8 @@
 """Energy balance, position-level contacts and penetration of the energy-consistent stepping (envs/contact.py),
-each also run with the legacy scheme (``energy_consistent=False``) to show what the test catches."""
+each also run with the legacy scheme (``energy_consistent=False``) to show what the test catches. The
+energy-consistent claims are checked on both implementations of the scheme: the reference
+:class:`ContactSimulator` (Python, Pinocchio) and the compiled kernel the env steps through
+(:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`)."""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ import pinocchio as pin
 import pytest
 from test_env_contact import pd_hold  # noqa: E402  (the tests folder is on sys.path)
 
+from hsddp_gym.core.batch_contact import CompiledContactSimulator
 from hsddp_gym.core.conventions import BACK, FRONT
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS, RESET_VELOCITY_BOUNDS, BoundingEnv
@@ -15,6 +19,12 @@ from hsddp_gym.envs.contact import STICK, ContactSimulator
 
 TOL_J = 1e-9  # the energy goal per step [J]
 COMBOS = [(False, False), (True, False), (False, True), (True, True)]  # (front, back) starting on the ground
+IMPLEMENTATIONS = ("reference", "compiled")
+
+
+def consistent_sim(kind, robot, **kwargs):
+    """The energy-consistent scheme: ``"reference"`` ContactSimulator or ``"compiled"`` (the env's kernel)."""
+    return ContactSimulator(robot, **kwargs) if kind == "reference" else CompiledContactSimulator(robot, **kwargs)
 
 
 @pytest.fixture(scope="module")
@@ -78,10 +88,11 @@ def energy_excess(sim, x, steps, u=None):
     return worst
 
 
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
 @pytest.mark.parametrize("gravity", [9.81, 0.0, 30.0])
 @pytest.mark.parametrize("combo", COMBOS)
-def test_energy_never_increases_per_step_with_zero_torque(robot, gravity, combo):
-    sim = ContactSimulator(robot, gravity=gravity, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
+def test_energy_never_increases_per_step_with_zero_torque(robot, gravity, combo, kind):
+    sim = consistent_sim(kind, robot, gravity=gravity, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
     rng = np.random.default_rng(int(gravity * 10) + 7 * combo[0] + 3 * combo[1])
     worst = max(energy_excess(sim, random_state(robot, rng, combo, vscale), 120)
                 for vscale in (0.1, 0.3, 1.0, 1.0, 3.0, 10.0))
@@ -89,10 +100,11 @@ def test_energy_never_increases_per_step_with_zero_torque(robot, gravity, combo)
     assert sim.lcp_fallbacks == 0 and sim.energy_deficits == 0
 
 
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
 @pytest.mark.parametrize("combo", COMBOS)
-def test_energy_balance_with_torques(robot, combo):
+def test_energy_balance_with_torques(robot, combo, kind):
     """With constant random torques: dE <= tau . dq + 1e-9 J every step (tau: the motors' applied torque)."""
-    sim = ContactSimulator(robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
+    sim = consistent_sim(kind, robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
     rng = np.random.default_rng(11 + combo[0] + 2 * combo[1])
     worst = max(energy_excess(sim, random_state(robot, rng, combo, 1.0), 120, rng.uniform(-33.0, 33.0, 4))
                 for _ in range(6))
@@ -112,8 +124,9 @@ def momentum(sim):
     return pin.computeCentroidalMomentum(sim.model, sim.data, sim.q, sim.v).np[[0, 2, 4]].copy()
 
 
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
 @pytest.mark.parametrize("rate, kept", [(10.0, 0.995), (50.0, 0.88), (75.0, 0.78), (100.0, 0.70)])
-def test_spinning_leg_in_free_flight(robot, rate, kept):
+def test_spinning_leg_in_free_flight(robot, rate, kept, kind):
     """g = 0, no torque, high above the ground, the front hip spinning at ``rate``: over 0.5 s the energy never
     rises in a step and nothing blows up, where the legacy scheme gains energy (x13 at 100 rad/s). The price is
     numerical dissipation, measured here (energy kept >= ``kept``: 99.85 %, 90 %, 81 %, 74 % of E(0) at 10, 50,
@@ -125,7 +138,8 @@ def test_spinning_leg_in_free_flight(robot, rate, kept):
     x[7], x[10] = 1.0, rate
     drift = {}
     for consistent in (True, False):
-        sim = ContactSimulator(robot, gravity=0.0, energy_consistent=consistent)
+        sim = consistent_sim(kind, robot, gravity=0.0) if consistent \
+            else ContactSimulator(robot, gravity=0.0, energy_consistent=False)
         sim.set_state(x)
         e0, p0 = sim.energy(), momentum(sim)
         e, rises = e0, 0.0
@@ -148,10 +162,10 @@ def test_spinning_leg_in_free_flight(robot, rate, kept):
 
 
 
-def stick_drift(robot, consistent: bool) -> tuple[float, int]:
+def stick_drift(robot, consistent: bool, kind: str = "reference") -> tuple[float, int]:
     """``(largest one-step movement [m] of a sticking foot, foot-steps spent sticking)`` over a 200 ms stance on
     both feet with the trunk rocking (PD on the joints, an initial pitch rate)."""
-    sim = ContactSimulator(robot, energy_consistent=consistent)
+    sim = consistent_sim(kind, robot) if consistent else ContactSimulator(robot, energy_consistent=False)
     q = np.array([0.0, 0.0, 0.0, 0.25 * np.pi, -0.5 * np.pi, 0.25 * np.pi, -0.5 * np.pi])
     q[1] = -robot.foot_heights(q).min()
     x = np.r_[q, np.zeros(7)]
@@ -170,10 +184,10 @@ def stick_drift(robot, consistent: bool) -> tuple[float, int]:
     return worst, stick_steps
 
 
-@pytest.mark.parametrize("consistent", [True, False])
-def test_sticking_feet_do_not_creep(robot, consistent):
+@pytest.mark.parametrize("consistent, kind", [(True, "reference"), (True, "compiled"), (False, "reference")])
+def test_sticking_feet_do_not_creep(robot, consistent, kind):
     """While a foot sticks it moves by at most 1e-9 m per step (the legacy velocity-level stick creeps ~1e-6 m)."""
-    worst, stick_steps = stick_drift(robot, consistent)
+    worst, stick_steps = stick_drift(robot, consistent, kind)
     assert stick_steps >= 300
     if consistent:
         assert worst <= 1e-9
@@ -181,12 +195,13 @@ def test_sticking_feet_do_not_creep(robot, consistent):
         assert worst > 1e-7
 
 
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
 @pytest.mark.parametrize("speed", [1.0, 5.0, 10.0])
 @pytest.mark.parametrize("pitch", [0.0, 0.2])
-def test_landing_penetrates_at_most_one_millimetre(robot, speed, pitch):
+def test_landing_penetrates_at_most_one_millimetre(robot, speed, pitch, kind):
     """Dropped onto the ground at ``speed`` m/s (zero torque, so the legs fold): no foot is ever more than
     1 mm below the ground at the end of a step."""
-    sim = ContactSimulator(robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
+    sim = consistent_sim(kind, robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS)
     q = np.array([0.0, 0.0, pitch, 0.25 * np.pi, -0.5 * np.pi, 0.25 * np.pi, -0.5 * np.pi])
     q[1] = -robot.foot_heights(q).min() + 0.02
     x = np.r_[q, np.zeros(7)]
@@ -198,7 +213,7 @@ def test_landing_penetrates_at_most_one_millimetre(robot, speed, pitch):
         lowest = min(lowest, float(sim.foot_heights().min()))
     assert lowest >= -1e-3
     assert np.all(np.isfinite(sim.x)) and sim.lcp_fallbacks == 0
-    if speed == 10.0:  # the legacy scheme sinks deeper than that
+    if speed == 10.0 and kind == "reference":  # the legacy scheme sinks deeper than that
         legacy = ContactSimulator(robot, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent=False)
         legacy.set_state(x)
         deepest = np.inf
@@ -210,8 +225,9 @@ def test_landing_penetrates_at_most_one_millimetre(robot, speed, pitch):
 
 def test_env_energy_with_zero_action_from_accepted_reset_states():
     """Through the env (200 Hz, frame_skip 5): from states at the reset bounds, zero action, g = 0, the energy
-    never increases per control step and nothing blows up."""
+    never increases per control step and nothing blows up (the env steps through the compiled kernel)."""
     env = BoundingEnv(gravity=0.0, terminate_when_unhealthy=False)
+    assert isinstance(env.sim, CompiledContactSimulator)
     rng = np.random.default_rng(5)
     bounds = np.array(RESET_VELOCITY_BOUNDS)
     for _ in range(6):
