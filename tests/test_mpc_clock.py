@@ -224,3 +224,33 @@ def test_a_foot_that_bounces_off_at_touchdown_is_a_lost_stance():
     assert c.phase == 0 and c.tau == 0.0
     _stance_then(c, Mode.FLIGHT, 2, Mode.FLIGHT, 0)  # the foot bounced off at once
     assert c.phase == 3 and c.resynced and c.tau == pytest.approx(0.5 * durs[3])
+
+
+def test_clock_starts_a_stance_where_the_foot_under_the_hip_says():
+    """A start-up that does not assume a phase has just begun: the paper's initial state is mid back stance
+    (the foot under the hip), so the clock starts there with about half the stance gone; a foot ahead of the hip
+    is early in the stance, one behind it late. Flights and a double stance start at 0."""
+    from hsddp_gym.core.references import paper_initial_state
+    from hsddp_gym.planners.policies.mpc import stance_elapsed
+
+    policy = MPCPolicy(EnvInterface(), MPCOptions())
+    robot = policy.dynamics.robot
+    x = paper_initial_state()
+    T = policy.durations[0]
+    mid = stance_elapsed(robot, x, 0, T)
+    assert 0.4 * T < mid < 0.6 * T
+    ahead, behind = x.copy(), x.copy()
+    ahead[5] -= 0.3  # the back hip turned: the foot ahead of the hip
+    behind[5] += 0.3
+    feet = [robot.foot_positions(s[:7])[1, 0] - robot.hip_positions(s[:7])[1, 0] for s in (ahead, x, behind)]
+    assert feet[0] > feet[1] > feet[2]
+    assert stance_elapsed(robot, ahead, 0, T) < mid < stance_elapsed(robot, behind, 0, T)
+    assert stance_elapsed(robot, x, 1, 0.072) == 0.0
+    # the MPC's clock uses it on the first observation only
+    policy._update_clock(Mode.BACK_STANCE, x)
+    assert policy.clock.phase == 0 and policy.clock.tau == pytest.approx(mid)
+    policy._update_clock(Mode.BACK_STANCE, behind)  # later observations do not move it
+    assert policy.clock.tau == pytest.approx(mid)
+    clock = GaitClock(policy.durations, 0.005)
+    clock.update(Mode.DOUBLE_STANCE, 0.0, elapsed=lambda phase, duration: 0.03)
+    assert clock.tau == 0.0

@@ -160,20 +160,37 @@ def test_state_filter_corrects_by_the_kalman_gain_and_restarts_on_a_push():
     from hsddp_gym.planners.policies.estimation import StateFilter
 
     pred = ContactModelPredictor(0.005)
-    filt = StateFilter(pred, 0.01, 0.1, 10.0, 35.0)
+    filt = StateFilter(pred, 0.01, 0.1, 3.0, 35.0)
     L = filt.gain
     x = gym.make(ENV_ID).unwrapped.init_state.copy()
-    x[1] += 0.1  # in the air
+    x[1] += 5.0  # high in the air: free flight for the whole test
     u = np.zeros(4)
     filt.update(x, 0, None)
+    assert np.allclose(filt.covariance, np.diag([0.01**2, 0.1**2]))  # one observation
+    # exact observations: the estimate is the model's, and the covariance settles to the steady state
+    first_gain = None
+    for k in range(150):
+        prior, _ = pred.step(filt.x, u)
+        P_before = filt.covariance.copy()
+        est = filt.update(prior, 0, u)
+        assert np.allclose(est[1:], prior[1:], atol=1e-12)
+        if k == 0:
+            A = np.array([[1.0, 0.005], [0.0, 1.0]])
+            G = np.array([0.5 * 0.005**2, 0.005])
+            P_prior = A @ P_before @ A.T + np.outer(G, G) * 9.0
+            first_gain = P_prior @ np.linalg.inv(P_prior + np.diag([0.01**2, 0.1**2]))
+    assert first_gain[1, 1] > 1.5 * L[1, 1]  # right after a start the measurements weigh more
+    P_ss = (np.eye(2) - L) @ (filt.innovation_covariance - np.diag([0.01**2, 0.1**2]))
+    assert np.allclose(filt.covariance, P_ss, rtol=1e-2)
+    x = filt.x.copy()
     prior, _ = pred.step(x, u)
     y = prior.copy()
     y[2] += 0.01  # pitch: one sensor standard deviation
     y[8] += 0.05  # vertical speed
     est = filt.update(y, 0, u)
-    assert est[2] == pytest.approx(prior[2] + L[0, 0] * 0.01, abs=1e-12)
-    assert est[8] == pytest.approx(prior[8] + L[1, 1] * 0.05, abs=1e-12)
-    assert est[NQ + 2] == pytest.approx(prior[NQ + 2] + L[1, 0] * 0.01, abs=1e-12)  # pitch rate
+    assert est[2] == pytest.approx(prior[2] + L[0, 0] * 0.01, abs=1e-8)
+    assert est[8] == pytest.approx(prior[8] + L[1, 1] * 0.05, abs=1e-7)
+    assert est[NQ + 2] == pytest.approx(prior[NQ + 2] + L[1, 0] * 0.01, abs=1e-7)  # pitch rate
     assert filt.restarts == 0
     # a push: 0.8 m/s more, far beyond the assumed noise: the estimate restarts from the observation
     prior, _ = pred.step(est, u)

@@ -136,10 +136,10 @@ class MLPPolicy(Policy):
     def act(self, obs: np.ndarray) -> np.ndarray:
         z = np.asarray(obs, dtype=np.float64)
         if self.clock is not None:
-            from hsddp_gym.core.conventions import IPITCH, NQ
+            from hsddp_gym.planners.policies.mpc import update_gait_clock
 
             x, mode, _ = self._parse(obs)
-            self.clock.update(mode, float(x[NQ + IPITCH]))
+            update_gait_clock(self.clock, mode, x)
             z = np.concatenate([z, self.clock.features()])
             self.clock.tick()
         if self.config.speed_input:

@@ -48,8 +48,8 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
     reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
     (exactly what :class:`MLPPolicy` and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy` do while acting)."""
-    from hsddp_gym.core.conventions import IPITCH, NQ
     from hsddp_gym.core.observation import DEFAULT_LAYOUT, state_from_observation
+    from hsddp_gym.planners.policies.mpc import update_gait_clock
 
     layout = layout if layout is not None else DEFAULT_LAYOUT
     clock = clock.copy()
@@ -57,7 +57,7 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     out = np.zeros((len(obs), clock.N_FEATURES))
     for t, o in enumerate(np.asarray(obs)):
         x, mode, _ = state_from_observation(o, layout)
-        clock.update(mode, float(x[NQ + IPITCH]))
+        update_gait_clock(clock, mode, x)
         out[t] = clock.features()
         clock.tick()
     return out

@@ -440,6 +440,29 @@ def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed:
     return float(min(max(tau, 0.0), 0.9 * duration))
 
 
+def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None) -> Mode:
+    """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
+    observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
+    update rule of the MPC and of the learners that rebuild its clock from observations."""
+    if clock.phase is None and robot is None:
+        robot = _nominal_robot()
+    return clock.update(mode, float(x[NQ + IPITCH]),
+                        elapsed=None if clock.phase is not None else
+                        (lambda phase, duration: stance_elapsed(robot, x, phase, duration)))
+
+
+_NOMINAL_ROBOT = None
+
+
+def _nominal_robot():
+    global _NOMINAL_ROBOT
+    if _NOMINAL_ROBOT is None:
+        from hsddp_gym.core.model import CheetahModel
+
+        _NOMINAL_ROBOT = CheetahModel()
+    return _NOMINAL_ROBOT
+
+
 class MPCPolicy(Policy):
     """HS-DDP MPC acting from observations (see the module docstring).
 
@@ -543,9 +566,7 @@ class MPCPolicy(Policy):
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
-        robot = self.dynamics.robot
-        return self.clock.update(mode, float(x[NQ + IPITCH]),
-                                 elapsed=lambda phase, duration: stance_elapsed(robot, x, phase, duration))
+        return update_gait_clock(self.clock, mode, x, self.dynamics.robot)
 
     def _schedule(self) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
