@@ -5,10 +5,11 @@
   under known torques.
 * :meth:`ContactModelPredictor.predict` over the actions already sent but not yet executed gives the state at
   the moment a new action will act: the MPC's latency compensation.
-* :class:`StateFilter`: a steady-state Kalman filter: the estimate is propagated one control step with the
-  model and the executed torques, then corrected toward the measurement pair by pair (each coordinate's position
-  and velocity) with the Kalman gain of a stated noise model (:func:`steady_state_kalman_gain`); an innovation
-  far beyond that noise (a push, another model) restarts it from the measurement. The contact flags of the
+* :class:`StateFilter`: a Kalman filter: the estimate is propagated one control step with the model and the
+  executed torques, then corrected toward the measurement pair by pair (each coordinate's position and velocity)
+  with the Kalman gain of a stated noise model, its covariance carried from step to step (the steady-state gain of
+  :func:`steady_state_kalman_gain` a few steps after a start); an innovation far beyond that noise (a push,
+  another model) restarts it from the measurement. The contact flags of the
   observation (clean) set the prior's mode; at a measured mode change the correction is complete for the
   velocities (the impact is where the model is least sure).
 """

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import functools
 import math
 import time
 
@@ -139,9 +140,10 @@ class MPCOptions:
         plan_friction: the friction coefficient of the plans' friction cones (default 0.45; None: the model's
             0.6): a friction margin, the ground forces planned inside a narrower cone than the model's.
         state_filter: estimate the state from the observations with the model
-            (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`: a steady-state Kalman filter; each
-            observation corrects the previous estimate propagated with the executed torques, by the Kalman gain of
-            the noise model below, and an innovation far beyond that noise restarts it from the observation). With
+            (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`: a Kalman filter; each observation
+            corrects the previous estimate propagated with the executed torques, by the Kalman gain of the noise
+            model below (the steady-state gain a few steps after a start), and an innovation far beyond that noise
+            restarts it from the observation). With
             exact observations of the nominal robot the estimate is the observation (to round-off). False: use the
             observation as the state.
         filter_position_noise, filter_velocity_noise: the sensor noise the filter assumes, standard deviations of an
@@ -451,16 +453,12 @@ def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None) -
                         (lambda phase, duration: stance_elapsed(robot, x, phase, duration)))
 
 
-_NOMINAL_ROBOT = None
-
-
+@functools.lru_cache(maxsize=1)
 def _nominal_robot():
-    global _NOMINAL_ROBOT
-    if _NOMINAL_ROBOT is None:
-        from hsddp_gym.core.model import CheetahModel
+    """The nominal robot model (built once per process)."""
+    from hsddp_gym.core.model import CheetahModel
 
-        _NOMINAL_ROBOT = CheetahModel()
-    return _NOMINAL_ROBOT
+    return CheetahModel()
 
 
 class MPCPolicy(Policy):
