@@ -254,3 +254,10 @@ def test_clock_starts_a_stance_where_the_foot_under_the_hip_says():
     clock = GaitClock(policy.durations, 0.005)
     clock.update(Mode.DOUBLE_STANCE, 0.0, elapsed=lambda phase, duration: 0.03)
     assert clock.tau == 0.0
+    for bad in (float("nan"), -0.01, 1.0):
+        with pytest.raises(ValueError, match="elapsed"):
+            GaitClock(policy.durations, 0.005).update(Mode.BACK_STANCE, 0.0, elapsed=lambda phase, duration, b=bad: b)
+    from hsddp_gym.planners.policies.mpc import update_gait_clock
+
+    with pytest.raises(ValueError, match="x"):
+        update_gait_clock(GaitClock(policy.durations, 0.005), Mode.BACK_STANCE, np.zeros(3))

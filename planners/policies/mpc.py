@@ -52,7 +52,7 @@ from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.tracking import PlanTracker
-from hsddp_gym.util.validation import check_int, check_positive
+from hsddp_gym.util.validation import check_int, check_positive, check_vector
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
@@ -339,7 +339,12 @@ class GaitClock:
                     2 if not mode.in_contact(BACK) else 0)
             self.tau = 0.0
             if elapsed is not None and mode != Mode.DOUBLE_STANCE:
-                self.tau = float(elapsed(self.phase, self.durations[self.phase]))
+                duration = self.durations[self.phase]
+                tau = float(elapsed(self.phase, duration))
+                if not (0.0 <= tau <= duration):
+                    raise ValueError(f"elapsed must give a time in [0, {duration}] s for phase {self.phase}, "
+                                     f"got {tau!r}")
+                self.tau = tau
             return _CYCLE[self.phase]
         j = self.phase
         if j == DOUBLE_STANCE_PHASE:
@@ -446,6 +451,7 @@ def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None) -
     """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
     observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
     update rule of the MPC and of the learners that rebuild its clock from observations."""
+    x = check_vector(x, NX, "x")
     if clock.phase is None and robot is None:
         robot = _nominal_robot()
     return clock.update(mode, float(x[NQ + IPITCH]),
