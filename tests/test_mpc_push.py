@@ -111,3 +111,38 @@ def test_push_robustness_experiment_records_every_episode(tmp_path, experiment):
     for bad in ([], ["--mpc-options", '{"no_such_field": 1}']):
         with pytest.raises(SystemExit):
             push.main(["--policies", "mpc-options", "--out", str(tmp_path / "e"), *bad])
+
+
+@pytest.mark.parametrize("lost_stance_steps", [1, 2])
+def test_a_stance_foot_observed_in_the_air_is_never_planned_on_the_ground(lost_stance_steps):
+    """Early in a stance, one observation reports the stance foot off the ground. With the default
+    ``lost_stance_steps=1`` the gait clock leaves the stance in that very update and the MPC re-plans at once from
+    the flight that lands the foot: no plan holds an airborne foot on the ground. With 2 (the former default) the
+    clock stays in the stance for that observation."""
+    from hsddp_gym.core.conventions import FOOT_NAMES, Mode
+    from hsddp_gym.core.observation import DEFAULT_LAYOUT
+
+    assert MPCOptions().lost_stance_steps == 1
+    env = make_env()
+    policy = MPCPolicy.from_env(env, options=MPCOptions(lost_stance_steps=lost_stance_steps))
+    obs, _ = env.reset(seed=3)
+    for _ in range(400):  # into steady bounding, then to the first control step of a stance
+        obs, _, terminated, _, _ = env.step(policy(obs))
+        assert not terminated
+        c = policy.clock
+        if c.phase in (0, 2) and 0.0 < c.tau <= 0.01 and env.unwrapped.time > 0.5:
+            break
+    else:
+        pytest.fail("no stance start found")
+    stance_phase = policy.clock.phase
+    foot = FOOT_NAMES.index("back" if stance_phase == 0 else "front")
+    replans = policy.stats["replans"]
+    obs, _, _, _, _ = env.step(policy(obs))
+    flagged = np.array(obs, copy=True)
+    flagged[DEFAULT_LAYOUT.contact.start + foot] = 0.0  # the stance foot reported in the air
+    policy(flagged)
+    if lost_stance_steps == 1:
+        assert policy.clock.mode == Mode.FLIGHT and policy.clock.phase == (stance_phase - 1) % 4
+        assert policy.stats["replans"] > replans and policy._problem.schedule.modes[0] == Mode.FLIGHT
+    else:
+        assert policy.clock.phase == stance_phase
