@@ -123,7 +123,9 @@ class MPCOptions:
             plans asked for normal forces from +441 N to -15,735 N at consecutive re-plans, the hip torque
             chattered between its limits from one control step to the next and the foot was kicked off the
             ground (seed 541 at 2 m/s with a 10 ms re-plan period). Development seeds 500-599 in that simulator:
-            2 m/s 10 falls of 100 with 2, 1 with 1; observation noise 8 and 2.
+            2 m/s 10 falls of 100 with 2, 1 with 1; observation noise 8 and 2. In Bounding-v0 the same falls on
+            the development seeds and one more push fall on the evaluation seeds (seed 7000: a foot that leaves the
+            ground for one step right after landing is now planned as a 36 ms flight; README, "Evaluation").
         double_stance: duration [s] of a planned double stance (None: never; the authors' bounding gait has
             none). When set, the gait clock enters a double stance when both feet touch down (:class:`GaitClock`),
             the MPC re-plans at once, and its plans start with the double stance, then the stance of the foot that
