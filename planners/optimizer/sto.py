@@ -260,6 +260,32 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
     return TimeDerivatives(V_z=Vz, V_zz=Vzz, V_xz=Vxz, K_x=K_x, K_z=K_z, k_ff=k_ff, dV1=dV1, dV2=dV2)
 
 
+def duration_gradient(solver: HSDDP, problem: HybridProblem) -> np.ndarray:
+    """``V_z (n,)``: the first-order derivative of the objective w.r.t. each phase duration at the solver's nominal
+    trajectory, from the value gradients of its last backward pass (the envelope theorem: at an optimum the
+    feedback terms of :func:`time_derivatives` vanish and ``dJ/dT_i = sum_k (l_z[k] + V_x[k+1] . f_z[k])`` over the
+    knots of phase ``i``, with ``V_x`` taken through the reset map at the phase's end).
+
+    Vectorized over the horizon (no per-knot Python): about 50 times cheaper than :func:`time_derivatives`, which
+    also gives ``V_zz`` and the time-augmented gains. Exact at a converged solve; after a single DDP iteration (the
+    MPC's re-plans) it is the gradient of the quadratic model the iteration stopped at. Used by the MPC's in-loop
+    switching-time adaptation (:class:`hsddp_gym.planners.policies.mpc.MPCOptions`, ``switch_time_weight``).
+    """
+    ws = solver._ws
+    if ws is None or solver.last_problem is not problem or solver.last_objective is None:
+        raise ValueError("solver has no linearization of this problem; call solver.solve(problem, ...) first")
+    tr, lin = ws.nominal, ws.lin
+    N, n = problem.n_knots, problem.n_phases
+    ph = problem.phase_of_knot
+    f_z, _, _ = time_scaled_jacobians(problem, tr.X, lin)
+    l_z = solver.last_objective.running_rates(tr.X, tr.U, tr.GRF) / problem.knots[ph]
+    lam = ws.V_x[1:N + 1].copy()  # value gradient after each knot
+    ends = problem.phase_start[1:n] - 1  # the last knot of every phase but the final one: through the reset map
+    lam[ends] = ws.Phi_x[:n - 1] + np.einsum("iab,ia->ib", ws.P_x[:n - 1], ws.V_x[ends + 1])
+    per_knot = l_z + np.einsum("ka,ka->k", f_z, lam)
+    return np.bincount(ph, weights=per_knot, minlength=n)
+
+
 def _tensor_terms(problem: HybridProblem, tr: _Traj, g_grf: np.ndarray, step: float):
     """Second-order contractions by central differences of the analytical first derivatives.
 
