@@ -89,6 +89,32 @@ def test_lost_stance_rule():
         GaitClock(durs, 0.005, lost_stance_steps=-1)
 
 
+def test_shift_switch_moves_the_end_of_the_current_phase_and_not_the_next():
+    """``GaitClock.shift_switch`` (the MPC's in-loop switching-time adaptation): the current phase gets ``delta``
+    longer, the next one ``delta`` shorter; a stance ends at its shifted end, the next phase inherits the complement; a
+    lost stance clears both; ``copy`` keeps them."""
+    durs = (0.04, 0.03, 0.04, 0.03)
+    c = GaitClock(durs, 0.005, lost_stance_steps=1)
+    c.update(Mode.BACK_STANCE, 0.0)
+    c.shift_switch(0.01)  # the back stance ends 10 ms late, the flight after it is 10 ms shorter
+    assert (c.shift, c.next_shift) == (pytest.approx(0.01), pytest.approx(-0.01))
+    assert c.copy().shift == c.shift and c.copy().next_shift == c.next_shift
+    _stance_then(c, Mode.BACK_STANCE, 8, Mode.BACK_STANCE, 0)
+    assert c.phase == 0 and c.tau == pytest.approx(0.04)  # the nominal end has passed: still in the stance
+    _stance_then(c, Mode.BACK_STANCE, 2, Mode.BACK_STANCE, 0)
+    assert c.phase == 1 and c.tau == 0.0
+    assert (c.shift, c.next_shift) == (pytest.approx(-0.01), 0.0)  # the flight is the shorter one
+    # a shorter flight: from its shifted end (20 ms) on, one contact step of the landing foot is its touchdown
+    _stance_then(c, Mode.FLIGHT, 4, Mode.FLIGHT, 0)
+    assert c.phase == 1
+    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)
+    assert c.phase == 2 and c.shift == 0.0
+    # a lost stance clears the shifts (the schedule restarts from the flight that lands the foot)
+    c.shift_switch(-0.005)
+    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FLIGHT, 1)
+    assert c.phase == 1 and c.resynced and (c.shift, c.next_shift) == (0.0, 0.0)
+
+
 @pytest.mark.slow
 def test_features_rebuilt_from_observations_match_the_mpc_clock():
     env = gym.make("hsddp_gym/Bounding-v0")

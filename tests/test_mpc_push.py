@@ -147,3 +147,41 @@ def test_a_stance_foot_observed_in_the_air_is_never_planned_on_the_ground(lost_s
         assert policy.stats["replans"] == replans + 1 and policy._problem.schedule.modes[0] == Mode.FLIGHT
     else:
         assert policy.clock.phase == stance_phase
+
+
+def test_in_loop_switching_time_adaptation_lands_earlier_after_a_downward_push():
+    """``MPCOptions.switch_time_weight`` (switching-time optimization inside the MPC, off by default): at every re-plan
+    the end of the current phase moves by a regularized gradient step on the plan's objective
+    (:func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`), the next phase's end held. A 1 m/s downward push
+    10 ms into a flight makes the next re-plan bring the touchdown forward (the trunk falls faster than planned: a
+    longer stance to brake it is cheaper) by more than the unpushed episode at the same point, and the stance that
+    follows is longer; every move stays within the step and the bounds."""
+    options = MPCOptions(switch_time_weight=2e6, switch_time_step=0.02)
+
+    def episode(push=None, steps=240):
+        env = make_env()
+        policy = MPCPolicy.from_env(env, options=options)
+        obs, _ = env.reset(seed=3, options=None if push is None else {"push": push})
+        log = []
+        for _ in range(steps):
+            obs, _, terminated, _, _ = env.step(policy(obs))
+            assert not terminated
+            c = policy.clock
+            log.append((round(env.unwrapped.time, 6), c.phase, round(c.tau, 6), c.shift, c.next_shift))
+        shifts = np.array(policy.stats["switch_shifts"])
+        assert shifts.size >= policy.stats["replans"] - 2 and np.all(np.abs(shifts) <= 0.02 + 1e-12)
+        return log
+
+    base = episode()
+    # the first front-landing flight after 1 s, 10 ms in
+    t_push = next(t for t, phase, tau, *_ in base if t >= 1.0 and phase == 1 and abs(tau - 0.01) < 1e-9)
+    pushed = episode({"delta_v": [0.0, -1.0, 0.0], "time": t_push})
+    after = [(b, p) for b, p in zip(base, pushed) if t_push < b[0] <= t_push + 0.04 and p[1] == 1]
+    assert after and min(p[3] - b[3] for b, p in after) < -0.003, after  # the flight ends >= 3 ms earlier
+    stance = [p for p in pushed if p[0] > t_push and p[1] == 2]
+    assert stance and stance[0][3] > 0.003  # and the front stance after it is longer than nominal
+    for bad in ({"switch_time_weight": 0.0}, {"switch_time_weight": -1.0}, {"switch_time_step": 0.0},
+                {"switch_time_limit": 1.0}, {"switch_time_limit": 0.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            MPCOptions(**bad)
+    assert MPCOptions().switch_time_weight is None  # off by default (README "Stop 25")

@@ -48,6 +48,7 @@ from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
+from hsddp_gym.planners.optimizer.sto import duration_gradient
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
@@ -170,6 +171,20 @@ class MPCOptions:
             the bounding's within-cycle speed swing and a ramping reference (``speed_acceleration``) do not wind
             it up.
         speed_bias_limit: the largest ``|speed_bias|`` [m/s].
+        switch_time_weight: switching-time optimization inside the MPC (None: off, the default): after every re-plan the
+            end of the current phase moves by a gradient step on the plan's objective, the end of the next phase held
+            (:func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`, the first-order information of the paper's
+            Algorithm 2 at the cost of one vectorized pass; the step is ``-(g + w (shift - next_shift)) / 2w`` for the
+            gradient ``g`` and this weight ``w`` [objective units / s^2], which pulls both phases back toward their
+            nominal durations), and the next re-plans plan with the shifted phases (:meth:`GaitClock.shift_switch`; a
+            stance ends at its shifted end, a flight still at its touchdown). After a downward push in a flight it
+            brings the touchdown forward and lengthens the stance (tested). Off by default: on the development seeds it
+            fell more (MuJoCo twin: 27 of 200 episodes against 3; README "Stop 25"), and a learner's gait clock rebuilt
+            from observations (:func:`~hsddp_gym.learning.features.gait_clock_features`) cannot follow shifts that come
+            from the plans.
+        switch_time_step: the largest move of a phase end per re-plan [s] (a trust region: the gradient of a
+            one-iteration plan is only a local model, and larger moves made successive re-plans oscillate).
+        switch_time_limit: each shifted phase stays within this fraction of its nominal duration (in (0, 1)).
     """
 
     horizon: float | None = None
@@ -209,6 +224,9 @@ class MPCOptions:
     speed_integral_gain: float | None = 1.5
     replan_on_contact: bool = False
     speed_bias_limit: float = 0.5
+    switch_time_weight: float | None = None
+    switch_time_limit: float = 0.5
+    switch_time_step: float = 0.005
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -255,6 +273,11 @@ class MPCOptions:
         if self.speed_integral_gain is not None:
             check_positive(self.speed_integral_gain, "speed_integral_gain")
         check_positive(self.speed_bias_limit, "speed_bias_limit", allow_zero=True)
+        if self.switch_time_weight is not None:
+            check_positive(self.switch_time_weight, "switch_time_weight")
+        check_positive(self.switch_time_step, "switch_time_step")
+        if not (0.0 < self.switch_time_limit < 1.0):
+            raise ValueError(f"switch_time_limit must be in (0, 1), got {self.switch_time_limit!r}")
         for name in ("latency_compensation", "state_filter", "replan_on_contact"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
@@ -320,6 +343,10 @@ class GaitClock:
         """The duration [s] of the current double stance (``double_stance`` when it started)."""
         self.resynced = False
         """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
+        self.shift = 0.0
+        """Time [s] added to the current phase's nominal duration (:meth:`shift_switch`)."""
+        self.next_shift = 0.0
+        """Time [s] added to the next phase's nominal duration; it becomes :attr:`shift` when the phase advances."""
 
     def copy(self) -> GaitClock:
         twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait,
@@ -328,6 +355,7 @@ class GaitClock:
         twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
         twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
             self._stance_touched
+        twin.shift, twin.next_shift = self.shift, self.next_shift
         return twin
 
     def update(self, mode: Mode, pitch_rate: float, elapsed=None) -> Mode:
@@ -363,19 +391,20 @@ class GaitClock:
                 self.phase, self.tau, self.after_double = self.after_double, 0.0, None
                 self._stance_touched = True
             return self.mode
-        nominal = self.durations[j]
+        nominal = self.durations[j] + self.shift
         if self.double_stance and self._double_starts(j, mode):
             # a swing foot landed while the stance foot is down (a stance, or a flight whose lift-off is late)
             self.after_double = 2 if _CYCLE[j] == Mode.BACK_STANCE or j == 1 else 0
             self.double_duration = self.double_stance
             self.phase, self.tau, self.resynced = DOUBLE_STANCE_PHASE, 0.0, True
+            self.shift = self.next_shift = 0.0
             return self.mode
         touched = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
             # debounced early in the flight (a graze is not a touchdown); from its nominal end on, any contact is
             touched = self._contact_steps[landing] >= (self.debounce_steps if self.tau < nominal - 1e-9 else 1)
-            advance = (touched and self.tau >= self.min_flight * nominal) or (
+            advance = (touched and self.tau >= self.min_flight * self.durations[j]) or (
                 self.max_wait is not None and self.tau >= nominal + self.max_wait)
         else:
             stance_foot = BACK if j == 0 else FRONT
@@ -393,9 +422,11 @@ class GaitClock:
                     self.tau = 0.5 * self.durations[self.phase]
                     self._stance_touched = False
                     self.resynced = True
+                    self.shift = self.next_shift = 0.0
         if advance:
             self.phase = (j + 1) % 4
             self.tau = 0.0
+            self.shift, self.next_shift = self.next_shift, 0.0
             # a stance that starts at its foot's touchdown has touched: if the foot bounces off, it is lost
             self._stance_touched = touched
         return _CYCLE[self.phase]
@@ -417,6 +448,14 @@ class GaitClock:
                     and self.tau >= self.min_flight * self.durations[j])
         swing = FRONT if j == 0 else BACK
         return self._contact_steps[swing] >= self.debounce_steps
+
+    def shift_switch(self, delta: float) -> None:
+        """Move the end of the current phase by ``delta`` [s] (negative: earlier), keeping the end of the next phase
+        where it was: the current phase gets ``delta`` longer, the next one ``delta`` shorter (:attr:`shift`,
+        :attr:`next_shift`). A stance then ends at its shifted end; a flight still ends at its landing foot's
+        touchdown, from the shifted end on at the first contact step."""
+        self.shift += float(delta)
+        self.next_shift -= float(delta)
 
     def tick(self) -> None:
         """One control period has passed."""
@@ -559,7 +598,7 @@ class MPCPolicy(Policy):
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "time_budget_stops": 0,
-                      "event_replans": 0}
+                      "event_replans": 0, "switch_shifts": []}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -592,11 +631,12 @@ class MPCPolicy(Policy):
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
             durs = [max(self._plan_clock.double_duration - self._tau, o.min_phase), self.durations[j]]
         else:
-            modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+            # the current phase's end and the next phase moved by the in-loop switching-time adaptation, if any
+            modes, durs = [_CYCLE[j]], [max(self.durations[j] + self._plan_clock.shift - self._tau, o.min_phase)]
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
-            durs.append(self.durations[j])
+            durs.append(self.durations[j] + (self._plan_clock.next_shift if len(durs) == 1 else 0.0))
         # every duration on the coarse grid, so that a phase keeps its duration when it moves onto the fine grid of
         # the first phases at a later re-plan (fine_dt divides planner_dt)
         h = o.planner_dt
@@ -775,9 +815,40 @@ class MPCPolicy(Policy):
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
         self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
         self.stats["iterations"].append(sol.ddp_iterations)
+        self._adapt_switch_time(problem)
         new_tracker = PlanTracker.from_solution(sol, problem)
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
+
+    def _adapt_switch_time(self, problem: HybridProblem) -> None:
+        """Switching-time optimization inside the loop (``switch_time_weight``): move the end of the current phase
+        by a regularized gradient step on the plan's objective, the next phase's end held (Algorithm 2's first-order
+        information, :func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`); the next re-plan plans with it."""
+        o = self.options
+        clock = self.clock
+        if (o.switch_time_weight is None or problem.n_phases < 2 or clock.phase == DOUBLE_STANCE_PHASE
+                or self._plan_clock.phase != clock.phase):
+            return
+        V_z = duration_gradient(self._solver, problem)
+        g = float(V_z[0] - V_z[1])  # d objective / d (end of the current phase), the next phase's end held
+        w = o.switch_time_weight
+        # the plan's current phase ends at max(nominal + shift - tau, min_phase) from now: the step moves that end
+        d_cur, d_next = self.durations[clock.phase], self.durations[(clock.phase + 1) % 4]
+        shift = max(clock.shift, o.min_phase + clock.tau - d_cur)  # the shift the plan was made with
+        delta = -(g + w * (shift - clock.next_shift)) / (2.0 * w)
+        step = o.switch_time_step
+        delta = min(max(delta, -step), step)
+        # bounds: each of the two phases within switch_time_limit of its nominal duration, and at least min_phase of
+        # the current one still to come
+        lim = o.switch_time_limit
+        new = min(max(shift + delta, -lim * d_cur, o.min_phase + clock.tau - d_cur), lim * d_cur)
+        new_next = clock.next_shift - (new - shift)
+        if not (-lim * d_next <= new_next <= lim * d_next):
+            new_next = min(max(new_next, -lim * d_next), lim * d_next)
+            new = shift + clock.next_shift - new_next
+        if math.isfinite(new) and new >= o.min_phase + clock.tau - d_cur - 1e-12:
+            self.stats["switch_shifts"].append(new - clock.shift)
+            clock.shift, clock.next_shift = new, new_next
 
     def _activate_pending(self) -> None:
         tracker, sol, problem, lam, _ = self._pending
