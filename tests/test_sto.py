@@ -160,14 +160,14 @@ def test_duration_gradient_is_the_envelope_gradient(solved):
     """``duration_gradient`` (vectorized, from the backward pass's value gradients; what the MPC's in-loop
     switching-time adaptation uses) at a converged solve equals the time-augmented backward pass's V_z (HS-DDP), itself
     checked against finite differences above: measured relative error 1.2e-5 (the feedback terms that vanish at an
-    optimum). With the value gradients zeroed it is the running cost rates alone, so every term is needed."""
+    optimum). With the value gradients zeroed (the dynamics' terms dropped) it is far off: they are needed."""
     s = solved
     g = duration_gradient(s.solver, s.problem)
     V_z = s.deriv(True, False).V_z
     assert g.shape == (s.problem.n_phases,)
     print(f"\nduration_gradient vs V_z: relative error {rel_err(g, V_z):.1e}")
     assert rel_err(g, V_z) <= 1e-3, (g, V_z)
-    # both the reset maps and the dynamics terms matter: the open-loop sum without them is far off
+    # the dynamics' terms matter: without the value gradients the sum is far off
     ws = s.solver._ws
     saved = ws.V_x.copy()
     try:
