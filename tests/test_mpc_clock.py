@@ -113,6 +113,9 @@ def test_shift_switch_moves_the_end_of_the_current_phase_and_not_the_next():
     c.shift_switch(-0.005)
     _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FLIGHT, 1)
     assert c.phase == 1 and c.resynced and (c.shift, c.next_shift) == (0.0, 0.0)
+    for bad in (float("nan"), float("inf"), "0.01", True):
+        with pytest.raises(ValueError, match="delta"):
+            c.shift_switch(bad)
 
 
 @pytest.mark.slow

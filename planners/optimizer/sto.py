@@ -165,6 +165,21 @@ class TimeDerivatives:
     dV2: float
 
 
+def duration_rates(problem: HybridProblem, X: np.ndarray, lin) -> np.ndarray:
+    """``f_z (N, 14)``: the derivative of each knot's discrete step w.r.t. its own phase duration (the first output of
+    :func:`time_scaled_jacobians`, alone: what :func:`duration_gradient` needs, without the ``(N, 14, 14)`` and
+    ``(N, 14, 4)`` cross terms)."""
+    N = problem.n_knots
+    Ni = problem.knots[problem.phase_of_knot].astype(float)[:, None]
+    h = problem.h[:, None]
+    v = X[:N, NQ:]
+    a = lin.acc[:N]
+    f_z = np.empty((N, NX))
+    f_z[:, NQ:] = a / Ni
+    f_z[:, :NQ] = (v + 2.0 * h * a) / Ni if problem.dynamics.integrator == "semi_implicit" else v / Ni
+    return f_z
+
+
 def time_scaled_jacobians(problem: HybridProblem, X: np.ndarray, lin) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Derivatives of each knot's discrete step w.r.t. its own phase duration ``T_i`` (eq. 28, ``h_i = T_i / N_i``).
 
@@ -183,15 +198,10 @@ def time_scaled_jacobians(problem: HybridProblem, X: np.ndarray, lin) -> tuple[n
         ``(f_z (N, 14), f_xz (N, 14, 14), f_uz (N, 14, 4))``; ``f_xz[k] = d f_x[k] / d T_i``.
     """
     N = problem.n_knots
-    ph = problem.phase_of_knot
-    Ni = problem.knots[ph].astype(float)[:, None]
+    Ni = problem.knots[problem.phase_of_knot].astype(float)[:, None]
     h = problem.h[:, None]
     semi = problem.dynamics.integrator == "semi_implicit"
-    v = X[:N, NQ:]
-    a = lin.acc[:N]
-    f_z = np.empty((N, NX))
-    f_z[:, NQ:] = a / Ni
-    f_z[:, :NQ] = (v + 2.0 * h * a) / Ni if semi else v / Ni
+    f_z = duration_rates(problem, X, lin)
     f_xz = np.zeros((N, NX, NX))
     f_uz = np.zeros((N, NX, NU))
     hh = h[:, :, None]
@@ -277,7 +287,7 @@ def duration_gradient(solver: HSDDP, problem: HybridProblem) -> np.ndarray:
     tr, lin = ws.nominal, ws.lin
     N, n = problem.n_knots, problem.n_phases
     ph = problem.phase_of_knot
-    f_z, _, _ = time_scaled_jacobians(problem, tr.X, lin)
+    f_z = duration_rates(problem, tr.X, lin)
     l_z = solver.last_objective.running_rates(tr.X, tr.U, tr.GRF) / problem.knots[ph]
     lam = ws.V_x[1:N + 1].copy()  # value gradient after each knot
     ends = problem.phase_start[1:n] - 1  # the last knot of every phase but the final one: through the reset map

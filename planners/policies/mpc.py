@@ -37,6 +37,7 @@ import collections
 import dataclasses
 import functools
 import math
+import numbers
 import time
 
 import numpy as np
@@ -276,7 +277,7 @@ class MPCOptions:
         if self.switch_time_weight is not None:
             check_positive(self.switch_time_weight, "switch_time_weight")
         check_positive(self.switch_time_step, "switch_time_step")
-        if not (0.0 < self.switch_time_limit < 1.0):
+        if not (0.0 < check_positive(self.switch_time_limit, "switch_time_limit") < 1.0):
             raise ValueError(f"switch_time_limit must be in (0, 1), got {self.switch_time_limit!r}")
         for name in ("latency_compensation", "state_filter", "replan_on_contact"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
@@ -454,6 +455,8 @@ class GaitClock:
         where it was: the current phase gets ``delta`` longer, the next one ``delta`` shorter (:attr:`shift`,
         :attr:`next_shift`). A stance then ends at its shifted end; a flight still ends at its landing foot's
         touchdown, from the shifted end on at the first contact step."""
+        if isinstance(delta, bool) or not isinstance(delta, numbers.Real) or not math.isfinite(delta):
+            raise ValueError(f"delta must be a finite number [s], got {delta!r}")
         self.shift += float(delta)
         self.next_shift -= float(delta)
 
@@ -598,7 +601,7 @@ class MPCPolicy(Policy):
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "time_budget_stops": 0,
-                      "event_replans": 0, "switch_shifts": []}
+                      "event_replans": 0, "switch_shifts": [], "switch_skipped": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -823,7 +826,8 @@ class MPCPolicy(Policy):
     def _adapt_switch_time(self, problem: HybridProblem) -> None:
         """Switching-time optimization inside the loop (``switch_time_weight``): move the end of the current phase
         by a regularized gradient step on the plan's objective, the next phase's end held (Algorithm 2's first-order
-        information, :func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`); the next re-plan plans with it."""
+        information, :func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`); the next re-plan plans with it. A
+        non-finite gradient leaves the durations as they are (counted in ``stats["switch_skipped"]``)."""
         o = self.options
         clock = self.clock
         if (o.switch_time_weight is None or problem.n_phases < 2 or clock.phase == DOUBLE_STANCE_PHASE
@@ -846,7 +850,9 @@ class MPCPolicy(Policy):
         if not (-lim * d_next <= new_next <= lim * d_next):
             new_next = min(max(new_next, -lim * d_next), lim * d_next)
             new = shift + clock.next_shift - new_next
-        if math.isfinite(new) and new >= o.min_phase + clock.tau - d_cur - 1e-12:
+        if not math.isfinite(new):
+            self.stats["switch_skipped"] += 1
+        elif new >= o.min_phase + clock.tau - d_cur - 1e-12:
             self.stats["switch_shifts"].append(new - clock.shift)
             clock.shift, clock.next_shift = new, new_next
 
