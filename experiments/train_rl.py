@@ -19,6 +19,8 @@ wall time, a final deterministic evaluation on seeds 0..9). One run is the same 
 Usage:
     python experiments/train_rl.py --algos ppo sac --seeds 0 --steps 50000 --out runs/rl      # short check
     python experiments/train_rl.py --algos ppo sac --seeds 0 1 2 3 4 --steps 1000000 --out runs/rl  # the protocol
+    python experiments/train_rl.py --algos ppo --preset parallel --vector-env --seeds 0 1 2 \\
+        --steps 100000000 --time-limit 1200 --eval-freq 500000 --out runs/rl_parallel     # 64 robots, 20 min each
 
 The machine is shared: one torch thread per run, runs one after the other. Measured throughput on this
 2-core machine (shared) is printed at the end of every run (env steps / wall second).
@@ -30,6 +32,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from hsddp_gym.learning.reporting import mean_ci95
 from hsddp_gym.learning.sb3 import ALGOS, train_sb3
 
 
@@ -43,9 +46,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--eval-freq", type=int, default=None, help="env steps between 5-episode evaluations")
     p.add_argument("--eval-episodes", type=int, default=10, help="final evaluation episodes (seeds 0..)")
     p.add_argument("--progress", action="store_true", help="SB3 progress bar")
-    p.add_argument("--preset", choices=("hopper", "halfcheetah"), default="hopper",
-                   help="RL-Zoo hyperparameter set (default: %(default)s)")
+    p.add_argument("--preset", choices=("hopper", "halfcheetah", "parallel"), default="hopper",
+                   help="hyperparameter set: RL-Zoo Hopper-v3 or HalfCheetah-v3, or (PPO) legged_gym's massively "
+                        "parallel PPO on a CPU, for --vector-env (default: %(default)s)")
     p.add_argument("--n-envs", type=int, default=None, help="envs stepped together (default: the preset's)")
+    p.add_argument("--vector-env", action="store_true",
+                   help="step the --n-envs training robots in the compiled vector env (one numba call for all)")
     p.add_argument("--time-limit", type=float, default=None,
                    help="wall-clock budget per run [s]: training stops there and reports the steps that fit")
     args = p.parse_args(argv)
@@ -61,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["n_envs"] = args.n_envs
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             final_eval_episodes=args.eval_episodes, progress=args.progress,
-                            time_limit=args.time_limit, preset=args.preset)
+                            time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
             s = res.summary
             ev = s.get("eval", {})
             rows.append((algo, seed, s["steps"], s["wall_time_s"], ev.get("mean_return"), ev.get("std_return"),
@@ -73,6 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     print("\n| algo | seed | env steps | wall [s] | return (10 eps) | falls |\n|---|---|---|---|---|---|")
     for algo, seed, steps, wall, m, sd, falls in rows:
         print(f"| {algo} | {seed} | {steps} | {wall:.0f} | {m:.1f} ± {sd:.1f} | {falls} |")
+    for algo in args.algos:  # over the training seeds: the mean and its 95 % Student-t interval
+        means = [m for a, _, _, _, m, _, _ in rows if a == algo and m is not None]
+        if len(means) >= 2:
+            mean, half = mean_ci95(means)
+            print(f"{algo}: return over {len(means)} seeds {mean:.1f} ± {half:.1f} (95 % interval of the mean)")
     return 0
 
 

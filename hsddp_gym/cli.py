@@ -488,9 +488,11 @@ def _add_learning_parsers(sub) -> None:
                         "at least 1000; 0: none)")
     p.add_argument("--learning-starts", type=_nonnegative_int, default=None,
                    help="sac: env steps of random actions before learning starts (default: the zoo's 10000)")
-    p.add_argument("--preset", choices=("hopper", "halfcheetah"), default="hopper",
+    p.add_argument("--preset", choices=("hopper", "halfcheetah", "parallel"), default="hopper",
                    help="ppo/sac: the RL-Zoo hyperparameters of Hopper-v3 (a task that ends on falls, like this "
-                        "one) or HalfCheetah-v3 (hsddp_gym.learning.sb3.PRESETS; default: %(default)s)")
+                        "one) or HalfCheetah-v3; ppo only: parallel, legged_gym's massively parallel PPO on a CPU "
+                        "(64 robots x 128 steps per update, 4 minibatches; use with --vector-env) "
+                        "(hsddp_gym.learning.sb3.PRESETS; default: %(default)s)")
     p.add_argument("--n-envs", type=_positive_int, default=None,
                    help="ppo/sac: envs stepped together in one DummyVecEnv (default: the preset's, 1)")
     p.add_argument("--vector-env", action="store_true",

@@ -464,5 +464,9 @@ def test_rl_presets():
     assert hyperparameters("ppo", preset="halfcheetah") == PPO_HYPERPARAMS
     assert hyperparameters("ppo", {"n_envs": 4})["n_envs"] == 4
     assert hyperparameters("sac")["learning_starts"] == 10_000
+    par = hyperparameters("ppo", preset="parallel")  # legged_gym's massively parallel PPO, on a CPU
+    assert par["n_envs"] * par["n_steps"] == 4 * par["batch_size"] and par["normalize"]
+    with pytest.raises(ValueError, match="preset must be one of"):
+        hyperparameters("sac", preset="parallel")
     with pytest.raises(ValueError, match="preset must be one of"):
         hyperparameters("ppo", preset="walker")

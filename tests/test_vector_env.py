@@ -383,10 +383,13 @@ def test_train_sb3_with_the_vector_env_writes_one_monitor_for_all_robots(tmp_pat
     pytest.importorskip("stable_baselines3")
     from hsddp_gym.learning.sb3 import train_sb3
 
-    res = train_sb3("ppo", 256, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=0,
-                    overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1}, vector_env=True)
+    # evaluations during training with VecNormalize (the preset's): the evaluation env is wrapped as the training
+    # env, and eval_freq counts env steps of all robots (SB3's EvalCallback counts calls of n_envs steps)
+    res = train_sb3("ppo", 256, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=64, eval_episodes=1,
+                    final_eval_episodes=0, overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1}, vector_env=True)
     assert res.summary["vector_env"] is True and res.summary["steps"] == 256
     assert res.summary["training_episodes"] >= 4  # 30-step episodes of 4 robots, one train.monitor.csv
+    np.testing.assert_array_equal(np.load(tmp_path / "ppo" / "evaluations.npz")["timesteps"], [64, 128, 192, 256])
     with pytest.raises(TypeError, match="vector_env"):
         train_sb3("ppo", 10, 0, tmp_path / "bad", vector_env="yes")
 

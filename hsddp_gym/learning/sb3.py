@@ -86,9 +86,34 @@ SAC_HYPERPARAMS: dict = {
 """RL-Zoo ``hyperparams/sac.yml`` HalfCheetah-v3: SB3 defaults (lr 3e-4, buffer 1e6, batch 256, tau 0.005,
 gamma 0.99, train_freq 1, auto entropy, [256, 256] ReLU) plus ``learning_starts`` 10000."""
 
-PRESETS: dict = {"ppo": {"hopper": PPO_HOPPER_HYPERPARAMS, "halfcheetah": PPO_HYPERPARAMS},
+PPO_PARALLEL_HYPERPARAMS: dict = {
+    "normalize": True,
+    "n_envs": 64,
+    "n_steps": 128,
+    "batch_size": 2048,
+    "gamma": 0.99,
+    "gae_lambda": 0.95,
+    "learning_rate": 3.0e-4,
+    "clip_range": 0.2,
+    "n_epochs": 5,
+    "ent_coef": 0.0,
+    "max_grad_norm": 1.0,
+    "vf_coef": 1.0,
+    "target_kl": 0.02,
+    "policy_kwargs": {"log_std_init": -1.0, "ortho_init": True, "activation_fn": "ELU",
+                      "net_arch": {"pi": [512, 256, 128], "vf": [512, 256, 128]}},
+}
+"""Massively parallel PPO for legged robots (legged_gym / rsl_rl, Rudin et al., CoRL 2021: many envs, short
+rollouts, 4 large minibatches, 5 epochs, ELU 512-256-128, gamma 0.99, lambda 0.95, clip 0.2, value coefficient 1,
+gradient norm 1) scaled to a CPU: 64 robots (meant for the compiled vector env, ``--vector-env``) x 128 steps =
+8192 samples per update; a fixed step 3e-4 with SB3's ``target_kl`` early stop in place of rsl_rl's adaptive step
+(desired KL 0.01); VecNormalize on observations and rewards. Not an RL-Zoo set."""
+
+PRESETS: dict = {"ppo": {"hopper": PPO_HOPPER_HYPERPARAMS, "halfcheetah": PPO_HYPERPARAMS,
+                         "parallel": PPO_PARALLEL_HYPERPARAMS},
                  "sac": {"hopper": SAC_HYPERPARAMS, "halfcheetah": SAC_HYPERPARAMS}}
-"""The hyperparameter sets by algorithm and RL-Zoo task (SAC's Hopper-v3 entry is its HalfCheetah-v3 one)."""
+"""The hyperparameter sets by algorithm and task: RL-Zoo's Hopper-v3 and HalfCheetah-v3 (SAC's Hopper-v3 entry is
+its HalfCheetah-v3 one), and PPO's ``"parallel"`` (many robots at once, :data:`PPO_PARALLEL_HYPERPARAMS`)."""
 DEFAULT_PRESET = "hopper"
 """Bounding-v0 terminates on falls like Hopper/Walker2d: their settings are the default."""
 
@@ -309,7 +334,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         raise TypeError(f"vector_env must be a bool, got {type(vector_env).__name__}")
     venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv",
                       vector_env=bool(vector_env))
-    eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None)
+    # the evaluation env is wrapped as the training env (SB3 copies VecNormalize's statistics wrapper by wrapper)
+    eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None, vector_env=bool(vector_env))
     if hp["normalize"]:
         gamma = hp.get("gamma", 0.99)
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=gamma)
@@ -319,7 +345,9 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
     callbacks = []
     if eval_freq > 0:
-        callbacks.append(EvalCallback(eval_venv, n_eval_episodes=eval_episodes, eval_freq=eval_freq,
+        # EvalCallback counts calls, one per step of all n_envs robots: eval_freq env steps are that many / n_envs
+        callbacks.append(EvalCallback(eval_venv, n_eval_episodes=eval_episodes,
+                                      eval_freq=max(eval_freq // int(hp["n_envs"]), 1),
                                       log_path=str(out), deterministic=True, verbose=0))
     t0 = time.perf_counter()
     timer = None
