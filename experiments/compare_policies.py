@@ -40,7 +40,7 @@ TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summa
            "ppo": ("model.zip", "summary.json"), "sac": ("model.zip", "summary.json")}
 
 
-def build(name: str, run_dir: Path | None):
+def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic"):
     """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
     import gymnasium as gym
 
@@ -83,7 +83,7 @@ def build(name: str, run_dir: Path | None):
     else:
         from hsddp_gym.learning.sb3 import load_trained_policy
 
-        policy = load_trained_policy(run_dir, env)
+        policy = load_trained_policy(run_dir, env, deterministic=rl_actions == "deterministic")
         samples = f"{summary['steps']} env steps"
     return policy, None, {"samples": samples, "train_time_s": summary.get("wall_time_s"), "summary": summary}
 
@@ -226,6 +226,9 @@ def main(argv: list[str] | None = None) -> int:
                         "note (default: all)")
     p.add_argument("--max-episode-steps", type=int, default=None,
                    help="time limit override, for smoke tests only (default: the env's 1000, the protocol)")
+    p.add_argument("--rl-actions", choices=("deterministic", "stochastic"), default="deterministic",
+                   help="ppo/sac: the mean action (the protocol) or draws of the policy's own distribution, as in "
+                        "training, from a generator seeded at every episode (default: %(default)s)")
     args = p.parse_args(argv)
     if args.episodes < 10:
         print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
@@ -245,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         evals, infos = [], []
         for d in dirs:
-            policy, options, info = build(name, d)
+            policy, options, info = build(name, d, args.rl_actions)
             evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
                                                   reset_options=options))
             infos.append(info)
@@ -259,7 +262,8 @@ def main(argv: list[str] | None = None) -> int:
               f"({row['eval_wall_s']:.0f} s)", flush=True)
     limit = "" if args.max_episode_steps is None else f", time limit {args.max_episode_steps} steps"
     lines = [f"# Policies on hsddp_gym/Bounding-v0 ({args.episodes} episodes, seeds 0..{args.episodes - 1}, "
-             f"deterministic{limit})", "",
+             f"deterministic{limit}{'; ppo/sac: stochastic actions' if args.rl_actions == 'stochastic' else ''})",
+             "",
              "| policy | return | training seeds | falls | forward speed [m/s] | episode length | learned from | "
              "training wall time (per seed) |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -282,6 +282,18 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
     ref = (PPO if algo == "ppo" else SAC).load(out / "model.zip", device="cpu")
     expected, _ = ref.predict(policy.normalize(obs), deterministic=True)
     np.testing.assert_allclose(policy.act(obs), np.clip(expected, -1, 1), atol=1e-6)
+    assert s["eval_stochastic"]["episodes"] == 2
+    # stochastic actions: draws of the policy's own distribution from a generator seeded at every reset
+    noisy = load_trained_policy(out, deterministic=False, noise_seed=3)
+    first = [noisy.act(obs) for _ in range(3)]
+    noisy.reset()
+    np.testing.assert_array_equal(first, [noisy.act(obs) for _ in range(3)])   # the same draws after a reset
+    assert not np.allclose(first[0], first[1]) and not np.allclose(first[0], policy.act(obs))
+    assert np.all(np.abs(first) <= 1.0)
+    other = load_trained_policy(out, deterministic=False, noise_seed=4)
+    assert not np.allclose(other.act(obs), first[0])
+    with pytest.raises(TypeError, match="deterministic"):
+        load_trained_policy(out, deterministic="no")
 
 
 def test_bc_with_gait_clock_features_has_memory_and_round_trips(dataset, tmp_path):
@@ -406,6 +418,14 @@ def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
     rows = {r["policy"]: r for r in json.loads((out / "compare.json").read_text())["rows"]}
     assert rows["ppo"]["samples"].endswith("env steps") and rows["ppo"]["train_time_s"] > 0
     assert "demos" in rows["bc"]["samples"] and "expert labels" in rows["dagger"]["samples"]
+    # PPO's own Gaussian draws instead of its mean: another result, the same on a rerun
+    rerun = []
+    for k in range(2):
+        assert compare.main(["--out", str(tmp_path / f"stoch{k}"), "--runs", str(runs), "--episodes", "2",
+                             "--max-episode-steps", "30", "--policies", "ppo", "--rl-actions", "stochastic"]) == 0
+        assert "ppo/sac: stochastic actions" in (tmp_path / f"stoch{k}" / "compare.md").read_text()
+        rerun.append(json.loads((tmp_path / f"stoch{k}" / "compare.json").read_text())["rows"][0]["mean_return"])
+    assert rerun[0] == rerun[1] != rows["ppo"]["mean_return"]
     assert all(r["episodes"] == 2 and r["mean_episode_length"] <= 30 for r in rows.values())
 
 

@@ -37,6 +37,7 @@ import numpy as np
 
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import read_npz, write_json, write_npz
+from hsddp_gym.util.validation import check_int
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 ALGOS = ("ppo", "sac")
@@ -383,6 +384,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
 
         summary["eval"] = eval_brief(evaluate_policy_episodes(load_trained_policy(out), final_eval_episodes, 0,
                                                                env_kwargs, max_episode_steps))
+        # the policy as it acted in training: draws of its own distribution (seeded; a Gaussian PPO policy's mean
+        # can fall where its draws bound, README "RL baselines")
+        summary["eval_stochastic"] = eval_brief(evaluate_policy_episodes(
+            load_trained_policy(out, deterministic=False), final_eval_episodes, 0, env_kwargs, max_episode_steps))
         write_json(out / "summary.json", summary)
     return TrainResult(out, summary)
 
@@ -473,19 +478,31 @@ def write_curves(out: Path, label: str) -> list[str]:
 # ================================================================================================ loading
 class SB3ModelPolicy(Policy):
     """A trained SB3 model as a :class:`Policy`: normalizes the observation with the saved ``VecNormalize``
-    statistics (if any) and returns ``model.predict(obs, deterministic=True)``.
+    statistics (if any) and returns the model's action, clipped to the action space.
+
+    ``deterministic=True`` (the comparison protocol): the mean of PPO's Gaussian, SAC's squashed mean.
+    ``deterministic=False``: a draw of the policy's own distribution, as in training, from a generator seeded
+    with ``noise_seed`` at every :meth:`reset` (so an episode is the same whatever ran before it in the process).
 
     Build it with :func:`load_trained_policy`.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), model=None, obs_stats: dict | None = None,
-                 deterministic: bool = True) -> None:
+                 deterministic: bool = True, noise_seed: int = 0) -> None:
         super().__init__(interface)
         if model is None:
             raise ValueError("model must be a trained SB3 model")
+        if not isinstance(deterministic, (bool, np.bool_)):
+            raise TypeError(f"deterministic must be a bool, got {deterministic!r}")
         self.model = model
         self.obs_stats = obs_stats
-        self.deterministic = deterministic
+        self.deterministic = bool(deterministic)
+        self.noise_seed = check_int(noise_seed, "noise_seed")
+        self._torch_gen = None
+
+    def reset(self) -> None:
+        super().reset()
+        self._torch_gen = None
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if not self.obs_stats:
@@ -495,17 +512,34 @@ class SB3ModelPolicy(Policy):
         return np.clip(z, -float(s["clip_obs"]), float(s["clip_obs"])).astype(np.float32)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        a, _ = self.model.predict(self.normalize(obs), deterministic=self.deterministic)
-        return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
+        if self.deterministic:
+            a, _ = self.model.predict(self.normalize(obs), deterministic=True)
+            return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
+        import torch as th
+
+        if self._torch_gen is None:
+            self._torch_gen = th.Generator().manual_seed(self.noise_seed)
+        # SB3 samples from torch's global generator; here the policy's own draw from its own seeded generator
+        policy = self.model.policy
+        x = th.as_tensor(self.normalize(obs)[None])
+        with th.no_grad():
+            if hasattr(policy, "actor"):  # SAC: a Gaussian squashed into the (normalized) action bounds by tanh
+                mean, log_std, _ = policy.actor.get_action_dist_params(x)
+                a = th.tanh(mean + th.exp(log_std) * th.randn(mean.shape, generator=self._torch_gen))
+            else:  # PPO: a diagonal Gaussian, clipped to the bounds as SB3 does
+                d = policy.get_distribution(x).distribution
+                a = d.mean + d.stddev * th.randn(d.mean.shape, generator=self._torch_gen)
+        return np.clip(a.numpy()[0].astype(np.float32), -1.0, 1.0)
 
 
-def load_trained_policy(run_dir, env=None) -> SB3ModelPolicy:
+def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0) -> SB3ModelPolicy:
     """The policy of a :func:`train_sb3` run in ``run_dir``, read without unpickling: the model is rebuilt
     from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
     (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
 
     Args:
         env: the env to act in (None: ``gym.make`` with the run's env kwargs).
+        deterministic, noise_seed: the mean action, or draws of the policy's distribution (:class:`SB3ModelPolicy`).
     """
     import gymnasium as gym
     from stable_baselines3 import PPO, SAC
@@ -526,4 +560,5 @@ def load_trained_policy(run_dir, env=None) -> SB3ModelPolicy:
     model = cls("MlpPolicy", env, device="cpu", **kw, **extra)
     model.set_parameters(str(run_dir / "model.zip"), exact_match=True, device="cpu")
     stats = read_npz(run_dir / "vecnormalize.npz") if (run_dir / "vecnormalize.npz").exists() else None
-    return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats)
+    return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats, deterministic=deterministic,
+                          noise_seed=noise_seed)
