@@ -45,6 +45,7 @@ import numpy as np
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
@@ -78,6 +79,16 @@ class MPCOptions:
         replan_on_contact: re-plan at once when the gait clock changes phase (a touchdown, a lift-off, a phase's
             end), then every ``replan_period`` from there (counted in ``stats["event_replans"]``).
         replan_period: env time between re-plans [s].
+        hold_gains: act with the feedback gains of a control held over the control period
+            (:func:`~hsddp_gym.planners.optimizer.hold.held_input_gains`, from the re-plan's own backward pass)
+            instead of the planner's per-knot gains, when the control period is a whole number ``m > 1`` of
+            ``planner_dt`` (the defaults: 5 ms and 2.5 ms, ``m = 2``). The per-knot gains are designed for a control
+            that changes every knot; held for ``m`` knots, the stiff ones near a touchdown drive a light leg's
+            joint velocity to flip sign from one control step to the next (after a push: torques at their limits,
+            the stance foot kicked off the ground).
+        hold_feedforward: act with the mean of the plan's controls over the held knots
+            (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`) instead of the first knot's, under the same
+            condition.
         max_iterations: DDP iterations per re-plan (default 1: a real-time iteration scheme -- every re-plan takes one
             Newton-type step from the previous plan shifted to the new state, and the re-plans every
             ``replan_period`` converge together as the horizon moves; more iterations per re-plan fit each plan
@@ -193,6 +204,8 @@ class MPCOptions:
     fine_dt: float | None = None
     fine_phases: int = 2
     replan_period: float = 0.02
+    hold_gains: bool = False
+    hold_feedforward: bool = False
     max_iterations: int = 1
     warmup_iterations: int = 30
     time_budget: float | None = None
@@ -279,7 +292,7 @@ class MPCOptions:
         check_positive(self.switch_time_step, "switch_time_step")
         if not (0.0 < check_positive(self.switch_time_limit, "switch_time_limit") < 1.0):
             raise ValueError(f"switch_time_limit must be in (0, 1), got {self.switch_time_limit!r}")
-        for name in ("latency_compensation", "state_filter", "replan_on_contact"):
+        for name in ("latency_compensation", "state_filter", "replan_on_contact", "hold_gains", "hold_feedforward"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
         if self.method not in ("ddp", "al", "al-reb"):
@@ -549,6 +562,8 @@ class MPCPolicy(Policy):
         """Control steps between an action's return and its execution (the latency compensated for)."""
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
+        ratio = interface.control_dt / options.planner_dt
+        self._hold = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 and ratio >= 1 else 1
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
@@ -820,6 +835,10 @@ class MPCPolicy(Policy):
         self.stats["iterations"].append(sol.ddp_iterations)
         self._adapt_switch_time(problem)
         new_tracker = PlanTracker.from_solution(sol, problem)
+        if o.hold_gains and self._hold > 1:
+            new_tracker.K = held_input_gains(self._solver, problem, self._hold)
+        if o.hold_feedforward and self._hold > 1:
+            new_tracker.U = held_feedforward(sol.U, problem.phase_start, self._hold)
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
 
