@@ -171,3 +171,5 @@ def test_mpc_acts_with_the_held_control_law_when_asked():
     for name in ("hold_gains", "hold_feedforward"):
         with pytest.raises(TypeError, match=name):
             MPCOptions(**{name: 1})
+        with pytest.raises(ValueError, match="fine_dt"):
+            MPCOptions(**{name: True, "fine_dt": 0.00125})

@@ -88,7 +88,7 @@ class MPCOptions:
             the stance foot kicked off the ground).
         hold_feedforward: act with the mean of the plan's controls over the held knots
             (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`) instead of the first knot's, under the same
-            condition.
+            condition. Both need one knot spacing (``fine_dt`` None).
         max_iterations: DDP iterations per re-plan (default 1: a real-time iteration scheme -- every re-plan takes one
             Newton-type step from the previous plan shifted to the new state, and the re-plans every
             ``replan_period`` converge together as the horizon moves; more iterations per re-plan fit each plan
@@ -295,6 +295,9 @@ class MPCOptions:
         for name in ("latency_compensation", "state_filter", "replan_on_contact", "hold_gains", "hold_feedforward"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
+        if (self.hold_gains or self.hold_feedforward) and self.fine_dt is not None:
+            raise ValueError("hold_gains and hold_feedforward need one knot spacing (planner_dt): fine_dt must be "
+                             f"None, got {self.fine_dt!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
 
