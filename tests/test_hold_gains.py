@@ -114,6 +114,20 @@ def test_hold_of_one_knot_and_holds_across_a_switch_keep_the_per_knot_gains():
     assert not np.allclose(K2[9], K[9]) and not np.allclose(K2[28], K[28])  # holds ending at a phase's end
 
 
+def test_knots_with_non_finite_or_indefinite_models_keep_the_per_knot_gains():
+    # a warm start far off can overflow the barrier terms (non-finite derivatives); a knot's model can be indefinite
+    solver, problem = _joint(30, [0, 30])
+    ws = solver._ws
+    K = ws.K.copy()
+    ws.l_uu[7] = np.nan
+    ws.l_uu[12] = -1e9
+    ws.l_xx[20] = np.inf
+    K2 = held_input_gains(solver, problem, 2)
+    for k in (6, 7, 11, 12, 19, 20):  # the holds that contain one of those knots
+        np.testing.assert_array_equal(K2[k], K[k])
+    assert np.all(np.isfinite(K2)) and not np.allclose(K2[3], K[3])
+
+
 def test_bad_input_is_refused():
     solver, problem = _joint(10, [0, 10])
     with pytest.raises(ValueError, match="hold"):

@@ -18,7 +18,7 @@ model of the cost of those knots plus the value at knot ``k + m``::
 It is Riccati's gain for the held input (move blocking, e.g. Cagienard et al. 2007), with the value Hessians of
 the per-knot backward pass beyond the held knots. With ``m = 1`` it is the backward pass's own gain. A hold that
 would cross the end of a phase (a switch inside the held knots) keeps the per-knot gain, as does a knot whose
-``Q_uu`` is not positive definite.
+``Q_uu`` or ``Q_ux`` is not finite or whose ``Q_uu`` is not positive definite.
 """
 
 from __future__ import annotations
@@ -50,50 +50,51 @@ def held_input_gains(solver, problem, hold: int) -> np.ndarray:
     l_xx, l_uu, l_ux = ws.l_xx[:N], ws.l_uu[:N], ws.l_ux[:N]
     starts = problem.phase_start
     last = problem.n_phases - 1
-    for i in range(problem.n_phases):
-        a, b = int(starts[i]), int(starts[i + 1])
-        ks = np.arange(a, b - m + 1)  # holds that end inside the phase or at its end
-        if ks.size == 0:
-            continue
-        # the value Hessian after the held knots: inside the phase V_xx[k + m]; at the phase's end the value before
-        # the switch (eq. 22: Phi_xx + P_x^T V_xx^+ P_x; the last phase: the terminal Phi_xx)
-        V = ws.V_xx[ks + m].copy()
-        at_end = ks + m == b
-        if np.any(at_end):
-            if i == last:
-                V[at_end] = ws.Phi_xx[i]
-            else:
-                P = ws.P_x[i]
-                V[at_end] = ws.Phi_xx[i] + P.T @ ws.V_xx[b] @ P
-        n = ks.size
-        Ax = np.broadcast_to(np.eye(f_x.shape[1]), (n,) + f_x.shape[1:]).copy()  # d x_j / d x_k
-        Bx = np.zeros((n,) + f_u.shape[1:])                                          # d x_j / d u
-        Quu = np.zeros((n,) + l_uu.shape[1:])
-        Qux = np.zeros((n,) + l_ux.shape[1:])
-        for j in range(m):
-            kj = ks + j
-            lxx, luu, lux = l_xx[kj], l_uu[kj], l_ux[kj]
-            BtL = np.swapaxes(Bx, 1, 2) @ lxx                       # (n, 4, 14)
-            LuxB = lux @ Bx                                          # (n, 4, 4)
-            Quu += luu + BtL @ Bx + LuxB + np.swapaxes(LuxB, 1, 2)
-            Qux += lux @ Ax + BtL @ Ax
-            Ax, Bx = f_x[kj] @ Ax, f_x[kj] @ Bx + f_u[kj]
-        BtV = np.swapaxes(Bx, 1, 2) @ V
-        Quu += BtV @ Bx
-        Qux += BtV @ Ax
-        Quu = 0.5 * (Quu + np.swapaxes(Quu, 1, 2))
-        try:
-            np.linalg.cholesky(Quu)  # all positive definite (the usual case): one batched solve
-            K[ks] = -np.linalg.solve(Quu, Qux)
-        except np.linalg.LinAlgError:
-            for r in range(n):
-                try:
-                    np.linalg.cholesky(Quu[r])
-                except np.linalg.LinAlgError:
-                    continue  # not positive definite: keep the per-knot gain
-                K[ks[r]] = -np.linalg.solve(Quu[r], Qux[r])
+    with np.errstate(over="ignore", invalid="ignore"):  # non-finite models are found and skipped below
+        for i in range(problem.n_phases):
+            _held_phase(ws, K, f_x, f_u, l_xx, l_uu, l_ux, int(starts[i]), int(starts[i + 1]), i == last, i, m)
     return K
 
+
+def _held_phase(ws, K, f_x, f_u, l_xx, l_uu, l_ux, a: int, b: int, is_last: bool, i: int, m: int) -> None:
+    """The held-input gains of phase ``i`` (knots ``a .. b - 1``) into ``K`` (see :func:`held_input_gains`)."""
+    ks = np.arange(a, b - m + 1)  # holds that end inside the phase or at its end
+    if ks.size == 0:
+        return
+    # the value Hessian after the held knots: inside the phase V_xx[k + m]; at the phase's end the value before
+    # the switch (eq. 22: Phi_xx + P_x^T V_xx^+ P_x; the last phase: the terminal Phi_xx)
+    V = ws.V_xx[ks + m].copy()
+    at_end = ks + m == b
+    if np.any(at_end):
+        if is_last:
+            V[at_end] = ws.Phi_xx[i]
+        else:
+            P = ws.P_x[i]
+            V[at_end] = ws.Phi_xx[i] + P.T @ ws.V_xx[b] @ P
+    n = ks.size
+    Ax = np.broadcast_to(np.eye(f_x.shape[1]), (n,) + f_x.shape[1:]).copy()  # d x_j / d x_k
+    Bx = np.zeros((n,) + f_u.shape[1:])                                          # d x_j / d u
+    Quu = np.zeros((n,) + l_uu.shape[1:])
+    Qux = np.zeros((n,) + l_ux.shape[1:])
+    for j in range(m):
+        kj = ks + j
+        lxx, luu, lux = l_xx[kj], l_uu[kj], l_ux[kj]
+        BtL = np.swapaxes(Bx, 1, 2) @ lxx                       # (n, 4, 14)
+        LuxB = lux @ Bx                                          # (n, 4, 4)
+        Quu += luu + BtL @ Bx + LuxB + np.swapaxes(LuxB, 1, 2)
+        Qux += lux @ Ax + BtL @ Ax
+        Ax, Bx = f_x[kj] @ Ax, f_x[kj] @ Bx + f_u[kj]
+    BtV = np.swapaxes(Bx, 1, 2) @ V
+    Quu += BtV @ Bx
+    Qux += BtV @ Ax
+    Quu = 0.5 * (Quu + np.swapaxes(Quu, 1, 2))
+    # only finite, positive definite Q_uu (a warm start far off can overflow the barrier terms, as in the
+    # backward pass); elsewhere the per-knot gain stays
+    ok = np.isfinite(Quu).all(axis=(1, 2)) & np.isfinite(Qux).all(axis=(1, 2))
+    if ok.any():
+        w = np.linalg.eigvalsh(Quu[ok])
+        good = np.flatnonzero(ok)[w[:, 0] > 1e-12 * np.maximum(1.0, np.abs(w).max(axis=1))]
+        K[ks[good]] = -np.linalg.solve(Quu[good], Qux[good])
 
 
 def held_feedforward(U: np.ndarray, phase_start: np.ndarray, hold: int) -> np.ndarray:
