@@ -57,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.n_envs is not None and args.n_envs < 1:
         p.error(f"--n-envs must be >= 1, got {args.n_envs}")
+    if args.preset == "parallel" and args.algos != ["ppo"]:
+        p.error(f"--preset parallel is a PPO preset: give --algos ppo, got {' '.join(args.algos)}")
     rows = []
     for algo in args.algos:
         for seed in args.seeds:

@@ -331,6 +331,8 @@ def _check_train(args) -> None:
             raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
         if args.learning_starts is not None and args.algo == "ppo":
             raise UsageError("--learning-starts", "given with --algo ppo", "--algo sac")
+        if args.preset == "parallel" and args.algo != "ppo":
+            raise UsageError("--preset", f"parallel given with --algo {args.algo}", "hopper or halfcheetah")
         require(["stable_baselines3", "torch"], f"hsddp-gym train --algo {args.algo}")
         return
     if args.algo == "bc" and args.dataset is None:

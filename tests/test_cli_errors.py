@@ -114,6 +114,7 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["train", "--algo", "bc", "--dataset", str(ds), "--demos", "1", "--curve", "2", "--out", out], "--curve"),
         (["train", "--algo", "ppo", "--out", out], "--steps"),
         (["train", "--algo", "ppo", "--steps", "10", "--learning-starts", "5", "--out", out], "--learning-starts"),
+        (["train", "--algo", "sac", "--steps", "10", "--preset", "parallel", "--out", out], "--preset"),
         # policies
         (["rollout", "--policy", "foo", "--out", out], "--policy"),
         (["rollout", "--policy", "bc:" + str(tmp / "missing"), "--out", out], "--policy"),
