@@ -151,6 +151,10 @@ def test_held_feedforward_is_the_mean_over_the_held_knots_and_follows_the_plan_c
     np.testing.assert_array_equal(held_feedforward(U, starts, 1), U)
     with pytest.raises(ValueError, match="hold"):
         held_feedforward(U, starts, 0)
+    with pytest.raises(ValueError, match="phase_start"):
+        held_feedforward(U, np.array([0, 5, 11]), 2)
+    with pytest.raises(ValueError, match="U must be"):
+        held_feedforward(U[0], starts, 2)
     # the joint of the LQR tests driven by a ramp of torques: holding the mean over two knots lands nearer the plan's
     # state two knots on than holding the first knot's torque (the lag of half a control period)
     solver, _ = _joint(2, [0, 2])

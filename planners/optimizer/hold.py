@@ -103,8 +103,13 @@ def held_feedforward(U: np.ndarray, phase_start: np.ndarray, hold: int) -> np.nd
     the step), the plan's own control where the hold would cross the end of a phase (``phase_start (n+1,)``)."""
     m = check_int(hold, "hold", minimum=1)
     U = np.asarray(U, dtype=np.float64)
-    out = U.copy()
+    if U.ndim != 2:
+        raise ValueError(f"U must be a (N, nu) array, got shape {U.shape}")
     starts = np.asarray(phase_start, dtype=np.int64)
+    if starts.ndim != 1 or starts.size < 2 or starts[0] != 0 or starts[-1] != len(U) or np.any(np.diff(starts) < 1):
+        raise ValueError(f"phase_start must rise from 0 to N = {len(U)} (the phases' first knots, then N), "
+                         f"got {np.asarray(phase_start).tolist()}")
+    out = U.copy()
     for a, b in zip(starts[:-1], starts[1:]):
         n = int(b - a) - m + 1
         if m > 1 and n > 0:
