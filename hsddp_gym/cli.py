@@ -301,7 +301,8 @@ def cmd_dataset(args) -> int:
 
 def _bc_extra(args) -> dict:
     extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
-             "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input)}
+             "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input),
+             "action_queue": args.action_queue}
     if args.gain_noise is not None:
         extra["gain_position_std"], extra["gain_velocity_std"] = args.gain_noise
     if args.hidden:
@@ -316,6 +317,8 @@ def _check_train(args) -> None:
                         ("--speed-input", args.speed_input)):
         if given and args.algo != "bc":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo bc")
+    if args.action_queue and args.algo not in ("bc", "dagger"):
+        raise UsageError("--action-queue", f"given with --algo {args.algo}", "--algo bc or dagger")
     for flag, given in (("--condition", args.condition), ("--workers", args.workers is not None)):
         if given and args.algo != "dagger":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo dagger")
@@ -509,6 +512,11 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--speed-input", action="store_true",
                    help="bc: the env's target speed as one more input of the MLP (for demonstrations at several "
                         "target speeds)")
+    p.add_argument("--action-queue", type=_nonnegative_int, default=0,
+                   help="bc/dagger: slots of the latency queue in the MLP's input: the actions sent that the env "
+                        "has not executed yet (the env's action delay of them, e.g. --condition delay_5ms: 1), as the "
+                        "MPC's latency compensation uses them; needs demonstrations that record their conditions "
+                        "(0: none; default: %(default)s)")
     p.add_argument("--format", choices=("minari", "npz"), default="minari",
                    help="read the dataset through minari.load_dataset or its episodes.npz (default: %(default)s)")
     p.add_argument("--demos", type=_positive_int, default=None,

@@ -85,6 +85,8 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["rollout", "--seed", "-5", "--out", out], "--seed"),
         (["dataset", "--seed", "-5", "--out", out], "--seed"),
         (["train", "--algo", "bc", "--seed", "-5", "--out", out], "--seed"),
+        (["train", "--algo", "bc", "--action-queue", "-1", "--out", out], "--action-queue"),
+        (["train", "--algo", "ppo", "--steps", "10", "--action-queue", "2", "--out", out], "--action-queue"),
         (["rollout", "--target-speed", "nan", "--out", out], "--target-speed"),
         (["rollout", "--target-speed", "inf", "--out", out], "--target-speed"),
         (["dataset", "--target-speed", "nan", "--out", out], "--target-speed"),

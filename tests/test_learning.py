@@ -109,11 +109,11 @@ class _RecordActions(gym.Wrapper):
 def test_dagger_rollout_noise_perturbs_executed_actions_not_labels():
     env = _RecordActions(make_env(max_episode_steps=30))
     expert = HeuristicPolicy.from_env(env)
-    O0, A0, _, n0 = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0))
+    O0, A0, _, _, n0 = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0))
     clean = np.array(env.actions)
     np.testing.assert_array_equal(clean, A0)  # no noise: the executed action is the label
     env.actions = []
-    O, A, _, n = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0), noise=0.1)
+    O, A, _, _, n = dagger_rollout(env, None, expert, 1.0, 5, np.random.default_rng(0), noise=0.1)
     executed = np.array(env.actions)
     assert n == len(O) and len(executed) == len(A)
     assert np.all(np.abs(executed) <= 1.0)
@@ -166,7 +166,7 @@ def test_dagger_warm_start_and_noise_options():
 def test_dagger_rollout_steps_truncates_relabelling_rollouts_only():
     env = make_env(max_episode_steps=30)
     expert = HeuristicPolicy.from_env(env)
-    O, A, _, _ = dagger_rollout(env, None, expert, 1.0, 2, np.random.default_rng(0), max_steps=7)
+    O, A, _, _, _ = dagger_rollout(env, None, expert, 1.0, 2, np.random.default_rng(0), max_steps=7)
     assert len(O) == len(A) == 7
     cfg = DAggerConfig(rounds=2, episodes_per_round=2, max_episode_steps=20, rollout_steps=6,
                        bc=BCConfig(hidden=(16,), epochs=2))

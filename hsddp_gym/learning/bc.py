@@ -3,6 +3,7 @@ and the whole job with evaluation and curves (:func:`run_bc`)."""
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import json
 import time
@@ -11,8 +12,16 @@ from pathlib import Path
 
 import numpy as np
 
+from hsddp_gym.core.conventions import NU
 from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
-from hsddp_gym.learning.features import FEATURES, build_inputs, clock_from_params, clock_params, make_gait_clock
+from hsddp_gym.learning.features import (
+    FEATURES,
+    QUEUE_SLOT_SIZE,
+    build_inputs,
+    clock_from_params,
+    clock_params,
+    make_gait_clock,
+)
 from hsddp_gym.learning.gain_labels import gain_augmented_pairs
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
@@ -43,6 +52,7 @@ class BCConfig:
     gain_position_std: float = 0.01
     gain_velocity_std: float = 0.1
     speed_input: bool = False
+    action_queue: int = 0
 
     def __post_init__(self) -> None:
         if self.features not in FEATURES:
@@ -60,6 +70,7 @@ class BCConfig:
         if not isinstance(self.speed_input, (bool, np.bool_)):
             raise TypeError(f"speed_input must be a bool, got {type(self.speed_input).__name__}")
         check_int(self.gain_copies, "gain_copies", minimum=0)
+        check_int(self.action_queue, "action_queue", minimum=0)
         for name in ("gain_position_std", "gain_velocity_std"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -77,11 +88,17 @@ class MLPPolicy(Policy):
 
     Args:
         weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
-        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features, plus 1
-            with ``speed_input``).
+        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features, plus
+            5 per slot with ``action_queue``, plus 1 with ``speed_input``).
         config: the :class:`BCConfig` it was trained with.
         clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
         features; the policy then has memory (the clock), reset by :meth:`reset`.
+
+    With ``config.action_queue`` slots the policy also remembers the actions it sent: it sees the
+    ``interface.action_delay_steps`` of them that the env has not executed yet
+    (:func:`~hsddp_gym.learning.features.action_queue_features`), as the MPC's latency compensation does; a caller
+    that sends another action than the one returned (DART noise, a DAgger mixture) says so through
+    :meth:`note_sent_action`. A delay larger than the slots raises ``ValueError`` naming ``action_queue``.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), weights=None, obs_mean=None, obs_std=None,
@@ -104,13 +121,34 @@ class MLPPolicy(Policy):
         else:
             self.clock = None
             n_in = interface.layout.size
-        n_in += 1 if config.speed_input else 0
+        self.delay = int(interface.action_delay_steps)
+        if self.delay > int(config.action_queue) > 0:
+            raise ValueError(f"the env's action delay ({self.delay} control steps) exceeds action_queue "
+                             f"({config.action_queue}): the policy cannot see its whole latency queue")
+        n_in += QUEUE_SLOT_SIZE * int(config.action_queue) + (1 if config.speed_input else 0)
         if self.obs_mean.shape != (n_in,):
             raise ValueError(f"obs_mean must have shape ({n_in},), got {self.obs_mean.shape}")
+        self._sent: collections.deque = collections.deque()
+        self.reset()
 
     def reset(self) -> None:
         if self.clock is not None:
             self.clock.reset()
+        # the env executes zero torques for its first `delay` steps (ActionDelay's initial queue)
+        self._sent = collections.deque(np.zeros(NU) for _ in range(self.delay))
+
+    def note_sent_action(self, action) -> None:
+        """The action actually sent in place of the last one :meth:`act` returned (with ``action_queue``; a no-op
+        otherwise)."""
+        if self.config.action_queue and self.delay:
+            self._sent[-1] = np.asarray(action, dtype=np.float64).reshape(NU)
+
+    def _queue_features(self) -> np.ndarray:
+        """``(5 action_queue,)``: this step's row of :func:`action_queue_features`."""
+        out = np.zeros((int(self.config.action_queue), QUEUE_SLOT_SIZE))
+        for j, a in enumerate(self._sent):
+            out[j, :NU], out[j, NU] = a, 1.0
+        return out.ravel()
 
     def with_interface(self, interface: EnvInterface) -> MLPPolicy:
         """The same network acting in another env (``interface``: e.g. its target speed for ``speed_input``),
@@ -142,9 +180,15 @@ class MLPPolicy(Policy):
             update_gait_clock(self.clock, mode, x)
             z = np.concatenate([z, self.clock.features()])
             self.clock.tick()
+        if self.config.action_queue:
+            z = np.concatenate([z, self._queue_features()])
         if self.config.speed_input:
             z = np.concatenate([z, [self.interface.target_speed]])
-        return self.forward(z[None])[0].astype(np.float32)
+        action = self.forward(z[None])[0].astype(np.float32)
+        if self.config.action_queue and self.delay:
+            self._sent.popleft()
+            self._sent.append(action.astype(np.float64))
+        return action
 
     def save(self, path) -> Path:
         """Write ``.npz``: ``W0, b0, W1, ...``, ``obs_mean``, ``obs_std`` and ``meta`` (JSON: config, info)."""

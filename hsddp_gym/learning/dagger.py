@@ -103,14 +103,15 @@ class DAggerResult:
 
 def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
                    options: dict | None = None, noise: float = 0.0, max_steps: int | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, float, int]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
     observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
     plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the
     true state (:func:`hsddp_gym.envs.perturbations.true_observation`; the env's observation unless it is
     wrapped in observation noise) and is told the action sent (:func:`inform_sent_action`); the learner acts
-    on the env's observation, which is what is stored. Returns ``(obs (T, d), expert actions (T, 4), return,
-    expert acts)``."""
+    on the env's observation, which is what is stored. The learner acts at every step, so that its memory (gait
+    clock, latency queue) follows the episode whichever policy's action is sent, and it is told the action sent too.
+    Returns ``(obs (T, d), expert actions (T, 4), sent actions (T, 4), return, expert acts)``."""
     from hsddp_gym.datasets.recording import inform_sent_action
     from hsddp_gym.envs.perturbations import true_observation
 
@@ -118,22 +119,26 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     expert.reset()
     if learner is not None:
         learner.reset()
-    O, A, ret, n_expert = [], [], 0.0, 0
+    O, A, S, ret, n_expert = [], [], [], 0.0, 0
     while True:
         label = np.asarray(expert(true_observation(env)), dtype=np.float32)
         O.append(np.asarray(obs, dtype=np.float32))
         A.append(label)
+        own = np.asarray(learner(obs), dtype=np.float32) if learner is not None else None
         use_expert = learner is None or rng.random() < beta
         n_expert += int(use_expert)
-        action = label if use_expert else np.asarray(learner(obs), dtype=np.float32)
+        action = label if use_expert else own
         if noise > 0:
             action = np.clip(action + noise * rng.standard_normal(action.shape), -1.0, 1.0).astype(np.float32)
         inform_sent_action(expert, action)
+        if learner is not None:
+            inform_sent_action(learner, action)
+        S.append(action)
         obs, reward, terminated, truncated, _ = env.step(action)
         ret += float(reward)
         if terminated or truncated or (max_steps is not None and len(O) >= int(max_steps)):
             break
-    return np.array(O), np.array(A), ret, n_expert
+    return np.array(O), np.array(A), np.array(S, dtype=np.float32), ret, n_expert
 
 
 @dataclasses.dataclass(frozen=True)
@@ -159,8 +164,8 @@ class RolloutTask:
 
 def run_rollout_task(task: RolloutTask) -> tuple:
     """Worker entry point: a fresh env (the task's condition) and expert, one :func:`dagger_rollout`; the
-    learner acts with the env's interface (its target speed). Returns ``(obs, labels, return, expert acts,
-    target speed)``."""
+    learner acts with the env's interface (its target speed, its action delay). Returns ``(obs, labels, sent
+    actions, return, expert acts, target speed, action delay)``."""
     from hsddp_gym.datasets.collection import make_env
 
     cfg, r = task.config, task.round_index
@@ -168,11 +173,12 @@ def run_rollout_task(task: RolloutTask) -> tuple:
     try:
         learner = task.learner.with_interface(EnvInterface.from_env(env)) if task.learner is not None else None
         expert, options = task.expert_factory(env, task.seed)
-        O, A, ret, ne = dagger_rollout(env, learner, expert, cfg.beta(r), task.seed,
-                                       np.random.default_rng([cfg.seed, r, task.j]), options,
-                                       noise=float(cfg.rollout_noise) if r > 0 else 0.0,
-                                       max_steps=cfg.rollout_steps if r > 0 else None)
-        return O, A, ret, ne, float(env.unwrapped.target_speed)
+        O, A, S, ret, ne = dagger_rollout(env, learner, expert, cfg.beta(r), task.seed,
+                                          np.random.default_rng([cfg.seed, r, task.j]), options,
+                                          noise=float(cfg.rollout_noise) if r > 0 else 0.0,
+                                          max_steps=cfg.rollout_steps if r > 0 else None)
+        delay = EnvInterface.from_env(env).action_delay_steps
+        return O, A, S, ret, ne, float(env.unwrapped.target_speed), delay
     finally:
         env.close()
 
@@ -217,10 +223,11 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
             tasks = [RolloutTask(r, j, expert_factory, learner if r > 0 else None, config, dict(env_kwargs or {}))
                      for j in range(config.episodes_per_round)]
             results = run_parallel(run_rollout_task, tasks, workers=min(workers, len(tasks)))
-            for O, A, ret, ne, speed in results:
+            for O, A, S, ret, ne, speed, delay in results:
                 # one episode each (id 0): concat numbers them after the data's, contiguously
                 parts.append(Demonstrations(O, A, np.zeros(len(O), dtype=np.int64),
-                                            target_speed=np.full(len(O), speed)))
+                                            target_speed=np.full(len(O), speed), sent_actions=S,
+                                            action_delay=np.full(len(O), delay, dtype=np.int64)))
                 returns.append(ret)
                 expert_acts += ne
             new = parts[0]
@@ -296,7 +303,9 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock,
                        workers=workers)
     res.policy.save(out / "policy.npz")
-    write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode)
+    optional = {k: getattr(res.data, k) for k in ("sent_actions", "action_delay") if getattr(res.data, k) is not None}
+    write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode,
+              **optional)
     rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],
              f"{h['eval']['mean_return']:.6g}" if h.get("eval") else "", f"{h['eval']['std_return']:.6g}"
              if h.get("eval") else "", h["eval"]["falls"] if h.get("eval") else ""] for h in res.history]

@@ -62,14 +62,20 @@ class FeedbackLaw:
 class Demonstrations:
     """Labelled observations: ``obs (N, d)`` float32, ``actions (N, 4)`` float32, ``episode (N,)`` the
     episode each pair comes from (0-based, in dataset order), ``feedback`` the expert's local feedback law
-    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains) and ``target_speed (N,)`` the env's
-    target speed [m/s] of each pair's episode (from the dataset's metadata; None when unknown)."""
+    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains), ``target_speed (N,)`` the env's
+    target speed [m/s] of each pair's episode (from the dataset's metadata; None when unknown),
+    ``sent_actions (N, 4)`` the action sent to the env at each pair (the label plus DART noise, or the
+    learner's in a DAgger rollout; None when unknown) and ``action_delay (N,)`` the actuation delay [control steps]
+    of each pair's episode (:class:`~hsddp_gym.envs.perturbations.ActionDelay`; None when unknown). The last two
+    rebuild the learner's latency queue (:func:`hsddp_gym.learning.features.action_queue_features`)."""
 
     obs: np.ndarray
     actions: np.ndarray
     episode: np.ndarray
     feedback: FeedbackLaw | None = None
     target_speed: np.ndarray | None = None
+    sent_actions: np.ndarray | None = None
+    action_delay: np.ndarray | None = None
 
     @property
     def n_episodes(self) -> int:
@@ -81,19 +87,23 @@ class Demonstrations:
     def first_episodes(self, n: int) -> Demonstrations:
         keep = self.episode < int(n)
         fb = self.feedback.take(keep) if self.feedback is not None else None
-        speed = self.target_speed[keep] if self.target_speed is not None else None
-        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep], fb, speed)
+        return Demonstrations(self.obs[keep], self.actions[keep], self.episode[keep], fb,
+                              *(None if a is None else a[keep] for a in self._per_pair()))
+
+    def _per_pair(self) -> tuple:
+        """The optional per-pair arrays, in field order after ``feedback``."""
+        return self.target_speed, self.sent_actions, self.action_delay
 
     def concat(self, other: Demonstrations) -> Demonstrations:
-        """Both sets of pairs (``other``'s episodes renumbered after these); the feedback laws and target speeds
-        are kept only when both have them."""
+        """Both sets of pairs (``other``'s episodes renumbered after these); the feedback laws, target speeds,
+        sent actions and delays are kept only when both have them."""
         offset = self.n_episodes
         fb = (FeedbackLaw.concat(self.feedback, other.feedback)
               if self.feedback is not None and other.feedback is not None else None)
-        speed = (np.concatenate([self.target_speed, other.target_speed])
-                 if self.target_speed is not None and other.target_speed is not None else None)
+        extra = [np.concatenate([a, b]) if a is not None and b is not None else None
+                 for a, b in zip(self._per_pair(), other._per_pair())]
         return Demonstrations(np.concatenate([self.obs, other.obs]), np.concatenate([self.actions, other.actions]),
-                              np.concatenate([self.episode, other.episode + offset]), fb, speed)
+                              np.concatenate([self.episode, other.episode + offset]), fb, *extra)
 
 
 def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari") -> Demonstrations:
@@ -122,29 +132,33 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
         for part in parts[1:]:
             out = out.concat(part)
         return out
-    speed = None
+    speed = delays = None
     if isinstance(source, (str, Path)):
         p = Path(source)
         meta_file = (p.parent if p.is_file() else p) / "metadata.json"
         if meta_file.exists():
-            speed = _target_speeds(datasets.read_metadata(meta_file.parent))
+            metadata = datasets.read_metadata(meta_file.parent)
+            speed, delays = _target_speeds(metadata), _action_delays(metadata)
         if p.is_file():
             source = datasets.load_npz(p)
         elif fmt == "npz":
             source = datasets.load_npz(p)
         else:
             source = datasets.load_minari(p)
-    obs, acts, ep, laws = [], [], [], []
+    obs, acts, sent, ep, laws = [], [], [], [], []
     available = source.n_episodes if isinstance(source, datasets.FlatDataset) else source.total_episodes
     if episodes is not None and not 1 <= int(episodes) <= available:
         raise ValueError(f"episodes must be in 1 .. {available} (the dataset's episodes), got {episodes}")
     if isinstance(source, datasets.FlatDataset):
-        speed = _target_speeds(source.metadata) if speed is None and source.metadata else speed
+        if source.metadata:
+            speed = _target_speeds(source.metadata) if speed is None else speed
+            delays = _action_delays(source.metadata) if delays is None else delays
         n = source.n_episodes if episodes is None else min(int(episodes), source.n_episodes)
         for i in range(n):
             e = source.episode(i)
             obs.append(e["observations"][:-1])
             acts.append(e["infos"]["expert_action"][:-1] if "expert_action" in e["infos"] else e["actions"])
+            sent.append(e["actions"])
             ep.append(np.full(len(e["actions"]), i))
             if all(k in e["infos"] for k in FEEDBACK_KEYS):
                 laws.append(FeedbackLaw.from_infos(e["infos"], slice(0, len(e["actions"]))))
@@ -155,6 +169,7 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
             infos = e.infos if isinstance(e.infos, dict) else {}
             acts.append(np.asarray(infos["expert_action"])[:-1] if "expert_action" in infos else
                         np.asarray(e.actions))
+            sent.append(np.asarray(e.actions))
             ep.append(np.full(len(e.actions), i))
             if all(k in infos for k in FEEDBACK_KEYS):
                 laws.append(FeedbackLaw.from_infos(infos, slice(0, len(e.actions))))
@@ -172,8 +187,31 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
             raise ValueError(f"the dataset's metadata give {len(speed)} episode target speeds for {len(obs)} "
                              "episodes")
         speed = np.concatenate([np.full(len(o), speed[i]) for i, o in enumerate(obs)])
+    if isinstance(delays, int):
+        delays = [delays] * len(obs)
+    if delays is not None:
+        if len(delays) < len(obs):
+            raise ValueError(f"the dataset's metadata give {len(delays)} episode conditions for {len(obs)} episodes")
+        delays = np.concatenate([np.full(len(o), delays[i], dtype=np.int64) for i, o in enumerate(obs)])
     return Demonstrations(np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32),
-                          np.concatenate(ep).astype(np.int64), feedback, speed)
+                          np.concatenate(ep).astype(np.int64), feedback, speed,
+                          np.concatenate(sent).astype(np.float32), delays)
+
+
+def _action_delays(metadata: dict) -> list[int] | int | None:
+    """The actuation delay [control steps] of each episode of a dataset: from ``episode_conditions`` and the
+    recorded condition definitions (datasets recorded under named conditions), else 0 for all of them (one int:
+    a plain dataset, whose metadata record its ``env_kwargs``); None when the metadata say nothing."""
+    if not isinstance(metadata, dict):
+        return None
+    names = metadata.get("episode_conditions")
+    if names is not None:
+        from hsddp_gym.envs.perturbations import get_condition
+
+        definitions = (metadata.get("conditions") or {}).get("definitions") or {}
+        return [int(definitions[c]["action_delay"]) if c in definitions else int(get_condition(c).action_delay)
+                for c in names]
+    return 0 if "env_kwargs" in metadata else None
 
 
 def _target_speeds(metadata: dict) -> list[float] | float | None:

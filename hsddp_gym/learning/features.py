@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hsddp_gym.core.conventions import NU
 from hsddp_gym.learning.demonstrations import Demonstrations
 from hsddp_gym.planners.policies.base import EnvInterface
 
@@ -12,6 +13,8 @@ FEATURES = ("obs", "gait_clock")
 """Inputs of the MLP: ``obs`` (the observation) or ``gait_clock`` (the observation plus the 7
 :meth:`hsddp_gym.planners.policies.mpc.GaitClock.features` of the MPC's gait clock, rebuilt from the observation
 history)."""
+QUEUE_SLOT_SIZE = NU + 1
+"""Inputs per latency-queue slot (:func:`action_queue_features`): an action and a pending mark."""
 
 
 # ================================================================================================ features
@@ -63,6 +66,33 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     return out
 
 
+def action_queue_features(sent: np.ndarray, delay: int, slots: int) -> np.ndarray:
+    """``(T, 5 slots)`` (:data:`QUEUE_SLOT_SIZE` per slot) latency-queue features of one episode whose actions
+    ``sent (T, 4)`` were executed ``delay`` control steps late (:class:`~hsddp_gym.envs.perturbations.ActionDelay`).
+
+    Row ``t`` (the observation at which action ``t`` is chosen) holds the ``delay`` actions sent before it and not
+    yet executed, in the order the env will execute them (``sent[t - delay]`` first; the zero torques the
+    env executes for the first steps after a reset are zero actions), each followed by a 1 (a pending slot),
+    then ``slots - delay`` empty slots (four zeros and a 0). With no delay every row is zero: the learner's input
+    is its observation. These are the actions the MPC's latency compensation predicts the state over.
+
+    Raises ``ValueError`` when ``delay > slots`` (the learner cannot see its whole queue).
+    """
+    sent = np.asarray(sent, dtype=np.float64)
+    if sent.ndim != 2 or sent.shape[1] != NU:
+        raise ValueError(f"sent must have shape (T, {NU}), got {sent.shape}")
+    delay, slots = int(delay), int(slots)
+    if not 0 <= delay <= slots:
+        raise ValueError(f"the action delay ({delay} control steps) must be in 0 .. action_queue ({slots})")
+    T = len(sent)
+    out = np.zeros((T, slots, QUEUE_SLOT_SIZE))
+    padded = np.concatenate([np.zeros((delay, NU)), sent])  # padded[t + j] = sent[t - delay + j]
+    for j in range(delay):
+        out[:, j, :NU] = padded[j:j + T]
+        out[:, j, NU] = 1.0
+    return out.reshape(T, slots * QUEUE_SLOT_SIZE)
+
+
 def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
     """``[(start, stop), ...]`` of the contiguous runs of equal episode ids."""
     episode = np.asarray(episode)
@@ -75,8 +105,9 @@ def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
 
 def build_inputs(demos: Demonstrations, config, clock=None, layout=None) -> np.ndarray:
     """The MLP inputs (float64) of ``demos`` for ``config.features`` (``clock``: a GaitClock for
-    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock), with the
-    target speed [m/s] of each pair's episode appended last when ``config.speed_input``."""
+    ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock), then the
+    latency queue (:func:`action_queue_features`) when ``config.action_queue``, and the target speed [m/s] of each
+    pair's episode appended last when ``config.speed_input``."""
     obs = np.asarray(demos.obs, dtype=np.float64)
     if config.features == "gait_clock":
         if clock is None:
@@ -85,6 +116,18 @@ def build_inputs(demos: Demonstrations, config, clock=None, layout=None) -> np.n
         for a, b in _episode_runs(demos.episode):
             feats[a:b] = gait_clock_features(obs[a:b], clock, layout)
         obs = np.concatenate([obs, feats], axis=1)
+    slots = int(getattr(config, "action_queue", 0))
+    if slots:
+        if demos.sent_actions is None or demos.action_delay is None:
+            raise ValueError("action_queue needs the actions sent and the action delay of every demonstration "
+                             "(datasets loaded from their directories, or DAgger rollouts)")
+        queue = np.zeros((len(obs), slots * QUEUE_SLOT_SIZE))
+        for a, b in _episode_runs(demos.episode):
+            delay = np.unique(demos.action_delay[a:b])
+            if len(delay) != 1:
+                raise ValueError(f"action_delay must be constant within an episode, got {delay.tolist()}")
+            queue[a:b] = action_queue_features(demos.sent_actions[a:b], int(delay[0]), slots)
+        obs = np.concatenate([obs, queue], axis=1)
     if getattr(config, "speed_input", False):
         if demos.target_speed is None:
             raise ValueError("speed_input needs the target speed of every demonstration (datasets loaded from "
