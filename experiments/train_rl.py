@@ -12,9 +12,11 @@ Hyperparameters (hsddp_gym.learning.sb3.PRESETS, from rl-baselines3-zoo hyperpar
   auto entropy, [256, 256] ReLU) + learning_starts 10000.
 
 Each run writes into OUT/ALGO/seedS: model.zip, vecnormalize.{pkl,npz} (PPO), train.monitor.csv,
-evaluations.npz, curve.csv / eval_curve.csv / curve.png (return vs env steps) and summary.json (hyperparameters,
-wall time, a final deterministic evaluation on seeds 0..9). One run is the same as
-``hsddp-gym train --algo ALGO --steps N --seed S --out DIR``.
+evaluations.npz, best_model.zip / best_vecnormalize.npz (the checkpoint of the best training-time evaluation),
+curve.csv / eval_curve.csv / curve.png (return vs env steps) and summary.json (hyperparameters, wall time, the
+protocol evaluations on seeds 0..9: ``eval`` the final weights' mean action, ``eval_best`` the best checkpoint's,
+``eval_stochastic`` the final weights' own draws; each printed per seed and as a mean with its 95 % interval). One
+run is the same as ``hsddp-gym train --algo ALGO --steps N --seed S --out DIR``.
 
 Usage:
     python experiments/train_rl.py --algos ppo sac --seeds 0 --steps 50000 --out runs/rl      # short check
@@ -34,6 +36,10 @@ from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
 from hsddp_gym.learning.sb3 import ALGOS, train_sb3
+
+EVALS = ("eval", "eval_best", "eval_stochastic")
+"""The protocol evaluations of each run's summary: the final weights' mean action, the best checkpoint's mean action
+(chosen by the training-time evaluations, on their own seeds), the final weights' own draws."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,21 +77,28 @@ def main(argv: list[str] | None = None) -> int:
                             final_eval_episodes=args.eval_episodes, progress=args.progress,
                             time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
             s = res.summary
-            ev = s.get("eval", {})
-            rows.append((algo, seed, s["steps"], s["wall_time_s"], ev.get("mean_return"), ev.get("std_return"),
-                         ev.get("falls")))
+            evals = {k: s.get(k) or {} for k in EVALS}
+            rows.append((algo, seed, s["steps"], s["wall_time_s"], evals))
             nan = float("nan")
             print(f"{algo} seed {seed}: {s['steps']} steps in {s['wall_time_s']:.0f} s "
-                  f"({s['steps'] / s['wall_time_s']:.0f} steps/s); eval return {ev.get('mean_return', nan):.1f} +- "
-                  f"{ev.get('std_return', nan):.1f}, falls {ev.get('falls')}/{ev.get('episodes')} -> {out}", flush=True)
-    print("\n| algo | seed | env steps | wall [s] | return (10 eps) | falls |\n|---|---|---|---|---|---|")
-    for algo, seed, steps, wall, m, sd, falls in rows:
-        print(f"| {algo} | {seed} | {steps} | {wall:.0f} | {m:.1f} ± {sd:.1f} | {falls} |")
+                  f"({s['steps'] / s['wall_time_s']:.0f} steps/s); " + "; ".join(
+                      f"{k} {e.get('mean_return', nan):.1f} +- {e.get('std_return', nan):.1f}, falls "
+                      f"{e.get('falls')}/{e.get('episodes')}" for k, e in evals.items() if e) + f" -> {out}",
+                  flush=True)
+    print("\n| algo | seed | env steps | wall [s] | " + " | ".join(f"{k}: return, falls" for k in EVALS) + " |\n|"
+          + "---|" * (4 + len(EVALS)))
+    for algo, seed, steps, wall, evals in rows:
+        cells = [f"{e['mean_return']:.1f} ± {e['std_return']:.1f}, {e['falls']}/{e['episodes']}" if e else "-"
+                 for e in evals.values()]
+        print(f"| {algo} | {seed} | {steps} | {wall:.0f} | " + " | ".join(cells) + " |")
     for algo in args.algos:  # over the training seeds: the mean and its 95 % Student-t interval
-        means = [m for a, _, _, _, m, _, _ in rows if a == algo and m is not None]
-        if len(means) >= 2:
-            mean, half = mean_ci95(means)
-            print(f"{algo}: return over {len(means)} seeds {mean:.1f} ± {half:.1f} (95 % interval of the mean)")
+        for k in EVALS:
+            means = [e[k]["mean_return"] for a, _, _, _, e in rows if a == algo and e[k]]
+            if len(means) >= 2:
+                mean, half = mean_ci95(means)
+                falls = sum(e[k]["falls"] for a, _, _, _, e in rows if a == algo and e[k])
+                print(f"{algo} {k}: return over {len(means)} seeds {mean:.1f} ± {half:.1f} (95 % interval of the "
+                      f"mean), falls {falls}")
     return 0
 
 

@@ -294,6 +294,16 @@ def test_cli_ppo_sac_smoke(algo, tmp_path):
     assert not np.allclose(other.act(obs), first[0])
     with pytest.raises(TypeError, match="deterministic"):
         load_trained_policy(out, deterministic="no")
+    # the best checkpoint of the training-time evaluations, with the observation statistics of that moment
+    ev = np.load(out / "evaluations.npz")
+    best = s["best_checkpoint"]
+    means = ev["results"].mean(axis=1)
+    assert best["mean_return"] == pytest.approx(means.max())
+    assert best["env_step"] == int(ev["timesteps"][int(np.argmax(means))])
+    assert s["eval_best"]["episodes"] == 2 and "best_model.zip" in s["files"]
+    assert load_trained_policy(out, checkpoint="best").act(obs).shape == (4,)
+    with pytest.raises(ValueError, match="checkpoint"):
+        load_trained_policy(out, checkpoint="last")
 
 
 def test_bc_with_gait_clock_features_has_memory_and_round_trips(dataset, tmp_path):

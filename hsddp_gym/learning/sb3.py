@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.util.io import read_npz, write_json, write_npz
+from hsddp_gym.util.io import atomic_path, read_npz, write_json, write_npz
 from hsddp_gym.util.validation import check_int
 
 ENV_ID = "hsddp_gym/Bounding-v0"
@@ -345,11 +345,13 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **_model_kwargs(hp))
     eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
     callbacks = []
+    best = None
     if eval_freq > 0:
+        best = _save_best(out, venv if hp["normalize"] else None)
         # EvalCallback counts calls, one per step of all n_envs robots: eval_freq env steps are that many / n_envs
         callbacks.append(EvalCallback(eval_venv, n_eval_episodes=eval_episodes,
                                       eval_freq=max(eval_freq // int(hp["n_envs"]), 1),
-                                      log_path=str(out), deterministic=True, verbose=0))
+                                      log_path=str(out), deterministic=True, verbose=0, callback_on_new_best=best))
     t0 = time.perf_counter()
     timer = None
     if time_limit is not None:
@@ -358,7 +360,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     model.learn(total_timesteps=int(steps), callback=CallbackList(callbacks) if callbacks else None,
                 progress_bar=progress)
     wall = time.perf_counter() - t0
-    model.save(out / "model.zip")
+    with atomic_path(out / "model.zip", suffix=".zip") as tmp:
+        model.save(tmp)
     files = ["model.zip", "train.monitor.csv"]
     if hp["normalize"]:
         venv.save(str(out / "vecnormalize.pkl"))
@@ -366,6 +369,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         files += ["vecnormalize.pkl", "vecnormalize.npz"]
     if (out / "evaluations.npz").exists():
         files.append("evaluations.npz")
+    if best is not None and best.record is not None:
+        files += [BEST_MODEL] + ([BEST_VECNORMALIZE] if hp["normalize"] else [])
     files += write_curves(out, algo)
     summary = {
         "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
@@ -375,6 +380,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),
         "eval_episodes": eval_episodes, "files": files,
         "training_episodes": _count_monitor_episodes(out / "train.monitor.csv"),
+        "best_checkpoint": best.record if best is not None else None,
     }
     venv.close()
     eval_venv.close()
@@ -388,8 +394,43 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         # can fall where its draws bound, README "RL baselines")
         summary["eval_stochastic"] = eval_brief(evaluate_policy_episodes(
             load_trained_policy(out, deterministic=False), final_eval_episodes, 0, env_kwargs, max_episode_steps))
+        if summary["best_checkpoint"] is not None:
+            # the checkpoint chosen by the training-time evaluations (their own seeds), under the same protocol
+            summary["eval_best"] = eval_brief(evaluate_policy_episodes(
+                load_trained_policy(out, checkpoint="best"), final_eval_episodes, 0, env_kwargs, max_episode_steps))
         write_json(out / "summary.json", summary)
     return TrainResult(out, summary)
+
+
+BEST_MODEL = "best_model.zip"
+BEST_VECNORMALIZE = "best_vecnormalize.npz"
+CHECKPOINTS = ("final", "best")
+"""Which weights :func:`load_trained_policy` reads: the end of training (``model.zip``) or the checkpoint whose
+training-time deterministic evaluation (``EvalCallback``, seeds 10000 + seed ..., apart from the protocol's 0, 1,
+...) had the highest mean return (``best_model.zip``, with the observation statistics of that moment)."""
+
+
+def _save_best(out: Path, venv):
+    """An SB3 callback for ``EvalCallback(callback_on_new_best=...)``: writes the model (:data:`BEST_MODEL`) and,
+    with ``VecNormalize`` (``venv``), its observation statistics of that moment (:data:`BEST_VECNORMALIZE`, which
+    go on changing after), and keeps ``record`` = ``{"env_step", "mean_return"}`` of the evaluation."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class SaveBest(BaseCallback):
+        def __init__(self) -> None:
+            super().__init__()
+            self.record = None
+
+        def _on_step(self) -> bool:
+            with atomic_path(out / BEST_MODEL, suffix=".zip") as tmp:
+                self.model.save(tmp)
+            if venv is not None:
+                save_vecnormalize_npz(venv, out / BEST_VECNORMALIZE)
+            self.record = {"env_step": int(self.model.num_timesteps),
+                           "mean_return": float(self.parent.best_mean_reward)}
+            return True
+
+    return SaveBest()
 
 
 def _wall_clock_limit(seconds: float, start: float):
@@ -532,7 +573,8 @@ class SB3ModelPolicy(Policy):
         return np.clip(a.numpy()[0].astype(np.float32), -1.0, 1.0)
 
 
-def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0) -> SB3ModelPolicy:
+def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,
+                        checkpoint: str = "final") -> SB3ModelPolicy:
     """The policy of a :func:`train_sb3` run in ``run_dir``, read without unpickling: the model is rebuilt
     from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
     (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
@@ -540,13 +582,22 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     Args:
         env: the env to act in (None: ``gym.make`` with the run's env kwargs).
         deterministic, noise_seed: the mean action, or draws of the policy's distribution (:class:`SB3ModelPolicy`).
+        checkpoint: ``"final"`` or ``"best"`` (:data:`CHECKPOINTS`: ``best_model.zip`` and
+            ``best_vecnormalize.npz``, the best training-time evaluation).
     """
     import gymnasium as gym
     from stable_baselines3 import PPO, SAC
 
     import hsddp_gym  # noqa: F401
 
+    if checkpoint not in CHECKPOINTS:
+        raise ValueError(f"checkpoint must be one of {CHECKPOINTS}, got {checkpoint!r}")
     run_dir = Path(run_dir)
+    weights, statistics = (("model.zip", "vecnormalize.npz") if checkpoint == "final" else
+                           (BEST_MODEL, BEST_VECNORMALIZE))
+    if not (run_dir / weights).exists():
+        raise FileNotFoundError(f"checkpoint={checkpoint!r}: no {weights} in {run_dir} (a run without "
+                                "training-time evaluations has no best checkpoint)")
     summary = json.loads((run_dir / "summary.json").read_text())
     algo = summary["algo"]
     if env is None:
@@ -558,7 +609,7 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     cls = PPO if algo == "ppo" else SAC
     extra = {"buffer_size": 1} if algo == "sac" else {}
     model = cls("MlpPolicy", env, device="cpu", **kw, **extra)
-    model.set_parameters(str(run_dir / "model.zip"), exact_match=True, device="cpu")
-    stats = read_npz(run_dir / "vecnormalize.npz") if (run_dir / "vecnormalize.npz").exists() else None
+    model.set_parameters(str(run_dir / weights), exact_match=True, device="cpu")
+    stats = read_npz(run_dir / statistics) if (run_dir / statistics).exists() else None
     return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats, deterministic=deterministic,
                           noise_seed=noise_seed)
