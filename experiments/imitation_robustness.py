@@ -11,7 +11,7 @@ which starts over):
    on the true state, the stored observations are the perturbed ones;
 3. ``ds_speeds``: ``--speed-demos`` episodes at each of 0.5, 1.0, 1.5, 2.0 m/s (seeds 3000..), DART noise;
 
-and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; seed 0):
+and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; the seeds of ``--train-seeds``, default 0):
 
 * ``bc``: BC on ``ds_default`` (plain BC from DART demos);
 * ``bc_few``: BC on the first ``--few`` episodes of ``ds_default``;
@@ -23,8 +23,14 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; seed 
 * ``dagger_perturbed``: DAgger from ``ds_perturbed``, ``--dagger-rounds`` rounds of ``--dagger-episodes``
   pure-learner rollouts (beta 0, noise ``--rollout-noise``) cycling over the same perturbations (seeds
   10000 + 1000 round + j), relabelled by the MPC on the true state;
+* ``bc_perturbed_queue``, ``dagger_perturbed_queue``: the same two with the latency queue in the input
+  (``action_queue`` = :data:`QUEUE_SLOTS`: the actions sent and not yet executed, which the MPC's latency
+  compensation predicts over; :func:`hsddp_gym.learning.features.action_queue_features`);
 * ``bc_speed``: speed-conditioned BC (``speed_input``) on ``ds_speeds``;
-* ``bc_speed_perturbed``: speed-conditioned BC on ``ds_speeds`` and ``ds_perturbed`` pooled.
+* ``bc_speed_perturbed``: speed-conditioned BC on ``ds_speeds`` and ``ds_perturbed`` pooled;
+
+each with every seed of ``--train-seeds`` (labels ``NAME`` for seed 0, ``NAME@seedS`` for the others; with two or
+more seeds the table ends with each learner's falls over the seeds, mean and 95 % interval).
 
 Then every learner runs in every condition of ``hsddp_gym.envs.perturbations.CONDITIONS`` on the evaluation seeds
 (7000-7019 by default, the MPC's protocol: ``experiments/robustness.py``), and ``OUT/imitation_robustness.md`` /
@@ -61,8 +67,13 @@ TRAIN_SPEEDS = ("speed_0.5", "default", "speed_1.5", "speed_2.0")
 """The conditions of the speed demonstrations (0.5, 1.0, 1.5, 2.0 m/s; 1.25 m/s is held out)."""
 SPEED_CONDITIONS = ("speed_0.5", "default", "speed_1.25", "speed_1.5", "speed_2.0")
 """Where the speed-tracking goal (within 10 %) is checked."""
-LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed", "dagger_perturbed", "bc_speed",
-            "bc_speed_perturbed")
+LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed", "dagger_perturbed",
+            "bc_perturbed_queue", "dagger_perturbed_queue", "bc_speed", "bc_speed_perturbed")
+QUEUE_SLOTS = 2
+"""Latency-queue slots of the ``*_queue`` learners (``BCConfig.action_queue``): the suite's longest delay."""
+REFERENCE = ("docs/robustness/issue14_stop24/robustness.json", "docs/robustness/issue14_stop23/robustness.json")
+"""The MPC's and the heuristic's evaluation records (stop 24's MPC, the current default; stop 23's heuristic run):
+the first file holding a policy gives its row."""
 FALL_MARGIN = 1
 SPEED_TOLERANCE = 0.10
 
@@ -122,38 +133,86 @@ def train_learners(args, out: Path, data: dict) -> dict:
                                                               gain_position_std=args.small_gain_noise[0],
                                                               gain_velocity_std=args.small_gain_noise[1])),
         "bc_perturbed": dict(dataset=ds["ds_perturbed"], demos=None, config=base),
+        "bc_perturbed_queue": dict(dataset=ds["ds_perturbed"], demos=None,
+                                   config=dataclasses.replace(base, action_queue=QUEUE_SLOTS)),
         "bc_speed": dict(dataset=ds["ds_speeds"], demos=None,
                          config=dataclasses.replace(base, speed_input=True)),
         "bc_speed_perturbed": dict(dataset=[ds["ds_speeds"], ds["ds_perturbed"]], demos=None,
                                    config=dataclasses.replace(base, speed_input=True)),
     }
     trained = {}
-    for name in args.learners:
-        path = out / "learners" / name
+    for seed, name in ((seed, name) for seed in args.train_seeds for name in args.learners):
+        label = run_label(name, seed)
+        path = out / "learners" / label
         t0 = time.perf_counter()
         if (path / "policy.npz").exists() and (path / "summary.json").exists():
-            _log(f"{name}: reusing {path}")
-        elif name == "dagger_perturbed":
-            _log(f"{name}: DAgger, {args.dagger_rounds} rounds x {args.dagger_episodes} rollouts")
+            _log(f"{label}: reusing {path}")
+        elif name.startswith("dagger_perturbed"):
+            _log(f"{label}: DAgger, {args.dagger_rounds} rounds x {args.dagger_episodes} rollouts")
+            bc = dataclasses.replace(base, action_queue=QUEUE_SLOTS) if name.endswith("_queue") else base
             cfg = DAggerConfig(rounds=args.dagger_rounds, episodes_per_round=args.dagger_episodes, beta_decay=0.0,
-                               bc=base, seed=10000, max_episode_steps=args.max_steps,
+                               bc=bc, seed=10000, max_episode_steps=args.max_steps,
                                rollout_noise=args.rollout_noise, conditions=TRAIN_PERTURBATIONS)
-            # run_dagger gives its seed to the config (rollout seeds 10000 + 1000 round + j, apart from the data's)
-            run_dagger("mpc", path, seed=10000, config=cfg, dataset=ds["ds_perturbed"], fmt="npz", eval_episodes=0,
-                       progress=not args.quiet, workers=args.workers)
+            # run_dagger gives its seed to the config and the BC (rollout seeds 10000 + 100 seed + 1000 round + j,
+            # apart from the data's)
+            run_dagger("mpc", path, seed=10000 + 100 * seed, config=cfg, dataset=ds["ds_perturbed"], fmt="npz",
+                       eval_episodes=0, progress=not args.quiet, workers=args.workers)
         else:
             s = specs[name]
-            _log(f"{name}: BC")
-            run_bc(s["dataset"], path, seed=0, config=s["config"], demos=s["demos"], fmt="npz", eval_episodes=0,
+            _log(f"{label}: BC")
+            run_bc(s["dataset"], path, seed=seed, config=s["config"], demos=s["demos"], fmt="npz", eval_episodes=0,
                    progress=not args.quiet)
         summary = json.loads((path / "summary.json").read_text())
-        trained[name] = {"dir": str(path), "wall_time_s": time.perf_counter() - t0,
-                         "training_wall_time_s": summary.get("wall_time_s"),
-                         "expert_labels": summary.get("expert_labels"), "transitions": summary.get("transitions"),
-                         "gain_labels": summary.get("gain_labels"),
-                         "demonstrations": summary.get("demonstrations", summary.get("initial_demonstrations")),
-                         "config": summary.get("config")}
+        trained[label] = {"learner": name, "training_seed": seed, "dir": str(path),
+                          "wall_time_s": time.perf_counter() - t0, "training_wall_time_s": summary.get("wall_time_s"),
+                          "expert_labels": summary.get("expert_labels"), "transitions": summary.get("transitions"),
+                          "gain_labels": summary.get("gain_labels"),
+                          "demonstrations": summary.get("demonstrations", summary.get("initial_demonstrations")),
+                          "config": summary.get("config")}
     return trained
+
+
+def run_label(name: str, seed: int) -> str:
+    """The label (and directory under ``learners/``) of learner ``name`` trained with seed ``seed``: the name for seed
+    0, ``name@seedS`` for the others."""
+    return name if int(seed) == 0 else f"{name}@seed{int(seed)}"
+
+
+def over_seeds(results: dict, learners: dict, conditions) -> dict:
+    """Per learner trained with several seeds: per condition the falls of each seed and their mean with the 95 %
+    Student-t interval of the mean, and the same for the total."""
+    from hsddp_gym.learning.reporting import mean_ci95
+
+    runs: dict = {}
+    for label, info in learners.items():
+        runs.setdefault(info["learner"], []).append(label)
+    out = {}
+    for name, labels in runs.items():
+        if len(labels) < 2:
+            continue
+        cells = {}
+        for c in [*conditions, "total"]:
+            falls = [sum(results[lb][cc]["falls"] for cc in conditions) if c == "total" else results[lb][c]["falls"]
+                     for lb in labels]
+            mean, half = mean_ci95(falls)
+            cells[c] = {"falls": falls, "mean": mean, "ci95": half}
+        out[name] = {"runs": labels, "seeds": [learners[lb]["training_seed"] for lb in labels], "cells": cells}
+    return out
+
+
+def seeds_markdown(summary: dict, conditions) -> str:
+    """The table of :func:`over_seeds`: mean falls ± 95 % interval over the training seeds, and each seed's."""
+    if not summary:
+        return ""
+    names = list(summary)
+    lines = ["", "Over training seeds: mean falls of 20 ± 95 % interval of the mean (each seed's falls)", "",
+             "| condition | " + " | ".join(f"{n} (seeds {', '.join(map(str, summary[n]['seeds']))})" for n in names)
+             + " |", "|---|" + "---|" * len(names)]
+    for c in [*conditions, "total"]:
+        row = [f"{summary[n]['cells'][c]['mean']:.1f} ± {summary[n]['cells'][c]['ci95']:.1f} "
+               f"({', '.join(map(str, summary[n]['cells'][c]['falls']))})" for n in names]
+        lines.append(f"| {c} | " + " | ".join(row) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def goal_check(results: dict, reference: dict | None, conditions) -> dict:
@@ -243,6 +302,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--action-noise", type=float, default=0.04, help="DART noise of the datasets (default: %(default)s)")
     p.add_argument("--learners", nargs="+", default=list(LEARNERS), choices=LEARNERS,
                    help="learners to train and evaluate (default: all)")
+    p.add_argument("--train-seeds", nargs="+", type=int, default=[0],
+                   help="training seeds of every learner (BC's seed; DAgger's rollouts from 10000 + 100 seed); seed 0 "
+                        "is labelled by the learner's name, the others NAME@seedS, and with two or more the table "
+                        "gains each learner's falls over the seeds with a 95 %% interval (default: %(default)s)")
     p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS),
                    help="evaluation conditions (default: all)")
     p.add_argument("--seeds", type=int, default=20, help="evaluation episodes per condition (default: %(default)s)")
@@ -250,9 +313,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-steps", type=int, default=None,
                    help="episode length cap of the datasets, rollouts and evaluations (smoke runs; default: the "
                         "env's 1000)")
-    p.add_argument("--reference", default="docs/robustness/robustness_merged.json",
-                   help="robustness.json with the MPC and heuristic rows of the table (default: %(default)s; "
-                        "'none': no reference)")
+    p.add_argument("--reference", nargs="+", default=list(REFERENCE),
+                   help="robustness.json file(s) with the MPC and heuristic rows of the table, the first file holding "
+                        "a policy giving its row (default: %(default)s; 'none': no reference)")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default: %(default)s)")
     p.add_argument("--overwrite", action="store_true", help="discard the outputs of a run with other settings")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -260,6 +323,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("demos", "few", "perturbed_demos", "speed_demos", "dagger_episodes", "epochs", "seeds", "workers"):
         if getattr(args, name) < 1:
             p.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if any(seed < 0 for seed in args.train_seeds) or len(set(args.train_seeds)) != len(args.train_seeds):
+        p.error(f"--train-seeds must be distinct integers >= 0, got {args.train_seeds}")
     for name in ("dagger_rounds", "gain_copies", "first_seed"):
         if getattr(args, name) < 0:
             p.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
@@ -280,15 +345,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.max_steps is not None and args.max_steps < 1:
         p.error(f"--max-steps must be >= 1, got {args.max_steps}")
     reference = None
-    if args.reference != "none":
-        ref_path = Path(args.reference)
-        if not ref_path.is_file():
-            p.error(f"--reference: no such file {args.reference!r} (or 'none')")
-        ref = json.loads(ref_path.read_text())
-        if args.max_steps is None and ref.get("max_steps") is None and ref.get("seeds") != list(
-                range(args.first_seed, args.first_seed + args.seeds)):
-            print(f"note: --reference {args.reference} was measured on other seeds", file=sys.stderr)
-        reference = ref["results"]
+    if args.reference != ["none"]:
+        reference = {}
+        for f in args.reference:
+            if not Path(f).is_file():
+                p.error(f"--reference: no such file {f!r} (or 'none')")
+            ref = json.loads(Path(f).read_text())
+            if args.max_steps is None and ref.get("max_steps") is None and ref.get("seeds") != list(
+                    range(args.first_seed, args.first_seed + args.seeds)):
+                print(f"note: --reference {f} was measured on other seeds", file=sys.stderr)
+            for name, cells in ref["results"].items():
+                reference.setdefault(name, cells)
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -321,8 +388,8 @@ def main(argv: list[str] | None = None) -> int:
     t_data = time.perf_counter() - t0
     learners = train_learners(args, out, data)
     t_train = time.perf_counter() - t0 - t_data
-    policies = {name: {"kind": "dagger" if name.startswith("dagger") else "bc", "dir": info["dir"]}
-                for name, info in learners.items()}
+    policies = {label: {"kind": "dagger" if info["learner"].startswith("dagger") else "bc", "dir": info["dir"]}
+                for label, info in learners.items()}
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     _log(f"evaluating {len(policies)} learners x {len(args.conditions)} conditions x {len(seeds)} seeds")
     t1 = time.perf_counter()
@@ -330,6 +397,7 @@ def main(argv: list[str] | None = None) -> int:
     t_eval = time.perf_counter() - t1
     goals = goal_check({k: {c: v for c, v in cells.items()} for k, cells in results.items()}, reference,
                        args.conditions)
+    seeds_summary = over_seeds(results, learners, args.conditions)
     import os
 
     write_json(out / "imitation_robustness.json", {
@@ -339,8 +407,9 @@ def main(argv: list[str] | None = None) -> int:
         "wall_time_s": {"datasets": t_data, "training": t_train, "evaluation": t_eval,
                         "total": time.perf_counter() - t0},
         "load_average_at_end": list(os.getloadavg()), "workers": args.workers,
-        "goals": goals, "results": results})
-    table = markdown(results, reference, args.conditions, goals, command)
+        "goals": goals, "results": results, "over_seeds": seeds_summary})
+    table = markdown(results, reference, args.conditions, goals, command) + seeds_markdown(seeds_summary,
+                                                                                           args.conditions)
     with atomic_path(out / "imitation_robustness.md") as tmp:
         tmp.write_text(table)
     print("\n" + table)

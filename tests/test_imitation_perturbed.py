@@ -150,10 +150,12 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
     out = tmp_path / "run"
     argv = ["--out", str(out), "--demos", "1", "--few", "1", "--perturbed-demos", "2", "--speed-demos", "1",
             "--dagger-rounds", "1", "--dagger-episodes", "1", "--epochs", "1", "--seeds", "1", "--max-steps", "8",
-            "--learners", "bc", "dagger_perturbed", "bc_speed", "--conditions", "default", "speed_2.0", "--quiet"]
+            "--learners", "bc", "dagger_perturbed_queue", "bc_speed", "--conditions", "default", "speed_2.0",
+            "--quiet"]
     assert script.main(argv) == 0
     res = json.loads((out / "imitation_robustness.json").read_text())
-    assert set(res["results"]) == {"bc", "dagger_perturbed", "bc_speed"}
+    assert set(res["results"]) == {"bc", "dagger_perturbed_queue", "bc_speed"}
+    assert res["learners"]["dagger_perturbed_queue"]["config"]["bc"]["action_queue"] == script.QUEUE_SLOTS
     assert res["datasets"]["ds_perturbed"]["conditions"] == list(script.TRAIN_PERTURBATIONS)
     meta = json.loads((out / "ds_speeds" / "metadata.json").read_text())
     assert meta["episode_target_speeds"] == [0.5, 1.0, 1.5, 2.0]
@@ -161,8 +163,21 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
         assert cells["speed_2.0"]["target_speed"] == 2.0 and cells["default"]["episodes"] == 1
         assert res["goals"][label]["falls_beyond_mpc_plus_1"] == {}  # 8 steps: nobody falls
     table = (out / "imitation_robustness.md").read_text()
-    assert "| condition | mpc (ref.) | heuristic (ref.) | bc | dagger_perturbed | bc_speed |" in table
+    assert "| condition | mpc (ref.) | heuristic (ref.) | bc | dagger_perturbed_queue | bc_speed |" in table
     assert "* **bc_speed**: falls met; speed " in table
     assert script.main(argv) == 0  # reuses the datasets and the learners
+    # a second training seed: its own learners (NAME@seed1), and each learner's falls over the seeds
+    assert script.main(argv + ["--train-seeds", "0", "1"]) == 0
+    res = json.loads((out / "imitation_robustness.json").read_text())
+    learners = ("bc", "dagger_perturbed_queue", "bc_speed")
+    assert set(res["results"]) == {*learners, *(f"{n}@seed1" for n in learners)}
+    assert res["learners"]["bc@seed1"]["training_seed"] == 1
+    assert (out / "learners" / "bc@seed1" / "policy.npz").exists()
+    cells = res["over_seeds"]["bc"]["cells"]
+    assert cells["default"]["falls"] == [res["results"]["bc"]["default"]["falls"],
+                                         res["results"]["bc@seed1"]["default"]["falls"]]
+    assert "Over training seeds" in (out / "imitation_robustness.md").read_text()
+    with pytest.raises(SystemExit):
+        script.main(argv + ["--train-seeds", "1", "1"])
     with pytest.raises(SystemExit):
         script.main([a if a != "8" else "9" for a in argv])
