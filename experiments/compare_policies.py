@@ -40,7 +40,8 @@ TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summa
            "ppo": ("model.zip", "summary.json"), "sac": ("model.zip", "summary.json")}
 
 
-def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic"):
+def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
+          rl_checkpoint: str = "final"):
     """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
     import gymnasium as gym
 
@@ -83,7 +84,8 @@ def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic"):
     else:
         from hsddp_gym.learning.sb3 import load_trained_policy
 
-        policy = load_trained_policy(run_dir, env, deterministic=rl_actions == "deterministic")
+        policy = load_trained_policy(run_dir, env, deterministic=rl_actions == "deterministic",
+                                     checkpoint=rl_checkpoint)
         samples = f"{summary['steps']} env steps"
     return policy, None, {"samples": samples, "train_time_s": summary.get("wall_time_s"), "summary": summary}
 
@@ -229,6 +231,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rl-actions", choices=("deterministic", "stochastic"), default="deterministic",
                    help="ppo/sac: the mean action (the protocol) or draws of the policy's own distribution, as in "
                         "training, from a generator seeded at every episode (default: %(default)s)")
+    p.add_argument("--rl-checkpoint", choices=("final", "best"), default="final",
+                   help="ppo/sac: the weights at the end of training or the checkpoint of the best training-time "
+                        "evaluation (best_model.zip; its own seeds, not the protocol's) (default: %(default)s)")
     args = p.parse_args(argv)
     if args.episodes < 10:
         print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
@@ -248,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         evals, infos = [], []
         for d in dirs:
-            policy, options, info = build(name, d, args.rl_actions)
+            policy, options, info = build(name, d, args.rl_actions, args.rl_checkpoint)
             evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
                                                   reset_options=options))
             infos.append(info)
@@ -262,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
               f"({row['eval_wall_s']:.0f} s)", flush=True)
     limit = "" if args.max_episode_steps is None else f", time limit {args.max_episode_steps} steps"
     lines = [f"# Policies on hsddp_gym/Bounding-v0 ({args.episodes} episodes, seeds 0..{args.episodes - 1}, "
-             f"deterministic{limit}{'; ppo/sac: stochastic actions' if args.rl_actions == 'stochastic' else ''})",
+             f"deterministic{limit}{'; ppo/sac: stochastic actions' if args.rl_actions == 'stochastic' else ''}"
+             f"{'; ppo/sac: best checkpoint' if args.rl_checkpoint == 'best' else ''})",
              "",
              "| policy | return | training seeds | falls | forward speed [m/s] | episode length | learned from | "
              "training wall time (per seed) |", "|---|---|---|---|---|---|---|---|"]

@@ -436,6 +436,10 @@ def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
         assert "ppo/sac: stochastic actions" in (tmp_path / f"stoch{k}" / "compare.md").read_text()
         rerun.append(json.loads((tmp_path / f"stoch{k}" / "compare.json").read_text())["rows"][0]["mean_return"])
     assert rerun[0] == rerun[1] != rows["ppo"]["mean_return"]
+    # the best checkpoint of the training-time evaluations
+    assert compare.main(["--out", str(tmp_path / "best"), "--runs", str(runs), "--episodes", "2",
+                         "--max-episode-steps", "30", "--policies", "ppo", "--rl-checkpoint", "best"]) == 0
+    assert "ppo/sac: best checkpoint" in (tmp_path / "best" / "compare.md").read_text()
     assert all(r["episodes"] == 2 and r["mean_episode_length"] <= 30 for r in rows.values())
 
 
