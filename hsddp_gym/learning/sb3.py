@@ -604,8 +604,8 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
         env = gym.make(ENV_ID, **summary.get("env_kwargs", {}))
     hp = dict(summary["hyperparameters"])
     kw = _model_kwargs(hp)
-    kw.pop("learning_starts", None)
-    kw.pop("buffer_size", None)
+    for name in ("learning_starts", "buffer_size", "n_steps", "batch_size"):  # training only: the weights do not
+        kw.pop(name, None)  # depend on them (and a 2,048 batch over one env's 128 steps only raises SB3's warning)
     cls = PPO if algo == "ppo" else SAC
     extra = {"buffer_size": 1} if algo == "sac" else {}
     model = cls("MlpPolicy", env, device="cpu", **kw, **extra)
