@@ -180,63 +180,106 @@ def point_jacobian(pts, chain, jx, jz):
 
 
 @_jit
-def mass_matrix(p, pts, M, bjx, bjz):
-    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`; also fills the bodies' CoM
-    Jacobian rows ``bjx``, ``bjz`` (5, 7) that :func:`bias` and :func:`centroidal_rows` read."""
-    for i in range(7):
-        for j in range(7):
-            M[i, j] = 0.0
+def body_jacobians(pts, bjx, bjz):
+    """The bodies' CoM Jacobian rows ``bjx``, ``bjz`` (5, 7) (trunk, thigh_f, shank_f, thigh_b, shank_b) at the
+    points ``pts``; :func:`centroidal_rows` reads them."""
     for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        point_jacobian(pts, b, jx, jz)
-        link = _BODY_LINK[b]
-        m = p[P_MASS + link]
-        inertia = p[P_INERTIA + link]
-        n = _CHAIN_LEN[b]
-        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints (increasing)
-            da = a if a < 2 else _CHAIN_DOF[b, a - 2]
-            for c in range(a, n + 2):
-                dc = c if c < 2 else _CHAIN_DOF[b, c - 2]
-                M[da, dc] += m * (jx[da] * jx[dc] + jz[da] * jz[dc])
-        for a in range(n):
-            da = _CHAIN_DOF[b, a]
-            for c in range(a, n):
-                M[da, _CHAIN_DOF[b, c]] += inertia
-    for i in range(7):  # the products are symmetric: the lower triangle is the mirror, exactly
+        point_jacobian(pts, b, bjx[b], bjz[b])
+
+
+@_jit
+def _dot(pts, a, o1, o2):
+    """``(pts[a] - pts[o1]) . (pts[a] - pts[o2])`` (the lever arms of point ``a`` about two pivots)."""
+    return ((pts[a, 0] - pts[o1, 0]) * (pts[a, 0] - pts[o2, 0])
+            + (pts[a, 1] - pts[o1, 1]) * (pts[a, 1] - pts[o2, 1]))
+
+
+@_jit
+def mass_matrix(p, pts, M):
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`, in closed form: with body
+    CoM ``P``, mass ``m``, inertia ``I`` and joint pivots ``O``, ``M[x, j] = sum m (P_z - O_z)``,
+    ``M[z, j] = -sum m (P_x - O_x)``, ``M[j, k] = sum m (P - O_j).(P - O_k) + I`` over the bodies moved by
+    both joints (the front and back legs do not couple: those entries are 0)."""
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    i0, i1, i2 = p[P_INERTIA], p[P_INERTIA + 1], p[P_INERTIA + 2]
+    x0, z0 = pts[0, 0], pts[0, 1]
+    hx = m0 * (pts[1, 0] - x0)  # first moments about the trunk origin (the pitch pivot)
+    hz = m0 * (pts[1, 1] - z0)
+    mpp = m0 * _dot(pts, 1, 0, 0) + i0
+    for leg in range(2):
+        base = 2 + 5 * leg
+        hip, thigh, knee, shank = base, base + 1, base + 2, base + 3
+        jh, jk = 3 + 2 * leg, 4 + 2 * leg
+        hx += m1 * (pts[thigh, 0] - x0) + m2 * (pts[shank, 0] - x0)
+        hz += m1 * (pts[thigh, 1] - z0) + m2 * (pts[shank, 1] - z0)
+        M[0, jh] = m1 * (pts[thigh, 1] - pts[hip, 1]) + m2 * (pts[shank, 1] - pts[hip, 1])
+        M[1, jh] = -(m1 * (pts[thigh, 0] - pts[hip, 0]) + m2 * (pts[shank, 0] - pts[hip, 0]))
+        M[0, jk] = m2 * (pts[shank, 1] - pts[knee, 1])
+        M[1, jk] = -(m2 * (pts[shank, 0] - pts[knee, 0]))
+        M[2, jh] = m1 * _dot(pts, thigh, 0, hip) + i1 + m2 * _dot(pts, shank, 0, hip) + i2
+        M[2, jk] = m2 * _dot(pts, shank, 0, knee) + i2
+        M[jh, jh] = m1 * _dot(pts, thigh, hip, hip) + i1 + m2 * _dot(pts, shank, hip, hip) + i2
+        M[jh, jk] = m2 * _dot(pts, shank, hip, knee) + i2
+        M[jk, jk] = m2 * _dot(pts, shank, knee, knee) + i2
+        mpp += m1 * _dot(pts, thigh, 0, 0) + i1 + m2 * _dot(pts, shank, 0, 0) + i2
+    mtot = m0 + 2.0 * (m1 + m2)
+    M[0, 0] = mtot
+    M[0, 1] = 0.0
+    M[1, 1] = mtot
+    M[0, 2] = hz
+    M[1, 2] = -hx
+    M[2, 2] = mpp
+    for i in range(3, 5):
+        for j in range(5, 7):
+            M[i, j] = 0.0
+    for i in range(7):  # symmetric: the lower triangle is the mirror, exactly
         for j in range(i):
             M[i, j] = M[j, i]
 
 
 @_jit
-def bias(p, pts, v, out, bjx, bjz):
-    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``,
-    with the body Jacobians ``bjx``, ``bjz`` (5, 7) that :func:`mass_matrix` computed at the same points."""
-    w0 = v[2]
-    for i in range(7):
-        out[i] = 0.0
+def _moment(pts, a, o, fx, fz):
+    """``(pts[a] - pts[o]) x (fx, fz)`` in the plane (the generalized force of ``f`` at ``a`` on a revolute
+    joint with pivot ``o``: its Jacobian column ``(P_z - O_z, -(P_x - O_x))`` dotted with ``f``)."""
+    return (pts[a, 1] - pts[o, 1]) * fx - (pts[a, 0] - pts[o, 0]) * fz
+
+
+@_jit
+def bias(p, pts, v, out):
+    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``, in
+    closed form: ``b = sum J_P^T m (a_P + [0, g])`` with ``a_P = -sum_k w_k^2 s_k`` the acceleration of each
+    body CoM at zero joint accelerations (``s_k`` its chain's segments, ``w_k`` their absolute rates)."""
     g = p[P_GRAVITY]
-    for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        m = p[P_MASS + _BODY_LINK[b]]
-        n = _CHAIN_LEN[b]
-        pt = _CHAIN_POINT[b]
-        ax = 0.0
-        az = 0.0
-        rate = w0
-        for k in range(n):
-            o = _CHAIN_PIVOT[b, k]
-            nxt = _CHAIN_PIVOT[b, k + 1] if k + 1 < n else pt
-            if k > 0:
-                rate += v[_CHAIN_DOF[b, k]]
-            r2 = rate * rate
-            ax -= r2 * (pts[nxt, 0] - pts[o, 0])
-            az -= r2 * (pts[nxt, 1] - pts[o, 1])
-        fx = m * ax
-        fz = m * (az + g)
-        for i in range(7):
-            out[i] += jx[i] * fx + jz[i] * fz
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    x0, z0 = pts[0, 0], pts[0, 1]
+    w0 = v[2]
+    r0 = w0 * w0
+    fx = m0 * -(r0 * (pts[1, 0] - x0))  # the trunk CoM
+    fz = m0 * (-(r0 * (pts[1, 1] - z0)) + g)
+    bx, bz = fx, fz
+    bp = _moment(pts, 1, 0, fx, fz)
+    for leg in range(2):
+        base = 2 + 5 * leg
+        hip, thigh, knee, shank = base, base + 1, base + 2, base + 3
+        w1 = w0 + v[3 + 2 * leg]
+        w2 = w1 + v[4 + 2 * leg]
+        r1, r2 = w1 * w1, w2 * w2
+        hax = -(r0 * (pts[hip, 0] - x0))  # the hip's acceleration
+        haz = -(r0 * (pts[hip, 1] - z0))
+        tfx = m1 * (hax - r1 * (pts[thigh, 0] - pts[hip, 0]))
+        tfz = m1 * (haz - r1 * (pts[thigh, 1] - pts[hip, 1]) + g)
+        kax = hax - r1 * (pts[knee, 0] - pts[hip, 0])
+        kaz = haz - r1 * (pts[knee, 1] - pts[hip, 1])
+        sfx = m2 * (kax - r2 * (pts[shank, 0] - pts[knee, 0]))
+        sfz = m2 * (kaz - r2 * (pts[shank, 1] - pts[knee, 1]) + g)
+        bx += tfx + sfx
+        bz += tfz + sfz
+        bp += _moment(pts, thigh, 0, tfx, tfz) + _moment(pts, shank, 0, sfx, sfz)
+        out[3 + 2 * leg] = _moment(pts, thigh, hip, tfx, tfz) + _moment(pts, shank, hip, sfx, sfz)
+        out[4 + 2 * leg] = _moment(pts, shank, knee, sfx, sfz)
+    out[0] = bx
+    out[1] = bz
+    out[2] = bp
 
 
 @_jit
@@ -263,8 +306,9 @@ def kinetic_energy(M, v):
 @_jit
 def centroidal_rows(p, pts, P, bjx, bjz):
     """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
-    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts`` (body Jacobians from
-    :func:`mass_matrix` at the same points)."""
+    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts``; ``bjx``, ``bjz`` (5, 7) are
+    filled with the body Jacobians (:func:`body_jacobians`)."""
+    body_jacobians(pts, bjx, bjz)
     mtot = 0.0
     cx = 0.0
     cz = 0.0
@@ -623,13 +667,11 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     s_M = sc.M
     s_P = sc.P
     s_S = sc.S
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_c = sc.c
     s_pts = sc.pts
     s_rhs = sc.rhs
     s_zz = sc.zz
-    centroidal_rows(p, s_pts, s_P, s_bjx, s_bjz)
+    centroidal_rows(p, s_pts, s_P, sc.bjx, sc.bjz)
     cholesky7(s_M, s_Lm)
     cholesky_solve_rows(s_Lm, s_P, 3, s_BT)  # B = M^-1 P^T
     for a in range(3):
@@ -671,11 +713,9 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
 def mechanical_energy(p, x, sc):
     """``1/2 v^T M v + V`` [J] of one state (14,)."""
     s_M = sc.M
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_pts = sc.pts
     kinematics(p, x[:NQ], s_pts)
-    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    mass_matrix(p, s_pts, s_M)
     return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
 
 
@@ -705,8 +745,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
     s_S = sc.S
     s_acc = sc.acc
     s_best_lam = sc.best_lam
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_bvec = sc.bvec
     s_c = sc.c
     s_cfoot = sc.cfoot
@@ -757,7 +795,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
             total[i] = 0.0
         if finite and n > 0:
             kinematics(p, x[:NQ], s_pts)  # the energy at the start (mechanical_energy)
-            mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+            mass_matrix(p, s_pts, s_M)
             energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
             for _ in range(n):
                 for j in range(4):
@@ -773,9 +811,9 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 q = x[:NQ]
                 v = x[NQ:]
                 pts = s_pts
-                # s_pts, s_M, s_bjx, s_bjz hold the kinematics and inertia of q (computed at the end of the last
+                # s_pts, s_M hold the kinematics and inertia of q (computed at the end of the last
                 # step or for the energy at the start)
-                bias(p, pts, v, s_bvec, s_bjx, s_bjz)
+                bias(p, pts, v, s_bvec)
                 for i in range(7):
                     s_rhs7[i] = s_tau[i] - s_bvec[i]
                 cholesky7(s_M, s_Lm)
@@ -919,7 +957,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                             kinematics(p, q, s_pts)
                 else:
                     kinematics(p, q, s_pts)
-                mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+                mass_matrix(p, s_pts, s_M)
                 kinetic = kinetic_energy(s_M, v)
                 potential = potential_energy(p, s_pts)
                 tq = 0.0
