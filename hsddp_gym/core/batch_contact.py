@@ -340,57 +340,101 @@ def centroidal_rows(p, pts, P, bjx, bjz):
 
 
 @_jit
-def cholesky7(M, L):
-    """Lower Cholesky factor ``L`` of ``M`` (7, 7); False if ``M`` is not positive definite."""
-    for i in range(7):
-        for j in range(i + 1):
-            s = M[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0:
-                    return False
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-        for j in range(i + 1, 7):
-            L[i, j] = 0.0
+def tree_factor7(M, L, dinv):
+    """The sparse factorization ``M = L^T L`` (7, 7) of the joint-space inertia along the kinematic tree
+    ``x -> z -> pitch -> {hip -> knee} x 2`` (Featherstone's LTL, RBDA 6.5), eliminated from the leaves up:
+    ``L`` lower triangular, row ``k`` nonzero on ``k``'s ancestors only (no fill: the legs do not couple),
+    ``dinv`` (7,) ``1 / L[k, k]``. Reads the lower triangle of ``M``; the entries of ``L`` off the tree are not
+    written. False if ``M`` is not positive definite."""
+    b00, b10, b11, b20, b21, b22 = M[0, 0], M[1, 0], M[1, 1], M[2, 0], M[2, 1], M[2, 2]
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        d = M[k, k]
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        inv = 1.0 / d
+        L[k, k] = d
+        dinv[k] = inv
+        lkh, lk2, lk1, lk0 = M[k, h] * inv, M[k, 2] * inv, M[k, 1] * inv, M[k, 0] * inv
+        L[k, h], L[k, 2], L[k, 1], L[k, 0] = lkh, lk2, lk1, lk0
+        d = M[h, h] - lkh * lkh
+        if not d > 0.0:
+            return False
+        d = math.sqrt(d)
+        inv = 1.0 / d
+        L[h, h] = d
+        dinv[h] = inv
+        lh2, lh1, lh0 = (M[h, 2] - lkh * lk2) * inv, (M[h, 1] - lkh * lk1) * inv, (M[h, 0] - lkh * lk0) * inv
+        L[h, 2], L[h, 1], L[h, 0] = lh2, lh1, lh0
+        b22 -= lk2 * lk2 + lh2 * lh2
+        b21 -= lk2 * lk1 + lh2 * lh1
+        b20 -= lk2 * lk0 + lh2 * lh0
+        b11 -= lk1 * lk1 + lh1 * lh1
+        b10 -= lk1 * lk0 + lh1 * lh0
+        b00 -= lk0 * lk0 + lh0 * lh0
+    if not b22 > 0.0:
+        return False
+    d = math.sqrt(b22)
+    inv = 1.0 / d
+    L[2, 2] = d
+    dinv[2] = inv
+    l21, l20 = b21 * inv, b20 * inv
+    L[2, 1], L[2, 0] = l21, l20
+    b11 -= l21 * l21
+    b10 -= l21 * l20
+    b00 -= l20 * l20
+    if not b11 > 0.0:
+        return False
+    d = math.sqrt(b11)
+    inv = 1.0 / d
+    L[1, 1] = d
+    dinv[1] = inv
+    l10 = b10 * inv
+    L[1, 0] = l10
+    b00 -= l10 * l10
+    if not b00 > 0.0:
+        return False
+    d = math.sqrt(b00)
+    L[0, 0] = d
+    dinv[0] = 1.0 / d
     return True
 
 
 @_jit
-def cholesky_solve7(L, b, out):
-    """``out = M^-1 b`` (7,) from the factor of :func:`cholesky7`."""
-    for i in range(7):
-        s = b[i]
-        for k in range(i):
-            s -= L[i, k] * out[k]
-        out[i] = s / L[i, i]
-    for i in range(6, -1, -1):
-        s = out[i]
-        for k in range(i + 1, 7):
-            s -= L[k, i] * out[k]
-        out[i] = s / L[i, i]
+def tree_solve7(L, dinv, b, out):
+    """``out = M^-1 b`` (7,) from the factor of :func:`tree_factor7`: ``L^T y = b`` from the leaves up, then
+    ``L out = y`` from the root down (``out`` may not be ``b``)."""
+    c0, c1, c2 = b[0], b[1], b[2]
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        yk = b[k] * dinv[k]
+        yh = (b[h] - L[k, h] * yk) * dinv[h]
+        c2 -= L[k, 2] * yk + L[h, 2] * yh
+        c1 -= L[k, 1] * yk + L[h, 1] * yh
+        c0 -= L[k, 0] * yk + L[h, 0] * yh
+        out[h], out[k] = yh, yk
+    y2 = c2 * dinv[2]
+    c1 -= L[2, 1] * y2
+    c0 -= L[2, 0] * y2
+    y1 = c1 * dinv[1]
+    c0 -= L[1, 0] * y1
+    a0 = c0 * dinv[0] * dinv[0]
+    a1 = (y1 - L[1, 0] * a0) * dinv[1]
+    a2 = (y2 - L[2, 1] * a1 - L[2, 0] * a0) * dinv[2]
+    out[0], out[1], out[2] = a0, a1, a2
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        ah = (out[h] - L[h, 2] * a2 - L[h, 1] * a1 - L[h, 0] * a0) * dinv[h]
+        out[h] = ah
+        out[k] = (out[k] - L[k, h] * ah - L[k, 2] * a2 - L[k, 1] * a1 - L[k, 0] * a0) * dinv[k]
 
 
 @_jit
-def cholesky_solve_rows(L, R, m, out):
-    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7), from the factor of :func:`cholesky7`: the
-    operations of :func:`cholesky_solve7` row by row, interleaved (the divisions of different rows overlap)."""
-    for i in range(7):
-        d = L[i, i]
-        for r in range(m):
-            s = R[r, i]
-            for k in range(i):
-                s -= L[i, k] * out[r, k]
-            out[r, i] = s / d
-    for i in range(6, -1, -1):
-        d = L[i, i]
-        for r in range(m):
-            s = out[r, i]
-            for k in range(i + 1, 7):
-                s -= L[k, i] * out[r, k]
-            out[r, i] = s / d
+def tree_solve_rows(L, dinv, R, m, out):
+    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7) (:func:`tree_solve7` on each)."""
+    for r in range(m):
+        tree_solve7(L, dinv, R[r], out[r])
 
 
 # ------------------------------------------------------------------------------ small solves (contact.py's)
@@ -636,13 +680,12 @@ def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, best_lam, w, A, rhs, zz, L, 
 
 # ------------------------------------------------------------------------------ scratch space
 _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
-    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
+    "pts": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
     "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
-    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,),
-    "e7": (7,),
+    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,),
 }
 _INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -672,8 +715,8 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     s_rhs = sc.rhs
     s_zz = sc.zz
     centroidal_rows(p, s_pts, s_P, sc.bjx, sc.bjz)
-    cholesky7(s_M, s_Lm)
-    cholesky_solve_rows(s_Lm, s_P, 3, s_BT)  # B = M^-1 P^T
+    tree_factor7(s_M, s_Lm, sc.dinv)
+    tree_solve_rows(s_Lm, sc.dinv, s_P, 3, s_BT)  # B = M^-1 P^T
     for a in range(3):
         for j in range(7):
             s_B[j, a] = s_BT[a, j]
@@ -746,6 +789,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
     s_acc = sc.acc
     s_best_lam = sc.best_lam
     s_bvec = sc.bvec
+    s_dinv = sc.dinv
     s_c = sc.c
     s_cfoot = sc.cfoot
     s_cols_c = sc.cols_c
@@ -759,7 +803,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
     s_jz = sc.jz
     s_lam = sc.lam
     s_pts = sc.pts
-    s_pts_old = sc.pts_old
     s_q_old = sc.q_old
     s_rhs = sc.rhs
     s_rhs7 = sc.rhs7
@@ -816,8 +859,8 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 bias(p, pts, v, s_bvec)
                 for i in range(7):
                     s_rhs7[i] = s_tau[i] - s_bvec[i]
-                cholesky7(s_M, s_Lm)
-                cholesky_solve7(s_Lm, s_rhs7, s_acc)
+                tree_factor7(s_M, s_Lm, s_dinv)
+                tree_solve7(s_Lm, s_dinv, s_rhs7, s_acc)
                 vf = s_vf
                 for i in range(7):
                     vf[i] = s_acc[i] * h + v[i]
@@ -825,16 +868,14 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 cfoot, cphi = s_cfoot, s_cphi
                 ncand = 0
                 for foot in range(2):
-                    point_jacobian(pts, 5 + foot, s_jx, s_jz)
                     phi = pts[_FOOT_POINT[foot], 1]
-                    for j in range(7):
-                        s_fjx[foot, j] = s_jx[j]
-                        s_fjz[foot, j] = s_jz[j]
                     if phi > p[P_FAR]:
                         continue
+                    fjz = s_fjz[foot]
+                    point_jacobian(pts, 5 + foot, s_fjx[foot], fjz)  # the foot's rows, kept for the LCP
                     wn = 0.0
                     for j in range(7):
-                        wn += s_jz[j] * vf[j]
+                        wn += fjz[j] * vf[j]
                     if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
                         cfoot[ncand] = foot
                         cphi[ncand] = phi
@@ -853,7 +894,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         for j in range(7):
                             s_jc[2 * i, j] = s_fjz[foot, j]
                             s_jc[2 * i + 1, j] = s_fjx[foot, j]
-                    cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
+                    tree_solve_rows(s_Lm, s_dinv, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
                     for r in range(m):
                         for s in range(m):
                             acc = 0.0
@@ -892,9 +933,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 # energy-consistent end of the step (ContactSimulator._finish_consistent)
                 for i in range(7):
                     s_q_old[i] = q[i]
-                for i in range(12):
-                    s_pts_old[i, 0] = pts[i, 0]
-                    s_pts_old[i, 1] = pts[i, 1]
                 for i in range(7):
                     q[i] += v[i] * h
                 if ncand > 0:
@@ -904,8 +942,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         foot = cfoot[i]
                         st = states[foot]
                         if st == STICK:
-                            fp = _FOOT_POINT[foot]
-                            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, step start
+                            jz_pitch = s_fjz[foot, 2]  # LWA z row, pitch column, at the step's start
                             tfoot[nt] = foot
                             taxis[nt] = 0
                             tval[nt] = s_q_old[0] - jz_pitch
@@ -937,7 +974,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                                 row = s_jx if taxis[a] == 0 else s_jz
                                 for j in range(7):
                                     s_Jr[a, j] = row[j]
-                            cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                            tree_solve_rows(s_Lm, s_dinv, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
                             for a in range(nt):
                                 for j in range(7):
                                     s_B[j, a] = s_BT[a, j]
@@ -986,7 +1023,8 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
 
         for _ in range(n):
             sim_time[ir] += h
-        kinematics(p, x[:NQ], s_pts)
+        if not (finite and n > 0):  # else s_pts holds the kinematics of the last step's q (computed for M)
+            kinematics(p, x[:NQ], s_pts)
         heights[ir, 0] = s_pts[6, 1]
         heights[ir, 1] = s_pts[11, 1]
 
