@@ -125,12 +125,45 @@ def kernel_params(sim: ContactSimulator) -> np.ndarray:
     return p
 
 
+# sincos: fdlibm's polynomial kernels of sin and cos on |r| <= pi/4 (k_sin.c, k_cos.c) after a Cody-Waite
+# reduction by pi/2 (pi/2 = _PIO2_1 + _PIO2_1T, _PIO2_1 with 33 significant bits: k * _PIO2_1 is exact)
+_TWO_OVER_PI = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e+00
+_PIO2_1T = 6.07710050650619224932e-11
+_SINCOS_MAX = 1e5  # beyond (and for inf, nan): libm
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@_jit
+def sincos(a):
+    """``(sin a, cos a)`` inline (the kernel's angles: about half the cost of libm's ``sincos`` call), accurate to
+    about an ulp for ``|a| < 1e5`` (libm's ``sin``, ``cos`` beyond)."""
+    if not abs(a) < _SINCOS_MAX:
+        return math.sin(a), math.cos(a)
+    k = math.floor(a * _TWO_OVER_PI + 0.5)  # the nearest multiple of pi/2
+    r = (a - k * _PIO2_1) - k * _PIO2_1T
+    z = r * r
+    sr = r + (z * r) * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    cr = 1.0 - (0.5 * z - (z * z) * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    quadrant = int(k) & 3
+    if quadrant == 0:
+        return sr, cr
+    if quadrant == 1:
+        return cr, -sr
+    if quadrant == 2:
+        return -sr, -cr
+    return -cr, sr
+
+
 # ------------------------------------------------------------------------------ kinematics and dynamics
 @_jit
 def kinematics(p, q, pts):
     """World (x, z) of the 12 points (12, 2) for configuration ``q`` (7,)."""
     x, z, th0 = q[0], q[1], q[2]
-    c0, s0 = math.cos(th0), math.sin(th0)
+    s0, c0 = sincos(th0)
     pts[0, 0] = x
     pts[0, 1] = z
     cz = p[P_COMZ]
@@ -144,7 +177,7 @@ def kinematics(p, q, pts):
         pts[base, 0] = hipx
         pts[base, 1] = hipz
         th1 = th0 + q[3 + 2 * leg]
-        c1, s1 = math.cos(th1), math.sin(th1)
+        s1, c1 = sincos(th1)
         pts[base + 1, 0] = hipx + s1 * p[P_COMZ + 1]
         pts[base + 1, 1] = hipz + c1 * p[P_COMZ + 1]
         lt = -p[P_THIGH_LENGTH]
@@ -153,7 +186,7 @@ def kinematics(p, q, pts):
         pts[base + 2, 0] = kx
         pts[base + 2, 1] = kz
         th2 = th1 + q[4 + 2 * leg]
-        c2, s2 = math.cos(th2), math.sin(th2)
+        s2, c2 = sincos(th2)
         pts[base + 3, 0] = kx + s2 * p[P_COMZ + 2]
         pts[base + 3, 1] = kz + c2 * p[P_COMZ + 2]
         ls = -p[P_SHANK_LENGTH]
