@@ -122,6 +122,36 @@ def _fill_obs(o, xr, front, back, cycles, low, high, skip):
             o[i] = low[i]
 
 
+@numba.njit(cache=True)
+def _reset_row(i, ok, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
+               x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
+    """The bookkeeping of BoundingEnv.reset for robot ``i`` whose start state is ``x[i]``, in one compiled call:
+    clock, foot states, counters cleared; ``ok`` whether the state is valid; ``front``, ``back`` its foot heights
+    (a foot at most RESET_CONTACT_HEIGHT high is in contact; NaN for an invalid state: no contact); ``cycles`` the
+    gait phase of ``t0``; the observation."""
+    lcp_states[i, 0] = SEPARATE
+    lcp_states[i, 1] = SEPARATE
+    sim_time[i] = 0.0
+    t0s[i] = t0
+    elapsed[i] = 0
+    valid[i] = ok
+    heights[i, 0] = front
+    heights[i, 1] = back
+    contact[i, 0] = front <= RESET_CONTACT_HEIGHT
+    contact[i, 1] = back <= RESET_CONTACT_HEIGHT
+    for j in range(NGRF):
+        grf[i, j] = 0.0
+        impulse[i, j] = 0.0
+    x_velocity[i] = x[i, NQ]
+    for j in range(3):
+        rewards3[i, j] = 0.0
+    reward[i] = 0.0
+    terminated[i] = False
+    truncated[i] = False
+    autoreset[i] = False
+    _fill_obs(obs[i], x[i], contact[i, 0], contact[i, 1], cycles, low, high, skip)
+
+
 class BoundingVectorEnv(VectorEnv):
     """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one :class:`gymnasium.vector.VectorEnv`.
 
@@ -296,31 +326,12 @@ class BoundingVectorEnv(VectorEnv):
             if lowest < 0.0:
                 x[IZ] -= lowest
         self._x[i] = x
-        self._lcp_states[i] = SEPARATE
-        self._sim_time[i] = 0.0
-        self._t0[i] = t0
-        self._elapsed[i] = 0
         valid = bool((np.abs(x) <= self._bounds).all())
-        self._valid[i] = valid
-        if valid:
-            front, back = self._foot_heights(x[:NQ])
-            self._heights[i, 0] = front
-            self._heights[i, 1] = back
-            self._contact[i, 0] = front <= RESET_CONTACT_HEIGHT
-            self._contact[i, 1] = back <= RESET_CONTACT_HEIGHT
-        else:  # pragma: no cover - a checked reset state is always valid
-            self._heights[i] = np.nan
-            self._contact[i] = False
-        self._grf[i] = 0.0
-        self._impulse[i] = 0.0
-        self._x_velocity[i] = x[NQ]
-        self._rewards3[i] = 0.0
-        self._reward[i] = 0.0
-        self._terminated[i] = False
-        self._truncated[i] = False
-        self._autoreset[i] = False
-        _fill_obs(self._obs[i], self._x[i], self._contact[i, 0], self._contact[i, 1],
-                  t0 / template.gait_period, self._low, self._high, self._skip)
+        front, back = self._foot_heights(x[:NQ]) if valid else (np.nan, np.nan)
+        _reset_row(i, valid, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
+                   self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
+                   self._x_velocity, self._rewards3, self._reward, self._terminated, self._truncated,
+                   self._autoreset, self._obs, self._low, self._high, self._skip)
 
     def _parse_options(self, options) -> tuple:
         n = self.num_envs
