@@ -374,93 +374,83 @@ def centroidal_rows(p, pts, P, bjx, bjz):
 
 @_jit
 def tree_factor7(M, L, dinv):
-    """The sparse factorization ``M = L^T L`` (7, 7) of the joint-space inertia along the kinematic tree
-    ``x -> z -> pitch -> {hip -> knee} x 2`` (Featherstone's LTL, RBDA 6.5), eliminated from the leaves up:
-    ``L`` lower triangular, row ``k`` nonzero on ``k``'s ancestors only (no fill: the legs do not couple),
-    ``dinv`` (7,) ``1 / L[k, k]``. Reads the lower triangle of ``M``; the entries of ``L`` off the tree are not
-    written. False if ``M`` is not positive definite."""
+    """The sparse factorization ``M = L^T D L`` (7, 7) of the joint-space inertia along the kinematic tree
+    ``x -> z -> pitch -> {hip -> knee} x 2`` (Featherstone's LTDL, RBDA 6.5), eliminated from the leaves up:
+    ``L`` unit lower triangular, row ``k`` nonzero on ``k``'s ancestors only (no fill: the legs do not couple;
+    its diagonal is not stored), ``dinv`` (7,) ``1 / D``. Reads the lower triangle of ``M``; the entries of ``L``
+    off the tree are not written. False if ``M`` is not positive definite."""
     b00, b10, b11, b20, b21, b22 = M[0, 0], M[1, 0], M[1, 1], M[2, 0], M[2, 1], M[2, 2]
     for leg in range(2):
         h, k = 3 + 2 * leg, 4 + 2 * leg
         d = M[k, k]
         if not d > 0.0:
             return False
-        d = math.sqrt(d)
         inv = 1.0 / d
-        L[k, k] = d
         dinv[k] = inv
-        lkh, lk2, lk1, lk0 = M[k, h] * inv, M[k, 2] * inv, M[k, 1] * inv, M[k, 0] * inv
+        ah, a2, a1, a0 = M[k, h], M[k, 2], M[k, 1], M[k, 0]
+        lkh, lk2, lk1, lk0 = ah * inv, a2 * inv, a1 * inv, a0 * inv
         L[k, h], L[k, 2], L[k, 1], L[k, 0] = lkh, lk2, lk1, lk0
-        d = M[h, h] - lkh * lkh
+        d = M[h, h] - lkh * ah
         if not d > 0.0:
             return False
-        d = math.sqrt(d)
         inv = 1.0 / d
-        L[h, h] = d
         dinv[h] = inv
-        lh2, lh1, lh0 = (M[h, 2] - lkh * lk2) * inv, (M[h, 1] - lkh * lk1) * inv, (M[h, 0] - lkh * lk0) * inv
+        c2, c1, c0 = M[h, 2] - lkh * a2, M[h, 1] - lkh * a1, M[h, 0] - lkh * a0
+        lh2, lh1, lh0 = c2 * inv, c1 * inv, c0 * inv
         L[h, 2], L[h, 1], L[h, 0] = lh2, lh1, lh0
-        b22 -= lk2 * lk2 + lh2 * lh2
-        b21 -= lk2 * lk1 + lh2 * lh1
-        b20 -= lk2 * lk0 + lh2 * lh0
-        b11 -= lk1 * lk1 + lh1 * lh1
-        b10 -= lk1 * lk0 + lh1 * lh0
-        b00 -= lk0 * lk0 + lh0 * lh0
+        b22 -= lk2 * a2 + lh2 * c2
+        b21 -= lk2 * a1 + lh2 * c1
+        b20 -= lk2 * a0 + lh2 * c0
+        b11 -= lk1 * a1 + lh1 * c1
+        b10 -= lk1 * a0 + lh1 * c0
+        b00 -= lk0 * a0 + lh0 * c0
     if not b22 > 0.0:
         return False
-    d = math.sqrt(b22)
-    inv = 1.0 / d
-    L[2, 2] = d
+    inv = 1.0 / b22
     dinv[2] = inv
     l21, l20 = b21 * inv, b20 * inv
     L[2, 1], L[2, 0] = l21, l20
-    b11 -= l21 * l21
-    b10 -= l21 * l20
-    b00 -= l20 * l20
+    b11 -= l21 * b21
+    b10 -= l21 * b20
+    b00 -= l20 * b20
     if not b11 > 0.0:
         return False
-    d = math.sqrt(b11)
-    inv = 1.0 / d
-    L[1, 1] = d
+    inv = 1.0 / b11
     dinv[1] = inv
     l10 = b10 * inv
     L[1, 0] = l10
-    b00 -= l10 * l10
+    b00 -= l10 * b10
     if not b00 > 0.0:
         return False
-    d = math.sqrt(b00)
-    L[0, 0] = d
-    dinv[0] = 1.0 / d
+    dinv[0] = 1.0 / b00
     return True
 
 
 @_jit
 def tree_solve7(L, dinv, b, out):
     """``out = M^-1 b`` (7,) from the factor of :func:`tree_factor7`: ``L^T y = b`` from the leaves up, then
-    ``L out = y`` from the root down (``out`` may not be ``b``)."""
+    ``L out = D^-1 y`` from the root down (``out`` may not be ``b``)."""
     c0, c1, c2 = b[0], b[1], b[2]
     for leg in range(2):
         h, k = 3 + 2 * leg, 4 + 2 * leg
-        yk = b[k] * dinv[k]
-        yh = (b[h] - L[k, h] * yk) * dinv[h]
+        yk = b[k]
+        yh = b[h] - L[k, h] * yk
         c2 -= L[k, 2] * yk + L[h, 2] * yh
         c1 -= L[k, 1] * yk + L[h, 1] * yh
         c0 -= L[k, 0] * yk + L[h, 0] * yh
-        out[h], out[k] = yh, yk
-    y2 = c2 * dinv[2]
-    c1 -= L[2, 1] * y2
-    c0 -= L[2, 0] * y2
-    y1 = c1 * dinv[1]
-    c0 -= L[1, 0] * y1
-    a0 = c0 * dinv[0] * dinv[0]
-    a1 = (y1 - L[1, 0] * a0) * dinv[1]
-    a2 = (y2 - L[2, 1] * a1 - L[2, 0] * a0) * dinv[2]
+        out[h], out[k] = yh * dinv[h], yk * dinv[k]
+    c1 -= L[2, 1] * c2
+    c0 -= L[2, 0] * c2
+    c0 -= L[1, 0] * c1
+    a0 = c0 * dinv[0]
+    a1 = c1 * dinv[1] - L[1, 0] * a0
+    a2 = c2 * dinv[2] - L[2, 1] * a1 - L[2, 0] * a0
     out[0], out[1], out[2] = a0, a1, a2
     for leg in range(2):
         h, k = 3 + 2 * leg, 4 + 2 * leg
-        ah = (out[h] - L[h, 2] * a2 - L[h, 1] * a1 - L[h, 0] * a0) * dinv[h]
+        ah = out[h] - L[h, 2] * a2 - L[h, 1] * a1 - L[h, 0] * a0
         out[h] = ah
-        out[k] = (out[k] - L[k, h] * ah - L[k, 2] * a2 - L[k, 1] * a1 - L[k, 0] * a0) * dinv[k]
+        out[k] = out[k] - L[k, h] * ah - L[k, 2] * a2 - L[k, 1] * a1 - L[k, 0] * a0
 
 
 @_jit
