@@ -213,14 +213,6 @@ def point_jacobian(pts, chain, jx, jz):
 
 
 @_jit
-def body_jacobians(pts, bjx, bjz):
-    """The bodies' CoM Jacobian rows ``bjx``, ``bjz`` (5, 7) (trunk, thigh_f, shank_f, thigh_b, shank_b) at the
-    points ``pts``; :func:`centroidal_rows` reads them."""
-    for b in range(5):
-        point_jacobian(pts, b, bjx[b], bjz[b])
-
-
-@_jit
 def _dot(pts, a, o1, o2):
     """``(pts[a] - pts[o1]) . (pts[a] - pts[o2])`` (the lever arms of point ``a`` about two pivots)."""
     return ((pts[a, 0] - pts[o1, 0]) * (pts[a, 0] - pts[o2, 0])
@@ -326,50 +318,31 @@ def potential_energy(p, pts):
 
 @_jit
 def kinetic_energy(M, v):
-    """``1/2 v^T M v`` [J]."""
-    e = 0.0
+    """``1/2 v^T M v`` [J] over the nonzeros of :func:`mass_matrix` (``M[x, z]`` and the legs' cross terms are
+    0): the diagonal plus twice the upper triangle."""
+    d = 0.0
     for i in range(7):
-        s = 0.0
-        for j in range(7):
-            s += M[i, j] * v[j]
-        e += v[i] * s
-    return 0.5 * e
+        d += M[i, i] * v[i] * v[i]
+    off = v[0] * (M[0, 2] * v[2] + M[0, 3] * v[3] + M[0, 4] * v[4] + M[0, 5] * v[5] + M[0, 6] * v[6])
+    off += v[1] * (M[1, 2] * v[2] + M[1, 3] * v[3] + M[1, 4] * v[4] + M[1, 5] * v[5] + M[1, 6] * v[6])
+    off += v[2] * (M[2, 3] * v[3] + M[2, 4] * v[4] + M[2, 5] * v[5] + M[2, 6] * v[6])
+    off += v[3] * M[3, 4] * v[4] + v[5] * M[5, 6] * v[6]
+    return 0.5 * d + off
 
 
 @_jit
-def centroidal_rows(p, pts, P, bjx, bjz):
-    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
-    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts``; ``bjx``, ``bjz`` (5, 7) are
-    filled with the body Jacobians (:func:`body_jacobians`)."""
-    body_jacobians(pts, bjx, bjz)
-    mtot = 0.0
-    cx = 0.0
-    cz = 0.0
-    for b in range(5):
-        m = p[P_MASS + _BODY_LINK[b]]
-        pt = _CHAIN_POINT[b]
-        mtot += m
-        cx += m * pts[pt, 0]
-        cz += m * pts[pt, 1]
-    cx /= mtot
-    cz /= mtot
-    for r in range(3):
-        for j in range(7):
-            P[r, j] = 0.0
-    for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        link = _BODY_LINK[b]
-        m = p[P_MASS + link]
-        pt = _CHAIN_POINT[b]
-        rx = pts[pt, 0] - cx
-        rz = pts[pt, 1] - cz
-        for j in range(7):
-            P[0, j] += m * jx[j]
-            P[1, j] += m * jz[j]
-            P[2, j] += m * (rz * jx[j] - rx * jz[j])
-        for k in range(_CHAIN_LEN[b]):
-            P[2, _CHAIN_DOF[b, k]] += p[P_INERTIA + link]
+def centroidal_rows(M, P):
+    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map (3, 7)
+    (``pin.computeCentroidalMap`` rows 0, 2, 4), from the joint-space inertia ``M`` (7, 7) of the same
+    configuration: the linear rows are ``M``'s x and z rows (the total mass times the CoM Jacobian); the pitch
+    row is the angular momentum about the trunk origin, from which the moment of the linear momentum about the
+    CoM offset ``c - o = (-M[1, 2], M[0, 2]) / M[0, 0]`` is taken."""
+    rz = M[0, 2] / M[0, 0]
+    rx = -M[1, 2] / M[0, 0]
+    for j in range(7):
+        P[0, j] = M[0, j]
+        P[1, j] = M[1, j]
+        P[2, j] = M[2, j] - rz * M[0, j] + rx * M[1, j]
 
 
 @_jit
@@ -708,7 +681,7 @@ _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
-    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,),
+    "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,),
 }
 _INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -737,7 +710,7 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     s_pts = sc.pts
     s_rhs = sc.rhs
     s_zz = sc.zz
-    centroidal_rows(p, s_pts, s_P, sc.bjx, sc.bjz)
+    centroidal_rows(s_M, s_P)
     tree_factor7(s_M, s_Lm, sc.dinv)
     tree_solve_rows(s_Lm, sc.dinv, s_P, 3, s_BT)  # B = M^-1 P^T
     for a in range(3):
