@@ -254,6 +254,7 @@ class BoundingVectorEnv(VectorEnv):
         """Per robot ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]`` since creation
         (:data:`hsddp_gym.core.batch_contact.COUNTER_NAMES`)."""
         self._scratch = batch_contact.kernel_scratch()
+        self._model_cache = batch_contact.model_cache(n)
         self._obs = np.zeros((n, template.observation_layout.size), dtype=np.float32)
         self._reward = np.zeros(n)
         self._terminated = np.zeros(n, dtype=np.bool_)
@@ -427,7 +428,7 @@ class BoundingVectorEnv(VectorEnv):
         stepped = self._stepped
         batch_contact.step_batch(self._p, self._x, self._u, self.template.frame_skip, stepped, self._lcp_states,
                                  self._contact, self._impulse, self._sim_time, self._heights, self.counters,
-                                 self._scratch)
+                                 self._model_cache, self._scratch)
         n_done = _finish(self._x, self._x_before, self._values, self._contact, self._heights, self._impulse,
                          self._t0, self._sim_time, stepped, self._env_p, self._bounds, self._low, self._high,
                          self._skip, self._obs, self._reward, self._terminated, self._valid, self._x_velocity,

@@ -95,6 +95,17 @@ _MAX_PROJECTION_ITERATIONS = 6
 _BASE_ORDER = np.array([STICK, SLIDE_POS, SLIDE_NEG, SEPARATE])
 
 COUNTER_NAMES = ("lcp_fallbacks", "energy_projections", "momentum_fallbacks", "energy_deficits")
+# a robot's model cache (row of the (N, MODEL_CACHE_SIZE) array of step_batch): the configuration q, its 12
+# points and its mass matrix, as the robot's last step left them
+_CACHE_Q = 0
+_CACHE_PTS = NQ
+_CACHE_M = NQ + 24
+MODEL_CACHE_SIZE = NQ + 24 + 49
+
+
+def model_cache(n: int) -> np.ndarray:
+    """An empty model cache for ``n`` robots (n, MODEL_CACHE_SIZE): NaN configurations, which match no state."""
+    return np.full((n, MODEL_CACHE_SIZE), np.nan)
 
 
 def kernel_params(sim: ContactSimulator) -> np.ndarray:
@@ -759,14 +770,48 @@ def mechanical_energy(p, x, sc):
 
 
 @_jit
+def _load_model(p, q, cache, pts, M):
+    """The points ``pts`` (12, 2) and mass matrix ``M`` (7, 7) of configuration ``q`` (7,): copied from the robot's
+    ``cache`` (MODEL_CACHE_SIZE,) when it holds this very ``q`` (the state the robot's last step left, untouched
+    since), else computed (:func:`kinematics`, :func:`mass_matrix`; the same numbers either way)."""
+    for i in range(NQ):
+        if not cache[_CACHE_Q + i] == q[i]:
+            kinematics(p, q, pts)
+            mass_matrix(p, pts, M)
+            return
+    for i in range(12):
+        pts[i, 0] = cache[_CACHE_PTS + 2 * i]
+        pts[i, 1] = cache[_CACHE_PTS + 2 * i + 1]
+    for i in range(7):
+        for j in range(7):
+            M[i, j] = cache[_CACHE_M + 7 * i + j]
+
+
+@_jit
+def _store_model(q, pts, M, cache):
+    """Keep ``q`` (7,), its points ``pts`` (12, 2) and mass matrix ``M`` (7, 7) in the robot's ``cache``."""
+    for i in range(NQ):
+        cache[_CACHE_Q + i] = q[i]
+    for i in range(12):
+        cache[_CACHE_PTS + 2 * i] = pts[i, 0]
+        cache[_CACHE_PTS + 2 * i + 1] = pts[i, 1]
+    for i in range(7):
+        for j in range(7):
+            cache[_CACHE_M + 7 * i + j] = M[i, j]
+
+
+@_jit
 def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,
-               counters_batch, sc):
+               counters_batch, cache_batch, sc):
     """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
     untouched): ``x_batch (N, 14)`` in place, ``u_batch (N, 4)`` commanded joint torques (ContactSimulator.run:
     the motor law every step, the energy taken at the start), ``states_batch (N, 2)``, ``contact_batch (N, 2)``,
     ``impulse_batch (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step, accumulated
     like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps, ``counters_batch (N, 4)``
-    (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
+    (see the module docstring), ``cache_batch (N, MODEL_CACHE_SIZE)`` each robot's model cache (:func:`model_cache`:
+    the points and mass matrix its last step ended with, reused when the next call starts from the same
+    configuration, as it does unless the caller moved the robot; the parameters ``p`` must stay the same),
+    ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
     (NaN heights, no impulse); the caller ends their episodes.
 
     One function for the whole batch (ContactSimulator._step, _finish_consistent and _project_positions
@@ -833,8 +878,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
         for i in range(4):
             total[i] = 0.0
         if finite and n > 0:
-            kinematics(p, x[:NQ], s_pts)  # the energy at the start (mechanical_energy)
-            mass_matrix(p, s_pts, s_M)
+            _load_model(p, x[:NQ], cache_batch[ir], s_pts, s_M)  # the energy at the start (mechanical_energy)
             energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
             for _ in range(n):
                 for j in range(4):
@@ -1019,7 +1063,9 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
 
         for _ in range(n):
             sim_time[ir] += h
-        if not (finite and n > 0):  # else s_pts holds the kinematics of the last step's q (computed for M)
+        if finite and n > 0:  # s_pts, s_M hold the kinematics and inertia of the last step's q
+            _store_model(x[:NQ], s_pts, s_M, cache_batch[ir])
+        else:
             kinematics(p, x[:NQ], s_pts)
         heights[ir, 0] = s_pts[6, 1]
         heights[ir, 1] = s_pts[11, 1]
@@ -1031,7 +1077,7 @@ def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
     impulses, ``counters`` (4,) int64 (all updated in place)."""
     step_batch(p, x.reshape(1, NX), np.asarray(u, dtype=np.float64).reshape(1, 4), int(n), np.ones(1, dtype=np.bool_),
                states.reshape(1, 2), contact.reshape(1, 2), total.reshape(1, 4), np.zeros(1), np.zeros((1, 2)),
-               counters.reshape(1, 4), sc)
+               counters.reshape(1, 4), model_cache(1), sc)
 
 
 _READY = False
@@ -1081,7 +1127,7 @@ def warm_up(announce: bool = True) -> float:
         x[:, 1] = 0.5
         step_batch(p, x, np.zeros((n, 4)), 1, np.ones(n, dtype=np.bool_), np.zeros((n, 2), dtype=np.int64),
                    np.zeros((n, 2), dtype=np.bool_), np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)),
-                   np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+                   np.zeros((n, 4), dtype=np.int64), model_cache(n), kernel_scratch())
     finally:
         if timer is not None:
             timer.cancel()
@@ -1140,6 +1186,7 @@ class CompiledContactSimulator(ContactSimulator):
         self._time_b = np.zeros(1)
         self._heights_b = np.zeros((1, 2))
         self._counters_b = np.zeros((1, 4), dtype=np.int64)
+        self._cache_b = model_cache(1)
         self._active = np.ones(1, dtype=np.bool_)
         self._heights_valid = False
         super().__init__(robot, timestep=timestep, friction=friction, gravity=gravity,
@@ -1214,6 +1261,6 @@ class CompiledContactSimulator(ContactSimulator):
         """
         self._u[:] = u
         step_batch(self._p, self._xb, self._ub, n, self._active, self._states_b, self._contact_b, self._total_b,
-                   self._time_b, self._heights_b, self._counters_b, self._sc)
+                   self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
         self._heights_valid = True
         return self._total
