@@ -123,12 +123,19 @@ def _fill_obs(o, xr, front, back, cycles, low, high, skip):
 
 
 @numba.njit(cache=True)
-def _reset_row(i, ok, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
+def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
                x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
     """The bookkeeping of BoundingEnv.reset for robot ``i`` whose start state is ``x[i]``, in one compiled call:
-    clock, foot states, counters cleared; ``ok`` whether the state is valid; ``front``, ``back`` its foot heights
-    (a foot at most RESET_CONTACT_HEIGHT high is in contact; NaN for an invalid state: no contact); ``cycles`` the
-    gait phase of ``t0``; the observation."""
+    clock, foot states, counters cleared; the state valid when inside ``bounds`` (14,); ``front``, ``back`` its
+    foot heights (a foot at most RESET_CONTACT_HEIGHT high is in contact; an invalid state has NaN heights and no
+    contact); ``cycles`` the gait phase of ``t0``; the observation."""
+    ok = True
+    for j in range(NX):
+        if not abs(x[i, j]) <= bounds[j]:
+            ok = False
+    if not ok:  # pragma: no cover - a checked reset state is always valid
+        front = np.nan
+        back = np.nan
     lcp_states[i, 0] = SEPARATE
     lcp_states[i, 1] = SEPARATE
     sim_time[i] = 0.0
@@ -327,9 +334,8 @@ class BoundingVectorEnv(VectorEnv):
             if lowest < 0.0:
                 x[IZ] -= lowest
         self._x[i] = x
-        valid = bool((np.abs(x) <= self._bounds).all())
-        front, back = self._foot_heights(x[:NQ]) if valid else (np.nan, np.nan)
-        _reset_row(i, valid, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
+        front, back = self._foot_heights(x[:NQ])  # x is finite: checked, or the noisy default
+        _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
                    self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
                    self._x_velocity, self._rewards3, self._reward, self._terminated, self._truncated,
                    self._autoreset, self._obs, self._low, self._high, self._skip)
