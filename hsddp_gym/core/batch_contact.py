@@ -58,7 +58,7 @@ from hsddp_gym.core.contact import (
 )
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
 
-_jit = numba.njit(cache=True, error_model="numpy")
+_jit = numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
 """numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
 checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`)."""
 
