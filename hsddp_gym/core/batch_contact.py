@@ -231,10 +231,24 @@ def point_jacobian(pts, chain, jx, jz):
 
 
 @_jit
-def _dot(pts, a, o1, o2):
-    """``(pts[a] - pts[o1]) . (pts[a] - pts[o2])`` (the lever arms of point ``a`` about two pivots)."""
-    return ((pts[a, 0] - pts[o1, 0]) * (pts[a, 0] - pts[o2, 0])
-            + (pts[a, 1] - pts[o1, 1]) * (pts[a, 1] - pts[o2, 1]))
+def _leg_inertia(m1, m2, i1, i2, x0, z0, hx, hz, tx, tz, kx, kz, sx, sz):
+    """One leg's terms of :func:`mass_matrix`, from the trunk origin ``(x0, z0)``, the hip ``(hx, hz)``, thigh
+    CoM ``(tx, tz)``, knee ``(kx, kz)`` and shank CoM ``(sx, sz)`` (scalars, so that nothing is reloaded):
+    ``(M[x, hip], M[z, hip], M[x, knee], M[z, knee], M[pitch, hip], M[pitch, knee], M[hip, hip], M[hip, knee],
+    M[knee, knee], the leg's share of M[pitch, pitch], its first moments about the trunk origin (x, z))``."""
+    thx, thz = tx - hx, tz - hz  # the lever arms: thigh CoM about the hip, shank CoM about hip and knee,
+    shx, shz = sx - hx, sz - hz  # both CoMs about the trunk origin
+    skx, skz = sx - kx, sz - kz
+    tox, toz = tx - x0, tz - z0
+    sox, soz = sx - x0, sz - z0
+    return (m1 * thz + m2 * shz, -(m1 * thx + m2 * shx), m2 * skz, -(m2 * skx),
+            m1 * (tox * thx + toz * thz) + i1 + m2 * (sox * shx + soz * shz) + i2,
+            m2 * (sox * skx + soz * skz) + i2,
+            m1 * (thx * thx + thz * thz) + i1 + m2 * (shx * shx + shz * shz) + i2,
+            m2 * (shx * skx + shz * skz) + i2,
+            m2 * (skx * skx + skz * skz) + i2,
+            m1 * (tox * tox + toz * toz) + i1 + m2 * (sox * sox + soz * soz) + i2,
+            m1 * tox + m2 * sox, m1 * toz + m2 * soz)
 
 
 @_jit
@@ -246,83 +260,78 @@ def mass_matrix(p, pts, M):
     m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
     i0, i1, i2 = p[P_INERTIA], p[P_INERTIA + 1], p[P_INERTIA + 2]
     x0, z0 = pts[0, 0], pts[0, 1]
-    hx = m0 * (pts[1, 0] - x0)  # first moments about the trunk origin (the pitch pivot)
-    hz = m0 * (pts[1, 1] - z0)
-    mpp = m0 * _dot(pts, 1, 0, 0) + i0
-    for leg in range(2):
-        base = 2 + 5 * leg
-        hip, thigh, knee, shank = base, base + 1, base + 2, base + 3
-        jh, jk = 3 + 2 * leg, 4 + 2 * leg
-        hx += m1 * (pts[thigh, 0] - x0) + m2 * (pts[shank, 0] - x0)
-        hz += m1 * (pts[thigh, 1] - z0) + m2 * (pts[shank, 1] - z0)
-        M[0, jh] = m1 * (pts[thigh, 1] - pts[hip, 1]) + m2 * (pts[shank, 1] - pts[hip, 1])
-        M[1, jh] = -(m1 * (pts[thigh, 0] - pts[hip, 0]) + m2 * (pts[shank, 0] - pts[hip, 0]))
-        M[0, jk] = m2 * (pts[shank, 1] - pts[knee, 1])
-        M[1, jk] = -(m2 * (pts[shank, 0] - pts[knee, 0]))
-        M[2, jh] = m1 * _dot(pts, thigh, 0, hip) + i1 + m2 * _dot(pts, shank, 0, hip) + i2
-        M[2, jk] = m2 * _dot(pts, shank, 0, knee) + i2
-        M[jh, jh] = m1 * _dot(pts, thigh, hip, hip) + i1 + m2 * _dot(pts, shank, hip, hip) + i2
-        M[jh, jk] = m2 * _dot(pts, shank, hip, knee) + i2
-        M[jk, jk] = m2 * _dot(pts, shank, knee, knee) + i2
-        mpp += m1 * _dot(pts, thigh, 0, 0) + i1 + m2 * _dot(pts, shank, 0, 0) + i2
+    cx, cz = pts[1, 0] - x0, pts[1, 1] - z0  # the trunk CoM about the trunk origin (the pitch pivot)
+    front = _leg_inertia(m1, m2, i1, i2, x0, z0, pts[2, 0], pts[2, 1], pts[3, 0], pts[3, 1], pts[4, 0], pts[4, 1],
+                         pts[5, 0], pts[5, 1])
+    back = _leg_inertia(m1, m2, i1, i2, x0, z0, pts[7, 0], pts[7, 1], pts[8, 0], pts[8, 1], pts[9, 0], pts[9, 1],
+                        pts[10, 0], pts[10, 1])
+    for i in range(7):
+        for j in range(7):
+            M[i, j] = 0.0
     mtot = m0 + 2.0 * (m1 + m2)
     M[0, 0] = mtot
-    M[0, 1] = 0.0
     M[1, 1] = mtot
-    M[0, 2] = hz
-    M[1, 2] = -hx
-    M[2, 2] = mpp
-    for i in range(3, 5):
-        for j in range(5, 7):
-            M[i, j] = 0.0
+    M[0, 2] = m0 * cz + front[11] + back[11]
+    M[1, 2] = -(m0 * cx + front[10] + back[10])
+    M[2, 2] = m0 * (cx * cx + cz * cz) + i0 + front[9] + back[9]
+    for leg in range(2):
+        e = front if leg == 0 else back
+        jh, jk = 3 + 2 * leg, 4 + 2 * leg
+        M[0, jh], M[1, jh], M[0, jk], M[1, jk] = e[0], e[1], e[2], e[3]
+        M[2, jh], M[2, jk] = e[4], e[5]
+        M[jh, jh], M[jh, jk], M[jk, jk] = e[6], e[7], e[8]
     for i in range(7):  # symmetric: the lower triangle is the mirror, exactly
         for j in range(i):
             M[i, j] = M[j, i]
 
 
 @_jit
-def _moment(pts, a, o, fx, fz):
-    """``(pts[a] - pts[o]) x (fx, fz)`` in the plane (the generalized force of ``f`` at ``a`` on a revolute
-    joint with pivot ``o``: its Jacobian column ``(P_z - O_z, -(P_x - O_x))`` dotted with ``f``)."""
-    return (pts[a, 1] - pts[o, 1]) * fx - (pts[a, 0] - pts[o, 0]) * fz
+def _leg_bias(m1, m2, g, r0, x0, z0, w1, w2, hx, hz, tx, tz, kx, kz, sx, sz):
+    """One leg's terms of :func:`bias` from scalars (the trunk origin, hip, thigh CoM, knee, shank CoM; ``r0``
+    the trunk's squared rate, ``w1``, ``w2`` the thigh's and shank's absolute rates): ``(sum of its forces x,
+    z, their moment about the trunk origin, b[hip], b[knee])``."""
+    r1, r2 = w1 * w1, w2 * w2
+    hax = -(r0 * (hx - x0))  # the hip's acceleration
+    haz = -(r0 * (hz - z0))
+    tfx = m1 * (hax - r1 * (tx - hx))  # the thigh's and the shank's m (a + [0, g])
+    tfz = m1 * (haz - r1 * (tz - hz) + g)
+    kax = hax - r1 * (kx - hx)
+    kaz = haz - r1 * (kz - hz)
+    sfx = m2 * (kax - r2 * (sx - kx))
+    sfz = m2 * (kaz - r2 * (sz - kz) + g)
+    moment0 = ((tz - z0) * tfx - (tx - x0) * tfz) + ((sz - z0) * sfx - (sx - x0) * sfz)
+    hip = ((tz - hz) * tfx - (tx - hx) * tfz) + ((sz - hz) * sfx - (sx - hx) * sfz)
+    knee = (sz - kz) * sfx - (sx - kx) * sfz
+    return tfx + sfx, tfz + sfz, moment0, hip, knee
 
 
 @_jit
 def bias(p, pts, v, out):
     """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``, in
     closed form: ``b = sum J_P^T m (a_P + [0, g])`` with ``a_P = -sum_k w_k^2 s_k`` the acceleration of each
-    body CoM at zero joint accelerations (``s_k`` its chain's segments, ``w_k`` their absolute rates)."""
+    body CoM at zero joint accelerations (``s_k`` its chain's segments, ``w_k`` their absolute rates); a body's
+    generalized force on a revolute joint with pivot ``O`` is the moment ``(P - O) x f``."""
     g = p[P_GRAVITY]
     m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
     x0, z0 = pts[0, 0], pts[0, 1]
     w0 = v[2]
     r0 = w0 * w0
-    fx = m0 * -(r0 * (pts[1, 0] - x0))  # the trunk CoM
-    fz = m0 * (-(r0 * (pts[1, 1] - z0)) + g)
-    bx, bz = fx, fz
-    bp = _moment(pts, 1, 0, fx, fz)
-    for leg in range(2):
-        base = 2 + 5 * leg
-        hip, thigh, knee, shank = base, base + 1, base + 2, base + 3
-        w1 = w0 + v[3 + 2 * leg]
-        w2 = w1 + v[4 + 2 * leg]
-        r1, r2 = w1 * w1, w2 * w2
-        hax = -(r0 * (pts[hip, 0] - x0))  # the hip's acceleration
-        haz = -(r0 * (pts[hip, 1] - z0))
-        tfx = m1 * (hax - r1 * (pts[thigh, 0] - pts[hip, 0]))
-        tfz = m1 * (haz - r1 * (pts[thigh, 1] - pts[hip, 1]) + g)
-        kax = hax - r1 * (pts[knee, 0] - pts[hip, 0])
-        kaz = haz - r1 * (pts[knee, 1] - pts[hip, 1])
-        sfx = m2 * (kax - r2 * (pts[shank, 0] - pts[knee, 0]))
-        sfz = m2 * (kaz - r2 * (pts[shank, 1] - pts[knee, 1]) + g)
-        bx += tfx + sfx
-        bz += tfz + sfz
-        bp += _moment(pts, thigh, 0, tfx, tfz) + _moment(pts, shank, 0, sfx, sfz)
-        out[3 + 2 * leg] = _moment(pts, thigh, hip, tfx, tfz) + _moment(pts, shank, hip, sfx, sfz)
-        out[4 + 2 * leg] = _moment(pts, shank, knee, sfx, sfz)
-    out[0] = bx
-    out[1] = bz
-    out[2] = bp
+    cx, cz = pts[1, 0] - x0, pts[1, 1] - z0  # the trunk CoM
+    fx = m0 * -(r0 * cx)
+    fz = m0 * (-(r0 * cz) + g)
+    w1f = w0 + v[3]
+    w1b = w0 + v[5]
+    front = _leg_bias(m1, m2, g, r0, x0, z0, w1f, w1f + v[4], pts[2, 0], pts[2, 1], pts[3, 0], pts[3, 1],
+                      pts[4, 0], pts[4, 1], pts[5, 0], pts[5, 1])
+    back = _leg_bias(m1, m2, g, r0, x0, z0, w1b, w1b + v[6], pts[7, 0], pts[7, 1], pts[8, 0], pts[8, 1],
+                     pts[9, 0], pts[9, 1], pts[10, 0], pts[10, 1])
+    out[0] = fx + front[0] + back[0]
+    out[1] = fz + front[1] + back[1]
+    out[2] = (cz * fx - cx * fz) + front[2] + back[2]
+    out[3] = front[3]
+    out[4] = front[4]
+    out[5] = back[3]
+    out[6] = back[4]
 
 
 @_jit
