@@ -123,6 +123,15 @@ def _fill_obs(o, xr, front, back, cycles, low, high, skip):
 
 
 @numba.njit(cache=True)
+def _noisy_state(init, uniform, scale, normal, x):
+    """``x`` (14,) = the start state ``init`` (14,) plus the reset noise (BoundingEnv.reset's arithmetic): ``uniform``
+    (7,) added to the positions, ``scale * normal`` (7,) to the velocities."""
+    for j in range(NQ):
+        x[j] = init[j] + uniform[j]
+        x[NQ + j] = init[NQ + j] + scale * normal[j]
+
+
+@numba.njit(cache=True)
 def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
                x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
     """The bookkeeping of BoundingEnv.reset for robot ``i`` whose start state is ``x[i]``, in one compiled call:
@@ -322,18 +331,16 @@ class BoundingVectorEnv(VectorEnv):
         template = self.template
         if seed is not None:
             self._rngs[i], self._rng_seeds[i] = seeding.np_random(seed)
+        x = self._x[i]
         if state is not None:
-            x = state
+            x[:] = state
         else:
             rng = self._rng(i)
-            x = template.init_state.copy()
             s = template.reset_noise_scale
-            x[:NQ] += rng.uniform(low=-s, high=s, size=NQ)
-            x[NQ:] += s * rng.standard_normal(NQ)
+            _noisy_state(template.init_state, rng.uniform(low=-s, high=s, size=NQ), s, rng.standard_normal(NQ), x)
             lowest = min(self._foot_heights(x[:NQ]))
             if lowest < 0.0:
                 x[IZ] -= lowest
-        self._x[i] = x
         front, back = self._foot_heights(x[:NQ])  # x is finite: checked, or the noisy default
         _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
                    self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
