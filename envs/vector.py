@@ -27,6 +27,7 @@ _RESET_OPTION_KEYS = ("state", "time", "reset_mask")
 INFO_KEYS = ("x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
              "grf", "qpos", "qvel", "time", "invalid_state")
 """The batched ``info`` keys (each with its ``_key`` mask): the single env's keys, one row per robot."""
+_MASK_KEYS = tuple("_" + key for key in INFO_KEYS)
 
 
 @numba.njit(cache=True)
@@ -334,14 +335,16 @@ class BoundingVectorEnv(VectorEnv):
         x = self._x[i]
         if state is not None:
             x[:] = state
+            front, back = self._foot_heights(x[:NQ])  # x is finite: checked
         else:
             rng = self._rng(i)
             s = template.reset_noise_scale
             _noisy_state(template.init_state, rng.uniform(low=-s, high=s, size=NQ), s, rng.standard_normal(NQ), x)
-            lowest = min(self._foot_heights(x[:NQ]))
+            front, back = self._foot_heights(x[:NQ])
+            lowest = min(front, back)
             if lowest < 0.0:
                 x[IZ] -= lowest
-        front, back = self._foot_heights(x[:NQ])  # x is finite: checked, or the noisy default
+                front, back = self._foot_heights(x[:NQ])  # of the lifted state (as the single env's)
         _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
                    self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
                    self._x_velocity, self._rewards3, self._reward, self._terminated, self._truncated,
@@ -493,8 +496,7 @@ class BoundingVectorEnv(VectorEnv):
         }
         masks = np.empty((len(INFO_KEYS), self.num_envs), dtype=np.bool_)
         masks[:] = mask  # one fresh array, a row (view) per key
-        for key, row in zip(INFO_KEYS, masks):
-            info["_" + key] = row
+        info.update(zip(_MASK_KEYS, masks))
         return info
 
     def close_extras(self, **kwargs) -> None:
