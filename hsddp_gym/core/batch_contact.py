@@ -94,7 +94,6 @@ _CHAIN_POINT = np.array([1, 3, 5, 8, 10, 6, 11])
 _CHAIN_LEN = np.array([1, 2, 3, 2, 3, 3, 3])
 _CHAIN_PIVOT = np.array([[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 7, 0], [0, 7, 9], [0, 2, 4], [0, 7, 9]])
 _CHAIN_DOF = np.array([[2, 0, 0], [2, 3, 0], [2, 3, 4], [2, 5, 0], [2, 5, 6], [2, 3, 4], [2, 5, 6]])
-_BODY_LINK = np.array([0, 1, 2, 1, 2])  # index into the mass / com / inertia triples
 _TOL_V = 1e-9
 _TOL_L = 1e-12
 _MAX_PROJECTION_ITERATIONS = 6
@@ -336,10 +335,9 @@ def bias(p, pts, v, out):
 
 @_jit
 def potential_energy(p, pts):
-    """``sum m g z_com`` [J] at the points ``pts``."""
-    e = 0.0
-    for b in range(5):
-        e += p[P_MASS + _BODY_LINK[b]] * pts[_CHAIN_POINT[b], 1]
+    """``sum m g z_com`` [J] at the points ``pts`` (the trunk, thigh and shank CoMs, front then back)."""
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    e = m0 * pts[1, 1] + m1 * pts[3, 1] + m2 * pts[5, 1] + m1 * pts[8, 1] + m2 * pts[10, 1]
     return e * p[P_GRAVITY]
 
 
@@ -894,8 +892,11 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
         for i in range(4):
             total[i] = 0.0
         if finite and n > 0:
-            _load_model(p, x[:NQ], cache_batch[ir], s_pts, s_M)  # the energy at the start (mechanical_energy)
-            energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+            q = x[:NQ]
+            v = x[NQ:]
+            pts = s_pts
+            _load_model(p, q, cache_batch[ir], s_pts, s_M)  # the energy at the start (mechanical_energy)
+            energy = kinetic_energy(s_M, v) + potential_energy(p, s_pts)
             for _ in range(n):
                 for j in range(4):
                     uj = u[j]
@@ -907,9 +908,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                                 uj = cap if uj > 0.0 else -cap
                     s_tau[3 + j] = uj
                 # ---- one step of h (ContactSimulator._step and _finish_consistent)
-                q = x[:NQ]
-                v = x[NQ:]
-                pts = s_pts
                 # s_pts, s_M hold the kinematics and inertia of q (computed at the end of the last
                 # step or for the energy at the start)
                 bias(p, pts, v, s_bvec)
