@@ -9,6 +9,7 @@ import numbers
 
 import numba
 import numpy as np
+import pinocchio as pin
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -26,20 +27,47 @@ _RESET_OPTION_KEYS = ("state", "time", "reset_mask")
 INFO_KEYS = ("x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
              "grf", "qpos", "qvel", "time", "invalid_state")
 """The batched ``info`` keys (each with its ``_key`` mask): the single env's keys, one row per robot."""
+_MASK_KEYS = tuple("_" + key for key in INFO_KEYS)
+
+
+@numba.njit(cache=True)
+def _prepare(actions, values, u, limit, x, x_before, autoreset, next_step, stepped):
+    """The per-robot work before a step (BoundingEnv.step's action handling), in one compiled pass: ``values (N, 4)``
+    the actions ``actions (N, 4)`` (any real dtype) as float64 clipped to [-1, 1], ``u (N, 4)`` = ``values * limit``
+    the commanded torques, ``x_before (N,)`` the trunk x of ``x (N, 14)``, ``stepped (N,)`` the robots to step (all,
+    or those not autoreset in NEXT_STEP mode, ``autoreset (N,)``). Returns the first robot with a non-finite
+    action (the caller raises), or -1."""
+    for r in range(actions.shape[0]):
+        for j in range(NU):
+            a = np.float64(actions[r, j])
+            if not math.isfinite(a):
+                return r
+            values[r, j] = 1.0 if a > 1.0 else (-1.0 if a < -1.0 else a)  # the single env's clip
+            u[r, j] = values[r, j] * limit
+        x_before[r] = x[r, 0]
+        stepped[r] = not (next_step and autoreset[r])
+    return -1
 
 
 @numba.njit(cache=True)
 def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, stepped, env_p, bounds, low, high, skip,
-            obs, reward, terminated, valid, x_velocity, grf, rewards3):
-    """Observation, reward, termination of the robots with ``stepped[r]`` after their step (BoundingEnv.step).
+            obs, reward, terminated, valid, x_velocity, grf, rewards3, elapsed, max_steps, truncated, done):
+    """Observation, reward, termination of the robots with ``stepped[r]`` after their step (BoundingEnv.step), and
+    the episode bookkeeping of every robot: ``elapsed (N,)`` steps (+1 if stepped), ``truncated (N,)`` (a stepped
+    robot at ``max_steps``; ``max_steps`` < 0: no limit), ``done (N,)`` = stepped and (terminated or truncated).
 
     ``env_p`` = ``[dt, target_speed, tracking_sigma, forward_w, ctrl_w, healthy_w, terminate_when_unhealthy,
     zlo, zhi, plo, phi, gait_period]``; ``bounds (14,)`` the valid-state bounds; ``low``, ``high`` the float32
-    observation box; ``values (N, 4)`` the clipped actions."""
+    observation box; ``values (N, 4)`` the clipped actions. Returns the number of robots done."""
     dt = env_p[0]
+    n_done = 0
     for r in range(x.shape[0]):
+        truncated[r] = False
+        done[r] = False
         if not stepped[r]:
             continue
+        elapsed[r] += 1
+        truncated[r] = max_steps >= 0 and elapsed[r] >= max_steps
         xr = x[r]
         ok = True
         for i in range(NX):
@@ -66,7 +94,10 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
         rewards3[r, 2] = alive
         reward[r] = fwd + ctrl + alive
         terminated[r] = (not ok) or (env_p[6] != 0.0 and not healthy)
+        done[r] = terminated[r] or truncated[r]
+        n_done += done[r]
         _fill_obs(obs[r], xr, contact[r, 0], contact[r, 1], (t0[r] + sim_time[r]) / env_p[11], low, high, skip)
+    return n_done
 
 
 @numba.njit(cache=True)
@@ -90,6 +121,52 @@ def _fill_obs(o, xr, front, back, cycles, low, high, skip):
             o[i] = high[i]
         elif o[i] < low[i]:
             o[i] = low[i]
+
+
+@numba.njit(cache=True)
+def _noisy_state(init, uniform, scale, normal, x):
+    """``x`` (14,) = the start state ``init`` (14,) plus the reset noise (BoundingEnv.reset's arithmetic): ``uniform``
+    (7,) added to the positions, ``scale * normal`` (7,) to the velocities."""
+    for j in range(NQ):
+        x[j] = init[j] + uniform[j]
+        x[NQ + j] = init[NQ + j] + scale * normal[j]
+
+
+@numba.njit(cache=True)
+def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
+               x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
+    """The bookkeeping of BoundingEnv.reset for robot ``i`` whose start state is ``x[i]``, in one compiled call:
+    clock, foot states, counters cleared; the state valid when inside ``bounds`` (14,); ``front``, ``back`` its
+    foot heights (a foot at most RESET_CONTACT_HEIGHT high is in contact; an invalid state has NaN heights and no
+    contact); ``cycles`` the gait phase of ``t0``; the observation."""
+    ok = True
+    for j in range(NX):
+        if not abs(x[i, j]) <= bounds[j]:
+            ok = False
+    if not ok:  # pragma: no cover - a checked reset state is always valid
+        front = np.nan
+        back = np.nan
+    lcp_states[i, 0] = SEPARATE
+    lcp_states[i, 1] = SEPARATE
+    sim_time[i] = 0.0
+    t0s[i] = t0
+    elapsed[i] = 0
+    valid[i] = ok
+    heights[i, 0] = front
+    heights[i, 1] = back
+    contact[i, 0] = front <= RESET_CONTACT_HEIGHT
+    contact[i, 1] = back <= RESET_CONTACT_HEIGHT
+    for j in range(NGRF):
+        grf[i, j] = 0.0
+        impulse[i, j] = 0.0
+    x_velocity[i] = x[i, NQ]
+    for j in range(3):
+        rewards3[i, j] = 0.0
+    reward[i] = 0.0
+    terminated[i] = False
+    truncated[i] = False
+    autoreset[i] = False
+    _fill_obs(obs[i], x[i], contact[i, 0], contact[i, 1], cycles, low, high, skip)
 
 
 class BoundingVectorEnv(VectorEnv):
@@ -194,6 +271,7 @@ class BoundingVectorEnv(VectorEnv):
         """Per robot ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]`` since creation
         (:data:`hsddp_gym.core.batch_contact.COUNTER_NAMES`)."""
         self._scratch = batch_contact.kernel_scratch()
+        self._model_cache = batch_contact.model_cache(n)
         self._obs = np.zeros((n, template.observation_layout.size), dtype=np.float32)
         self._reward = np.zeros(n)
         self._terminated = np.zeros(n, dtype=np.bool_)
@@ -204,6 +282,9 @@ class BoundingVectorEnv(VectorEnv):
         self._rewards3 = np.zeros((n, 3))
         self._x_before = np.zeros(n)
         self._elapsed = np.zeros(n, dtype=np.int64)
+        self._max_steps = -1 if max_episode_steps is None else max_episode_steps
+        self._done = np.zeros(n, dtype=np.bool_)
+        self._autoreset_pending = False
         self._autoreset = np.zeros(n, dtype=np.bool_)
         self._stepped = np.zeros(n, dtype=np.bool_)
         self._all = np.ones(n, dtype=np.bool_)
@@ -237,46 +318,37 @@ class BoundingVectorEnv(VectorEnv):
             return list(seed)
         raise TypeError(f"seed must be None, an int or a list of num_envs ints, got {type(seed).__name__}")
 
+    def _foot_heights(self, q: np.ndarray) -> tuple[float, float]:
+        """``template.robot.foot_heights(q)`` (Pinocchio, the same numbers) unchecked, as two floats ``(front,
+        back)``: the single env's ``foot_heights_fast`` on the template's simulator."""
+        sim = self.template.sim
+        model, data = sim.model, sim.data
+        pin.forwardKinematics(model, data, q)
+        return (float(pin.updateFramePlacement(model, data, sim._fids[0]).translation[2]),
+                float(pin.updateFramePlacement(model, data, sim._fids[1]).translation[2]))
+
     def _reset_one(self, i: int, seed, state, t0: float) -> None:
         """BoundingEnv.reset for robot ``i`` (state: a checked (14,) array or None)."""
         template = self.template
         if seed is not None:
             self._rngs[i], self._rng_seeds[i] = seeding.np_random(seed)
+        x = self._x[i]
         if state is not None:
-            x = state
+            x[:] = state
+            front, back = self._foot_heights(x[:NQ])  # x is finite: checked
         else:
             rng = self._rng(i)
-            x = template.init_state.copy()
             s = template.reset_noise_scale
-            x[:NQ] += rng.uniform(low=-s, high=s, size=NQ)
-            x[NQ:] += s * rng.standard_normal(NQ)
-            lowest = float(template.robot.foot_heights(x[:NQ]).min())
+            _noisy_state(template.init_state, rng.uniform(low=-s, high=s, size=NQ), s, rng.standard_normal(NQ), x)
+            front, back = self._foot_heights(x[:NQ])
+            lowest = min(front, back)
             if lowest < 0.0:
                 x[IZ] -= lowest
-        self._x[i] = x
-        self._lcp_states[i] = SEPARATE
-        self._sim_time[i] = 0.0
-        self._t0[i] = t0
-        self._elapsed[i] = 0
-        valid = bool((np.abs(x) <= self._bounds).all())
-        self._valid[i] = valid
-        if valid:
-            heights = template.robot.foot_heights(x[:NQ])
-            self._heights[i] = heights
-            self._contact[i] = heights <= RESET_CONTACT_HEIGHT
-        else:  # pragma: no cover - a checked reset state is always valid
-            self._heights[i] = np.nan
-            self._contact[i] = False
-        self._grf[i] = 0.0
-        self._impulse[i] = 0.0
-        self._x_velocity[i] = x[NQ]
-        self._rewards3[i] = 0.0
-        self._reward[i] = 0.0
-        self._terminated[i] = False
-        self._truncated[i] = False
-        self._autoreset[i] = False
-        _fill_obs(self._obs[i], self._x[i], self._contact[i, 0], self._contact[i, 1],
-                  t0 / template.gait_period, self._low, self._high, self._skip)
+                front, back = self._foot_heights(x[:NQ])  # of the lifted state (as the single env's)
+        _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
+                   self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
+                   self._x_velocity, self._rewards3, self._reward, self._terminated, self._truncated,
+                   self._autoreset, self._obs, self._low, self._high, self._skip)
 
     def _parse_options(self, options) -> tuple:
         n = self.num_envs
@@ -345,18 +417,19 @@ class BoundingVectorEnv(VectorEnv):
         return self._obs.copy(), self._info()
 
     # ------------------------------------------------------------------ step
-    def _check_actions(self, actions) -> np.ndarray:
+    def _check_actions(self, actions) -> None:
+        """Check the actions (real, shape (num_envs, 4), finite: else TypeError / ValueError naming the robots) and
+        load them (:func:`_prepare`: clipped values, torques, the trunk x before the step, the robots to step)."""
         a = actions if isinstance(actions, np.ndarray) else np.asarray(actions)
         if a.dtype.kind not in "fiu":
             raise TypeError(f"actions must be real numbers, got dtype {a.dtype}")
         if a.shape != (self.num_envs, NU):
             raise ValueError(f"actions must have shape ({self.num_envs}, {NU}), got {a.shape}")
-        values = a.astype(np.float64)
-        if not np.isfinite(values).all():
+        if _prepare(a, self._values, self._u, self.template.torque_limit, self._x, self._x_before, self._autoreset,
+                    self.autoreset_mode == AutoresetMode.NEXT_STEP, self._stepped) >= 0:
+            values = a.astype(np.float64)
             bad = sorted({int(r) for r in np.nonzero(~np.isfinite(values))[0]})
             raise ValueError(f"actions must be finite; robot(s) {bad} got non-finite entries")
-        np.clip(values, -1.0, 1.0, out=values)
-        return values
 
     def step(self, actions):
         """Step every robot (an autoreset robot is reset instead, NEXT_STEP mode); see the class docstring.
@@ -366,34 +439,25 @@ class BoundingVectorEnv(VectorEnv):
         """
         if self._needs_reset:
             raise RuntimeError("BoundingVectorEnv.step() called before reset()")
-        values = self._check_actions(actions)
+        self._check_actions(actions)
         next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
         stepped = self._stepped
-        if next_step:
-            np.logical_not(self._autoreset, out=stepped)
-        else:
-            stepped[:] = True
-        self._values[:] = values
-        np.multiply(values, self.template.torque_limit, out=self._u)
-        self._x_before[:] = self._x[:, 0]
         batch_contact.step_batch(self._p, self._x, self._u, self.template.frame_skip, stepped, self._lcp_states,
                                  self._contact, self._impulse, self._sim_time, self._heights, self.counters,
-                                 self._scratch)
-        _finish(self._x, self._x_before, self._values, self._contact, self._heights, self._impulse, self._t0,
-                self._sim_time, stepped, self._env_p, self._bounds, self._low, self._high, self._skip, self._obs,
-                self._reward, self._terminated, self._valid, self._x_velocity, self._grf, self._rewards3)
-        self._elapsed[stepped] += 1
-        if self.max_episode_steps is not None:
-            self._truncated[:] = stepped & (self._elapsed >= self.max_episode_steps)
-        else:
-            self._truncated[:] = False
-        done = (self._terminated | self._truncated) & stepped  # a robot reset in this step did not end
+                                 self._model_cache, self._scratch)
+        n_done = _finish(self._x, self._x_before, self._values, self._contact, self._heights, self._impulse,
+                         self._t0, self._sim_time, stepped, self._env_p, self._bounds, self._low, self._high,
+                         self._skip, self._obs, self._reward, self._terminated, self._valid, self._x_velocity,
+                         self._grf, self._rewards3, self._elapsed, self._max_steps, self._truncated, self._done)
+        done = self._done  # a robot reset in this step did not end
         final = None
         if next_step:
-            for i in np.nonzero(~stepped)[0]:
-                self._reset_one(int(i), None, None, 0.0)  # clears reward, terminated, truncated
+            if self._autoreset_pending:
+                for i in np.nonzero(~stepped)[0]:
+                    self._reset_one(int(i), None, None, 0.0)  # clears reward, terminated, truncated
             self._autoreset[:] = done
-        elif done.any():
+            self._autoreset_pending = n_done > 0
+        elif n_done:
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.nonzero(done)[0]:
                 final_obs[i] = self._obs[i].copy()
@@ -430,8 +494,9 @@ class BoundingVectorEnv(VectorEnv):
             "time": self._t0 + self._sim_time,
             "invalid_state": ~valid,
         }
-        for key in INFO_KEYS:
-            info["_" + key] = mask.copy()
+        masks = np.empty((len(INFO_KEYS), self.num_envs), dtype=np.bool_)
+        masks[:] = mask  # one fresh array, a row (view) per key
+        info.update(zip(_MASK_KEYS, masks))
         return info
 
     def close_extras(self, **kwargs) -> None:

@@ -15,14 +15,20 @@ centroidal momentum map and energies against ``pin.crba``, ``pin.nonLinearEffect
 ``pin.computeCentroidalMap`` and ``pin.computeMechanicalEnergy`` to 1e-12 at random states, and whole
 steps against ``ContactSimulator`` in every contact combination (flight, front, back, double stance;
 stick and slide): the same foot states and contact flags, states within 1e-11 relative to their size (median
-4e-16; 99.8 % within 1e-12). The LCP's linear solves, the small Cholesky factorizations and the order of the
-projections are contact.py's, written out; Pinocchio's ABA and ``computeMinverse`` are replaced by one
-Cholesky factorization of ``M`` per step, which is where the round-off differences come from (at
-cond(M) ~ 2e4, ``computeMinverse`` and ``inv(crba)`` differ by ~8e-12 themselves).
+3e-16; 99.7 % within 1e-12). The LCP's linear solves, the small Cholesky factorizations and the order of the
+projections are contact.py's, written out; Pinocchio's ABA and ``computeMinverse`` are replaced by one sparse
+``L^T D L`` factorization of ``M`` along the kinematic tree per step (:func:`tree_factor7`), which is where the
+round-off differences come from (at cond(M) ~ 2e4, ``computeMinverse`` and ``inv(crba)`` differ by ~8e-12
+themselves).
 
-Speed note: numba passes a tuple of arrays (:class:`Scratch`) to a compiled call at about a microsecond (one
+Speed notes: numba passes a tuple of arrays (:class:`Scratch`) to a compiled call at about a microsecond (one
 reference count per array), more than a whole flight step costs, so :func:`step_batch` is one function that
-unpacks it once per batch and has the simulator's step written out in line.
+unpacks it once per batch and has the simulator's step written out in line. About 88 % of the 1 ms steps of a
+random-action episode are in flight (no foot within reach), so the flight step is what costs: the kinematics
+(:func:`sincos` inline instead of libm's call), :func:`mass_matrix` and :func:`bias` from per-leg lever arms,
+the tree factorization (no fill, no square roots), the energy check over ``M``'s nonzeros; a robot's model
+cache (:func:`model_cache`) spares the recomputation of the points and ``M`` a call starts from. The functions
+compile with ``fastmath={"contract"}`` (fused multiply-adds; no reassociation, NaN and inf kept).
 
 Closed form (world frame, ``R(t) (a, c) = (cos t a + sin t c, -sin t a + cos t c)`` the rotation about
 +y): each body's centre of mass ``p`` has the Jacobian columns ``[1, 0]`` (x), ``[0, 1]`` (z) and, for each
@@ -58,9 +64,10 @@ from hsddp_gym.core.contact import (
 )
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
 
-_jit = numba.njit(cache=True, error_model="numpy")
+_jit = numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
 """numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
-checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`)."""
+checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`); ``a * b + c``
+contracted into fused multiply-adds (no other fast-math flag: no reassociation, NaN and inf are kept)."""
 
 # ------------------------------------------------------------------------------ parameter vector layout
 P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
@@ -87,7 +94,6 @@ _CHAIN_POINT = np.array([1, 3, 5, 8, 10, 6, 11])
 _CHAIN_LEN = np.array([1, 2, 3, 2, 3, 3, 3])
 _CHAIN_PIVOT = np.array([[0, 0, 0], [0, 2, 0], [0, 2, 4], [0, 7, 0], [0, 7, 9], [0, 2, 4], [0, 7, 9]])
 _CHAIN_DOF = np.array([[2, 0, 0], [2, 3, 0], [2, 3, 4], [2, 5, 0], [2, 5, 6], [2, 3, 4], [2, 5, 6]])
-_BODY_LINK = np.array([0, 1, 2, 1, 2])  # index into the mass / com / inertia triples
 _TOL_V = 1e-9
 _TOL_L = 1e-12
 _MAX_PROJECTION_ITERATIONS = 6
@@ -95,6 +101,17 @@ _MAX_PROJECTION_ITERATIONS = 6
 _BASE_ORDER = np.array([STICK, SLIDE_POS, SLIDE_NEG, SEPARATE])
 
 COUNTER_NAMES = ("lcp_fallbacks", "energy_projections", "momentum_fallbacks", "energy_deficits")
+# a robot's model cache (row of the (N, MODEL_CACHE_SIZE) array of step_batch): the configuration q, its 12
+# points and its mass matrix, as the robot's last step left them
+_CACHE_Q = 0
+_CACHE_PTS = NQ
+_CACHE_M = NQ + 24
+MODEL_CACHE_SIZE = NQ + 24 + 49
+
+
+def model_cache(n: int) -> np.ndarray:
+    """An empty model cache for ``n`` robots (n, MODEL_CACHE_SIZE): NaN configurations, which match no state."""
+    return np.full((n, MODEL_CACHE_SIZE), np.nan)
 
 
 def kernel_params(sim: ContactSimulator) -> np.ndarray:
@@ -125,12 +142,45 @@ def kernel_params(sim: ContactSimulator) -> np.ndarray:
     return p
 
 
+# sincos: fdlibm's polynomial kernels of sin and cos on |r| <= pi/4 (k_sin.c, k_cos.c) after a Cody-Waite
+# reduction by pi/2 (pi/2 = _PIO2_1 + _PIO2_1T, _PIO2_1 with 33 significant bits: k * _PIO2_1 is exact)
+_TWO_OVER_PI = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e+00
+_PIO2_1T = 6.07710050650619224932e-11
+_SINCOS_MAX = 1e5  # beyond (and for inf, nan): libm
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@_jit
+def sincos(a):
+    """``(sin a, cos a)`` inline (the kernel's angles: about half the cost of libm's ``sincos`` call), accurate to
+    about an ulp for ``|a| < 1e5`` (libm's ``sin``, ``cos`` beyond)."""
+    if not abs(a) < _SINCOS_MAX:
+        return math.sin(a), math.cos(a)
+    k = math.floor(a * _TWO_OVER_PI + 0.5)  # the nearest multiple of pi/2
+    r = (a - k * _PIO2_1) - k * _PIO2_1T
+    z = r * r
+    sr = r + (z * r) * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    cr = 1.0 - (0.5 * z - (z * z) * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    quadrant = int(k) & 3
+    if quadrant == 0:
+        return sr, cr
+    if quadrant == 1:
+        return cr, -sr
+    if quadrant == 2:
+        return -sr, -cr
+    return -cr, sr
+
+
 # ------------------------------------------------------------------------------ kinematics and dynamics
 @_jit
 def kinematics(p, q, pts):
     """World (x, z) of the 12 points (12, 2) for configuration ``q`` (7,)."""
     x, z, th0 = q[0], q[1], q[2]
-    c0, s0 = math.cos(th0), math.sin(th0)
+    s0, c0 = sincos(th0)
     pts[0, 0] = x
     pts[0, 1] = z
     cz = p[P_COMZ]
@@ -144,7 +194,7 @@ def kinematics(p, q, pts):
         pts[base, 0] = hipx
         pts[base, 1] = hipz
         th1 = th0 + q[3 + 2 * leg]
-        c1, s1 = math.cos(th1), math.sin(th1)
+        s1, c1 = sincos(th1)
         pts[base + 1, 0] = hipx + s1 * p[P_COMZ + 1]
         pts[base + 1, 1] = hipz + c1 * p[P_COMZ + 1]
         lt = -p[P_THIGH_LENGTH]
@@ -153,7 +203,7 @@ def kinematics(p, q, pts):
         pts[base + 2, 0] = kx
         pts[base + 2, 1] = kz
         th2 = th1 + q[4 + 2 * leg]
-        c2, s2 = math.cos(th2), math.sin(th2)
+        s2, c2 = sincos(th2)
         pts[base + 3, 0] = kx + s2 * p[P_COMZ + 2]
         pts[base + 3, 1] = kz + c2 * p[P_COMZ + 2]
         ls = -p[P_SHANK_LENGTH]
@@ -180,173 +230,232 @@ def point_jacobian(pts, chain, jx, jz):
 
 
 @_jit
-def mass_matrix(p, pts, M, bjx, bjz):
-    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`; also fills the bodies' CoM
-    Jacobian rows ``bjx``, ``bjz`` (5, 7) that :func:`bias` and :func:`centroidal_rows` read."""
+def _leg_inertia(m1, m2, i1, i2, x0, z0, hx, hz, tx, tz, kx, kz, sx, sz):
+    """One leg's terms of :func:`mass_matrix`, from the trunk origin ``(x0, z0)``, the hip ``(hx, hz)``, thigh
+    CoM ``(tx, tz)``, knee ``(kx, kz)`` and shank CoM ``(sx, sz)`` (scalars, so that nothing is reloaded):
+    ``(M[x, hip], M[z, hip], M[x, knee], M[z, knee], M[pitch, hip], M[pitch, knee], M[hip, hip], M[hip, knee],
+    M[knee, knee], the leg's share of M[pitch, pitch], its first moments about the trunk origin (x, z))``."""
+    thx, thz = tx - hx, tz - hz  # the lever arms: thigh CoM about the hip, shank CoM about hip and knee,
+    shx, shz = sx - hx, sz - hz  # both CoMs about the trunk origin
+    skx, skz = sx - kx, sz - kz
+    tox, toz = tx - x0, tz - z0
+    sox, soz = sx - x0, sz - z0
+    return (m1 * thz + m2 * shz, -(m1 * thx + m2 * shx), m2 * skz, -(m2 * skx),
+            m1 * (tox * thx + toz * thz) + i1 + m2 * (sox * shx + soz * shz) + i2,
+            m2 * (sox * skx + soz * skz) + i2,
+            m1 * (thx * thx + thz * thz) + i1 + m2 * (shx * shx + shz * shz) + i2,
+            m2 * (shx * skx + shz * skz) + i2,
+            m2 * (skx * skx + skz * skz) + i2,
+            m1 * (tox * tox + toz * toz) + i1 + m2 * (sox * sox + soz * soz) + i2,
+            m1 * tox + m2 * sox, m1 * toz + m2 * soz)
+
+
+@_jit
+def mass_matrix(p, pts, M):
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`, in closed form: with body
+    CoM ``P``, mass ``m``, inertia ``I`` and joint pivots ``O``, ``M[x, j] = sum m (P_z - O_z)``,
+    ``M[z, j] = -sum m (P_x - O_x)``, ``M[j, k] = sum m (P - O_j).(P - O_k) + I`` over the bodies moved by
+    both joints (the front and back legs do not couple: those entries are 0)."""
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    i0, i1, i2 = p[P_INERTIA], p[P_INERTIA + 1], p[P_INERTIA + 2]
+    x0, z0 = pts[0, 0], pts[0, 1]
+    cx, cz = pts[1, 0] - x0, pts[1, 1] - z0  # the trunk CoM about the trunk origin (the pitch pivot)
+    front = _leg_inertia(m1, m2, i1, i2, x0, z0, pts[2, 0], pts[2, 1], pts[3, 0], pts[3, 1], pts[4, 0], pts[4, 1],
+                         pts[5, 0], pts[5, 1])
+    back = _leg_inertia(m1, m2, i1, i2, x0, z0, pts[7, 0], pts[7, 1], pts[8, 0], pts[8, 1], pts[9, 0], pts[9, 1],
+                        pts[10, 0], pts[10, 1])
     for i in range(7):
         for j in range(7):
             M[i, j] = 0.0
-    for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        point_jacobian(pts, b, jx, jz)
-        link = _BODY_LINK[b]
-        m = p[P_MASS + link]
-        inertia = p[P_INERTIA + link]
-        n = _CHAIN_LEN[b]
-        for a in range(n + 2):  # the nonzero columns: x, z and the chain's revolute joints (increasing)
-            da = a if a < 2 else _CHAIN_DOF[b, a - 2]
-            for c in range(a, n + 2):
-                dc = c if c < 2 else _CHAIN_DOF[b, c - 2]
-                M[da, dc] += m * (jx[da] * jx[dc] + jz[da] * jz[dc])
-        for a in range(n):
-            da = _CHAIN_DOF[b, a]
-            for c in range(a, n):
-                M[da, _CHAIN_DOF[b, c]] += inertia
-    for i in range(7):  # the products are symmetric: the lower triangle is the mirror, exactly
+    mtot = m0 + 2.0 * (m1 + m2)
+    M[0, 0] = mtot
+    M[1, 1] = mtot
+    M[0, 2] = m0 * cz + front[11] + back[11]
+    M[1, 2] = -(m0 * cx + front[10] + back[10])
+    M[2, 2] = m0 * (cx * cx + cz * cz) + i0 + front[9] + back[9]
+    for leg in range(2):
+        e = front if leg == 0 else back
+        jh, jk = 3 + 2 * leg, 4 + 2 * leg
+        M[0, jh], M[1, jh], M[0, jk], M[1, jk] = e[0], e[1], e[2], e[3]
+        M[2, jh], M[2, jk] = e[4], e[5]
+        M[jh, jh], M[jh, jk], M[jk, jk] = e[6], e[7], e[8]
+    for i in range(7):  # symmetric: the lower triangle is the mirror, exactly
         for j in range(i):
             M[i, j] = M[j, i]
 
 
 @_jit
-def bias(p, pts, v, out, bjx, bjz):
-    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``,
-    with the body Jacobians ``bjx``, ``bjz`` (5, 7) that :func:`mass_matrix` computed at the same points."""
-    w0 = v[2]
-    for i in range(7):
-        out[i] = 0.0
+def _leg_bias(m1, m2, g, r0, x0, z0, w1, w2, hx, hz, tx, tz, kx, kz, sx, sz):
+    """One leg's terms of :func:`bias` from scalars (the trunk origin, hip, thigh CoM, knee, shank CoM; ``r0``
+    the trunk's squared rate, ``w1``, ``w2`` the thigh's and shank's absolute rates): ``(sum of its forces x,
+    z, their moment about the trunk origin, b[hip], b[knee])``."""
+    r1, r2 = w1 * w1, w2 * w2
+    hax = -(r0 * (hx - x0))  # the hip's acceleration
+    haz = -(r0 * (hz - z0))
+    tfx = m1 * (hax - r1 * (tx - hx))  # the thigh's and the shank's m (a + [0, g])
+    tfz = m1 * (haz - r1 * (tz - hz) + g)
+    kax = hax - r1 * (kx - hx)
+    kaz = haz - r1 * (kz - hz)
+    sfx = m2 * (kax - r2 * (sx - kx))
+    sfz = m2 * (kaz - r2 * (sz - kz) + g)
+    moment0 = ((tz - z0) * tfx - (tx - x0) * tfz) + ((sz - z0) * sfx - (sx - x0) * sfz)
+    hip = ((tz - hz) * tfx - (tx - hx) * tfz) + ((sz - hz) * sfx - (sx - hx) * sfz)
+    knee = (sz - kz) * sfx - (sx - kx) * sfz
+    return tfx + sfx, tfz + sfz, moment0, hip, knee
+
+
+@_jit
+def bias(p, pts, v, out):
+    """``b(q, v)`` (7,): Coriolis, centrifugal and gravity terms (``M a + b = tau``), at the points ``pts``, in
+    closed form: ``b = sum J_P^T m (a_P + [0, g])`` with ``a_P = -sum_k w_k^2 s_k`` the acceleration of each
+    body CoM at zero joint accelerations (``s_k`` its chain's segments, ``w_k`` their absolute rates); a body's
+    generalized force on a revolute joint with pivot ``O`` is the moment ``(P - O) x f``."""
     g = p[P_GRAVITY]
-    for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        m = p[P_MASS + _BODY_LINK[b]]
-        n = _CHAIN_LEN[b]
-        pt = _CHAIN_POINT[b]
-        ax = 0.0
-        az = 0.0
-        rate = w0
-        for k in range(n):
-            o = _CHAIN_PIVOT[b, k]
-            nxt = _CHAIN_PIVOT[b, k + 1] if k + 1 < n else pt
-            if k > 0:
-                rate += v[_CHAIN_DOF[b, k]]
-            r2 = rate * rate
-            ax -= r2 * (pts[nxt, 0] - pts[o, 0])
-            az -= r2 * (pts[nxt, 1] - pts[o, 1])
-        fx = m * ax
-        fz = m * (az + g)
-        for i in range(7):
-            out[i] += jx[i] * fx + jz[i] * fz
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    x0, z0 = pts[0, 0], pts[0, 1]
+    w0 = v[2]
+    r0 = w0 * w0
+    cx, cz = pts[1, 0] - x0, pts[1, 1] - z0  # the trunk CoM
+    fx = m0 * -(r0 * cx)
+    fz = m0 * (-(r0 * cz) + g)
+    w1f = w0 + v[3]
+    w1b = w0 + v[5]
+    front = _leg_bias(m1, m2, g, r0, x0, z0, w1f, w1f + v[4], pts[2, 0], pts[2, 1], pts[3, 0], pts[3, 1],
+                      pts[4, 0], pts[4, 1], pts[5, 0], pts[5, 1])
+    back = _leg_bias(m1, m2, g, r0, x0, z0, w1b, w1b + v[6], pts[7, 0], pts[7, 1], pts[8, 0], pts[8, 1],
+                     pts[9, 0], pts[9, 1], pts[10, 0], pts[10, 1])
+    out[0] = fx + front[0] + back[0]
+    out[1] = fz + front[1] + back[1]
+    out[2] = (cz * fx - cx * fz) + front[2] + back[2]
+    out[3] = front[3]
+    out[4] = front[4]
+    out[5] = back[3]
+    out[6] = back[4]
 
 
 @_jit
 def potential_energy(p, pts):
-    """``sum m g z_com`` [J] at the points ``pts``."""
-    e = 0.0
-    for b in range(5):
-        e += p[P_MASS + _BODY_LINK[b]] * pts[_CHAIN_POINT[b], 1]
+    """``sum m g z_com`` [J] at the points ``pts`` (the trunk, thigh and shank CoMs, front then back)."""
+    m0, m1, m2 = p[P_MASS], p[P_MASS + 1], p[P_MASS + 2]
+    e = m0 * pts[1, 1] + m1 * pts[3, 1] + m2 * pts[5, 1] + m1 * pts[8, 1] + m2 * pts[10, 1]
     return e * p[P_GRAVITY]
 
 
 @_jit
 def kinetic_energy(M, v):
-    """``1/2 v^T M v`` [J]."""
-    e = 0.0
+    """``1/2 v^T M v`` [J] over the nonzeros of :func:`mass_matrix` (``M[x, z]`` and the legs' cross terms are
+    0): the diagonal plus twice the upper triangle."""
+    d = 0.0
     for i in range(7):
-        s = 0.0
-        for j in range(7):
-            s += M[i, j] * v[j]
-        e += v[i] * s
-    return 0.5 * e
+        d += M[i, i] * v[i] * v[i]
+    off = v[0] * (M[0, 2] * v[2] + M[0, 3] * v[3] + M[0, 4] * v[4] + M[0, 5] * v[5] + M[0, 6] * v[6])
+    off += v[1] * (M[1, 2] * v[2] + M[1, 3] * v[3] + M[1, 4] * v[4] + M[1, 5] * v[5] + M[1, 6] * v[6])
+    off += v[2] * (M[2, 3] * v[3] + M[2, 4] * v[4] + M[2, 5] * v[5] + M[2, 6] * v[6])
+    off += v[3] * M[3, 4] * v[4] + v[5] * M[5, 6] * v[6]
+    return 0.5 * d + off
 
 
 @_jit
-def centroidal_rows(p, pts, P, bjx, bjz):
-    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map
-    (3, 7) (``pin.computeCentroidalMap`` rows 0, 2, 4) at the points ``pts`` (body Jacobians from
-    :func:`mass_matrix` at the same points)."""
-    mtot = 0.0
-    cx = 0.0
-    cz = 0.0
-    for b in range(5):
-        m = p[P_MASS + _BODY_LINK[b]]
-        pt = _CHAIN_POINT[b]
-        mtot += m
-        cx += m * pts[pt, 0]
-        cz += m * pts[pt, 1]
-    cx /= mtot
-    cz /= mtot
-    for r in range(3):
-        for j in range(7):
-            P[r, j] = 0.0
-    for b in range(5):
-        jx = bjx[b]
-        jz = bjz[b]
-        link = _BODY_LINK[b]
-        m = p[P_MASS + link]
-        pt = _CHAIN_POINT[b]
-        rx = pts[pt, 0] - cx
-        rz = pts[pt, 1] - cz
-        for j in range(7):
-            P[0, j] += m * jx[j]
-            P[1, j] += m * jz[j]
-            P[2, j] += m * (rz * jx[j] - rx * jz[j])
-        for k in range(_CHAIN_LEN[b]):
-            P[2, _CHAIN_DOF[b, k]] += p[P_INERTIA + link]
+def centroidal_rows(M, P):
+    """Rows linear x, linear z and angular y (about the centre of mass) of the centroidal momentum map (3, 7)
+    (``pin.computeCentroidalMap`` rows 0, 2, 4), from the joint-space inertia ``M`` (7, 7) of the same
+    configuration: the linear rows are ``M``'s x and z rows (the total mass times the CoM Jacobian); the pitch
+    row is the angular momentum about the trunk origin, from which the moment of the linear momentum about the
+    CoM offset ``c - o = (-M[1, 2], M[0, 2]) / M[0, 0]`` is taken."""
+    rz = M[0, 2] / M[0, 0]
+    rx = -M[1, 2] / M[0, 0]
+    for j in range(7):
+        P[0, j] = M[0, j]
+        P[1, j] = M[1, j]
+        P[2, j] = M[2, j] - rz * M[0, j] + rx * M[1, j]
 
 
 @_jit
-def cholesky7(M, L):
-    """Lower Cholesky factor ``L`` of ``M`` (7, 7); False if ``M`` is not positive definite."""
-    for i in range(7):
-        for j in range(i + 1):
-            s = M[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not s > 0.0:
-                    return False
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-        for j in range(i + 1, 7):
-            L[i, j] = 0.0
+def tree_factor7(M, L, dinv):
+    """The sparse factorization ``M = L^T D L`` (7, 7) of the joint-space inertia along the kinematic tree
+    ``x -> z -> pitch -> {hip -> knee} x 2`` (Featherstone's LTDL, RBDA 6.5), eliminated from the leaves up:
+    ``L`` unit lower triangular, row ``k`` nonzero on ``k``'s ancestors only (no fill: the legs do not couple;
+    its diagonal is not stored), ``dinv`` (7,) ``1 / D``. Reads the lower triangle of ``M``; the entries of ``L``
+    off the tree are not written. False if ``M`` is not positive definite."""
+    b00, b10, b11, b20, b21, b22 = M[0, 0], M[1, 0], M[1, 1], M[2, 0], M[2, 1], M[2, 2]
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        d = M[k, k]
+        if not d > 0.0:
+            return False
+        inv = 1.0 / d
+        dinv[k] = inv
+        ah, a2, a1, a0 = M[k, h], M[k, 2], M[k, 1], M[k, 0]
+        lkh, lk2, lk1, lk0 = ah * inv, a2 * inv, a1 * inv, a0 * inv
+        L[k, h], L[k, 2], L[k, 1], L[k, 0] = lkh, lk2, lk1, lk0
+        d = M[h, h] - lkh * ah
+        if not d > 0.0:
+            return False
+        inv = 1.0 / d
+        dinv[h] = inv
+        c2, c1, c0 = M[h, 2] - lkh * a2, M[h, 1] - lkh * a1, M[h, 0] - lkh * a0
+        lh2, lh1, lh0 = c2 * inv, c1 * inv, c0 * inv
+        L[h, 2], L[h, 1], L[h, 0] = lh2, lh1, lh0
+        b22 -= lk2 * a2 + lh2 * c2
+        b21 -= lk2 * a1 + lh2 * c1
+        b20 -= lk2 * a0 + lh2 * c0
+        b11 -= lk1 * a1 + lh1 * c1
+        b10 -= lk1 * a0 + lh1 * c0
+        b00 -= lk0 * a0 + lh0 * c0
+    if not b22 > 0.0:
+        return False
+    inv = 1.0 / b22
+    dinv[2] = inv
+    l21, l20 = b21 * inv, b20 * inv
+    L[2, 1], L[2, 0] = l21, l20
+    b11 -= l21 * b21
+    b10 -= l21 * b20
+    b00 -= l20 * b20
+    if not b11 > 0.0:
+        return False
+    inv = 1.0 / b11
+    dinv[1] = inv
+    l10 = b10 * inv
+    L[1, 0] = l10
+    b00 -= l10 * b10
+    if not b00 > 0.0:
+        return False
+    dinv[0] = 1.0 / b00
     return True
 
 
 @_jit
-def cholesky_solve7(L, b, out):
-    """``out = M^-1 b`` (7,) from the factor of :func:`cholesky7`."""
-    for i in range(7):
-        s = b[i]
-        for k in range(i):
-            s -= L[i, k] * out[k]
-        out[i] = s / L[i, i]
-    for i in range(6, -1, -1):
-        s = out[i]
-        for k in range(i + 1, 7):
-            s -= L[k, i] * out[k]
-        out[i] = s / L[i, i]
+def tree_solve7(L, dinv, b, out):
+    """``out = M^-1 b`` (7,) from the factor of :func:`tree_factor7`: ``L^T y = b`` from the leaves up, then
+    ``L out = D^-1 y`` from the root down (``out`` may not be ``b``)."""
+    c0, c1, c2 = b[0], b[1], b[2]
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        yk = b[k]
+        yh = b[h] - L[k, h] * yk
+        c2 -= L[k, 2] * yk + L[h, 2] * yh
+        c1 -= L[k, 1] * yk + L[h, 1] * yh
+        c0 -= L[k, 0] * yk + L[h, 0] * yh
+        out[h], out[k] = yh * dinv[h], yk * dinv[k]
+    c1 -= L[2, 1] * c2
+    c0 -= L[2, 0] * c2
+    c0 -= L[1, 0] * c1
+    a0 = c0 * dinv[0]
+    a1 = c1 * dinv[1] - L[1, 0] * a0
+    a2 = c2 * dinv[2] - L[2, 1] * a1 - L[2, 0] * a0
+    out[0], out[1], out[2] = a0, a1, a2
+    for leg in range(2):
+        h, k = 3 + 2 * leg, 4 + 2 * leg
+        ah = out[h] - L[h, 2] * a2 - L[h, 1] * a1 - L[h, 0] * a0
+        out[h] = ah
+        out[k] = out[k] - L[k, h] * ah - L[k, 2] * a2 - L[k, 1] * a1 - L[k, 0] * a0
 
 
 @_jit
-def cholesky_solve_rows(L, R, m, out):
-    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7), from the factor of :func:`cholesky7`: the
-    operations of :func:`cholesky_solve7` row by row, interleaved (the divisions of different rows overlap)."""
-    for i in range(7):
-        d = L[i, i]
-        for r in range(m):
-            s = R[r, i]
-            for k in range(i):
-                s -= L[i, k] * out[r, k]
-            out[r, i] = s / d
-    for i in range(6, -1, -1):
-        d = L[i, i]
-        for r in range(m):
-            s = out[r, i]
-            for k in range(i + 1, 7):
-                s -= L[k, i] * out[r, k]
-            out[r, i] = s / d
+def tree_solve_rows(L, dinv, R, m, out):
+    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7) (:func:`tree_solve7` on each)."""
+    for r in range(m):
+        tree_solve7(L, dinv, R[r], out[r])
 
 
 # ------------------------------------------------------------------------------ small solves (contact.py's)
@@ -592,13 +701,12 @@ def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, best_lam, w, A, rhs, zz, L, 
 
 # ------------------------------------------------------------------------------ scratch space
 _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
-    "pts": (12, 2), "pts_old": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
+    "pts": (12, 2), "M": (7, 7), "Lm": (7, 7), "bvec": (7,), "tau": (7,),
     "acc": (7,), "rhs7": (7,), "vf": (7,), "q_old": (7,), "jx": (7,), "jz": (7,), "fjx": (2, 7), "fjz": (2, 7),
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
-    "bjx": (5, 7), "bjz": (5, 7), "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "col": (7,),
-    "e7": (7,),
+    "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,),
 }
 _INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -623,15 +731,13 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     s_M = sc.M
     s_P = sc.P
     s_S = sc.S
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_c = sc.c
     s_pts = sc.pts
     s_rhs = sc.rhs
     s_zz = sc.zz
-    centroidal_rows(p, s_pts, s_P, s_bjx, s_bjz)
-    cholesky7(s_M, s_Lm)
-    cholesky_solve_rows(s_Lm, s_P, 3, s_BT)  # B = M^-1 P^T
+    centroidal_rows(s_M, s_P)
+    tree_factor7(s_M, s_Lm, sc.dinv)
+    tree_solve_rows(s_Lm, sc.dinv, s_P, 3, s_BT)  # B = M^-1 P^T
     for a in range(3):
         for j in range(7):
             s_B[j, a] = s_BT[a, j]
@@ -671,23 +777,55 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
 def mechanical_energy(p, x, sc):
     """``1/2 v^T M v + V`` [J] of one state (14,)."""
     s_M = sc.M
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_pts = sc.pts
     kinematics(p, x[:NQ], s_pts)
-    mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+    mass_matrix(p, s_pts, s_M)
     return kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
 
 
 @_jit
+def _load_model(p, q, cache, pts, M):
+    """The points ``pts`` (12, 2) and mass matrix ``M`` (7, 7) of configuration ``q`` (7,): copied from the robot's
+    ``cache`` (MODEL_CACHE_SIZE,) when it holds this very ``q`` (the state the robot's last step left, untouched
+    since), else computed (:func:`kinematics`, :func:`mass_matrix`; the same numbers either way)."""
+    for i in range(NQ):
+        if not cache[_CACHE_Q + i] == q[i]:
+            kinematics(p, q, pts)
+            mass_matrix(p, pts, M)
+            return
+    for i in range(12):
+        pts[i, 0] = cache[_CACHE_PTS + 2 * i]
+        pts[i, 1] = cache[_CACHE_PTS + 2 * i + 1]
+    for i in range(7):
+        for j in range(7):
+            M[i, j] = cache[_CACHE_M + 7 * i + j]
+
+
+@_jit
+def _store_model(q, pts, M, cache):
+    """Keep ``q`` (7,), its points ``pts`` (12, 2) and mass matrix ``M`` (7, 7) in the robot's ``cache``."""
+    for i in range(NQ):
+        cache[_CACHE_Q + i] = q[i]
+    for i in range(12):
+        cache[_CACHE_PTS + 2 * i] = pts[i, 0]
+        cache[_CACHE_PTS + 2 * i + 1] = pts[i, 1]
+    for i in range(7):
+        for j in range(7):
+            cache[_CACHE_M + 7 * i + j] = M[i, j]
+
+
+@_jit
 def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,
-               counters_batch, sc):
+               counters_batch, cache_batch, sc):
     """``n`` simulation steps of every robot ``r`` with ``active[r]`` ((N,) bool; the others are left
     untouched): ``x_batch (N, 14)`` in place, ``u_batch (N, 4)`` commanded joint torques (ContactSimulator.run:
     the motor law every step, the energy taken at the start), ``states_batch (N, 2)``, ``contact_batch (N, 2)``,
     ``impulse_batch (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per step, accumulated
     like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps, ``counters_batch (N, 4)``
-    (see the module docstring), ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
+    (see the module docstring), ``cache_batch (N, MODEL_CACHE_SIZE)`` each robot's model cache (:func:`model_cache`:
+    the points and mass matrix its last step ended with, reused when the next call starts from the same
+    configuration, as it does unless the caller moved the robot; the parameters ``p`` must stay the same),
+    ``sc`` a :class:`Scratch`. Robots whose state is not finite are not stepped
     (NaN heights, no impulse); the caller ends their episodes.
 
     One function for the whole batch (ContactSimulator._step, _finish_consistent and _project_positions
@@ -705,9 +843,8 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
     s_S = sc.S
     s_acc = sc.acc
     s_best_lam = sc.best_lam
-    s_bjx = sc.bjx
-    s_bjz = sc.bjz
     s_bvec = sc.bvec
+    s_dinv = sc.dinv
     s_c = sc.c
     s_cfoot = sc.cfoot
     s_cols_c = sc.cols_c
@@ -721,7 +858,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
     s_jz = sc.jz
     s_lam = sc.lam
     s_pts = sc.pts
-    s_pts_old = sc.pts_old
     s_q_old = sc.q_old
     s_rhs = sc.rhs
     s_rhs7 = sc.rhs7
@@ -756,9 +892,11 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
         for i in range(4):
             total[i] = 0.0
         if finite and n > 0:
-            kinematics(p, x[:NQ], s_pts)  # the energy at the start (mechanical_energy)
-            mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
-            energy = kinetic_energy(s_M, x[NQ:]) + potential_energy(p, s_pts)
+            q = x[:NQ]
+            v = x[NQ:]
+            pts = s_pts
+            _load_model(p, q, cache_batch[ir], s_pts, s_M)  # the energy at the start (mechanical_energy)
+            energy = kinetic_energy(s_M, v) + potential_energy(p, s_pts)
             for _ in range(n):
                 for j in range(4):
                     uj = u[j]
@@ -770,16 +908,13 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                                 uj = cap if uj > 0.0 else -cap
                     s_tau[3 + j] = uj
                 # ---- one step of h (ContactSimulator._step and _finish_consistent)
-                q = x[:NQ]
-                v = x[NQ:]
-                pts = s_pts
-                # s_pts, s_M, s_bjx, s_bjz hold the kinematics and inertia of q (computed at the end of the last
+                # s_pts, s_M hold the kinematics and inertia of q (computed at the end of the last
                 # step or for the energy at the start)
-                bias(p, pts, v, s_bvec, s_bjx, s_bjz)
+                bias(p, pts, v, s_bvec)
                 for i in range(7):
                     s_rhs7[i] = s_tau[i] - s_bvec[i]
-                cholesky7(s_M, s_Lm)
-                cholesky_solve7(s_Lm, s_rhs7, s_acc)
+                tree_factor7(s_M, s_Lm, s_dinv)
+                tree_solve7(s_Lm, s_dinv, s_rhs7, s_acc)
                 vf = s_vf
                 for i in range(7):
                     vf[i] = s_acc[i] * h + v[i]
@@ -787,16 +922,14 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 cfoot, cphi = s_cfoot, s_cphi
                 ncand = 0
                 for foot in range(2):
-                    point_jacobian(pts, 5 + foot, s_jx, s_jz)
                     phi = pts[_FOOT_POINT[foot], 1]
-                    for j in range(7):
-                        s_fjx[foot, j] = s_jx[j]
-                        s_fjz[foot, j] = s_jz[j]
                     if phi > p[P_FAR]:
                         continue
+                    fjz = s_fjz[foot]
+                    point_jacobian(pts, 5 + foot, s_fjx[foot], fjz)  # the foot's rows, kept for the LCP
                     wn = 0.0
                     for j in range(7):
-                        wn += s_jz[j] * vf[j]
+                        wn += fjz[j] * vf[j]
                     if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
                         cfoot[ncand] = foot
                         cphi[ncand] = phi
@@ -815,7 +948,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         for j in range(7):
                             s_jc[2 * i, j] = s_fjz[foot, j]
                             s_jc[2 * i + 1, j] = s_fjx[foot, j]
-                    cholesky_solve_rows(s_Lm, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
+                    tree_solve_rows(s_Lm, s_dinv, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
                     for r in range(m):
                         for s in range(m):
                             acc = 0.0
@@ -854,9 +987,6 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 # energy-consistent end of the step (ContactSimulator._finish_consistent)
                 for i in range(7):
                     s_q_old[i] = q[i]
-                for i in range(12):
-                    s_pts_old[i, 0] = pts[i, 0]
-                    s_pts_old[i, 1] = pts[i, 1]
                 for i in range(7):
                     q[i] += v[i] * h
                 if ncand > 0:
@@ -866,8 +996,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         foot = cfoot[i]
                         st = states[foot]
                         if st == STICK:
-                            fp = _FOOT_POINT[foot]
-                            jz_pitch = -(s_pts_old[fp, 0] - s_pts_old[0, 0])  # LWA z row, pitch column, step start
+                            jz_pitch = s_fjz[foot, 2]  # LWA z row, pitch column, at the step's start
                             tfoot[nt] = foot
                             taxis[nt] = 0
                             tval[nt] = s_q_old[0] - jz_pitch
@@ -899,7 +1028,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                                 row = s_jx if taxis[a] == 0 else s_jz
                                 for j in range(7):
                                     s_Jr[a, j] = row[j]
-                            cholesky_solve_rows(s_Lm, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                            tree_solve_rows(s_Lm, s_dinv, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
                             for a in range(nt):
                                 for j in range(7):
                                     s_B[j, a] = s_BT[a, j]
@@ -919,7 +1048,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                             kinematics(p, q, s_pts)
                 else:
                     kinematics(p, q, s_pts)
-                mass_matrix(p, s_pts, s_M, s_bjx, s_bjz)
+                mass_matrix(p, s_pts, s_M)
                 kinetic = kinetic_energy(s_M, v)
                 potential = potential_energy(p, s_pts)
                 tq = 0.0
@@ -948,7 +1077,10 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
 
         for _ in range(n):
             sim_time[ir] += h
-        kinematics(p, x[:NQ], s_pts)
+        if finite and n > 0:  # s_pts, s_M hold the kinematics and inertia of the last step's q
+            _store_model(x[:NQ], s_pts, s_M, cache_batch[ir])
+        else:
+            kinematics(p, x[:NQ], s_pts)
         heights[ir, 0] = s_pts[6, 1]
         heights[ir, 1] = s_pts[11, 1]
 
@@ -959,7 +1091,7 @@ def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
     impulses, ``counters`` (4,) int64 (all updated in place)."""
     step_batch(p, x.reshape(1, NX), np.asarray(u, dtype=np.float64).reshape(1, 4), int(n), np.ones(1, dtype=np.bool_),
                states.reshape(1, 2), contact.reshape(1, 2), total.reshape(1, 4), np.zeros(1), np.zeros((1, 2)),
-               counters.reshape(1, 4), sc)
+               counters.reshape(1, 4), model_cache(1), sc)
 
 
 _READY = False
@@ -1009,7 +1141,7 @@ def warm_up(announce: bool = True) -> float:
         x[:, 1] = 0.5
         step_batch(p, x, np.zeros((n, 4)), 1, np.ones(n, dtype=np.bool_), np.zeros((n, 2), dtype=np.int64),
                    np.zeros((n, 2), dtype=np.bool_), np.zeros((n, 4)), np.zeros(n), np.zeros((n, 2)),
-                   np.zeros((n, 4), dtype=np.int64), kernel_scratch())
+                   np.zeros((n, 4), dtype=np.int64), model_cache(n), kernel_scratch())
     finally:
         if timer is not None:
             timer.cancel()
@@ -1068,6 +1200,7 @@ class CompiledContactSimulator(ContactSimulator):
         self._time_b = np.zeros(1)
         self._heights_b = np.zeros((1, 2))
         self._counters_b = np.zeros((1, 4), dtype=np.int64)
+        self._cache_b = model_cache(1)
         self._active = np.ones(1, dtype=np.bool_)
         self._heights_valid = False
         super().__init__(robot, timestep=timestep, friction=friction, gravity=gravity,
@@ -1142,6 +1275,6 @@ class CompiledContactSimulator(ContactSimulator):
         """
         self._u[:] = u
         step_batch(self._p, self._xb, self._ub, n, self._active, self._states_b, self._contact_b, self._total_b,
-                   self._time_b, self._heights_b, self._counters_b, self._sc)
+                   self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
         self._heights_valid = True
         return self._total
