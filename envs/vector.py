@@ -133,8 +133,8 @@ def _noisy_state(init, uniform, scale, normal, x):
 
 
 @numba.njit(cache=True)
-def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf, impulse,
-               x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
+def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s, elapsed, valid, heights, contact, grf,
+               impulse, x_velocity, rewards3, reward, terminated, truncated, autoreset, obs, low, high, skip):
     """The bookkeeping of BoundingEnv.reset for robot ``i`` whose start state is ``x[i]``, in one compiled call:
     clock, foot states, counters cleared; the state valid when inside ``bounds`` (14,); ``front``, ``back`` its
     foot heights (a foot at most RESET_CONTACT_HEIGHT high is in contact; an invalid state has NaN heights and no
@@ -345,8 +345,9 @@ class BoundingVectorEnv(VectorEnv):
             if lowest < 0.0:
                 x[IZ] -= lowest
                 front, back = self._foot_heights(x[:NQ])  # of the lifted state (as the single env's)
-        _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states, self._sim_time, self._t0,
-                   self._elapsed, self._valid, self._heights, self._contact, self._grf, self._impulse,
+        _reset_row(i, self._bounds, front, back, t0 / template.gait_period, t0, self._x, self._lcp_states,
+                   self._sim_time, self._t0, self._elapsed, self._valid, self._heights, self._contact, self._grf,
+                   self._impulse,
                    self._x_velocity, self._rewards3, self._reward, self._terminated, self._truncated,
                    self._autoreset, self._obs, self._low, self._high, self._skip)
 

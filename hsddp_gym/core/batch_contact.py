@@ -27,8 +27,8 @@ unpacks it once per batch and has the simulator's step written out in line. Abou
 random-action episode are in flight (no foot within reach), so the flight step is what costs: the kinematics
 (:func:`sincos` inline instead of libm's call), :func:`mass_matrix` and :func:`bias` from per-leg lever arms,
 the tree factorization (no fill, no square roots), the energy check over ``M``'s nonzeros; a robot's model
-cache (:func:`model_cache`) spares the recomputation of the points and ``M`` a call starts from. The functions
-compile with ``fastmath={"contract"}`` (fused multiply-adds; no reassociation, NaN and inf kept).
+cache (:func:`model_cache`) spares the recomputation of the points and ``M`` a call starts from. No fast-math
+flag, not even fused multiply-adds: the same seed gives the same episode on CPUs with and without FMA.
 
 Closed form (world frame, ``R(t) (a, c) = (cos t a + sin t c, -sin t a + cos t c)`` the rotation about
 +y): each body's centre of mass ``p`` has the Jacobian columns ``[1, 0]`` (x), ``[0, 1]`` (z) and, for each
@@ -64,10 +64,10 @@ from hsddp_gym.core.contact import (
 )
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
 
-_jit = numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
+_jit = numba.njit(cache=True, error_model="numpy")
 """numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
-checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`); ``a * b + c``
-contracted into fused multiply-adds (no other fast-math flag: no reassociation, NaN and inf are kept)."""
+checks on each division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`); no fast-math flag
+(fused multiply-adds would make the round-off, and so whole episodes, depend on the CPU)."""
 
 # ------------------------------------------------------------------------------ parameter vector layout
 P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
@@ -732,7 +732,6 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     s_P = sc.P
     s_S = sc.S
     s_c = sc.c
-    s_pts = sc.pts
     s_rhs = sc.rhs
     s_zz = sc.zz
     centroidal_rows(s_M, s_P)
