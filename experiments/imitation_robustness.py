@@ -325,6 +325,9 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if any(seed < 0 for seed in args.train_seeds) or len(set(args.train_seeds)) != len(args.train_seeds):
         p.error(f"--train-seeds must be distinct integers >= 0, got {args.train_seeds}")
+    if len(args.train_seeds) > 1 and args.dagger_episodes > 100:
+        p.error(f"--dagger-episodes must be <= 100 with several --train-seeds (the rollout seeds of training seed S "
+                f"start at 10000 + 100 S), got {args.dagger_episodes}")
     for name in ("dagger_rounds", "gain_copies", "first_seed"):
         if getattr(args, name) < 0:
             p.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")

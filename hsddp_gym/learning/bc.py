@@ -21,6 +21,7 @@ from hsddp_gym.learning.features import (
     clock_from_params,
     clock_params,
     make_gait_clock,
+    queue_row,
 )
 from hsddp_gym.learning.gain_labels import gain_augmented_pairs
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
@@ -144,11 +145,8 @@ class MLPPolicy(Policy):
             self._sent[-1] = np.asarray(action, dtype=np.float64).reshape(NU)
 
     def _queue_features(self) -> np.ndarray:
-        """``(5 action_queue,)``: this step's row of :func:`action_queue_features`."""
-        out = np.zeros((int(self.config.action_queue), QUEUE_SLOT_SIZE))
-        for j, a in enumerate(self._sent):
-            out[j, :NU], out[j, NU] = a, 1.0
-        return out.ravel()
+        """``(5 action_queue,)``: this step's row of :func:`~hsddp_gym.learning.features.action_queue_features`."""
+        return queue_row(self._sent, self.config.action_queue)
 
     def with_interface(self, interface: EnvInterface) -> MLPPolicy:
         """The same network acting in another env (``interface``: e.g. its target speed for ``speed_input``),

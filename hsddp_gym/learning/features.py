@@ -66,6 +66,15 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     return out
 
 
+def queue_row(pending, slots: int) -> np.ndarray:
+    """``(5 slots,)``: one row of :func:`action_queue_features` from the ``pending`` actions ``(d, 4)`` (oldest first,
+    ``d <= slots``) -- what a policy acting in the env builds from the actions it remembers sending."""
+    out = np.zeros((int(slots), QUEUE_SLOT_SIZE))
+    for j, a in enumerate(pending):
+        out[j, :NU], out[j, NU] = a, 1.0
+    return out.ravel()
+
+
 def action_queue_features(sent: np.ndarray, delay: int, slots: int) -> np.ndarray:
     """``(T, 5 slots)`` (:data:`QUEUE_SLOT_SIZE` per slot) latency-queue features of one episode whose actions
     ``sent (T, 4)`` were executed ``delay`` control steps late (:class:`~hsddp_gym.envs.perturbations.ActionDelay`).
