@@ -6,6 +6,7 @@ The authors' code measures z from the hip height with straight legs, ground at z
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 
@@ -42,8 +43,32 @@ _END_POSTURES = {
 }
 
 
+@functools.lru_cache(maxsize=64)
+def _raised_posture(key: str, height_offset: float, params: RobotParams) -> tuple:
+    """``_END_POSTURES[key]`` with the trunk ``height_offset`` [m] higher and every foot where it was: the four joint
+    angles by Newton's method on the feet's world positions (pitch and the foot positions unchanged)."""
+    from hsddp_gym.core.model import CheetahModel
+
+    z, pitch, hf, kf, hb, kb, zdot = _END_POSTURES[key]
+    model = CheetahModel(params)
+    q = np.array([0.0, z + params.leg_length, pitch, hf, kf, hb, kb])
+    feet = model.foot_positions(q)
+    q[1] += height_offset
+    for _ in range(50):
+        err = feet - model.foot_positions(q)
+        if np.max(np.abs(err)) < 1e-12:
+            break
+        for foot, joints in enumerate(((3, 4), (5, 6))):
+            J = model.foot_jacobian(q, foot)[:, joints]
+            q[list(joints)] += np.linalg.solve(J, err[foot])
+    else:
+        raise ValueError(f"height_offset {height_offset!r} m: the feet of the {key} posture are out of the legs' reach")
+    return (z + height_offset, pitch, *q[3:].tolist(), zdot)
+
+
 def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float = 1.0,
-                          z_velocity: str = "paper", params: RobotParams = DEFAULT_PARAMS) -> np.ndarray:
+                          z_velocity: str = "paper", params: RobotParams = DEFAULT_PARAMS,
+                          height_offset: float = 0.0) -> np.ndarray:
     """The reference state at the end of a bounding mode (original_code_facts §3.4).
 
     Each reference puts exactly the relevant foot on the ground: the stance foot at the end of a stance
@@ -63,6 +88,9 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         z_velocity: ``"paper"`` (default) uses 0, as the paper's text says ("all desired joint velocities and
             the desired body vertical velocity are set to zero"); ``"code"`` uses the authors' +1 m/s after
             stance / -1 m/s before touchdown.
+        height_offset: the trunk this much higher [m] than in the authors' posture, each foot where that posture
+            has it (the joint angles by inverse kinematics; pitch unchanged). 0 (default): the authors' postures.
+            The MPC plans a gait 4 cm higher (``MPCOptions.height_offset``): more room to the ground after a push.
     Returns:
         x_ref (14,): zero x position, joint and pitch rates.
     """
@@ -85,7 +113,13 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         raise TypeError(f"params must be a RobotParams, got {type(params).__name__}")
     if z_velocity not in ("code", "paper"):
         raise ValueError(f"z_velocity must be 'code' or 'paper', got {z_velocity!r}")
-    z, pitch, hf, kf, hb, kb, zdot = _END_POSTURES[key]
+    if isinstance(height_offset, bool) or not isinstance(height_offset, numbers.Real) or not (
+            -0.1 <= float(height_offset) <= 0.1):
+        raise ValueError(f"height_offset must be a number in [-0.1, 0.1] [m], got {height_offset!r}")
+    if float(height_offset) == 0.0:
+        z, pitch, hf, kf, hb, kb, zdot = _END_POSTURES[key]
+    else:
+        z, pitch, hf, kf, hb, kb, zdot = _raised_posture(key, float(height_offset), params)
     x = np.zeros(NX)
     x[:NQ] = (0.0, z + params.leg_length, pitch, hf, kf, hb, kb)
     x[IVX] = speed

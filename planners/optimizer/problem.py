@@ -82,7 +82,7 @@ class PhaseCost:
 
 def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1.0, params: RobotParams | None = None,
                         running_reference: str = "terminal", grf_tracking: bool = True, z_velocity: str = "paper",
-                        weights: str = "paper", terminal_half: bool = True) -> PhaseCost:
+                        weights: str = "paper", terminal_half: bool = True, height_offset: float = 0.0) -> PhaseCost:
     """The bounding cost of one phase (original_code_facts §3.4-§3.5).
 
     Args:
@@ -98,6 +98,8 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
             which they ran at 1.5 m/s), see :data:`BOUNDING_WEIGHTS`.
         terminal_half: True (default, the authors' code): ``Phi = 1/2 dx' Qf dx``; False: the paper's eq. 33,
             ``Phi = dx' Qf dx`` (stored as a doubled ``qf``, since the objective always has the 1/2).
+        height_offset: reference postures with the trunk this much higher [m], the feet where the authors' postures
+            have them (:func:`hsddp_gym.core.references.end_of_mode_reference`; 0: the authors').
     """
     params = params if params is not None else RobotParams()
     for name, flag in (("grf_tracking", grf_tracking), ("terminal_half", terminal_half)):
@@ -110,7 +112,8 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
         raise ValueError(f"bounding costs exist for BACK_STANCE, FLIGHT, FRONT_STANCE and DOUBLE_STANCE, got {mode!r}")
     if running_reference not in ("terminal", "code"):
         raise ValueError(f"running_reference must be 'terminal' or 'code', got {running_reference!r}")
-    x_final = end_of_mode_reference(mode, touchdown_foot, speed, z_velocity=z_velocity, params=params)
+    x_final = end_of_mode_reference(mode, touchdown_foot, speed, z_velocity=z_velocity, params=params,
+                                    height_offset=height_offset)
     if running_reference == "terminal":
         x_ref = x_final.copy()
     else:
@@ -243,11 +246,11 @@ class HybridProblem:
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
                  z_velocity: str = "paper", weights: str = "paper", terminal_half: bool = True,
-                 knots=None) -> HybridProblem:
+                 knots=None, height_offset: float = 0.0) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B); ``running_reference``, ``grf_tracking``,
-        ``z_velocity``, ``weights``, ``terminal_half`` see :func:`bounding_phase_cost`; ``knots`` (n,) the
-        knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases)."""
+        ``z_velocity``, ``weights``, ``terminal_half``, ``height_offset`` see :func:`bounding_phase_cost`; ``knots``
+        (n,) the knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases)."""
         from hsddp_gym.core.references import paper_initial_state
         from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -256,7 +259,8 @@ class HybridProblem:
             schedule = ModeSchedule.bounding(cycles, PAPER_BOUNDING_DURATIONS if durations is None else durations)
         params = dynamics.robot.params
         costs = [bounding_phase_cost(m, _reference_foot(schedule, i), speed, params, running_reference, grf_tracking,
-                                     z_velocity, weights, terminal_half) for i, m in enumerate(schedule.modes)]
+                                     z_velocity, weights, terminal_half, height_offset)
+                 for i, m in enumerate(schedule.modes)]
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0

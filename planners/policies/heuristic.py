@@ -104,10 +104,12 @@ class HeuristicBoundingController:
     """The warm-start controller; it acts from the state and the contact mode only.
 
     Args:
-        robot: the model. gains: :class:`HeuristicGains`.
+        robot: the model. gains: :class:`HeuristicGains`. height_offset: the touchdown postures' trunk this much
+            higher [m] (:func:`~hsddp_gym.core.references.end_of_mode_reference`; the MPC's warm start uses its own).
     """
 
-    def __init__(self, robot: CheetahModel | None = None, gains: HeuristicGains = HeuristicGains()) -> None:
+    def __init__(self, robot: CheetahModel | None = None, gains: HeuristicGains = HeuristicGains(),
+                 height_offset: float = 0.0) -> None:
         self.robot = robot if robot is not None else CheetahModel()
         if not isinstance(gains, HeuristicGains):
             raise TypeError(f"gains must be a HeuristicGains, got {type(gains).__name__}")
@@ -115,8 +117,8 @@ class HeuristicBoundingController:
         self._kp = np.asarray(gains.kp, dtype=float)
         self._kd = np.asarray(gains.kd, dtype=float)
         # touchdown postures: the front foot lands after back stance, the back foot after front stance
-        self._land = {FRONT: end_of_mode_reference(Mode.FLIGHT, FRONT, gains.speed, params=self.robot.params),
-                      BACK: end_of_mode_reference(Mode.FLIGHT, BACK, gains.speed, params=self.robot.params)}
+        self._land = {foot: end_of_mode_reference(Mode.FLIGHT, foot, gains.speed, params=self.robot.params,
+                                                  height_offset=height_offset) for foot in (FRONT, BACK)}
         p = self.robot.params
         self._mass = p.total_mass
         # pitch inertia of the whole robot about the trunk origin (legs as point masses at the hips)

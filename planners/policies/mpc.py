@@ -197,6 +197,24 @@ class MPCOptions:
         switch_time_step: the largest move of a phase end per re-plan [s] (a trust region: the gradient of a
             one-iteration plan is only a local model, and larger moves made successive re-plans oscillate).
         switch_time_limit: each shifted phase stays within this fraction of its nominal duration (in (0, 1)).
+        height_offset: the plans' reference postures with the trunk this much higher [m] than the authors' (their
+            feet where the authors' postures have them, the joints by inverse kinematics:
+            :func:`~hsddp_gym.core.references.end_of_mode_reference`). The authors' gait bounds with the trunk at
+            0.25-0.28 m, 13 cm above the env's fall height (0.12 m); 4 cm more leaves a push more room and keeps the
+            unpushed return (README, "Stop 28"). 0: the authors' postures.
+        restart_ratio: a warm-started re-plan whose objective ends above this many times the previous plan's is
+            solved again from scratch (the start-up warm start, ``warmup_iterations``) and the better of the two
+            plans is kept (None: never). The shifted previous plan is a good start while the robot stays near it;
+            after a push or a late touchdown that stretches the current phase, its feedback rollout can leave the
+            plan's later phases far off (objectives 1e5-1e9 against the usual 1e2-1e3), and one DDP iteration from
+            there gives a plan that drives the robot into the ground. Counted in ``stats["restarts"]`` (and
+            ``stats["restarts_kept"]`` when the fresh plan was the better one).
+        carry_outer_loop: continue the augmented Lagrangian's outer loop across re-plans (the multiplier update
+            ``lambda += sigma g`` and the penalty growth after every re-plan whose switching violation is above
+            the solver's tolerance). Off (default): each re-plan keeps the multipliers and penalty it was warm-started
+            with. The update is a dual step for a solved inner problem; one DDP iteration per re-plan does not solve
+            it, and after a push whose touchdown cannot be met the multipliers wound up from about 1 to 100-600 in
+            0.2 s (seed 514), pulling each plan's feet to the ground at any cost.
     """
 
     horizon: float | None = None
@@ -241,6 +259,9 @@ class MPCOptions:
     switch_time_weight: float | None = None
     switch_time_limit: float = 0.5
     switch_time_step: float = 0.005
+    height_offset: float = 0.04
+    restart_ratio: float | None = 10.0
+    carry_outer_loop: bool = False
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -298,6 +319,13 @@ class MPCOptions:
         if (self.hold_gains or self.hold_feedforward) and self.fine_dt is not None:
             raise ValueError("hold_gains and hold_feedforward need one knot spacing (planner_dt): fine_dt must be "
                              f"None, got {self.fine_dt!r}")
+        if isinstance(self.height_offset, bool) or not isinstance(self.height_offset, numbers.Real) or not (
+                -0.1 <= float(self.height_offset) <= 0.1):
+            raise ValueError(f"height_offset must be in [-0.1, 0.1] [m], got {self.height_offset!r}")
+        if self.restart_ratio is not None and not (check_positive(self.restart_ratio, "restart_ratio") > 1.0):
+            raise ValueError(f"restart_ratio must be None or > 1, got {self.restart_ratio!r}")
+        if not isinstance(self.carry_outer_loop, (bool, np.bool_)):
+            raise TypeError(f"carry_outer_loop must be a bool, got {self.carry_outer_loop!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
 
@@ -570,11 +598,13 @@ class MPCPolicy(Policy):
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
-        self._startup_controller = HeuristicBoundingController(gains=HeuristicGains(speed=interface.target_speed))
+        self._startup_controller = HeuristicBoundingController(gains=HeuristicGains(speed=interface.target_speed),
+                                                               height_offset=options.height_offset)
         """Acts while no plan exists yet (the episode's first re-plan failed): the schedule-driven heuristic
         (stateless, ``torque(x, mode)``), fed the gait clock's mode."""
         self._warm_controller = HeuristicBoundingController(
-            gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4))
+            gains=HeuristicGains(speed=interface.target_speed, kd=(options.warm_start_kd,) * 4),
+            height_offset=options.height_offset)
         self.reset()
 
     def _make_predictor(self) -> ContactModelPredictor:
@@ -597,6 +627,9 @@ class MPCPolicy(Policy):
 
     def reset(self) -> None:
         self._solver = HSDDP(SolverOptions(method=self.options.method))
+        self._restart_solver = HSDDP(SolverOptions(method=self.options.method))
+        """Solves the restarts (``restart_ratio``); swapped with :attr:`_solver` when its plan is kept, so that
+        :attr:`_solver` always holds the kept plan's backward pass (``hold_gains``, ``switch_time_weight``)."""
         self.tracker: PlanTracker | None = None
         self._pending: tuple | None = None
         self.last_solution = None
@@ -618,8 +651,9 @@ class MPCPolicy(Policy):
         """The state (14,) the last action was computed for: the observed state, or with latency compensation
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
-        self.stats = {"replans": 0, "planner_failures": 0, "solve_ms": [], "iterations": [], "time_budget_stops": 0,
-                      "event_replans": 0, "switch_shifts": [], "switch_skipped": 0}
+        self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
+                      "iterations": [], "time_budget_stops": 0, "event_replans": 0, "switch_shifts": [],
+                      "switch_skipped": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -783,7 +817,7 @@ class MPCPolicy(Policy):
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
-                                         knots=np.array(knots, dtype=np.int64))
+                                         knots=np.array(knots, dtype=np.int64), height_offset=o.height_offset)
         try:
             ws = None if self.last_solution is None else self._warm_start(problem, x)
         except ValueError:
@@ -815,11 +849,10 @@ class MPCPolicy(Policy):
                     if sol is not None:
                         break
             if sol is None:
-                try:
-                    U0 = self._heuristic_controls(problem)
-                except RuntimeError:  # the heuristic's rollout diverged from this state: start from zero torques
-                    U0 = np.zeros((problem.n_knots, NU))
-                sol = self._solver.solve(problem, U0)
+                sol = self._solver.solve(problem, self._cold_controls(problem))
+            if (o.restart_ratio is not None and not cold
+                    and not (sol.objective <= o.restart_ratio * max(self.last_solution.objective, 1.0))):
+                sol = self._restart(problem, sol)
             if not (np.all(np.isfinite(sol.X)) and np.all(np.isfinite(sol.K))) or sol.status == "diverged":
                 raise RuntimeError(f"planner status {sol.status}")
         except (RuntimeError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -828,7 +861,8 @@ class MPCPolicy(Policy):
             self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
             return False
         cs = self._solver.last_constraint_state
-        if cs is not None and o.method != "ddp" and sol.switching_violation > sol.options.al_tolerance:
+        if (o.carry_outer_loop and cs is not None and o.method != "ddp"
+                and sol.switching_violation > sol.options.al_tolerance):
             cs.lam = cs.lam + cs.sigma * sol.switching  # continue the outer loop across re-plans (eq. 24)
             cs.sigma = min(cs.sigma * sol.options.beta, o.sigma_max)
         self._cs = cs
@@ -844,6 +878,35 @@ class MPCPolicy(Policy):
             new_tracker.U = held_feedforward(sol.U, problem.phase_start, self._hold)
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
+
+    def _cold_controls(self, problem: HybridProblem) -> np.ndarray:
+        """Controls ``(N, 4)`` to solve ``problem`` from scratch: the warm-start heuristic's rollout, or zero torques
+        if that rollout diverges from this state."""
+        try:
+            return self._heuristic_controls(problem)
+        except RuntimeError:
+            return np.zeros((problem.n_knots, NU))
+
+    def _restart(self, problem: HybridProblem, sol):
+        """``restart_ratio``: solve ``problem`` again from scratch (``warmup_iterations``, the solver's own outer
+        loop) after the warm-started ``sol`` ended far above the previous plan's objective; the plan with the lower
+        objective is returned, and :attr:`_solver` is the solver that made it (its outer-loop state is carried)."""
+        o = self.options
+        self.stats["restarts"] += 1
+        solver = self._restart_solver
+        solver.options = SolverOptions(method=o.method, max_ddp_iterations=o.warmup_iterations,
+                                       max_total_ddp_iterations=o.warmup_iterations, time_limit=o.time_budget,
+                                       max_al_iterations=4)
+        try:
+            fresh = solver.solve(problem, self._cold_controls(problem))
+        except ValueError:
+            return sol
+        if (fresh.status != "diverged" and np.all(np.isfinite(fresh.X)) and np.all(np.isfinite(fresh.K))
+                and fresh.objective < sol.objective):
+            self.stats["restarts_kept"] += 1
+            self._solver, self._restart_solver = solver, self._solver
+            return fresh
+        return sol
 
     def _adapt_switch_time(self, problem: HybridProblem) -> None:
         """Switching-time optimization inside the loop (``switch_time_weight``): move the end of the current phase

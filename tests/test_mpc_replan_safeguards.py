@@ -1,0 +1,112 @@
+"""The MPC's re-plan safeguards and its raised gait (stop 28): the augmented Lagrangian's outer loop is not carried
+across re-plans (``MPCOptions.carry_outer_loop``), a warm-started re-plan that ends far above the previous plan's
+objective is solved again from scratch (``restart_ratio``), and the plans' reference postures stand the trunk 4 cm
+higher than the authors' with the feet where theirs are (``height_offset``,
+:func:`hsddp_gym.core.references.end_of_mode_reference`)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym.core.conventions import BACK, FRONT, IZ, NQ, Mode
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.references import end_of_mode_reference
+from hsddp_gym.envs.perturbations import make_env
+from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.policies.evaluation import run_episode
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
+from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+
+PUSHED_SEED = 514
+"""A push-condition seed (push at 2.36 s: +0.37 m/s forward, +0.21 m/s up, +3.3 rad/s nose-down, early in a front
+stance) whose touchdown after the push comes late: the re-plans cannot meet it for 0.1 s."""
+PUSHED_STEPS = 560
+
+
+@pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),
+                                        (Mode.FLIGHT, BACK)])
+def test_raised_posture_keeps_the_feet_and_the_pitch(mode, foot):
+    model = CheetahModel()
+    base = end_of_mode_reference(mode, foot, 1.0)
+    raised = end_of_mode_reference(mode, foot, 1.0, height_offset=0.04)
+    assert raised[IZ] == pytest.approx(base[IZ] + 0.04, abs=1e-15)
+    assert raised[2] == base[2] and np.array_equal(raised[NQ:], base[NQ:])
+    np.testing.assert_allclose(model.foot_positions(raised[:NQ]), model.foot_positions(base[:NQ]), atol=1e-10)
+    assert not np.allclose(raised[3:NQ], base[3:NQ])  # the legs are extended to reach them
+    assert np.array_equal(end_of_mode_reference(mode, foot, 1.0, height_offset=0.0), base)
+
+
+def test_height_offset_reaches_the_plans_and_the_warm_start_and_is_validated():
+    raised = HybridProblem.bounding(1, height_offset=0.04)
+    base = HybridProblem.bounding(1)
+    np.testing.assert_allclose(raised.XF[:, IZ], base.XF[:, IZ] + 0.04, atol=1e-12)
+    ctrl = HeuristicBoundingController(height_offset=0.04)
+    assert ctrl._land[FRONT][IZ] == pytest.approx(HeuristicBoundingController()._land[FRONT][IZ] + 0.04)
+    for bad in (0.2, float("nan"), "4 cm", True):
+        with pytest.raises((ValueError, TypeError), match="height_offset"):
+            end_of_mode_reference(Mode.FLIGHT, FRONT, 1.0, height_offset=bad)
+        with pytest.raises((ValueError, TypeError), match="height_offset"):
+            MPCOptions(height_offset=bad)
+    for bad in (1.0, 0.5, -2.0, float("inf")):
+        with pytest.raises(ValueError, match="restart_ratio"):
+            MPCOptions(restart_ratio=bad)
+    with pytest.raises(TypeError, match="carry_outer_loop"):
+        MPCOptions(carry_outer_loop=1)
+
+
+def _pushed_episode(**options):
+    """The push of :data:`PUSHED_SEED` under ``MPCOptions(**options)``: ``(result, policy, max |multiplier| after
+    each re-plan, the objectives (rejected, kept) of each restart)``."""
+    env = make_env("push")
+    policy = MPCPolicy.from_env(env, options=MPCOptions(**options))
+    multipliers, restarts = [], []
+    replan, restart = policy.replan, policy._restart
+
+    def recording_replan(x, mode):
+        ok = replan(x, mode)
+        multipliers.append(float(np.max(np.abs(policy._cs.lam))))
+        return ok
+
+    def recording_restart(problem, sol):
+        kept = restart(problem, sol)
+        restarts.append((sol.objective, kept.objective))
+        return kept
+
+    policy.replan, policy._restart = recording_replan, recording_restart
+    result = run_episode(env, policy, PUSHED_SEED, max_steps=PUSHED_STEPS)
+    env.close()
+    return result, policy, np.array(multipliers), restarts
+
+
+def test_the_outer_loop_is_not_carried_across_replans_so_a_missed_touchdown_does_not_wind_it_up():
+    """Carried across re-plans (the old behaviour), the multiplier update after each one-iteration re-plan winds the
+    multipliers up while a touchdown cannot be met; by default every re-plan keeps the multipliers it was
+    warm-started with (the first plan's, shifted phase by phase, or a restart's)."""
+    _, default, lam, _ = _pushed_episode()
+    _, carried, lam_carried, _ = _pushed_episode(carry_outer_loop=True, restart_ratio=None)
+    assert default.stats["replans"] > 100 and carried.stats["replans"] > 100
+    assert lam.max() < 10.0
+    assert lam_carried.max() > 5 * lam.max()
+
+
+def test_a_warm_start_gone_far_off_is_solved_again_and_the_better_plan_kept():
+    result, policy, _, restarts = _pushed_episode()
+    assert not result.fell
+    assert policy.options.restart_ratio == 10.0 and policy.stats["restarts"] == len(restarts) >= 1
+    for rejected, kept in restarts:
+        assert kept <= rejected
+    assert policy.stats["restarts_kept"] == sum(kept < rejected for rejected, kept in restarts) >= 1
+    # without it the same push ends in a fall
+    without, _, _, _ = _pushed_episode(restart_ratio=None)
+    assert without.fell
+
+
+def test_unpushed_bounding_never_restarts():
+    env = gym.make("hsddp_gym/Bounding-v0")
+    policy = MPCPolicy.from_env(env)
+    result = run_episode(env, policy, 0, max_steps=300)
+    assert not result.fell and policy.stats["replans"] >= 70
+    assert policy.stats["restarts"] == 0
