@@ -105,7 +105,8 @@ class HeuristicBoundingController:
 
     Args:
         robot: the model. gains: :class:`HeuristicGains`. height_offset: the touchdown postures' trunk this much
-            higher [m] (:func:`~hsddp_gym.core.references.end_of_mode_reference`; the MPC's warm start uses its own).
+            higher [m] (:func:`~hsddp_gym.core.references.end_of_mode_reference`; the MPC's start-up and warm-start
+            controllers take ``MPCOptions.height_offset``).
     """
 
     def __init__(self, robot: CheetahModel | None = None, gains: HeuristicGains = HeuristicGains(),

@@ -16,7 +16,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
    rollout, AL multipliers phase by phase, the outer-loop penalty and barrier state); phases beyond the
    previous plan copy the same mode one cycle earlier;
-4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds);
+4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds); a plan that ends far above the
+   previous plan's objective is solved again from scratch (``restart_ratio``), and the augmented Lagrangian's
+   multipliers are not updated between re-plans (``carry_outer_loop``);
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
