@@ -2,6 +2,7 @@
 
 Usage: python experiments/bench_mpc.py [--seconds 3] [--replan-period 0.02] [--planner-dt 0.005]
        [--fine-dt 0.0025 | --fine-dt none] [--max-iterations 3] [--horizon 0.296] [--target-speed 1.0]
+       [--mpc-options '{"refresh_gains": true}']
 Real-time factor = simulated time / wall time of the whole closed loop (env simulation + policy).
 Goal (issue 14): >= 2 on the 2-core development machine. Run it on a quiet machine: it is single-threaded.
 
@@ -31,7 +32,10 @@ def main(argv=None) -> int:
     parser.add_argument("--target-speed", type=float, default=1.0, help="the env's target speed [m/s] (default 1)")
     parser.add_argument("--max-iterations", type=int, default=None, help="override MPCOptions.max_iterations")
     parser.add_argument("--horizon", type=float, default=None, help="override MPCOptions.horizon [s]")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--mpc-options", default=None, metavar="JSON",
+                        help="further MPCOptions fields as a JSON object, e.g. '{\"refresh_gains\": true}' "
+                             "(applied after the flags above)")
+    parser.add_argument("--seed", type=int, default=0, help="the env's reset seed (default 0)")
     args = parser.parse_args(argv)
     import dataclasses
     import warnings
@@ -49,7 +53,20 @@ def main(argv=None) -> int:
             over["fine_dt"] = None if args.fine_dt.lower() == "none" else float(args.fine_dt)
         except ValueError:
             parser.error(f"--fine-dt must be a number of seconds or 'none', got {args.fine_dt!r}")
-    opts = dataclasses.replace(MPCOptions(), **over)
+    if args.mpc_options is not None:
+        import json
+
+        try:
+            extra = json.loads(args.mpc_options)
+            if not isinstance(extra, dict):
+                raise ValueError("not a JSON object")
+        except ValueError as exc:
+            parser.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
+        over.update(extra)
+    try:
+        opts = dataclasses.replace(MPCOptions(), **over)
+    except (TypeError, ValueError) as exc:
+        parser.error(f"bad MPC options: {exc}")
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=100000, target_speed=args.target_speed)
     dt = env.unwrapped.dt
     policy = MPCPolicy.from_env(env, options=opts)

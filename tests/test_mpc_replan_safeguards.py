@@ -55,6 +55,8 @@ def test_height_offset_reaches_the_plans_and_the_warm_start_and_is_validated():
             MPCOptions(restart_ratio=bad)
     with pytest.raises(TypeError, match="carry_outer_loop"):
         MPCOptions(carry_outer_loop=1)
+    with pytest.raises(TypeError, match="refresh_gains"):
+        MPCOptions(refresh_gains="no")
 
 
 def _pushed_episode(**options):

@@ -315,6 +315,87 @@ def test_iteration_limited_solution_objective_and_gains_belong_to_the_solved_sub
     assert np.max(np.abs(sol.k_ff)) < 1.0
 
 
+def _count_passes(solver: HSDDP, monkeypatch) -> dict:
+    """Count ``solver``'s backward passes and the rollouts that linearize (``rollout_policy(..., lin=...)``)."""
+    from hsddp_gym.planners.optimizer import hsddp as hsddp_module
+
+    counts = {"backward": 0, "linearized_rollouts": 0}
+    backward = solver._backward
+
+    def counted_backward(*args, **kwargs):
+        counts["backward"] += 1
+        return backward(*args, **kwargs)
+
+    rollout = hsddp_module.rollout_policy
+
+    def counted_rollout(*args, **kwargs):
+        counts["linearized_rollouts"] += int(kwargs.get("lin", args[8] if len(args) > 8 else None) is not None)
+        return rollout(*args, **kwargs)
+
+    monkeypatch.setattr(solver, "_backward", counted_backward)
+    monkeypatch.setattr(hsddp_module, "rollout_policy", counted_rollout)
+    return counts
+
+
+@pytest.mark.parametrize("method", ["ddp", "al-reb"])
+def test_step_gains_are_the_forward_pass_law_and_save_a_linearization_and_a_backward_pass(method, warm_start,
+                                                                                          monkeypatch):
+    """``refresh_gains=False`` (one DDP iteration, the MPC's re-plan): the same trajectory (to round-off: the
+    step is rolled out without its linearization, and Pinocchio's ABA and its derivatives' accelerations differ in
+    the last bits), one linearization and one backward pass instead of two each, and along the returned trajectory
+    the law ``u = U + K (x - X)`` is the forward pass's ``U_0 + eps k_ff + K (x - X_0)`` around the warm start's
+    rollout."""
+    one = dict(method=method, max_al_iterations=2, max_ddp_iterations=1, max_total_ddp_iterations=1)
+    results, counts = {}, {}
+    for refresh in (True, False):
+        solver = HSDDP(SolverOptions(**one, refresh_gains=refresh))
+        c = _count_passes(solver, monkeypatch)
+        results[refresh] = solver.solve(fresh_problem(), warm_start)
+        counts[refresh] = dict(c)
+        monkeypatch.undo()
+    fresh, step = results[True], results[False]
+    assert fresh.ddp_iterations == step.ddp_iterations == 1
+    for name in ("X", "X_pre", "U", "GRF", "switching", "multipliers"):
+        a, b = getattr(fresh, name), getattr(step, name)
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * (1 + np.max(np.abs(a))), err_msg=name)
+    assert fresh.objective == pytest.approx(step.objective, rel=1e-9) and fresh.status == step.status
+    assert counts[True] == {"backward": 2, "linearized_rollouts": 2}
+    assert counts[False] == {"backward": 1, "linearized_rollouts": 1}
+    assert np.max(np.abs(fresh.K - step.K)) > 1e-6  # the gains differ: they belong to other trajectories
+    # the forward pass's law, around the warm start's open-loop rollout X_0
+    problem = fresh_problem()
+    tr = _Traj(problem.n_knots, problem.n_phases)
+    assert rollout_policy(problem, tr, warm_start)
+    eps = step.log[-1].step
+    N = problem.n_knots
+    law = warm_start + eps * step.k_ff + np.einsum("nux,nx->nu", step.K, step.X[:N] - tr.X[:N])
+    np.testing.assert_allclose(step.U, law, rtol=0, atol=1e-9 * (1 + np.max(np.abs(step.U))))
+    # ... and so off the trajectory too: the MPC's tracker applies U + K (x - X) at a perturbed state
+    dx = np.random.default_rng(0).normal(scale=1e-2, size=(N, 14))
+    np.testing.assert_allclose(step.U + np.einsum("nux,nx->nu", step.K, dx),
+                               law + np.einsum("nux,nx->nu", step.K, dx), rtol=0, atol=1e-9 * (1 + np.abs(law).max()))
+
+
+def test_step_gains_leave_a_multi_iteration_solve_unchanged_but_for_its_gains(warm_start):
+    """With several iterations the trajectory, log and statuses are those of the refreshed solve; the gains are
+    the last step's backward pass (its ``k_ff`` was applied: with refreshing, the final ``k_ff`` is the next
+    step's, small near convergence)."""
+    opt = dict(method="al", max_al_iterations=3)
+    fresh = HSDDP(SolverOptions(**opt)).solve(fresh_problem(), warm_start)
+    step = HSDDP(SolverOptions(**opt, refresh_gains=False)).solve(fresh_problem(), warm_start)
+    for name in ("X", "U", "multipliers"):
+        np.testing.assert_array_equal(getattr(fresh, name), getattr(step, name), err_msg=name, strict=True)
+    assert _records_equal(fresh.log, step.log)
+    assert fresh.status == step.status and fresh.objective == step.objective
+    assert np.max(np.abs(fresh.K - step.K)) > 0.0
+
+
+def test_refresh_gains_must_be_a_bool():
+    for bad in (1, "yes", None):
+        with pytest.raises(TypeError, match="refresh_gains"):
+            SolverOptions(refresh_gains=bad)
+
+
 # ----------------------------------------------------------------------------------------- determinism
 
 

@@ -1167,7 +1167,8 @@ class CompiledContactSimulator(ContactSimulator):
     :func:`step_batch` call on a batch of one robot, the same compiled code the vector env
     (:mod:`hsddp_gym.envs.vector`) runs for N robots, so a single env and the vector env produce bit-identical
     states from the same inputs. ``hsddp_gym/Bounding-v0`` uses it for ``energy_consistent=True``;
-    :class:`ContactSimulator` stays the readable reference (and the MPC's predictor); the two agree to
+    :class:`ContactSimulator` stays the readable reference (the MPC's predictor,
+    :class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`, uses this one); the two agree to
     round-off (``tests/test_vector_env.py``: 1e-11 relative, median 4e-16).
 
     Same arguments as :class:`ContactSimulator` without ``erp`` and ``energy_consistent`` (the legacy scheme is

@@ -309,7 +309,8 @@ class HSDDP:
         ws.lin_valid = ok
         if not ok:
             raise ValueError("the warm start (U_init, X_init, K_init) produces a non-finite rollout")
-        state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running"}
+        # step_gains: ws.K / ws.k_ff are the backward pass that made the last accepted step (refresh_gains False)
+        state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running", "step_gains": False}
 
         def record(event, costs: CostBreakdown, step=0.0, expected=0.0):
             tr = ws.nominal
@@ -363,8 +364,9 @@ class HSDDP:
             cs.eps_grf *= opt.eps_growth
         status = "converged" if converged else (state["status"] if state["status"] != "running"
                                                 else "al_iteration_limit")
-        # gains consistent with the final trajectory: one more linearization + backward pass (no step)
-        self._backward_at_nominal(problem, objective, cs, state, timings)
+        if opt.refresh_gains or not state["step_gains"]:
+            # gains consistent with the final trajectory: one more linearization + backward pass (no step)
+            self._backward_at_nominal(problem, objective, cs, state, timings)
         if state["status"] == "gains_failed":
             status, converged = "gains_failed", False
         tr = ws.nominal
@@ -442,8 +444,12 @@ class HSDDP:
                 state["status"] = "iteration_limit"
                 return costs
             self._linearize(problem, objective, cs, timings)
+            # the last iteration allowed needs no linearization of its step unless the gains are refreshed there
+            last = opt.max_total_ddp_iterations is not None and state["ddp"] + 1 >= opt.max_total_ddp_iterations
+            speculate = opt.refresh_gains or not last
             accepted = False
             while not accepted:
+                state["step_gains"] = False
                 ok, _, dV1, dV2 = self._backward(problem, state["mu"], timings)
                 if not ok:
                     state["mu"] = max(opt.mu_min, state["mu"] * opt.mu_growth)
@@ -460,7 +466,7 @@ class HSDDP:
                 while eps >= opt.min_step:
                     timings["line_search_trials"] += 1
                     # the full step is usually accepted: linearize along it on the way (speculative)
-                    cand_linearized = eps == 1.0
+                    cand_linearized = eps == 1.0 and speculate
                     with np.errstate(over="ignore", invalid="ignore"):
                         ok = rollout_policy(problem, ws.candidate, ws.nominal.U, ws.nominal.X, ws.K, ws.k_ff, eps,
                                             ws.lam6, ws.lin_candidate if cand_linearized else None)
@@ -488,6 +494,7 @@ class HSDDP:
                 ws.lin, ws.lin_candidate = ws.lin_candidate, ws.lin
             ws.lin_valid = cand_linearized
             costs = new_costs
+            state["step_gains"] = True
             state["mu"] = state["mu"] / opt.mu_growth
             if state["mu"] < opt.mu_min:
                 state["mu"] = 0.0

@@ -39,6 +39,15 @@ class SolverOptions:
             after an accepted step mu <- mu / growth (0 below mu_min); give up above mu_max.
         time_limit: wall-clock budget [s] (None: none); reaching it stops with status ``"time_limit"``.
         max_total_ddp_iterations: cap over all AL iterations (None: none).
+        refresh_gains: True (default): the returned gains come from one more linearization and backward pass at
+            the final trajectory (gains consistent with it, the next step's ``k_ff``). False: when the solve ends
+            on an accepted step, the gains ``K`` of the backward pass that made that step are returned, and
+            ``k_ff``, ``V_x0``, ``V_xx0`` with them (they belong to the trajectory before the step). Along the
+            returned trajectory, ``u = U + K (x - X)`` is then exactly the forward pass's law
+            ``U_prev + eps k_ff + K (x - X_prev)``; the final trajectory is not linearized (with
+            ``max_total_ddp_iterations``, the last iteration's trial rollout skips its speculative linearization
+            too). It saves a linearization and a backward pass per solve: what an MPC that takes one DDP
+            iteration per re-plan pays most for.
     """
 
     method: str = "al-reb"
@@ -65,6 +74,7 @@ class SolverOptions:
     mu_max: float = 1e8
     time_limit: float | None = None
     max_total_ddp_iterations: int | None = None
+    refresh_gains: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -90,6 +100,8 @@ class SolverOptions:
             check_positive(self.time_limit, "time_limit")
         if self.max_total_ddp_iterations is not None:
             check_int(self.max_total_ddp_iterations, "max_total_ddp_iterations", minimum=1)
+        if not isinstance(self.refresh_gains, (bool, np.bool_)):
+            raise TypeError(f"refresh_gains must be a bool, got {self.refresh_gains!r}")
         if not np.isfinite(self.lambda0):
             raise ValueError(f"lambda0 must be finite, got {self.lambda0!r}")
 

@@ -217,6 +217,12 @@ class MPCOptions:
             with. The update is a dual step for a solved inner problem; one DDP iteration per re-plan does not solve
             it, and after a push whose touchdown cannot be met the multipliers wound up from about 1 to 100-600 in
             0.2 s (seed 514), pulling each plan's feet to the ground at any cost.
+        refresh_gains: the solver's :attr:`SolverOptions.refresh_gains`: True: each plan's feedback gains come
+            from one more linearization and backward pass at the plan's final trajectory; False: the gains of the
+            backward pass that made the plan's last DDP step (``u = U + K (x - X)`` is then exactly that step's
+            forward-pass law; Crocoddyl's MPC practice), which saves a linearization and a backward pass per
+            re-plan (about a third of a one-iteration re-plan). ``hold_gains`` and ``switch_time_weight`` read
+            the solver's last backward pass, which then belongs to the trajectory before the step.
     """
 
     horizon: float | None = None
@@ -264,6 +270,7 @@ class MPCOptions:
     height_offset: float = 0.04
     restart_ratio: float | None = 10.0
     carry_outer_loop: bool = False
+    refresh_gains: bool = True
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -328,6 +335,8 @@ class MPCOptions:
             raise ValueError(f"restart_ratio must be None or > 1, got {self.restart_ratio!r}")
         if not isinstance(self.carry_outer_loop, (bool, np.bool_)):
             raise TypeError(f"carry_outer_loop must be a bool, got {self.carry_outer_loop!r}")
+        if not isinstance(self.refresh_gains, (bool, np.bool_)):
+            raise TypeError(f"refresh_gains must be a bool, got {self.refresh_gains!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
 
@@ -830,7 +839,7 @@ class MPCPolicy(Policy):
         iters = o.warmup_iterations if cold else o.max_iterations
         self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
                                              max_total_ddp_iterations=iters, time_limit=o.time_budget,
-                                             max_al_iterations=4 if cold else 2)
+                                             max_al_iterations=4 if cold else 2, refresh_gains=o.refresh_gains)
         try:
             sol = None
             if ws is not None:
@@ -898,7 +907,7 @@ class MPCPolicy(Policy):
         solver = self._restart_solver
         solver.options = SolverOptions(method=o.method, max_ddp_iterations=o.warmup_iterations,
                                        max_total_ddp_iterations=o.warmup_iterations, time_limit=o.time_budget,
-                                       max_al_iterations=4)
+                                       max_al_iterations=4, refresh_gains=o.refresh_gains)
         try:
             fresh = solver.solve(problem, self._cold_controls(problem))
         except ValueError:
