@@ -12,7 +12,8 @@ time limit (5 s) or a fall. Policies:
   ``DIR/model.zip`` + ``summary.json``), skipped with a note when the files are missing.
 
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
-develop or tune anything. Development used seeds 500-519.
+develop or tune anything. Development used seeds 500-519. ``--seed-list S [S ...]`` runs exactly those seeds
+(e.g. an earlier run's ``fall_seeds``, or a subset of pushes chosen by their draw).
 
 Per cell: falls / episodes, mean return (all episodes), mean forward speed of the episodes that did not fall
 (and its error to the target), real-time factor (simulated / wall time, policy + simulation), and for the MPC the
@@ -224,6 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
                    help="first seed (default: %(default)s, the evaluation seeds; develop on others)")
+    p.add_argument("--seed-list", type=int, nargs="+", default=None, metavar="SEED",
+                   help="run exactly these seeds instead of --seeds/--first-seed (e.g. an earlier run's fall seeds)")
     p.add_argument("--max-steps", type=int, default=None,
                    help="stop episodes after this many control steps (default: the 1000-step limit; smoke tests)")
     p.add_argument("--workers", type=int, default=1,
@@ -247,6 +250,11 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--seeds must be >= 1, got {args.seeds}")
     if args.first_seed < 0:
         p.error(f"--first-seed must be >= 0, got {args.first_seed}")
+    if args.seed_list is not None:
+        if min(args.seed_list) < 0:
+            p.error(f"--seed-list: seeds must be >= 0, got {min(args.seed_list)}")
+        if len(set(args.seed_list)) != len(args.seed_list):
+            p.error("--seed-list: a seed is given twice")
     if args.workers < 1:
         p.error(f"--workers must be >= 1, got {args.workers}")
     try:
@@ -280,7 +288,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"skipping {name}: {skipped[name]}", flush=True)
             continue
         policies[name] = {"kind": name, "dir": path}
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.first_seed,
+                                                                                 args.first_seed + args.seeds))
     t0 = time.perf_counter()
     results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet,
                             args.backend, args.address, args.simulator)

@@ -224,7 +224,16 @@ def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experime
     assert rob.main(argv[:4] + ["--seeds", "1", "--max-steps", "3", "--quiet", "--learned", f"bc={tmp_path}/none",
                                 "--out", str(skipped)]) == 0
     assert "bc" in json.loads((skipped / "robustness.json").read_text())["skipped"]
+    # explicit seeds: the same episodes as the range run's
+    listed = tmp_path / "f"
+    assert rob.main(argv + ["--out", str(listed), "--seed-list", "12"]) == 0
+    f = json.loads((listed / "robustness.json").read_text())
+    assert f["seeds"] == [12]
+    for cond, cell in f["results"]["heuristic"].items():
+        run = {k: v for k, v in cell["runs"][0].items() if k != "wall_time_s"}
+        assert run == {k: v for k, v in cells[cond]["runs"][1].items() if k != "wall_time_s"}
     for bad in (["--workers", "0"], ["--learned", "xyz=dir"], ["--policies", "mpc-options"],
-                ["--combine", str(tmp_path / "missing.json")], ["--simulator", "isaac"]):
+                ["--combine", str(tmp_path / "missing.json")], ["--simulator", "isaac"], ["--seed-list", "-1"],
+                ["--seed-list", "3", "3"]):
         with pytest.raises(SystemExit):
             rob.main(["--out", str(tmp_path / "e"), *bad])
