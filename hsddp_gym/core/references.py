@@ -43,6 +43,19 @@ _END_POSTURES = {
 }
 
 
+MAX_HEIGHT_OFFSET = 0.1
+"""The largest ``height_offset`` [m] a reference posture accepts (either way): the legs' reach."""
+
+
+def check_height_offset(value, name: str = "height_offset") -> float:
+    """``value`` as a float if it is a real number in [-MAX_HEIGHT_OFFSET, MAX_HEIGHT_OFFSET] [m], else a
+    ValueError naming ``name`` (bools, strings and NaN included)."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (
+            -MAX_HEIGHT_OFFSET <= float(value) <= MAX_HEIGHT_OFFSET):
+        raise ValueError(f"{name} must be a number in [-{MAX_HEIGHT_OFFSET}, {MAX_HEIGHT_OFFSET}] [m], got {value!r}")
+    return float(value)
+
+
 @functools.lru_cache(maxsize=64)
 def _raised_posture(key: str, height_offset: float, params: RobotParams) -> tuple:
     """``_END_POSTURES[key]`` with the trunk ``height_offset`` [m] higher and every foot where it was: the four joint
@@ -113,13 +126,11 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
         raise TypeError(f"params must be a RobotParams, got {type(params).__name__}")
     if z_velocity not in ("code", "paper"):
         raise ValueError(f"z_velocity must be 'code' or 'paper', got {z_velocity!r}")
-    if isinstance(height_offset, bool) or not isinstance(height_offset, numbers.Real) or not (
-            -0.1 <= float(height_offset) <= 0.1):
-        raise ValueError(f"height_offset must be a number in [-0.1, 0.1] [m], got {height_offset!r}")
-    if float(height_offset) == 0.0:
+    height_offset = check_height_offset(height_offset)
+    if height_offset == 0.0:
         z, pitch, hf, kf, hb, kb, zdot = _END_POSTURES[key]
     else:
-        z, pitch, hf, kf, hb, kb, zdot = _raised_posture(key, float(height_offset), params)
+        z, pitch, hf, kf, hb, kb, zdot = _raised_posture(key, height_offset, params)
     x = np.zeros(NX)
     x[:NQ] = (0.0, z + params.leg_length, pitch, hf, kf, hb, kb)
     x[IVX] = speed

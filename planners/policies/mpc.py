@@ -46,6 +46,7 @@ import numpy as np
 
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.references import check_height_offset
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
 from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
@@ -328,9 +329,7 @@ class MPCOptions:
         if (self.hold_gains or self.hold_feedforward) and self.fine_dt is not None:
             raise ValueError("hold_gains and hold_feedforward need one knot spacing (planner_dt): fine_dt must be "
                              f"None, got {self.fine_dt!r}")
-        if isinstance(self.height_offset, bool) or not isinstance(self.height_offset, numbers.Real) or not (
-                -0.1 <= float(self.height_offset) <= 0.1):
-            raise ValueError(f"height_offset must be in [-0.1, 0.1] [m], got {self.height_offset!r}")
+        check_height_offset(self.height_offset)
         if self.restart_ratio is not None and not (check_positive(self.restart_ratio, "restart_ratio") > 1.0):
             raise ValueError(f"restart_ratio must be None or > 1, got {self.restart_ratio!r}")
         if not isinstance(self.carry_outer_loop, (bool, np.bool_)):
@@ -901,7 +900,9 @@ class MPCPolicy(Policy):
     def _restart(self, problem: HybridProblem, sol):
         """``restart_ratio``: solve ``problem`` again from scratch (``warmup_iterations``, the solver's own outer
         loop) after the warm-started ``sol`` ended far above the previous plan's objective; the plan with the lower
-        objective is returned, and :attr:`_solver` is the solver that made it (its outer-loop state is carried)."""
+        objective is returned, and :attr:`_solver` is the solver that made it (its outer-loop state is carried). A
+        restart whose warm start cannot be rolled out (ValueError) or that diverges keeps ``sol``: it counts in
+        ``stats["restarts"]`` and not in ``stats["restarts_kept"]``."""
         o = self.options
         self.stats["restarts"] += 1
         solver = self._restart_solver
