@@ -150,10 +150,11 @@ def test_double_stance_rule():
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, ds, 3, ds, 0)
     assert c.phase == 0 and c.mode == Mode.BACK_STANCE
-    # on: the front foot lands in the back stance (debounced) -> double stance, then front stance
+    # on: the front foot lands in the back stance (debounced, after a swing of min_flight of its flight, 9 ms)
+    # -> double stance, then front stance
     c = GaitClock(durs, 0.005, double_stance=0.02)
     c.update(Mode.BACK_STANCE, 0.0)
-    _stance_then(c, ds, 1, ds, 0)
+    _stance_then(c, Mode.BACK_STANCE, 1, ds, 1)
     assert c.phase == 0  # one contact step of the front foot is not enough
     c.tick()
     assert c.update(ds, 0.0) == ds
@@ -170,7 +171,7 @@ def test_double_stance_rule():
     # ... or after its duration, both feet still down; the duration is the one set when it started
     c = GaitClock(durs, 0.005, double_stance=0.02)
     c.update(Mode.FRONT_STANCE, 0.0)
-    _stance_then(c, ds, 2, ds, 0)
+    _stance_then(c, Mode.FRONT_STANCE, 1, ds, 2)
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 0
     c.double_stance = 0.0
     _stance_then(c, ds, 3, ds, 0)
@@ -182,32 +183,63 @@ def test_double_stance_rule():
     c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
     _stance_then(c, Mode.BACK_STANCE, 1, ds, 2)
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
+    # a scuff is not a landing: a foot in the air for less than min_flight of its flight (one step, 5 ms) touches
+    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, ds, 3, ds, 0)
+    assert c.phase == 0 and c.mode == Mode.BACK_STANCE
     with pytest.raises(ValueError, match="double_stance"):
         GaitClock(durs, 0.005, double_stance=-0.01)
 
 
+def test_double_stance_starts_only_at_a_touchdown():
+    """A double stance that ends on its duration with both feet still down is followed by the stance of the foot
+    that landed, which plans the other foot's lift-off: the foot that stayed down is not a new touchdown (before
+    this rule the clock went from one double stance to the next, swapping which stance followed, and pushed
+    development seeds 625, 727, 839 and 863 fell). Nor is a scuff: that foot lifting off for less than ``min_flight``
+    of its flight and touching again. Once it has swung that long and lands, it is a touchdown."""
+    durs = (0.1, 0.03, 0.1, 0.03)
+    ds = Mode.DOUBLE_STANCE
+    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(c, Mode.BACK_STANCE, 2, ds, 2)  # the front foot lands in the back stance: double stance, front next
+    assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
+    _stance_then(c, ds, 4, ds, 0)  # both feet down for its whole duration
+    assert c.phase == 2
+    _stance_then(c, ds, 10, ds, 0)  # the back foot never lifts: still the front stance
+    assert c.phase == 2 and c.mode == Mode.FRONT_STANCE
+    twin = c.copy()
+    _stance_then(c, Mode.FRONT_STANCE, 1, ds, 2)  # it lifts off for a step and touches again: a scuff, not a landing
+    assert c.phase == 2
+    _stance_then(c, Mode.FRONT_STANCE, 2, ds, 2)  # in the air for 10 ms (min_flight of its 30 ms flight): a landing
+    assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 0
+    _stance_then(twin, ds, 3, ds, 0)  # the copy keeps the count of the phase's observations
+    assert twin.phase == 2
+
+
 def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
-    """``MPCOptions(double_stance=0.04)``: the MPC's clock always has that double stance, and a plan's schedule
-    built while the clock is in it starts with it, then the stance of the foot that landed; the default MPC never
-    enters one. The learner's rebuilt clock keeps the setting."""
+    """``MPCOptions(double_stance=0.04)`` (the default): the MPC's clock always has that double stance, and a plan's
+    schedule built while the clock is in it starts with it, then the stance of the foot that landed; with None the
+    MPC never enters one. The learner's rebuilt clock keeps the setting."""
     from hsddp_gym.learning.features import clock_from_params, clock_params
 
     ds = Mode.DOUBLE_STANCE
     policy = MPCPolicy(EnvInterface(), MPCOptions(double_stance=0.04))
     assert policy.clock.double_stance == 0.04
     policy.clock.update(Mode.BACK_STANCE, 0.0)
-    _stance_then(policy.clock, ds, 2, ds, 0)  # the front foot lands in the back stance (debounced)
+    _stance_then(policy.clock, Mode.BACK_STANCE, 4, ds, 2)  # the front foot lands in the back stance (debounced)
     assert policy.clock.phase == DOUBLE_STANCE_PHASE and policy.clock.after_double == 2
     schedule = policy._schedule()
     assert schedule.modes[0] == ds and schedule.modes[1] == Mode.FRONT_STANCE
     assert schedule.durations[0] == pytest.approx(0.04)
     assert clock_from_params(clock_params(policy.clock)).double_stance == 0.04
-    # the default: no double stance, the clock stays in the back stance and so does the plan
-    default = MPCPolicy(EnvInterface())
-    assert MPCOptions().double_stance is None and default.clock.double_stance == 0.0
-    default.clock.update(Mode.BACK_STANCE, 0.0)
-    _stance_then(default.clock, ds, 2, ds, 0)
-    assert default.clock.phase == 0 and default._schedule().modes[0] == Mode.BACK_STANCE
+    assert MPCOptions().double_stance == 0.04 and MPCPolicy(EnvInterface()).clock.double_stance == 0.04
+    # None: no double stance, the clock stays in the back stance and so does the plan
+    off = MPCPolicy(EnvInterface(), MPCOptions(double_stance=None))
+    assert off.clock.double_stance == 0.0
+    off.clock.update(Mode.BACK_STANCE, 0.0)
+    _stance_then(off.clock, ds, 2, ds, 0)
+    assert off.clock.phase == 0 and off._schedule().modes[0] == Mode.BACK_STANCE
     for bad in (0.0, -0.01):
         with pytest.raises(ValueError, match="double_stance"):
             MPCOptions(double_stance=bad)

@@ -185,3 +185,39 @@ def test_in_loop_switching_time_adaptation_lands_earlier_after_a_downward_push()
         with pytest.raises(ValueError, match=next(iter(bad))):
             MPCOptions(**bad)
     assert MPCOptions().switch_time_weight is None  # off by default (README "Stop 25")
+
+
+def _push_episode(options: MPCOptions, seed: int):
+    """One ``make_env("push")`` episode of the MPC: (fell, the times [s] at which its clock was in a double stance)."""
+    from hsddp_gym.envs.perturbations import make_env as make_perturbed_env
+    from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE
+
+    env = make_perturbed_env("push")
+    policy = MPCPolicy.from_env(env, options=options)
+    obs, info = env.reset(seed=seed)
+    policy.reset()
+    double = []
+    for k in range(env.spec.max_episode_steps):
+        obs, _, terminated, truncated, _ = env.step(policy(obs))
+        if policy.clock.phase == DOUBLE_STANCE_PHASE:
+            double.append((k + 1) * env.unwrapped.dt)
+        if terminated or truncated:
+            return terminated, double, info["push"]
+    return False, double, info["push"]
+
+
+def test_a_landing_on_both_feet_is_planned_as_a_double_stance():
+    """Development seed 700 of the ``push`` condition: an upward, spinning push (t = 1.96 s, Δv = (+0.75, +0.77) m/s,
+    −4.3 rad/s) throws the robot into a 0.23 s flight and it lands nose-up on both feet. Planned as a front stance
+    (``double_stance=None``) every action saturates and the trunk sinks to the fall height; the default plans the
+    landing as a 40 ms double stance, then the front stance, and bounds on (stop 30)."""
+    fell, double, push = _push_episode(MPCOptions(), 700)
+    assert push["time"] == pytest.approx(1.96, abs=0.01)
+    assert not fell
+    assert double and push["time"] < double[0] < push["time"] + 0.3  # entered at the landing, never before the push
+    # each double stance lasts its 40 ms (8 control steps), none follows another at once
+    runs = np.split(np.array(double), np.flatnonzero(np.diff(double) > 0.0051) + 1)
+    assert all(len(run) <= 8 for run in runs)
+    assert all(b[0] - a[-1] > 0.05 for a, b in zip(runs, runs[1:]))
+    fell_off, double_off, _ = _push_episode(MPCOptions(double_stance=None), 700)
+    assert fell_off and not double_off
