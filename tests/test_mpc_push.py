@@ -188,7 +188,8 @@ def test_in_loop_switching_time_adaptation_lands_earlier_after_a_downward_push()
 
 
 def _push_episode(options: MPCOptions, seed: int):
-    """One ``make_env("push")`` episode of the MPC: (fell, the times [s] at which its clock was in a double stance)."""
+    """One ``make_env("push")`` episode of the MPC: (fell, the times [s] at which its clock was in a double stance,
+    the episode's push as ``info["push"]`` of the reset)."""
     from hsddp_gym.envs.perturbations import make_env as make_perturbed_env
     from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE
 
