@@ -322,3 +322,105 @@ def test_clock_starts_a_stance_where_the_foot_under_the_hip_says():
 
     with pytest.raises(ValueError, match="x"):
         update_gait_clock(GaitClock(policy.durations, 0.005), Mode.BACK_STANCE, np.zeros(3))
+
+
+def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
+    """``flight_reach`` (default 0.85): a flight is planned to last at least until the hip of the foot that lands
+    is within ``flight_reach`` leg lengths of the ground, the trunk flying ballistically. The reach time is the
+    ballistic fall time (to a knot); a robot at bounding height gets no longer flight; high above the ground, the
+    plan's flight lasts the fall and not ``min_phase`` (after the nominal end); None plans ``min_phase``."""
+    from hsddp_gym.core.conventions import IPITCH, IZ, NQ
+
+    policy = MPCPolicy(EnvInterface())
+    o = policy.options
+    assert o.flight_reach == 0.85
+    params = policy.dynamics.robot.params
+    reach = o.flight_reach * params.leg_length
+    x = np.zeros(14)
+    x[IZ] = reach + 0.10  # level trunk, both hips 10 cm above their reach, at rest
+    fall = np.sqrt(2 * 0.10 / params.gravity)
+    for stance in (Mode.FRONT_STANCE, Mode.BACK_STANCE):
+        assert abs(policy._reach_time(x, stance) - fall) <= o.planner_dt
+    # pitched nose-up (negative pitch): the front hip is higher than the back one and reaches later
+    x[IPITCH] = -0.3
+    assert policy._reach_time(x, Mode.FRONT_STANCE) > fall + 0.02 > policy._reach_time(x, Mode.BACK_STANCE) + 0.02
+    # moving up at 0.5 m/s: the ballistic time, longer than the fall from rest
+    x[IPITCH], x[NQ + IZ] = 0.0, 0.5
+    up = (0.5 + np.sqrt(0.25 + 2 * params.gravity * 0.10)) / params.gravity
+    assert up > fall + 0.05 and abs(policy._reach_time(x, Mode.BACK_STANCE) - up) <= o.planner_dt
+    # at bounding height (0.29 m) the hips are within reach: no delay
+    x[IZ], x[NQ + IZ] = 0.29, 0.0
+    assert policy._reach_time(x, Mode.FRONT_STANCE) == 0.0
+    # never within the horizon: the horizon
+    x[IZ] = 3.0
+    assert policy._reach_time(x, Mode.FRONT_STANCE) == pytest.approx(policy.horizon, abs=o.planner_dt)
+
+    # the plan's schedule: a flight 60 ms past its nominal end, the robot high above the ground
+    x[IZ] = reach + 0.10
+    off = MPCPolicy(EnvInterface(), MPCOptions(flight_reach=None))
+    for p in (policy, off):
+        p.clock.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
+        _stance_then(p.clock, Mode.FLIGHT, int(round((p.durations[1] + 0.06) / 0.005)), Mode.FLIGHT, 0)
+        assert p.clock.phase == 1
+    planned = policy._schedule(x)
+    assert planned.modes[0] == Mode.FLIGHT and planned.modes[1] == Mode.FRONT_STANCE
+    assert abs(planned.durations[0] - fall) <= o.planner_dt
+    assert off._schedule(x).durations[0] == pytest.approx(o.min_phase)
+    # the clock is not changed, nor a plan from bounding height
+    assert policy.clock.phase == 1
+    x[IZ] = 0.29
+    assert policy._schedule(x).durations[0] == pytest.approx(o.min_phase)
+    for bad in (0.0, -0.1, 1.5):
+        with pytest.raises(ValueError, match="flight_reach"):
+            MPCOptions(flight_reach=bad)
+    with pytest.raises(TypeError, match="flight_reach"):
+        MPCOptions(flight_reach="high")
+
+
+def test_a_foot_back_on_the_ground_in_a_flight_is_planned_as_its_stance():
+    """``plan_retouch`` (default True): in a flight, the foot of the stance before it back on the ground after a
+    swing (:attr:`GaitClock.retouched`) is planned as that foot's stance for the rest of the flight, then the landing
+    foot's stance; the clock's phase does not change. A foot that never left the ground or only scuffs it is not
+    retouched; False plans the flight."""
+    durs = (0.08, 0.072, 0.072, 0.072)
+    bs, fl = Mode.BACK_STANCE, Mode.FLIGHT
+    c = GaitClock(durs, 0.005)
+    c.update(fl, 1.0)  # flight 1: after the back stance, lands the front foot
+    assert c.phase == 1 and not c.retouched
+    _stance_then(c, fl, 6, bs, 1)  # 35 ms in the air, then the back foot touches: not yet debounced
+    assert c.phase == 1 and not c.retouched
+    _stance_then(c, bs, 1, bs, 0)
+    assert c.phase == 1 and c.retouched
+    assert c.copy().retouched
+    _stance_then(c, fl, 1, fl, 0)  # it lifts off again
+    assert not c.retouched and c.phase == 1
+    # a scuff: 10 ms after the back stance ended, 10 ms in the air
+    s = GaitClock(durs, 0.005)
+    s.update(bs, 0.0)
+    _stance_then(s, bs, 16, bs, 0)  # the back stance ends on time with the foot still down
+    assert s.phase == 1
+    _stance_then(s, bs, 1, fl, 2)
+    _stance_then(s, bs, 3, bs, 0)
+    assert s.phase == 1 and not s.retouched
+    # a foot that stays down from the stance into the flight
+    d = GaitClock(durs, 0.005)
+    d.update(bs, 0.0)
+    _stance_then(d, bs, 20, bs, 0)
+    assert d.phase == 1 and not d.retouched
+    # stances are never retouched
+    assert not GaitClock(durs, 0.005).retouched
+
+    policy = MPCPolicy(EnvInterface())
+    off = MPCPolicy(EnvInterface(), MPCOptions(plan_retouch=False))
+    assert policy.options.plan_retouch
+    for p in (policy, off):
+        p.clock.update(fl, 1.0)
+        _stance_then(p.clock, fl, 6, bs, 2)
+        assert p.clock.retouched
+    planned = policy._schedule()
+    assert list(planned.modes[:3]) == [bs, Mode.FRONT_STANCE, fl]
+    assert planned.touchdown_feet(0) == (0,)  # the front foot lands at the end of the retouched stance
+    assert list(off._schedule().modes[:2]) == [fl, Mode.FRONT_STANCE]
+    assert planned.durations[0] == pytest.approx(off._schedule().durations[0])
+    with pytest.raises(TypeError, match="plan_retouch"):
+        MPCOptions(plan_retouch="yes")

@@ -6,11 +6,13 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 1. the observation gives the state, the contact mode and (from the policy's memory) the time already spent
    in that mode and the last stance foot;
 2. a bounding :class:`~hsddp_gym.core.schedule.ModeSchedule` starts with the current mode for the rest of its
-   nominal duration (at least ``min_phase`` seconds) and continues the bounding cycle to cover at least
+   nominal duration (at least ``min_phase`` seconds; a flight at least until its landing foot's hip, flying
+   ballistically, is within reach of the ground: ``flight_reach``) and continues the bounding cycle to cover at least
    ``horizon`` seconds (default one gait cycle); the plan's speed reference is the target speed moved at
    most ``speed_ramp`` from the measured speed (a reference governor for pushes), a stance whose foot
    has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`), and
-   a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``);
+   a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``), and a
+   flight whose other foot is back on the ground is planned as that foot's stance (``plan_retouch``);
 3. the previous plan, aligned by phase with the contact events
    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
@@ -44,7 +46,7 @@ import time
 
 import numpy as np
 
-from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, NU, NX, Mode
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.references import check_height_offset
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
@@ -58,7 +60,7 @@ from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.tracking import PlanTracker
-from hsddp_gym.util.validation import check_int, check_positive, check_vector
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 _CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 DOUBLE_STANCE_PHASE = 4
@@ -228,6 +230,22 @@ class MPCOptions:
             forward-pass law; Crocoddyl's MPC practice), which saves a linearization and a backward pass per
             re-plan (about a third of a one-iteration re-plan). ``hold_gains`` and ``switch_time_weight`` read
             the solver's last backward pass, which then belongs to the trajectory before the step.
+        flight_reach: a flight is planned to last at least until the hip of the foot that lands at its end is within
+            ``flight_reach`` leg lengths of the ground (default 0.85, 0.343 m of the 0.404 m leg; None: the rest of
+            the flight's nominal duration, at least ``min_phase``), the trunk flying ballistically from the
+            re-plan's state: its velocity, gravity, its pitch rate held (:meth:`MPCPolicy._reach_time`). Why: after
+            an upward push in a flight, the flight outlasts its nominal duration, and past its nominal end the plan
+            put the touchdown ``min_phase`` (10 ms) ahead at every re-plan while the foot was 10 cm or more above
+            the ground, a switching constraint no leg could meet (push seed 709: a 190 ms flight planned as 10 ms
+            from its 85th ms on; the front foot landed at -1.4 m/s with the nose 32 degrees up, and the robot fell).
+            Bounding height keeps the hips within reach, so unperturbed bounding is planned as before.
+        plan_retouch: in a flight whose other foot, the foot of the stance before it, is back on the ground
+            (:attr:`GaitClock.retouched`: its contact began in this flight after a swing of at least ``min_flight``
+            of the flight, and has lasted ``debounce_steps``), the plan's first phase is that foot's stance for the
+            rest of the planned flight, then the stance of the landing foot (default True; False: the flight is
+            planned as a flight). Why: after a nose-down push the front foot comes down again while the clock waits
+            for the back foot; planned as a flight, the front leg that held the trunk up got no planned force, its
+            hip torque alternated between its limits and the nose went down (push seeds 883, 885).
     """
 
     horizon: float | None = None
@@ -276,6 +294,8 @@ class MPCOptions:
     restart_ratio: float | None = 10.0
     carry_outer_loop: bool = False
     refresh_gains: bool = True
+    flight_reach: float | None = 0.85
+    plan_retouch: bool = True
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -296,6 +316,11 @@ class MPCOptions:
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
         if self.double_stance is not None:
             check_positive(self.double_stance, "double_stance")
+        if not isinstance(self.plan_retouch, (bool, np.bool_)):
+            raise TypeError(f"plan_retouch must be a bool, got {self.plan_retouch!r}")
+        if self.flight_reach is not None:
+            if check_in_range(self.flight_reach, 0.0, 1.0, "flight_reach") == 0.0:
+                raise ValueError("flight_reach must be in (0, 1] (a fraction of the leg length) or None, got 0.0")
         if self.max_wait is not None:
             check_positive(self.max_wait, "max_wait", allow_zero=True)
         if not (0.0 <= self.min_flight <= 1.0):
@@ -362,7 +387,9 @@ class GaitClock:
     ``debounce_steps`` (in a flight, once ``min_flight`` of it has passed).
     It lasts ``double_stance`` seconds or until the other foot has lifted off for ``debounce_steps``, then the
     stance of the foot that landed follows (:attr:`resynced` is set when it starts); a foot still down when that
-    stance starts does not start another double stance until it has lifted off and touched down again. The first
+    stance starts does not start another double stance until it has lifted off and touched down again. In a flight,
+    :attr:`retouched` says that the foot of the stance before it is back on the ground (the MPC plans that stance,
+    ``MPCOptions.plan_retouch``; the phase stays the flight). The first
     observation picks the phase from the contacts (and, in flight, the sign of the pitch rate).
 
     Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
@@ -508,6 +535,18 @@ class GaitClock:
         return _CYCLE[self.phase]
 
     @property
+    def retouched(self) -> bool:
+        """In a flight, whether the foot of the stance before it is back on the ground: its contact began in this
+        flight, after a swing of at least ``min_flight`` of the flight (a scuff at lift-off is not), and has lasted
+        ``debounce_steps``. The phase does not change (the clock still waits for the landing foot)."""
+        j = self.phase
+        if j not in (1, 3):
+            return False
+        foot = BACK if j == 1 else FRONT
+        swung = self._swing_steps[foot] * self.dt >= self.min_flight * self.durations[j] - 1e-9
+        return swung and self.debounce_steps <= self._contact_steps[foot] <= self._phase_updates
+
+    @property
     def mode(self) -> Mode:
         """The contact mode of the current phase."""
         return Mode.DOUBLE_STANCE if self.phase == DOUBLE_STANCE_PHASE else _CYCLE[self.phase]
@@ -627,6 +666,8 @@ class MPCPolicy(Policy):
             self.durations = PAPER_BOUNDING_DURATIONS
         self.weights = options.weights if options.weights is not None else "paper"
         self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
+        # times [s] at which _reach_time looks for the landing hip's reach: the plan's knots over its horizon
+        self._reach_grid = np.arange(0.0, self.horizon + 0.5 * options.planner_dt, options.planner_dt)
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
         self.action_delay = options.action_delay if options.action_delay is not None else interface.action_delay_steps
         """Control steps between an action's return and its execution (the latency compensated for)."""
@@ -714,7 +755,7 @@ class MPCPolicy(Policy):
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
         return update_gait_clock(self.clock, mode, x, self.dynamics.robot)
 
-    def _schedule(self) -> ModeSchedule:
+    def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
         ``min_phase``; a double stance for the rest of its duration, then the stance that follows it), then the
         bounding cycle until ``horizon`` is covered, ending after a stance."""
@@ -727,6 +768,12 @@ class MPCPolicy(Policy):
         else:
             # the current phase's end and the next phase moved by the in-loop switching-time adaptation, if any
             modes, durs = [_CYCLE[j]], [max(self.durations[j] + self._plan_clock.shift - self._tau, o.min_phase)]
+            if _CYCLE[j] == Mode.FLIGHT and o.flight_reach is not None and x is not None:
+                # a flight lasts at least until the landing foot can reach the ground
+                durs[0] = max(durs[0], self._reach_time(x, _CYCLE[(j + 1) % 4]))
+            if o.plan_retouch and self._plan_clock.retouched:
+                # the foot of the stance before this flight is back on the ground: plan it as its stance
+                modes[0] = _CYCLE[(j - 1) % 4]
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
@@ -736,6 +783,19 @@ class MPCPolicy(Policy):
         h = o.planner_dt
         durs = [max(1, round(d / h)) * h for d in durs]
         return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
+
+    def _reach_time(self, x: np.ndarray, stance: Mode) -> float:
+        """``flight_reach``: the time [s] from state ``x`` (14,) until the hip of the foot that lands in ``stance``
+        is within ``flight_reach`` x the leg length of the ground, the trunk flying ballistically (its velocity,
+        gravity, its pitch rate held); 0 when it already is, the plan's horizon when it is not within it."""
+        params = self.dynamics.robot.params
+        side = 1.0 if stance == Mode.FRONT_STANCE else -1.0  # the front hip is at +hip_offset along the trunk
+        reach = self.options.flight_reach * params.leg_length
+        t = self._reach_grid
+        z = x[IZ] + x[NQ + IZ] * t - 0.5 * params.gravity * t * t - side * params.hip_offset * np.sin(
+            x[IPITCH] + x[NQ + IPITCH] * t)
+        below = np.flatnonzero(z <= reach)
+        return float(t[below[0]]) if below.size else float(t[-1])
 
     def _phase_steps(self, n: int) -> list[float]:
         """The knot spacing [s] of each of ``n`` plan phases: ``fine_dt`` for the first ``fine_phases``, then
@@ -851,7 +911,7 @@ class MPCPolicy(Policy):
         """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
         o = self.options
         t0 = time.perf_counter()
-        schedule = self._schedule()
+        schedule = self._schedule(x)
         knots = [max(1, round(d / h)) for d, h in zip(schedule.durations, self._phase_steps(len(schedule)))]
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, constraints=self._constraints,
