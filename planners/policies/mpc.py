@@ -757,8 +757,12 @@ class MPCPolicy(Policy):
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
-        ``min_phase``; a double stance for the rest of its duration, then the stance that follows it), then the
-        bounding cycle until ``horizon`` is covered, ending after a stance."""
+        ``min_phase``; a double stance for the rest of its duration, then the stance that follows it; a flight at
+        least until the landing hip can reach the ground from ``x``, and planned as the other foot's stance when that
+        foot is back on the ground), then the bounding cycle until ``horizon`` is covered, ending after a stance.
+
+        Args:
+            x: the re-plan's state (14,), for ``flight_reach`` (None: the flight's nominal duration)."""
         o = self.options
         j = self._phase_j
         if j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
