@@ -344,8 +344,16 @@ def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
     # pitched nose-up (negative pitch): the front hip is higher than the back one and reaches later
     x[IPITCH] = -0.3
     assert policy._reach_time(x, Mode.FRONT_STANCE) > fall + 0.02 > policy._reach_time(x, Mode.BACK_STANCE) + 0.02
+    # the hip heights are the model's (forward kinematics), for a pitched trunk at rest: the fall time of each hip
+    from hsddp_gym.core.model import CheetahModel
+
+    x[IZ], x[IPITCH] = reach + 0.05, 0.25
+    hips = CheetahModel().hip_positions(x[:NQ])  # (front, back) x (x, z)
+    for stance, hip_z in ((Mode.FRONT_STANCE, hips[0, 1]), (Mode.BACK_STANCE, hips[1, 1])):
+        expected = np.sqrt(2 * max(hip_z - reach, 0.0) / params.gravity)
+        assert abs(policy._reach_time(x, stance) - expected) <= o.planner_dt
     # moving up at 0.5 m/s: the ballistic time, longer than the fall from rest
-    x[IPITCH], x[NQ + IZ] = 0.0, 0.5
+    x[IZ], x[IPITCH], x[NQ + IZ] = reach + 0.10, 0.0, 0.5
     up = (0.5 + np.sqrt(0.25 + 2 * params.gravity * 0.10)) / params.gravity
     assert up > fall + 0.05 and abs(policy._reach_time(x, Mode.BACK_STANCE) - up) <= o.planner_dt
     # at bounding height (0.29 m) the hips are within reach: no delay

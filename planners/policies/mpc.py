@@ -537,13 +537,20 @@ class GaitClock:
     @property
     def retouched(self) -> bool:
         """In a flight, whether the foot of the stance before it is back on the ground: its contact began in this
-        flight, after a swing of at least ``min_flight`` of the flight (a scuff at lift-off is not), and has lasted
-        ``debounce_steps``. The phase does not change (the clock still waits for the landing foot)."""
+        flight, after a swing of at least ``min_flight`` of the flight that lands it (a scuff at lift-off is not), and
+        has lasted ``debounce_steps`` (the landing rule of a double stance, :meth:`_landed`). The phase does not
+        change (the clock still waits for the landing foot)."""
         j = self.phase
         if j not in (1, 3):
             return False
-        foot = BACK if j == 1 else FRONT
-        swung = self._swing_steps[foot] * self.dt >= self.min_flight * self.durations[j] - 1e-9
+        return self._landed(BACK if j == 1 else FRONT)
+
+    def _landed(self, foot: int) -> bool:
+        """Whether ``foot`` has landed in the current phase: its contact began in this phase, after a swing of at
+        least ``min_flight`` of the flight that lands it, and has lasted ``debounce_steps`` (a scuff, or a foot that
+        stayed down from an earlier phase, has not)."""
+        landing_flight = 1 if foot == FRONT else 3
+        swung = self._swing_steps[foot] * self.dt >= self.min_flight * self.durations[landing_flight] - 1e-9
         return swung and self.debounce_steps <= self._contact_steps[foot] <= self._phase_updates
 
     @property
@@ -568,9 +575,7 @@ class GaitClock:
                 return False
         else:
             foot = FRONT if j == 0 else BACK
-        landing_flight = 1 if foot == FRONT else 3
-        swung = self._swing_steps[foot] * self.dt >= self.min_flight * self.durations[landing_flight] - 1e-9
-        return swung and self.debounce_steps <= self._contact_steps[foot] <= self._phase_updates
+        return self._landed(foot)
 
     def shift_switch(self, delta: float) -> None:
         """Move the end of the current phase by ``delta`` [s] (negative: earlier), keeping the end of the next phase
