@@ -9,7 +9,12 @@ time limit (5 s) or a fall. Policies:
   ``--label`` to name it);
 * ``heuristic``: the contact-event heuristic; ``random``;
 * learned ones, ``--learned NAME=DIR`` (NAME ``bc`` / ``dagger``: ``DIR/policy.npz``; ``ppo`` / ``sac``:
-  ``DIR/model.zip`` + ``summary.json``), skipped with a note when the files are missing.
+  ``DIR/model.zip`` + ``summary.json``, ``--rl-checkpoint best`` for the best training-time evaluation's weights;
+  ``NAME@TAG=DIR`` labels one of several of a kind, e.g. training seeds), skipped with a note when the files are
+  missing;
+* ``--estimated LABEL ...``: those policies once more behind the MPC's own perception
+  (:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`: the state filter under observation
+  noise, the model's prediction over an action delay), labelled ``LABEL+est``.
 
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: stop 30's scuff rule of the MPC's gait clock was found on seed 7012 of
@@ -48,11 +53,32 @@ EVAL_FIRST_SEED = 7000
 
 
 def make_policy(spec: dict, env):
-    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ...}``) for ``env``."""
+    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ..., "estimator": bool}``) for
+    ``env``; with ``estimator`` the policy, built for the env without its delay, acts behind
+    :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (the MPC's state filter and latency
+    compensation)."""
     from hsddp_gym.planners.policies.base import EnvInterface
 
     kind = spec["kind"]
     interface = EnvInterface.from_env(env)
+    if spec.get("estimator") or (kind in ("bc", "dagger") and _trained_behind_estimator(spec["dir"])):
+        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
+
+        if kind in ("mpc", "mpc-options"):
+            raise ValueError("estimator: the MPC filters and predicts itself (MPCOptions.state_filter, "
+                             "latency_compensation); wrap other policies")
+        return EstimatedStatePolicy.around(lambda i: _make_bare_policy(kind, spec, env, i), interface)
+    return _make_bare_policy(kind, spec, env, interface)
+
+
+def _trained_behind_estimator(run_dir) -> bool:
+    """A learner trained behind the estimator (``DAggerConfig.estimator``) always acts behind it."""
+    from hsddp_gym.learning.bc import MLPPolicy
+
+    return bool(MLPPolicy.load(Path(run_dir) / "policy.npz").info.get("estimator"))
+
+
+def _make_bare_policy(kind: str, spec: dict, env, interface):
     if kind in ("mpc", "mpc-options"):
         from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
@@ -72,7 +98,9 @@ def make_policy(spec: dict, env):
     if kind in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import load_trained_policy
 
-        return load_trained_policy(spec["dir"], env)
+        policy = load_trained_policy(spec["dir"], env, checkpoint=spec.get("checkpoint", "final"))
+        policy.interface = interface  # the model reads observations only; the interface says which env it acts for
+        return policy
     raise ValueError(f"policy kind must be one of {BUILTIN + tuple(LEARNED)}, got {kind!r}")
 
 
@@ -220,7 +248,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="MPCOptions fields of the mpc-options policy as a JSON object (ablations)")
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
     p.add_argument("--learned", action="append", default=[], metavar="NAME=DIR",
-                   help=f"a trained policy, NAME one of {list(LEARNED)} (repeatable; skipped if its files are missing)")
+                   help=f"a trained policy, NAME one of {list(LEARNED)}, or NAME@TAG to run several of a kind (e.g. "
+                        "ppo@seed0=DIR0 ppo@seed1=DIR1) (repeatable; skipped if its files are missing)")
+    p.add_argument("--rl-checkpoint", choices=("final", "best"), default="final",
+                   help="ppo/sac: the final weights or the best training-time evaluation's (default: %(default)s)")
+    p.add_argument("--estimated", nargs="+", default=[], metavar="LABEL",
+                   help="policies (labels of --policies or --learned names, not the MPC) that also run behind the "
+                        "MPC's state filter and latency compensation (EstimatedStatePolicy), labelled LABEL+est")
     p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS),
                    help="conditions (default: all)")
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
@@ -282,13 +316,25 @@ def main(argv: list[str] | None = None) -> int:
     skipped = {}
     for item in args.learned:
         name, sep, path = item.partition("=")
-        if not sep or name not in LEARNED:
-            p.error(f"--learned must be NAME=DIR with NAME one of {list(LEARNED)}, got {item!r}")
-        if not (Path(path) / LEARNED[name]).exists():
-            skipped[name] = f"missing {Path(path) / LEARNED[name]}"
+        kind = name.split("@")[0]
+        if not sep or kind not in LEARNED or name in policies or name in skipped:
+            p.error(f"--learned must be NAME=DIR with NAME one of {list(LEARNED)}, optionally tagged NAME@TAG (e.g. "
+                    f"ppo@seed1), each NAME once, got {item!r}")
+        if not (Path(path) / LEARNED[kind]).exists():
+            skipped[name] = f"missing {Path(path) / LEARNED[kind]}"
             print(f"skipping {name}: {skipped[name]}", flush=True)
             continue
-        policies[name] = {"kind": name, "dir": path}
+        policies[name] = {"kind": kind, "dir": path}
+        if kind in ("ppo", "sac"):
+            policies[name]["checkpoint"] = args.rl_checkpoint
+    for label in args.estimated:
+        if label in skipped:
+            continue
+        if label not in policies:
+            p.error(f"--estimated: {label!r} is not one of the policies run ({sorted(policies)})")
+        if policies[label]["kind"] in ("mpc", "mpc-options"):
+            p.error(f"--estimated: {label!r} is an MPC, which filters and predicts itself")
+        policies[f"{label}+est"] = {**policies[label], "estimator": True}
     seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.first_seed,
                                                                                  args.first_seed + args.seeds))
     t0 = time.perf_counter()

@@ -18,6 +18,7 @@ from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {  # module: the public names it defines
     "base": ("EnvInterface", "Policy",),
+    "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
     "evaluation": ("EpisodeResult", "run_episode", "summarize",),
     "expert": ("PlanTrackingExpert",),
     "heuristic": (
