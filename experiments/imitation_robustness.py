@@ -28,12 +28,20 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; the s
   compensation predicts over; :func:`hsddp_gym.learning.features.action_queue_features`);
 * ``bc_speed``: speed-conditioned BC (``speed_input``) on ``ds_speeds``;
 * ``bc_speed_perturbed``: speed-conditioned BC on ``ds_speeds`` and ``ds_perturbed`` pooled;
+* ``dagger_speed_perturbed``: speed-conditioned DAgger from ``ds_speeds`` and ``ds_perturbed`` pooled, its rollouts
+  cycling over the perturbations and the other training speeds (:data:`DAGGER_SPEED_CONDITIONS`), as many rollouts per
+  round as ``--dagger-episodes`` gives each perturbation (one each by default: 12);
+* ``dagger_speed_est``: speed-conditioned DAgger behind the MPC's perception (``DAggerConfig.estimator``: the learner
+  sees the state filter's estimate predicted over the action delay, in its rollouts and when evaluated), from
+  ``ds_speeds`` (undisturbed, where the estimate is the observation), its rollouts as ``dagger_speed_perturbed``'s;
 
 each with every seed of ``--train-seeds`` (labels ``NAME`` for seed 0, ``NAME@seedS`` for the others; with two or
 more seeds the table ends with each learner's falls over the seeds, mean and 95 % interval).
 
 Then every learner runs in every condition of ``hsddp_gym.envs.perturbations.CONDITIONS`` on the evaluation seeds
-(7000-7019 by default, the MPC's protocol: ``experiments/robustness.py``), and ``OUT/imitation_robustness.md`` /
+(7000-7019 by default, the MPC's protocol: ``experiments/robustness.py``), with ``--estimated`` once more behind the
+MPC's perception (``NAME+est``: :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`, the
+state filter and the model's prediction over the action delay), and ``OUT/imitation_robustness.md`` /
 ``.json`` (written atomically) hold the table next to the MPC and heuristic figures of ``--reference`` (a
 ``robustness.json``; they are not re-measured), and the goal check: within 1 fall of the MPC in every condition,
 and speed tracking within 10 % at 0.5-2.0 m/s. The MPC episodes and the evaluations run on ``--workers``
@@ -65,13 +73,18 @@ TRAIN_PERTURBATIONS = ("default", "reset_noise_x4", "obs_noise", "delay_5ms", "d
 """The conditions of the perturbed demonstrations and DAgger rollouts (the suite without the target speeds)."""
 TRAIN_SPEEDS = ("speed_0.5", "default", "speed_1.5", "speed_2.0")
 """The conditions of the speed demonstrations (0.5, 1.0, 1.5, 2.0 m/s; 1.25 m/s is held out)."""
+DAGGER_SPEED_CONDITIONS = TRAIN_PERTURBATIONS + ("speed_0.5", "speed_1.5", "speed_2.0")
+"""The conditions of ``dagger_speed_perturbed``'s rollouts: the perturbations and the training speeds."""
 SPEED_CONDITIONS = ("speed_0.5", "default", "speed_1.25", "speed_1.5", "speed_2.0")
 """Where the speed-tracking goal (within 10 %) is checked."""
 LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed", "dagger_perturbed",
-            "bc_perturbed_queue", "dagger_perturbed_queue", "bc_speed", "bc_speed_perturbed")
+            "bc_perturbed_queue", "dagger_perturbed_queue", "bc_speed", "bc_speed_perturbed", "dagger_speed_perturbed",
+            "dagger_speed_est")
 QUEUE_SLOTS = 2
 """Latency-queue slots of the ``*_queue`` learners (``BCConfig.action_queue``): the suite's longest delay."""
-REFERENCE = ("docs/robustness/issue14_stop24/robustness.json", "docs/robustness/issue14_stop23/robustness.json")
+REFERENCE = ("docs/robustness/issue14_stop31/robustness.json", "docs/robustness/issue14_stop32/heuristic_est.json")
+REFERENCE_POLICIES = ("mpc", "heuristic", "heuristic+est")
+"""The reference rows of the table (from ``--reference``), where the reference files hold them."""
 """The MPC's and the heuristic's evaluation records (stop 24's MPC, the current default; stop 23's heuristic run):
 the first file holding a policy gives its row."""
 FALL_MARGIN = 1
@@ -147,15 +160,23 @@ def train_learners(args, out: Path, data: dict) -> dict:
         t0 = time.perf_counter()
         if (path / "policy.npz").exists() and (path / "summary.json").exists():
             _log(f"{label}: reusing {path}")
-        elif name.startswith("dagger_perturbed"):
-            _log(f"{label}: DAgger, {args.dagger_rounds} rounds x {args.dagger_episodes} rollouts")
+        elif name.startswith("dagger_"):
+            speeds = name in ("dagger_speed_perturbed", "dagger_speed_est")
+            estimator = name == "dagger_speed_est"
+            conditions = DAGGER_SPEED_CONDITIONS if speeds else TRAIN_PERTURBATIONS
+            episodes = args.dagger_episodes if not speeds else len(conditions) * -(
+                -args.dagger_episodes // len(TRAIN_PERTURBATIONS))
+            _log(f"{label}: DAgger, {args.dagger_rounds} rounds x {episodes} rollouts")
             bc = dataclasses.replace(base, action_queue=QUEUE_SLOTS) if name.endswith("_queue") else base
-            cfg = DAggerConfig(rounds=args.dagger_rounds, episodes_per_round=args.dagger_episodes, beta_decay=0.0,
+            bc = dataclasses.replace(bc, speed_input=True) if speeds else bc
+            cfg = DAggerConfig(rounds=args.dagger_rounds, episodes_per_round=episodes, beta_decay=0.0,
                                bc=bc, seed=10000, max_episode_steps=args.max_steps,
-                               rollout_noise=args.rollout_noise, conditions=TRAIN_PERTURBATIONS)
+                               rollout_noise=args.rollout_noise, conditions=conditions, estimator=estimator)
             # run_dagger gives its seed to the config and the BC (rollout seeds 10000 + 100 seed + 1000 round + j,
             # apart from the data's)
-            run_dagger("mpc", path, seed=10000 + 100 * seed, config=cfg, dataset=ds["ds_perturbed"], fmt="npz",
+            initial = ds["ds_speeds"] if estimator else [ds["ds_speeds"], ds["ds_perturbed"]] if speeds else \
+                ds["ds_perturbed"]
+            run_dagger("mpc", path, seed=10000 + 100 * seed, config=cfg, dataset=initial, fmt="npz",
                        eval_episodes=0, progress=not args.quiet, workers=args.workers)
         else:
             s = specs[name]
@@ -168,7 +189,7 @@ def train_learners(args, out: Path, data: dict) -> dict:
                           "expert_labels": summary.get("expert_labels"), "transitions": summary.get("transitions"),
                           "gain_labels": summary.get("gain_labels"),
                           "demonstrations": summary.get("demonstrations", summary.get("initial_demonstrations")),
-                          "config": summary.get("config")}
+                          "config": summary.get("config"), "estimator": name == "dagger_speed_est"}
     return trained
 
 
@@ -240,7 +261,7 @@ def _cell(s: dict) -> str:
 def markdown(results: dict, reference: dict | None, conditions, goals: dict, command: str) -> str:
     from hsddp_gym.envs.perturbations import get_condition
 
-    ref = {k: v for k, v in (reference or {}).items() if k in ("mpc", "heuristic")}
+    ref = {k: v for k, v in (reference or {}).items() if k in REFERENCE_POLICIES}
     labels = [f"{k} (ref.)" for k in ref] + list(results)
     cols = {**{f"{k} (ref.)": v for k, v in ref.items()}, **results}
     lines = [f"`{command}`", "",
@@ -316,6 +337,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reference", nargs="+", default=list(REFERENCE),
                    help="robustness.json file(s) with the MPC and heuristic rows of the table, the first file holding "
                         "a policy giving its row (default: %(default)s; 'none': no reference)")
+    p.add_argument("--estimated", action="store_true",
+                   help="also evaluate every learner behind the MPC's perception (EstimatedStatePolicy: its state "
+                        "filter and its prediction over the action delay), labelled LABEL+est")
     p.add_argument("--workers", type=int, default=1, help="worker processes (default: %(default)s)")
     p.add_argument("--overwrite", action="store_true", help="discard the outputs of a run with other settings")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -325,9 +349,11 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
     if any(seed < 0 for seed in args.train_seeds) or len(set(args.train_seeds)) != len(args.train_seeds):
         p.error(f"--train-seeds must be distinct integers >= 0, got {args.train_seeds}")
-    if len(args.train_seeds) > 1 and args.dagger_episodes > 100:
-        p.error(f"--dagger-episodes must be <= 100 with several --train-seeds (the rollout seeds of training seed S "
-                f"start at 10000 + 100 S), got {args.dagger_episodes}")
+    most = args.dagger_episodes if not {"dagger_speed_perturbed", "dagger_speed_est"} & set(args.learners) else max(
+        args.dagger_episodes, len(DAGGER_SPEED_CONDITIONS) * -(-args.dagger_episodes // len(TRAIN_PERTURBATIONS)))
+    if len(args.train_seeds) > 1 and most > 100:
+        p.error(f"--dagger-episodes must give <= 100 rollouts per round with several --train-seeds (the rollout seeds "
+                f"of training seed S start at 10000 + 100 S), got {args.dagger_episodes} ({most} rollouts)")
     for name in ("dagger_rounds", "gain_copies", "first_seed"):
         if getattr(args, name) < 0:
             p.error(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}")
@@ -391,8 +417,14 @@ def main(argv: list[str] | None = None) -> int:
     t_data = time.perf_counter() - t0
     learners = train_learners(args, out, data)
     t_train = time.perf_counter() - t0 - t_data
-    policies = {label: {"kind": "dagger" if info["learner"].startswith("dagger") else "bc", "dir": info["dir"]}
-                for label, info in learners.items()}
+    policies = {label: {"kind": "dagger" if info["learner"].startswith("dagger") else "bc", "dir": info["dir"],
+                        "estimator": info["estimator"]} for label, info in learners.items()}
+    if args.estimated:
+        for label, info in list(learners.items()):
+            if info["estimator"]:
+                continue  # trained behind the estimator: evaluated behind it already
+            policies[f"{label}+est"] = {**policies[label], "estimator": True}
+            learners[f"{label}+est"] = {**info, "learner": f"{info['learner']}+est", "estimator": True}
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     _log(f"evaluating {len(policies)} learners x {len(args.conditions)} conditions x {len(seeds)} seeds")
     t1 = time.perf_counter()

@@ -313,15 +313,20 @@ def _bc_extra(args) -> dict:
 def _check_train(args) -> None:
     """Everything about ``train``'s options that can be checked before training (UsageError / MissingExtraError)."""
     check_output_dir(args.out, "--out")
-    for flag, given in (("--gain-copies", args.gain_copies), ("--gain-noise", args.gain_noise is not None),
-                        ("--speed-input", args.speed_input)):
+    for flag, given in (("--gain-copies", args.gain_copies), ("--gain-noise", args.gain_noise is not None)):
         if given and args.algo != "bc":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo bc")
+    if args.speed_input and args.algo not in ("bc", "dagger"):
+        raise UsageError("--speed-input", f"given with --algo {args.algo}", "--algo bc or dagger")
     if args.action_queue and args.algo not in ("bc", "dagger"):
         raise UsageError("--action-queue", f"given with --algo {args.algo}", "--algo bc or dagger")
-    for flag, given in (("--condition", args.condition), ("--workers", args.workers is not None)):
+    for flag, given in (("--condition", args.condition), ("--workers", args.workers is not None),
+                        ("--estimator", args.estimator)):
         if given and args.algo != "dagger":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo dagger")
+    if args.estimator and args.action_queue:
+        raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
+                         "queue)", "one of them")
     _check_conditions(args)
     if args.gain_noise is not None and not args.gain_copies:
         raise UsageError("--gain-noise", "given without --gain-copies", "with --gain-copies N (N >= 1)")
@@ -351,9 +356,9 @@ def _check_train(args) -> None:
         return
     from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
 
-    if len(args.dataset) > 1 and args.algo != "bc":
+    if len(args.dataset) > 1 and args.algo not in ("bc", "dagger"):
         raise UsageError("--dataset", f"{len(args.dataset)} datasets with --algo {args.algo}",
-                         "one dataset (its round-0 data); several only with --algo bc")
+                         "several only with --algo bc or dagger")
     if len(args.dataset) > 1 and args.curve:
         raise UsageError("--curve", f"given with {len(args.dataset)} datasets", "one --dataset")
     args.dataset = [str(resolve_dataset_dir(d, "--dataset")) for d in args.dataset]
@@ -408,10 +413,12 @@ def cmd_train(args) -> int:
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
                               rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
                               rollout_steps=args.rollout_steps, conditions=tuple(args.condition or ()),
+                              estimator=bool(args.estimator),
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                                           seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config,
-                             dataset=None if args.dataset is None else args.dataset[0],
+                             dataset=None if args.dataset is None else
+                             args.dataset[0] if len(args.dataset) == 1 else list(args.dataset),
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
                              env_kwargs=env_kwargs, progress=not args.quiet, workers=args.workers or 1)
     ev = summary.get("eval") or {}
@@ -508,10 +515,10 @@ def _add_learning_parsers(sub) -> None:
                         "the steps that fit (--steps is then the upper bound)")
     p.add_argument("--dataset", nargs="+", default=None,
                    help="bc (required) / dagger (optional round-0 data): a dataset directory written by "
-                        "`hsddp-gym dataset`; bc takes several (pooled, e.g. at several target speeds)")
+                        "`hsddp-gym dataset`, or several (pooled, e.g. at several target speeds)")
     p.add_argument("--speed-input", action="store_true",
-                   help="bc: the env's target speed as one more input of the MLP (for demonstrations at several "
-                        "target speeds)")
+                   help="bc/dagger: the env's target speed as one more input of the MLP (for demonstrations at "
+                        "several target speeds; dagger: with --condition speed_... rollouts)")
     p.add_argument("--action-queue", type=_nonnegative_int, default=0,
                    help="bc/dagger: slots of the latency queue in the MLP's input: the actions sent that the env "
                         "has not executed yet (the env's action delay of them, e.g. --condition delay_5ms: 1), as the "
@@ -569,6 +576,11 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--workers", type=_positive_int, default=None,
                    help="dagger: processes running each round's rollouts; results do not depend on it "
                         "(default: 1)")
+    p.add_argument("--estimator", action="store_true",
+                   help="dagger: the learner acts behind the MPC's perception (EstimatedStatePolicy: the state "
+                        "filter's estimate predicted over the action delay); the rollouts store what it sees there, "
+                        "and it is meant to be evaluated behind it (robustness.py --estimated); give round-0 data of "
+                        "undisturbed envs")
     p.add_argument("--warm-start", action="store_true",
                    help="dagger: rounds >= 1 fine-tune the previous round's network (and keep its input "
                         "standardization) for --epochs instead of retraining from scratch")

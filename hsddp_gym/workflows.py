@@ -128,7 +128,12 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
             from hsddp_gym.learning.bc import MLPPolicy
 
             interface = EnvInterface.from_env(env) if env is not None else EnvInterface()
-            return MLPPolicy.load(run / "policy.npz", interface), None
+            policy = MLPPolicy.load(run / "policy.npz", interface)
+            if policy.info.get("estimator"):  # trained behind the MPC's perception (DAggerConfig.estimator)
+                from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
+
+                policy = EstimatedStatePolicy.around(lambda i: MLPPolicy.load(run / "policy.npz", i), interface)
+            return policy, None
         from hsddp_gym.util.extras import require
 
         require(required_modules(name), f"the policy {name}")

@@ -122,6 +122,54 @@ def test_dagger_under_conditions_labels_the_true_state_and_keeps_the_target_spee
         train_dagger(PolicySpec("heuristic"), cfg, env_kwargs={"target_speed": 1.0}, progress=False)
 
 
+def test_dagger_behind_the_estimator_stores_what_the_learner_sees(tmp_path):
+    """``DAggerConfig.estimator``: under a 10 ms delay the stored inputs are the states the actions will act on (the
+    estimate predicted two control steps ahead), not the observations; the queue option is refused with it."""
+    pytest.importorskip("torch")
+    from hsddp_gym.learning.bc import BCConfig
+    from hsddp_gym.learning.dagger import DAggerConfig, train_dagger
+    from hsddp_gym.planners.policies.base import EnvInterface
+    from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
+    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+
+    cfg = DAggerConfig(rounds=1, episodes_per_round=1, beta_decay=0.0, max_episode_steps=40, conditions=("delay_10ms",),
+                       estimator=True, bc=BCConfig(hidden=(16,), epochs=2))
+    res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
+    assert res.policy.info["estimator"] is True
+    # a learner trained behind the estimator acts behind it wherever it is loaded by name
+    from hsddp_gym.workflows import make_policy
+
+    res.policy.save(tmp_path / "policy.npz")
+    (tmp_path / "summary.json").write_text(json.dumps({"algo": "dagger"}))
+    loaded, _ = make_policy(f"dagger:{tmp_path}", make_env("delay_5ms"))
+    assert isinstance(loaded, EstimatedStatePolicy) and loaded.delay == 1
+    assert loaded.inner.interface.action_delay_steps == 0
+    env = make_env("delay_10ms", max_episode_steps=40)
+    interface = EnvInterface.from_env(env)
+    expert = HeuristicPolicy(interface)
+    shadow = EstimatedStatePolicy(HeuristicPolicy(EstimatedStatePolicy.undelayed(interface)), interface)
+    obs, _ = env.reset(seed=cfg.seed)
+    raw, seen = [], []
+    for _ in range(40):
+        raw.append(obs)
+        seen.append(shadow.observation_for_inner(obs))
+        action = expert(obs)
+        shadow.record_sent(action)
+        obs, *_ = env.step(action)
+    stored = res.data.obs[res.data.episode == 0]  # round 0: the expert's episode, seen through the estimator
+    n = len(stored)  # it falls at the end (the heuristic under 10 ms of latency)
+    assert n >= 38
+    np.testing.assert_array_equal(stored, np.array(seen[:n]))
+    raw = np.array(raw)
+    # the prediction: the observation two steps later (the median row; contacts and motor limits aside)
+    assert np.median(np.abs(stored[5:n - 2, :13] - raw[7:n, :13]).max(axis=1)) < 2e-3
+    assert np.median(np.abs(stored[5:n - 2, :13] - raw[5:n - 2, :13]).max(axis=1)) > 0.1
+    with pytest.raises(ValueError, match="action_queue"):
+        DAggerConfig(estimator=True, bc=BCConfig(action_queue=2))
+    with pytest.raises(TypeError, match="estimator"):
+        DAggerConfig(estimator=1)
+
+
 def test_cli_condition_errors(capsys):
     from hsddp_gym.cli import main
 
@@ -163,7 +211,8 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
         assert cells["speed_2.0"]["target_speed"] == 2.0 and cells["default"]["episodes"] == 1
         assert res["goals"][label]["falls_beyond_mpc_plus_1"] == {}  # 8 steps: nobody falls
     table = (out / "imitation_robustness.md").read_text()
-    assert "| condition | mpc (ref.) | heuristic (ref.) | bc | dagger_perturbed_queue | bc_speed |" in table
+    assert ("| condition | mpc (ref.) | heuristic (ref.) | heuristic+est (ref.) | bc | dagger_perturbed_queue | "
+            "bc_speed |") in table
     assert "* **bc_speed**: falls met; speed " in table
     assert script.main(argv) == 0  # reuses the datasets and the learners
     # a second training seed: its own learners (NAME@seed1), and each learner's falls over the seeds
@@ -177,6 +226,14 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
     assert cells["default"]["falls"] == [res["results"]["bc"]["default"]["falls"],
                                          res["results"]["bc@seed1"]["default"]["falls"]]
     assert "Over training seeds" in (out / "imitation_robustness.md").read_text()
+    # behind the estimator: a learner trained there (evaluated there only) and --estimated twins of the others
+    est = [a for a in argv if a not in ("dagger_perturbed_queue", "bc_speed")]
+    est[est.index("bc") + 1:est.index("bc") + 1] = ["dagger_speed_est"]
+    assert script.main(est + ["--estimated"]) == 0
+    res = json.loads((out / "imitation_robustness.json").read_text())
+    assert set(res["results"]) == {"bc", "bc+est", "dagger_speed_est"}
+    assert res["learners"]["dagger_speed_est"]["config"]["estimator"] is True
+    assert res["learners"]["bc+est"]["estimator"] and not res["learners"]["bc"]["estimator"]
     with pytest.raises(SystemExit):
         script.main(argv + ["--train-seeds", "1", "1"])
     with pytest.raises(SystemExit):

@@ -81,13 +81,13 @@ def test_cli_trains_on_several_datasets_with_the_speed_input(two_speeds, tmp_pat
     a13 = policy(np.zeros(17, np.float32))
     a07 = MLPPolicy.load(out / "policy.npz", EnvInterface(target_speed=0.7))(np.zeros(17, np.float32))
     assert not np.array_equal(a07, a13)
-    assert cli.main(["train", "--algo", "dagger", "--dataset", *map(str, two_speeds), "--out",
-                     str(tmp_path / "d"), "--quiet"]) == 2
 
 
 @pytest.mark.parametrize("argv, option", [
     (["--algo", "ppo", "--steps", "10", "--gain-copies", "2"], "--gain-copies"),
-    (["--algo", "dagger", "--speed-input"], "--speed-input"),
+    (["--algo", "ppo", "--steps", "10", "--speed-input"], "--speed-input"),
+    (["--algo", "bc", "--estimator"], "--estimator"),
+    (["--algo", "dagger", "--estimator", "--action-queue", "2"], "--action-queue"),
     (["--algo", "bc", "--gain-noise", "0.01", "0.1"], "--gain-noise"),
     (["--algo", "bc", "--n-envs", "4"], "--n-envs"),
 ])

@@ -13,7 +13,7 @@ from hsddp_gym.learning.bc import BCConfig, MLPPolicy, train_bc
 from hsddp_gym.learning.demonstrations import Demonstrations, load_demonstrations
 from hsddp_gym.learning.features import make_gait_clock
 from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, plot_curve, write_csv
-from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import write_npz
 
 
@@ -48,6 +48,13 @@ class DAggerConfig:
             the end of the episode). The learner's falls happen in the first ~150 steps (the start transient
             from the reset noise), so short rollouts spend the label budget on many initial states instead of
             on steady bounding. Only the labelled steps count; the evaluation is not truncated.
+        estimator: the learner acts behind the MPC's perception
+            (:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`: the state filter, the
+            prediction over the action delay): every rollout stores what the learner sees through it (the estimate,
+            predicted over the delay; the expert's label is its action for the true state, its own prediction over
+            the delay included: the action for that predicted state), and the trained learner is meant to act behind
+            it. Round-0 demonstrations (``initial``) are used as they are: give ones of undisturbed envs, where the
+            estimate is the observation. Excludes ``bc.action_queue`` (the prediction replaces the queue).
     """
 
     rounds: int = 4
@@ -60,6 +67,7 @@ class DAggerConfig:
     warm_start: bool = False
     rollout_steps: int | None = None
     conditions: tuple = ()
+    estimator: bool = False
 
     def __post_init__(self) -> None:
         if self.conditions:
@@ -70,6 +78,11 @@ class DAggerConfig:
             raise ValueError(f"conditions must be a list of condition names, got {self.conditions!r}")
         else:
             object.__setattr__(self, "conditions", ())
+        if not isinstance(self.estimator, (bool, np.bool_)):
+            raise TypeError(f"estimator must be a bool, got {self.estimator!r}")
+        if self.estimator and int(self.bc.action_queue):
+            raise ValueError("estimator and bc.action_queue exclude each other: behind the estimator the learner sees "
+                             "the state predicted over the delay, not the queue")
         if int(self.bc.gain_copies):
             raise ValueError("bc.gain_copies must be 0 for DAgger: its relabelled rounds have no feedback gains "
                              "(gain labels are a behaviour-cloning option)")
@@ -102,8 +115,8 @@ class DAggerResult:
 
 
 def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
-                   options: dict | None = None, noise: float = 0.0, max_steps: int | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+                   options: dict | None = None, noise: float = 0.0, max_steps: int | None = None,
+                   perception=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
     observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
     plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the
@@ -111,7 +124,10 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     wrapped in observation noise) and is told the action sent (:func:`inform_sent_action`); the learner acts
     on the env's observation, which is what is stored. The learner acts at every step, so that its memory (gait
     clock, latency queue) follows the episode whichever policy's action is sent, and it is told the action sent too.
-    Returns ``(obs (T, d), expert actions (T, 4), sent actions (T, 4), return, expert acts)``."""
+    ``perception``: an :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` through which the
+    learner sees (``DAggerConfig.estimator``): the learner acts on, and the rollout stores, its
+    :meth:`observation_for_inner`. Returns ``(obs (T, d), expert actions (T, 4), sent actions (T, 4), return, expert
+    acts)``."""
     from hsddp_gym.datasets.recording import inform_sent_action
     from hsddp_gym.envs.perturbations import true_observation
 
@@ -119,12 +135,15 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     expert.reset()
     if learner is not None:
         learner.reset()
+    if perception is not None:
+        perception.reset()
     O, A, S, ret, n_expert = [], [], [], 0.0, 0
     while True:
         label = np.asarray(expert(true_observation(env)), dtype=np.float32)
-        O.append(np.asarray(obs, dtype=np.float32))
+        seen = perception.observation_for_inner(obs) if perception is not None else obs
+        O.append(np.asarray(seen, dtype=np.float32))
         A.append(label)
-        own = np.asarray(learner(obs), dtype=np.float32) if learner is not None else None
+        own = np.asarray(learner(seen), dtype=np.float32) if learner is not None else None
         use_expert = learner is None or rng.random() < beta
         n_expert += int(use_expert)
         action = label if use_expert else own
@@ -133,6 +152,8 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
         inform_sent_action(expert, action)
         if learner is not None:
             inform_sent_action(learner, action)
+        if perception is not None:
+            perception.record_sent(action)
         S.append(action)
         obs, reward, terminated, truncated, _ = env.step(action)
         ret += float(reward)
@@ -171,12 +192,21 @@ def run_rollout_task(task: RolloutTask) -> tuple:
     cfg, r = task.config, task.round_index
     env = make_env(task.env_kwargs, cfg.max_episode_steps, task.condition)
     try:
-        learner = task.learner.with_interface(EnvInterface.from_env(env)) if task.learner is not None else None
+        interface = EnvInterface.from_env(env)
+        perception = None
+        if cfg.estimator:
+            from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
+
+            interface = EstimatedStatePolicy.undelayed(interface)
+        learner = task.learner.with_interface(interface) if task.learner is not None else None
+        if cfg.estimator:
+            perception = EstimatedStatePolicy(learner if learner is not None else Policy(interface),
+                                              EnvInterface.from_env(env))
         expert, options = task.expert_factory(env, task.seed)
         O, A, S, ret, ne = dagger_rollout(env, learner, expert, cfg.beta(r), task.seed,
                                           np.random.default_rng([cfg.seed, r, task.j]), options,
                                           noise=float(cfg.rollout_noise) if r > 0 else 0.0,
-                                          max_steps=cfg.rollout_steps if r > 0 else None)
+                                          max_steps=cfg.rollout_steps if r > 0 else None, perception=perception)
         delay = EnvInterface.from_env(env).action_delay_steps
         return O, A, S, ret, ne, float(env.unwrapped.target_speed), delay
     finally:
@@ -252,7 +282,8 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
         bar.set_postfix(labels=expert_labels)
     bar.close()
     env.close()
-    learner.info.update(expert_labels=int(expert_labels), dagger_rounds=int(config.rounds))
+    learner.info.update(expert_labels=int(expert_labels), dagger_rounds=int(config.rounds),
+                        estimator=bool(config.estimator))
     return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0)
 
 
