@@ -74,7 +74,8 @@ TRAIN_PERTURBATIONS = ("default", "reset_noise_x4", "obs_noise", "delay_5ms", "d
 TRAIN_SPEEDS = ("speed_0.5", "default", "speed_1.5", "speed_2.0")
 """The conditions of the speed demonstrations (0.5, 1.0, 1.5, 2.0 m/s; 1.25 m/s is held out)."""
 DAGGER_SPEED_CONDITIONS = TRAIN_PERTURBATIONS + ("speed_0.5", "speed_1.5", "speed_2.0")
-"""The conditions of ``dagger_speed_perturbed``'s rollouts: the perturbations and the training speeds."""
+"""The conditions of ``dagger_speed_perturbed``'s and ``dagger_speed_est``'s rollouts: the perturbations and the
+training speeds."""
 SPEED_CONDITIONS = ("speed_0.5", "default", "speed_1.25", "speed_1.5", "speed_2.0")
 """Where the speed-tracking goal (within 10 %) is checked."""
 LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed", "dagger_perturbed",
@@ -83,10 +84,10 @@ LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed"
 QUEUE_SLOTS = 2
 """Latency-queue slots of the ``*_queue`` learners (``BCConfig.action_queue``): the suite's longest delay."""
 REFERENCE = ("docs/robustness/issue14_stop31/robustness.json", "docs/robustness/issue14_stop32/heuristic_est.json")
+"""The MPC's and the heuristic's evaluation records (stop 31's MPC, the current default; stop 32's run of the heuristic,
+bare and behind the estimator): the first file holding a policy gives its row."""
 REFERENCE_POLICIES = ("mpc", "heuristic", "heuristic+est")
 """The reference rows of the table (from ``--reference``), where the reference files hold them."""
-"""The MPC's and the heuristic's evaluation records (stop 24's MPC, the current default; stop 23's heuristic run):
-the first file holding a policy gives its row."""
 FALL_MARGIN = 1
 SPEED_TOLERANCE = 0.10
 

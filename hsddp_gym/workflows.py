@@ -132,7 +132,7 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
             if policy.info.get("estimator"):  # trained behind the MPC's perception (DAggerConfig.estimator)
                 from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
 
-                policy = EstimatedStatePolicy.around(lambda i: MLPPolicy.load(run / "policy.npz", i), interface)
+                policy = EstimatedStatePolicy.around(policy.with_interface, interface)
             return policy, None
         from hsddp_gym.util.extras import require
 

@@ -81,6 +81,15 @@ def test_cli_trains_on_several_datasets_with_the_speed_input(two_speeds, tmp_pat
     a13 = policy(np.zeros(17, np.float32))
     a07 = MLPPolicy.load(out / "policy.npz", EnvInterface(target_speed=0.7))(np.zeros(17, np.float32))
     assert not np.array_equal(a07, a13)
+    # DAgger from several datasets, speed as an input, behind the estimator, rollouts under a delay
+    assert cli.main(["train", "--algo", "dagger", "--expert", "heuristic", "--dataset", *map(str, two_speeds),
+                     "--speed-input", "--estimator", "--condition", "delay_5ms", "--rounds", "1",
+                     "--episodes-per-round", "1", "--max-episode-steps", "20", "--epochs", "1", "--hidden", "8",
+                     "--eval-episodes", "0", "--out", str(tmp_path / "d"), "--quiet"]) == 0
+    dagger = MLPPolicy.load(tmp_path / "d" / "policy.npz")
+    assert dagger.config.speed_input and dagger.info["estimator"] is True
+    summary = json.loads((tmp_path / "d" / "summary.json").read_text())
+    assert summary["config"]["estimator"] is True and summary["conditions"] == ["delay_5ms"]
 
 
 @pytest.mark.parametrize("argv, option", [
