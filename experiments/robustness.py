@@ -61,7 +61,16 @@ def make_policy(spec: dict, env):
 
     kind = spec["kind"]
     interface = EnvInterface.from_env(env)
-    if spec.get("estimator") or (kind in ("bc", "dagger") and _trained_behind_estimator(spec["dir"])):
+    if kind in ("bc", "dagger"):
+        from hsddp_gym.learning.bc import MLPPolicy
+
+        policy = MLPPolicy.load(Path(spec["dir"]) / "policy.npz", interface)
+        if not (spec.get("estimator") or policy.info.get("estimator")):  # trained behind it: always acts behind it
+            return policy
+        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
+
+        return EstimatedStatePolicy.around(policy.with_interface, interface)
+    if spec.get("estimator"):
         from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
 
         if kind in ("mpc", "mpc-options"):
@@ -69,13 +78,6 @@ def make_policy(spec: dict, env):
                              "latency_compensation); wrap other policies")
         return EstimatedStatePolicy.around(lambda i: _make_bare_policy(kind, spec, env, i), interface)
     return _make_bare_policy(kind, spec, env, interface)
-
-
-def _trained_behind_estimator(run_dir) -> bool:
-    """A learner trained behind the estimator (``DAggerConfig.estimator``) always acts behind it."""
-    from hsddp_gym.learning.bc import MLPPolicy
-
-    return bool(MLPPolicy.load(Path(run_dir) / "policy.npz").info.get("estimator"))
 
 
 def _make_bare_policy(kind: str, spec: dict, env, interface):
@@ -91,10 +93,6 @@ def _make_bare_policy(kind: str, spec: dict, env, interface):
         from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
         return RandomPolicy(interface, seed=0)
-    if kind in ("bc", "dagger"):
-        from hsddp_gym.learning.bc import MLPPolicy
-
-        return MLPPolicy.load(Path(spec["dir"]) / "policy.npz", interface)
     if kind in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import load_trained_policy
 

@@ -106,6 +106,7 @@ def test_the_heuristic_survives_10ms_of_latency_behind_the_estimator():
     wrapped = run_episode(env, _wrapped_heuristic(env), 7001, max_steps=400)
     assert bare.fell and bare.length < 200
     assert not wrapped.fell and wrapped.length == 400
+    assert wrapped.policy_stats["prediction_failures"] == 0 and "filter_restarts" in wrapped.policy_stats
 
 
 def test_observation_noise_is_filtered_for_the_inner_policy():

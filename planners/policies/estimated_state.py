@@ -82,13 +82,14 @@ class EstimatedStatePolicy(Policy):
 
     Args:
         inner: the wrapped policy, built for the same env without its delay (``inner.interface`` equal to
-            ``interface`` with ``action_delay_steps=0``; :meth:`wrap` builds that interface).
+            ``interface`` with ``action_delay_steps=0``: :meth:`undelayed`; :meth:`around` builds and wraps it).
         interface: the env's interface (its ``action_delay_steps`` is the delay predicted over).
         options: :class:`EstimationOptions`.
 
     Attributes:
         last_estimate: the filtered state (14,) of the last observation; last_prediction: the state (14,) the inner
-            policy was given (the estimate predicted over the delay).
+            policy was given (the estimate predicted over the delay; the estimate itself when the model's prediction
+            diverges, counted in :attr:`stats` as ``prediction_failures``).
     """
 
     def __init__(self, inner: Policy, interface: EnvInterface = EnvInterface(),
@@ -122,11 +123,11 @@ class EstimatedStatePolicy(Policy):
 
     def _make_models(self) -> None:
         i = self.interface
+        # one model for both: every step of it starts from the state it is given
         self._predictor = ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
                                                 torque_limit=i.torque_limit)
         pos, vel, acc, gate = self.options.filter_noise()
-        self._filter = StateFilter(ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
-                                                         torque_limit=i.torque_limit), pos, vel, acc, gate)
+        self._filter = StateFilter(self._predictor, pos, vel, acc, gate)
         self._obs = np.empty(i.layout.size, dtype=np.float32)
 
     def _reset_copy_state(self) -> None:
@@ -140,6 +141,7 @@ class EstimatedStatePolicy(Policy):
         self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(self.delay + 1)),
                                        maxlen=self.delay + 1)
         self._first = True
+        self._prediction_failures = 0
         self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
 
@@ -158,7 +160,7 @@ class EstimatedStatePolicy(Policy):
                 x, predicted = self._predictor.predict(x, mode, queue_torques(list(self._sent)[1:], i.torque_limit))
                 mode = Mode(predicted)
             except (ArithmeticError, ValueError, RuntimeError):
-                pass  # a diverging prediction: act on the estimate itself
+                self._prediction_failures += 1  # a diverging prediction: act on the estimate itself
         self.last_prediction = x.copy()
         if not self.options.state_filter and not self.delay:
             return np.asarray(obs, dtype=np.float32)
@@ -188,5 +190,6 @@ class EstimatedStatePolicy(Policy):
 
     @property
     def stats(self) -> dict:
-        """The filter's restarts (the innovation test) since the last reset."""
-        return {"filter_restarts": int(self._filter.restarts)}
+        """Since the last reset: the filter's restarts (the innovation test) and the predictions over the delay that
+        diverged (the inner policy then got the estimate itself)."""
+        return {"filter_restarts": int(self._filter.restarts), "prediction_failures": self._prediction_failures}
