@@ -29,8 +29,9 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; the s
 * ``bc_speed``: speed-conditioned BC (``speed_input``) on ``ds_speeds``;
 * ``bc_speed_perturbed``: speed-conditioned BC on ``ds_speeds`` and ``ds_perturbed`` pooled;
 * ``dagger_speed_perturbed``: speed-conditioned DAgger from ``ds_speeds`` and ``ds_perturbed`` pooled, its rollouts
-  cycling over the perturbations and the other training speeds (:data:`DAGGER_SPEED_CONDITIONS`), as many rollouts per
-  round as ``--dagger-episodes`` gives each perturbation (one each by default: 12);
+  cycling over the perturbations and the other training speeds (``--dagger-conditions``, default
+  :data:`DAGGER_SPEED_CONDITIONS`; a condition named twice gets twice the rollouts), as many rollouts per round as
+  ``--dagger-episodes`` gives each perturbation (one each by default: 12);
 * ``dagger_speed_est``: speed-conditioned DAgger behind the MPC's perception (``DAggerConfig.estimator``: the learner
   sees the state filter's estimate predicted over the action delay, in its rollouts and when evaluated), from
   ``ds_speeds`` (undisturbed, where the estimate is the observation), its rollouts as ``dagger_speed_perturbed``'s;
@@ -164,7 +165,7 @@ def train_learners(args, out: Path, data: dict) -> dict:
         elif name.startswith("dagger_"):
             speeds = name in ("dagger_speed_perturbed", "dagger_speed_est")
             estimator = name == "dagger_speed_est"
-            conditions = DAGGER_SPEED_CONDITIONS if speeds else TRAIN_PERTURBATIONS
+            conditions = tuple(args.dagger_conditions) if speeds else TRAIN_PERTURBATIONS
             episodes = args.dagger_episodes if not speeds else len(conditions) * -(
                 -args.dagger_episodes // len(TRAIN_PERTURBATIONS))
             _log(f"{label}: DAgger, {args.dagger_rounds} rounds x {episodes} rollouts")
@@ -291,7 +292,7 @@ def markdown(results: dict, reference: dict | None, conditions, goals: dict, com
 
 SETTINGS = ("demos", "few", "perturbed_demos", "speed_demos", "dagger_rounds", "dagger_episodes", "rollout_noise",
             "epochs", "gain_copies", "gain_noise", "small_gain_copies", "small_gain_noise", "action_noise",
-            "max_steps")
+            "max_steps", "dagger_conditions")
 """The arguments the datasets and learners depend on (checked against ``OUT/settings.json`` before reuse)."""
 
 
@@ -311,6 +312,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dagger-rounds", type=int, default=3, help="DAgger relabelling rounds (default: %(default)s)")
     p.add_argument("--dagger-episodes", type=int, default=len(TRAIN_PERTURBATIONS),
                    help="DAgger rollouts per round (default: %(default)s, one per perturbation)")
+    p.add_argument("--dagger-conditions", nargs="+", default=list(DAGGER_SPEED_CONDITIONS), choices=list(CONDITIONS),
+                   metavar="CONDITION",
+                   help="the conditions dagger_speed_perturbed's and dagger_speed_est's rollouts cycle over; a "
+                        "condition named k times gets k times the rollouts (default: the perturbations and the "
+                        "training speeds 0.5, 1.5, 2.0 m/s)")
     p.add_argument("--rollout-noise", type=float, default=0.02,
                    help="DAgger rollouts' action noise (default: %(default)s)")
     p.add_argument("--epochs", type=int, default=100, help="BC epochs (default: %(default)s)")

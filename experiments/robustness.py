@@ -240,8 +240,8 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/robustness", help="output directory (default: %(default)s)")
-    p.add_argument("--policies", nargs="+", default=["mpc", "heuristic"], choices=BUILTIN,
-                   help="built-in policies (default: %(default)s)")
+    p.add_argument("--policies", nargs="*", default=["mpc", "heuristic"], choices=BUILTIN,
+                   help="built-in policies; '--policies' alone runs none (only --learned ones) (default: %(default)s)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
                    help="MPCOptions fields of the mpc-options policy as a JSON object (ablations)")
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
@@ -333,6 +333,8 @@ def main(argv: list[str] | None = None) -> int:
         if policies[label]["kind"] in ("mpc", "mpc-options"):
             p.error(f"--estimated: {label!r} is an MPC, which filters and predicts itself")
         policies[f"{label}+est"] = {**policies[label], "estimator": True}
+    if not policies:
+        p.error("no policy to run: give --policies or a --learned policy whose files exist")
     seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.first_seed,
                                                                                  args.first_seed + args.seeds))
     t0 = time.perf_counter()

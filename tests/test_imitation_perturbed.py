@@ -234,6 +234,15 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
     assert set(res["results"]) == {"bc", "bc+est", "dagger_speed_est"}
     assert res["learners"]["dagger_speed_est"]["config"]["estimator"] is True
     assert res["learners"]["bc+est"]["estimator"] and not res["learners"]["bc"]["estimator"]
+    # weighted rollout conditions: a condition named twice gets twice the rollouts (other settings: --overwrite)
+    weighted = est + ["--dagger-conditions", "push", "push", "speed_2.0"]
+    with pytest.raises(SystemExit):
+        script.main(weighted)
+    assert script.main(weighted + ["--overwrite"]) == 0
+    summary = json.loads((out / "learners" / "dagger_speed_est" / "summary.json").read_text())
+    assert summary["conditions"] == ["push", "push", "speed_2.0"] and summary["config"]["episodes_per_round"] == 3
+    with pytest.raises(SystemExit):
+        script.main(est + ["--dagger-conditions", "sideways"])
     with pytest.raises(SystemExit):
         script.main(argv + ["--train-seeds", "1", "1"])
     with pytest.raises(SystemExit):

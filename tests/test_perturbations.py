@@ -234,6 +234,6 @@ def test_robustness_experiment_table_json_workers_and_combine(tmp_path, experime
         assert run == {k: v for k, v in cells[cond]["runs"][1].items() if k != "wall_time_s"}
     for bad in (["--workers", "0"], ["--learned", "xyz=dir"], ["--policies", "mpc-options"],
                 ["--combine", str(tmp_path / "missing.json")], ["--simulator", "isaac"], ["--seed-list", "-1"],
-                ["--seed-list", "3", "3"]):
+                ["--seed-list", "3", "3"], ["--policies"], ["--policies", "--learned", f"bc={tmp_path}/none"]):
         with pytest.raises(SystemExit):
             rob.main(["--out", str(tmp_path / "e"), *bad])

@@ -90,6 +90,15 @@ def test_cli_trains_on_several_datasets_with_the_speed_input(two_speeds, tmp_pat
     assert dagger.config.speed_input and dagger.info["estimator"] is True
     summary = json.loads((tmp_path / "d" / "summary.json").read_text())
     assert summary["config"]["estimator"] is True and summary["conditions"] == ["delay_5ms"]
+    # the aggregate labels keep each pair's target speed and delay: another learner can be trained on them
+    from hsddp_gym.learning.dagger import load_dagger_data
+
+    data = load_dagger_data(tmp_path / "d")
+    assert data.n_episodes == 5 and len(data) == summary["transitions"]
+    assert [set(data.target_speed[data.episode == e]) for e in range(5)] == [{0.7}, {0.7}, {1.3}, {1.3}, {1.0}]
+    assert set(data.action_delay[data.episode == 4]) == {1} and data.sent_actions.shape == (len(data), 4)
+    with pytest.raises(ValueError, match="path"):
+        load_dagger_data(two_speeds[0] / "episodes.npz")
 
 
 @pytest.mark.parametrize("argv, option", [

@@ -287,6 +287,25 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
     return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0)
 
 
+DATA_OPTIONAL = ("target_speed", "sent_actions", "action_delay")
+"""The optional per-pair arrays of :class:`Demonstrations` that ``dagger_data.npz`` keeps when the data have them."""
+
+
+def load_dagger_data(path) -> Demonstrations:
+    """The aggregate labels of a :func:`run_dagger` run (its directory or its ``dagger_data.npz``) as
+    :class:`Demonstrations` (no feedback laws; the optional per-pair arrays the file holds), e.g. to train another
+    learner on the same labels with :func:`hsddp_gym.learning.bc.train_bc`. Never unpickles."""
+    from hsddp_gym.util.io import read_npz
+
+    path = Path(path)
+    d = read_npz(path / "dagger_data.npz" if path.is_dir() else path)
+    missing = [k for k in ("obs", "actions", "episode") if k not in d]
+    if missing:
+        raise ValueError(f"path {str(path)!r} is not DAgger data: it lacks {missing}")
+    return Demonstrations(d["obs"], d["actions"], d["episode"], None,
+                          *(d[k] if k in d else None for k in DATA_OPTIONAL))
+
+
 def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
                demos: int | None = None, fmt: str = "minari", eval_episodes: int = 10,
                env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True,
@@ -334,7 +353,7 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock,
                        workers=workers)
     res.policy.save(out / "policy.npz")
-    optional = {k: getattr(res.data, k) for k in ("sent_actions", "action_delay") if getattr(res.data, k) is not None}
+    optional = {k: getattr(res.data, k) for k in DATA_OPTIONAL if getattr(res.data, k) is not None}
     write_npz(out / "dagger_data.npz", obs=res.data.obs, actions=res.data.actions, episode=res.data.episode,
               **optional)
     rows = [[h["round"], h["beta"], h["expert_labels"], h["transitions"],
