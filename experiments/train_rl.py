@@ -49,7 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=1_000_000, help="env steps per run (default: %(default)s)")
     p.add_argument("--out", default="runs/rl", help="runs go to OUT/ALGO/seedS (default: %(default)s)")
     p.add_argument("--learning-starts", type=int, default=None, help="SAC override (zoo: 10000)")
-    p.add_argument("--eval-freq", type=int, default=None, help="env steps between 5-episode evaluations")
+    p.add_argument("--eval-freq", type=int, default=None,
+                   help="env steps between training-time evaluations (they pick the best checkpoint)")
+    p.add_argument("--select-episodes", type=int, default=5,
+                   help="episodes of each training-time evaluation: the best checkpoint is the one with the highest "
+                        "mean return over that many episodes (default: %(default)s)")
     p.add_argument("--eval-episodes", type=int, default=10, help="final evaluation episodes (seeds 0..)")
     p.add_argument("--progress", action="store_true", help="SB3 progress bar")
     p.add_argument("--preset", choices=("hopper", "halfcheetah", "parallel"), default="hopper",
@@ -61,6 +65,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--time-limit", type=float, default=None,
                    help="wall-clock budget per run [s]: training stops there and reports the steps that fit")
     args = p.parse_args(argv)
+    if args.select_episodes < 1:
+        p.error(f"--select-episodes must be >= 1, got {args.select_episodes}")
     if args.n_envs is not None and args.n_envs < 1:
         p.error(f"--n-envs must be >= 1, got {args.n_envs}")
     if args.preset == "parallel" and args.algos != ["ppo"]:
@@ -74,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
             if args.n_envs is not None:
                 overrides["n_envs"] = args.n_envs
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
-                            final_eval_episodes=args.eval_episodes, progress=args.progress,
+                            eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
+                            progress=args.progress,
                             time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
             s = res.summary
             evals = {k: s.get(k) or {} for k in EVALS}
