@@ -302,8 +302,7 @@ def load_dagger_data(path) -> Demonstrations:
     missing = [k for k in ("obs", "actions", "episode") if k not in d]
     if missing:
         raise ValueError(f"path {str(path)!r} is not DAgger data: it lacks {missing}")
-    return Demonstrations(d["obs"], d["actions"], d["episode"], None,
-                          *(d[k] if k in d else None for k in DATA_OPTIONAL))
+    return Demonstrations(d["obs"], d["actions"], d["episode"], None, **{k: d.get(k) for k in DATA_OPTIONAL})
 
 
 def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
