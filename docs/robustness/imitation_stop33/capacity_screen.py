@@ -33,6 +33,7 @@ from hsddp_gym.learning.features import make_gait_clock
 from hsddp_gym.planners.policies.base import EnvInterface
 
 RUN = Path("runs/imitation_stop32_est2")
+# stop 32's rollout cycle, frozen here (not imported from experiments/imitation_robustness.py, whose default may change)
 DAGGER_SPEED_CONDITIONS = ("default", "reset_noise_x4", "obs_noise", "delay_5ms", "delay_10ms", "push",
                            "friction_0.4", "mass_+15", "mass_-15", "speed_0.5", "speed_1.5", "speed_2.0")
 ROLLOUTS_PER_ROUND = 24
