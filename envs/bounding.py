@@ -128,7 +128,8 @@ class BoundingEnv(gym.Env):
     * ``"time"``: the initial clock time [s] (>= 0, default 0), which sets the gait phase;
     * ``"push"``: either a velocity change (3,) ``[dvx, dvz, dpitch_rate]`` applied right after the reset, or
       ``{"delta_v": (3,), "time": t}`` applied at the first simulation step at or after ``t`` seconds of
-      episode time (a robustness test). ``env.unwrapped.apply_push(delta_v)`` pushes at any moment.
+      episode time (a robustness test), or a list of such dicts (a push schedule, applied in time order).
+      ``env.unwrapped.apply_push(delta_v)`` pushes at any moment.
 
     ## Episode end
     ``terminated`` is True when the robot is unhealthy and ``terminate_when_unhealthy`` is True: the trunk
@@ -273,7 +274,7 @@ class BoundingEnv(gym.Env):
         self._contact = np.zeros(2, dtype=bool)
         self._grf = np.zeros(NGRF)
         self._u = np.zeros(NU)
-        self._push = None  # scheduled push: (time, delta_v (3,))
+        self._pushes: list = []  # scheduled pushes, in time order: [(time, delta_v (3,)), ...]
         self._x_velocity = 0.0
         self._last_rewards = (0.0, 0.0, 0.0)
         self._figure = None
@@ -418,7 +419,7 @@ class BoundingEnv(gym.Env):
             raise ValueError(f"unknown reset option(s) {unknown}; allowed: {list(_OPTION_KEYS)}")
         t0 = 0.0 if options.get("time") is None else check_positive(options["time"], "options['time']",
                                                                      allow_zero=True)
-        push_now, self._push = self._parse_push(options.get("push"))
+        push_now, self._pushes = self._parse_push(options.get("push"))
         if options.get("state") is not None:
             x = self._check_reset_state(options["state"])
             heights = self.robot.foot_heights(x[:NQ])
@@ -467,14 +468,19 @@ class BoundingEnv(gym.Env):
         sim = self.sim
         x_before = float(sim.x[IX])
         n = self.frame_skip
-        if self._push is not None and self._push[0] < self.time + n * self.sim_timestep - 1e-12:
-            # split the frame at the first simulation step at or after the push time
-            k = min(n, max(0, math.ceil((self._push[0] - self.time) / self.sim_timestep - 1e-9)))
-            impulse = list(sim.run(self._u, k)) if k > 0 else [0.0] * NGRF
-            sim.v[:3] += self._push[1]
-            self._push = None
-            rest = sim.run(self._u, n - k)
-            impulse = [i + r for i, r in zip(impulse, rest)]
+        pushes = self._pushes
+        if pushes and pushes[0][0] < self.time + n * self.sim_timestep - 1e-12:
+            # split the frame at the first simulation step at or after each push time in it
+            impulse, done = [0.0] * NGRF, 0
+            while pushes and pushes[0][0] < self.time + n * self.sim_timestep - 1e-12:
+                t_push, delta_v = pushes.pop(0)
+                k = min(n, max(done, math.ceil((t_push - self.time) / self.sim_timestep - 1e-9)))
+                if k > done:
+                    impulse = [i + r for i, r in zip(impulse, sim.run(self._u, k - done))]
+                    done = k
+                sim.v[:3] += delta_v
+            if n > done:
+                impulse = [i + r for i, r in zip(impulse, sim.run(self._u, n - done))]
         else:
             impulse = sim.run(self._u, n)
         dt = self.dt
@@ -533,17 +539,23 @@ class BoundingEnv(gym.Env):
         return check_vector(delta_v, 3, name)
 
     def _parse_push(self, push):
-        """``(immediate delta_v or None, scheduled (time, delta_v) or None)`` from the ``push`` option."""
+        """``(immediate delta_v or None, scheduled [(time, delta_v), ...] in time order)`` from the ``push``
+        option."""
         if push is None:
-            return None, None
+            return None, []
         if isinstance(push, dict):
-            extra = sorted(set(push) - {"delta_v", "time"})
-            if extra or "delta_v" not in push or "time" not in push:
-                raise ValueError(f"options['push'] as a dict needs exactly the keys 'delta_v' and 'time', "
-                                 f"got {sorted(push)}")
-            t = check_positive(push["time"], "options['push']['time']", allow_zero=True)
-            return None, (t, self._check_delta_v(push["delta_v"], "options['push']['delta_v']"))
-        return self._check_delta_v(push, "options['push']"), None
+            return None, [self._parse_scheduled_push(push, "options['push']")]
+        if isinstance(push, list) and all(isinstance(p, dict) for p in push):
+            scheduled = [self._parse_scheduled_push(p, f"options['push'][{i}]") for i, p in enumerate(push)]
+            return None, sorted(scheduled, key=lambda p: p[0])
+        return self._check_delta_v(push, "options['push']"), []
+
+    def _parse_scheduled_push(self, push: dict, name: str) -> tuple:
+        extra = sorted(set(push) - {"delta_v", "time"})
+        if extra or "delta_v" not in push or "time" not in push:
+            raise ValueError(f"{name} as a dict needs exactly the keys 'delta_v' and 'time', got {sorted(push)}")
+        t = check_positive(push["time"], f"{name}['time']", allow_zero=True)
+        return t, self._check_delta_v(push["delta_v"], f"{name}['delta_v']")
 
     def apply_push(self, delta_v) -> np.ndarray:
         """Push the trunk now: an instantaneous change ``delta_v`` (3,) = ``[dvx, dvz, dpitch_rate]``

@@ -1,14 +1,14 @@
 """Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
 
 Three Gymnasium wrappers and two env arguments, and one registry, :data:`CONDITIONS`, that names the
-conditions of the robustness benchmark (``experiments/robustness.py``):
+conditions of the robustness benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few more:
 
 * :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
   flags and the gait clock stay clean);
 * :class:`ActionDelay`: every action is executed ``steps`` control steps after the policy returned it (the
   first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
   policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it);
-* :class:`RandomPush`: one push per episode at a random time, a random trunk-velocity change
+* :class:`RandomPush`: one push (or ``count``) per episode at a random time, a random trunk-velocity change
   ``[dvx, dvz, dpitch_rate]`` applied through the env's documented ``push`` reset option;
 * model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
   simulated trunk is heavier or lighter than the model every policy uses).
@@ -28,6 +28,7 @@ Example::
 from __future__ import annotations
 
 import collections
+import copy
 import dataclasses
 import math
 import numbers
@@ -153,29 +154,34 @@ def _check_range(value, name: str, minimum: float | None = None) -> tuple[float,
 
 
 class RandomPush(gym.Wrapper):
-    """One push per episode: at env time ``t ~ U(time_range)`` the trunk velocities change by
-    ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``, m/s, m/s, rad/s,
-    positive pitch rate nose-down), through the env's ``{"push": {"delta_v", "time"}}`` reset option. The
-    push of the episode is ``info["push"]`` at reset and :attr:`last_push`. Giving the ``push`` reset option
-    yourself as well raises ``ValueError``.
+    """Random pushes: ``count`` per episode (default one) at random times, each a change of the trunk velocities
+    by ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``, m/s, m/s, rad/s,
+    positive pitch rate nose-down), through the env's ``push`` reset option (a scheduled push, or a schedule of
+    them). With one push its time is ``t ~ U(time_range)``; with ``count`` pushes ``time_range`` is cut into
+    ``count`` equal slots and push ``j`` comes at a uniform time in slot ``j`` (so they come in order, one
+    recovery apart on average). The pushes of the episode are ``info["push"]`` at reset and :attr:`last_push`:
+    the reset option given to the env, ``{"delta_v": [3 floats], "time": t}`` for one push, a list of such dicts
+    for several. Giving the ``push`` reset option yourself as well raises ``ValueError``.
 
     Args:
-        env: a (wrapped) ``Bounding-v0``. time_range: ``(low, high)`` push time [s] (>= 0).
+        env: a (wrapped) ``Bounding-v0``. time_range: ``(low, high)`` push times [s] (>= 0).
         max_delta_v: (3,) largest absolute velocity change per component (>= 0).
+        count: pushes per episode (>= 1).
     """
 
     SALT = 0x9054
     INFO_KEYS = ("push",)
     """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
 
-    def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0)) -> None:
+    def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0), count: int = 1) -> None:
         super().__init__(env)
         self.time_range = _check_range(time_range, "time_range", minimum=0.0)
         if not isinstance(max_delta_v, (tuple, list, np.ndarray)) or len(max_delta_v) != 3:
             raise TypeError(f"max_delta_v must be 3 numbers [m/s, m/s, rad/s], got {max_delta_v!r}")
         self.max_delta_v = tuple(_check_nonneg(v, f"max_delta_v[{i}]") for i, v in enumerate(max_delta_v))
+        self.count = check_int(count, "count", minimum=1)
         self._rng: np.random.Generator | None = None
-        self.last_push: dict | None = None
+        self.last_push: dict | list | None = None
 
     def reset(self, *, seed=None, options=None):
         options = {} if options is None else dict(options)
@@ -184,13 +190,16 @@ class RandomPush(gym.Wrapper):
         if seed is not None or self._rng is None:
             self._rng = _episode_rng(self, seed, self.SALT)
         lo, hi = self.time_range
-        t = float(self._rng.uniform(lo, hi))
+        slot = (hi - lo) / self.count
         m = np.asarray(self.max_delta_v)
-        dv = (m * self._rng.uniform(-1.0, 1.0, size=3)).tolist()
-        self.last_push = {"delta_v": dv, "time": t}
-        options["push"] = dict(self.last_push)
+        pushes = []
+        for j in range(self.count):  # per push: its time, then its velocity change (one push: as it always drew)
+            t = float(self._rng.uniform(lo + j * slot, hi if j == self.count - 1 else lo + (j + 1) * slot))
+            pushes.append({"delta_v": (m * self._rng.uniform(-1.0, 1.0, size=3)).tolist(), "time": t})
+        self.last_push = pushes[0] if self.count == 1 else pushes
+        options["push"] = copy.deepcopy(self.last_push)
         obs, info = self.env.reset(seed=seed, options=options)
-        return obs, dict(info, push=dict(self.last_push))
+        return obs, dict(info, push=copy.deepcopy(self.last_push))
 
 
 # ------------------------------------------------------------------------------------------------ registry
@@ -251,6 +260,8 @@ CONDITIONS: dict[str, Condition] = _conditions(
     Condition("delay_5ms", "actions executed 1 control step (5 ms) late", action_delay=1),
     Condition("delay_10ms", "actions executed 2 control steps (10 ms) late", action_delay=2),
     Condition("push", "random push: t ~ U(1, 4) s, dv ~ U(+-0.8 m/s, +-0.8 m/s, +-5 rad/s)", push={}),
+    Condition("push_x3", "three random pushes, one in each second of 1-4 s, each dv as in push",
+              push={"count": 3}),
     Condition("friction_0.4", "friction mu = 0.4 (model: 0.6)", {"friction": 0.4}),
     Condition("mass_+15", "trunk mass +15 % (env only)", {"trunk_mass_scale": 1.15}),
     Condition("mass_-15", "trunk mass -15 % (env only)", {"trunk_mass_scale": 0.85}),
@@ -259,7 +270,11 @@ CONDITIONS: dict[str, Condition] = _conditions(
     Condition("speed_1.5", "target speed 1.5 m/s", {"target_speed": 1.5}),
     Condition("speed_2.0", "target speed 2.0 m/s", {"target_speed": 2.0}),
 )
-"""The robustness benchmark's conditions by name (issue 14's table, plus target speeds 0.5 and 1.5 m/s)."""
+"""Every named condition: the robustness benchmark's (:data:`SUITE`) and ``push_x3`` (three pushes an episode: a
+harder test, and a training condition that gives a learner's rollouts three push recoveries each)."""
+SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3")
+"""The robustness benchmark's conditions (issue 14's table, plus target speeds 0.5 and 1.5 m/s): the default of
+``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
 
 
 def get_condition(name: str) -> Condition:

@@ -39,7 +39,8 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; the s
 each with every seed of ``--train-seeds`` (labels ``NAME`` for seed 0, ``NAME@seedS`` for the others; with two or
 more seeds the table ends with each learner's falls over the seeds, mean and 95 % interval).
 
-Then every learner runs in every condition of ``hsddp_gym.envs.perturbations.CONDITIONS`` on the evaluation seeds
+Then every learner runs in every condition of ``--conditions`` (default: the benchmark suite,
+``hsddp_gym.envs.perturbations.SUITE``) on the evaluation seeds
 (7000-7019 by default, the MPC's protocol: ``experiments/robustness.py``), with ``--estimated`` once more behind the
 MPC's perception (``NAME+est``: :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`, the
 state filter and the model's prediction over the action delay), and ``OUT/imitation_robustness.md`` /
@@ -297,7 +298,7 @@ SETTINGS = ("demos", "few", "perturbed_demos", "speed_demos", "dagger_rounds", "
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hsddp_gym.envs.perturbations import CONDITIONS
+    from hsddp_gym.envs.perturbations import CONDITIONS, SUITE
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/imitation_robustness", help="output directory (default: %(default)s)")
@@ -334,8 +335,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="training seeds of every learner (BC's seed; DAgger's rollouts from 10000 + 100 seed); seed 0 "
                         "is labelled by the learner's name, the others NAME@seedS, and with two or more the table "
                         "gains each learner's falls over the seeds with a 95 %% interval (default: %(default)s)")
-    p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS),
-                   help="evaluation conditions (default: all)")
+    p.add_argument("--conditions", nargs="+", default=list(SUITE), choices=list(CONDITIONS),
+                   help="evaluation conditions (default: the benchmark suite, hsddp_gym.envs.perturbations.SUITE: "
+                        "every condition but push_x3)")
     p.add_argument("--seeds", type=int, default=20, help="evaluation episodes per condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=7000, help="first evaluation seed (default: %(default)s)")
     p.add_argument("--max-steps", type=int, default=None,

@@ -1,4 +1,4 @@
-"""Robustness benchmark: every named perturbation of ``hsddp_gym.envs.perturbations.CONDITIONS`` x any policy.
+"""Robustness benchmark: the named perturbations of ``hsddp_gym.envs.perturbations.CONDITIONS`` x any policy.
 
 Each (policy, condition, seed) is one episode of the condition's env (``make_env(condition)``: env kwargs and
 wrappers, every random draw seeded from the episode seed) reset with ``seed``, run to the env's 1000-step
@@ -236,7 +236,7 @@ def combine(paths, out: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hsddp_gym.envs.perturbations import CONDITIONS, SIMULATORS
+    from hsddp_gym.envs.perturbations import CONDITIONS, SIMULATORS, SUITE
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/robustness", help="output directory (default: %(default)s)")
@@ -253,8 +253,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--estimated", nargs="+", default=[], metavar="LABEL",
                    help="policies (labels of --policies or --learned names, not the MPC) that also run behind the "
                         "MPC's state filter and latency compensation (EstimatedStatePolicy), labelled LABEL+est")
-    p.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=list(CONDITIONS),
-                   help="conditions (default: all)")
+    p.add_argument("--conditions", nargs="+", default=list(SUITE), choices=list(CONDITIONS),
+                   help="conditions (default: the benchmark suite, hsddp_gym.envs.perturbations.SUITE: every condition "
+                        "but push_x3)")
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
                    help="first seed (default: %(default)s, the evaluation seeds; develop on others)")

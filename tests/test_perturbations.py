@@ -9,6 +9,7 @@ import pytest
 import hsddp_gym  # noqa: F401
 from hsddp_gym.envs.perturbations import (
     CONDITIONS,
+    SUITE,
     ActionDelay,
     Condition,
     ObservationNoise,
@@ -114,6 +115,79 @@ def test_random_push_is_seeded_in_range_and_applied():
     assert np.linalg.norm(dv) > 0.2 * np.linalg.norm(np.asarray(push["delta_v"]) * [1, 1, 0.19])
     with pytest.raises(ValueError, match="push"):
         env.reset(seed=0, options={"push": [0.0, 0.0, 1.0]})
+
+
+def _run(env, steps, push_at=None):
+    """``(steps, 28)`` qpos/qvel after each zero-torque step; ``push_at = (step, delta_v)`` pushes through
+    ``apply_push`` before that step."""
+    a, out = np.zeros(4, np.float32), []
+    for i in range(steps):
+        if push_at is not None and i == push_at[0]:
+            env.unwrapped.apply_push(push_at[1])
+        info = env.step(a)[4]
+        out.append(np.concatenate([info["qpos"], info["qvel"]]))
+    return np.array(out)
+
+
+def test_push_schedule_applies_every_push_at_its_time():
+    """The env's ``push`` option as a list: each push at the first simulation step at or after its time, in time
+    order whatever the list's order; one push in a list is that push; a schedule entry is validated by index."""
+    p1 = {"delta_v": [0.3, -0.2, 2.0], "time": 0.0123}
+    p2 = {"delta_v": [-0.4, 0.1, -3.0], "time": 0.05}  # the start of control step 10
+    env, ref = gym.make(ENV_ID), gym.make(ENV_ID)
+    env.reset(seed=4, options={"push": [p2, p1]})
+    ref.reset(seed=4, options={"push": p1})
+    both, one_then_two = _run(env, 20), _run(ref, 20, push_at=(10, p2["delta_v"]))
+    np.testing.assert_array_equal(both, one_then_two)
+    plain = gym.make(ENV_ID)
+    plain.reset(seed=4)
+    unpushed = _run(plain, 20)
+    assert not np.array_equal(both[2], unpushed[2]) and np.array_equal(both[1], unpushed[1])  # p1 in step 2
+    env.reset(seed=4, options={"push": [p1]})
+    ref.reset(seed=4, options={"push": p1})
+    np.testing.assert_array_equal(_run(env, 20), _run(ref, 20))
+    with pytest.raises(ValueError, match=r"options\['push'\]\[1\]\['time'\]"):
+        env.reset(seed=0, options={"push": [p1, {"delta_v": [0.0, 0.0, 1.0], "time": -1.0}]})
+    with pytest.raises(ValueError, match=r"options\['push'\]\[0\]"):
+        env.reset(seed=0, options={"push": [{"delta_v": [0.0, 0.0, 1.0]}]})
+
+
+def test_random_push_count_draws_one_push_per_slot():
+    """``RandomPush(count=3)``: three seeded pushes, push j in the j-th third of ``time_range``, each within
+    ``max_delta_v``, all applied; ``count=1`` is the single push (a dict) it always drew."""
+    env = RandomPush(gym.make(ENV_ID), time_range=(1.0, 4.0), count=3)
+    single = RandomPush(gym.make(ENV_ID), time_range=(1.0, 4.0))
+    for seed in range(20):
+        pushes = env.reset(seed=seed)[1]["push"]
+        assert isinstance(pushes, list) and len(pushes) == 3 and pushes == env.last_push
+        for j, p in enumerate(pushes):
+            assert 1.0 + j <= p["time"] <= 2.0 + j
+            assert all(abs(v) <= m for v, m in zip(p["delta_v"], (0.8, 0.8, 5.0)))
+        assert env.reset(seed=seed)[1]["push"] == pushes
+        # the first push is the single push's draw (same generator, same order of draws) but in the first slot
+        first = single.reset(seed=seed)[1]["push"]
+        assert isinstance(first, dict) and first["delta_v"] == pushes[0]["delta_v"]
+    with pytest.raises(ValueError, match="count"):
+        RandomPush(gym.make(ENV_ID), count=0)
+    # the three pushes reach the trunk: the run equals one with the schedule given to the env directly
+    pushes = env.reset(seed=5)[1]["push"]
+    direct = gym.make(ENV_ID)
+    direct.reset(seed=5, options={"push": pushes})
+    pushed = _run(env, 900)
+    np.testing.assert_array_equal(pushed, _run(direct, 900))
+    # and each one changes the motion: up to the step of push j the run equals the one with the pushes before it
+    for j, p in enumerate(pushes):
+        partial = gym.make(ENV_ID)
+        partial.reset(seed=5, options={"push": pushes[:j]})
+        i = int(p["time"] // env.unwrapped.dt)  # the control step in which push j happens
+        before = _run(partial, i + 1)
+        np.testing.assert_array_equal(pushed[:i], before[:i])
+        assert not np.array_equal(pushed[i], before[i])
+
+
+def test_suite_is_every_condition_but_the_training_ones():
+    assert SUITE == tuple(n for n in CONDITIONS if n != "push_x3") and len(SUITE) == 13
+    assert get_condition("push_x3").push == {"count": 3}
 
 
 def test_wrapper_validation_names_the_argument():
