@@ -148,14 +148,15 @@ def test_ground_force_rows_of_airborne_feet_are_zero(dynamics, rng, tools, mode)
 
 # ----------------------------------------------------------------------------------------- linearize
 def _check_linearization_against_step_derivatives(dyn, X, U, modes, lin):
-    # "equal" up to the last bits: in flight linearize's acc is computeABADerivatives' ddq, step's is aba's
+    # equal to rounding: linearize runs the compiled dynamics (hsddp_gym.core.planar_dynamics), the single-step
+    # methods Pinocchio's (about 1e-12 relative apart, tests/test_planar_dynamics.py)
     for k in range(U.shape[0]):
         _, grf, f_x, f_u, grf_x, grf_u = dyn.step_derivatives(X[k], U[k], modes[k])
         for name, ref in (("f_x", f_x), ("f_u", f_u), ("grf", grf), ("grf_x", grf_x), ("grf_u", grf_u)):
-            np.testing.assert_allclose(getattr(lin, name)[k], ref, rtol=1e-12, atol=1e-12,
+            np.testing.assert_allclose(getattr(lin, name)[k], ref, rtol=1e-10, atol=1e-10,
                                        err_msg=f"{name} knot {k}")
         a, _ = dyn.accelerations(X[k], U[k], modes[k])
-        np.testing.assert_allclose(lin.acc[k], a, rtol=1e-12, atol=1e-12, err_msg=f"acc knot {k}")
+        np.testing.assert_allclose(lin.acc[k], a, rtol=1e-10, atol=1e-10, err_msg=f"acc knot {k}")
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)

@@ -24,6 +24,10 @@ PUSHED_SEED = 514
 """A push-condition seed (push at 2.36 s: +0.37 m/s forward, +0.21 m/s up, +3.3 rad/s nose-down, early in a front
 stance) whose touchdown after the push comes late: the re-plans cannot meet it for 0.1 s."""
 PUSHED_STEPS = 560
+RESTART_SEED = 508
+"""A push-condition seed (push at 1.17 s: -0.69 m/s forward, +0.57 m/s up, +4.65 rad/s nose-down) on which the
+default MPC restarts re-plans and bounds on, and falls without the restarts (with the compiled dynamics of stop 34;
+seed 514 did before, when rounding differed)."""
 
 
 @pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),
@@ -59,8 +63,8 @@ def test_height_offset_reaches_the_plans_and_the_warm_start_and_is_validated():
         MPCOptions(refresh_gains="no")
 
 
-def _pushed_episode(**options):
-    """The push of :data:`PUSHED_SEED` under ``MPCOptions(**options)``: ``(result, policy, max |multiplier| after
+def _pushed_episode(seed=PUSHED_SEED, **options):
+    """The push of ``seed`` under ``MPCOptions(**options)``: ``(result, policy, max |multiplier| after
     each re-plan, the objectives (rejected, kept) of each restart)``."""
     env = make_env("push")
     policy = MPCPolicy.from_env(env, options=MPCOptions(**options))
@@ -78,7 +82,7 @@ def _pushed_episode(**options):
         return kept
 
     policy.replan, policy._restart = recording_replan, recording_restart
-    result = run_episode(env, policy, PUSHED_SEED, max_steps=PUSHED_STEPS)
+    result = run_episode(env, policy, seed, max_steps=PUSHED_STEPS)
     env.close()
     return result, policy, np.array(multipliers), restarts
 
@@ -95,14 +99,14 @@ def test_the_outer_loop_is_not_carried_across_replans_so_a_missed_touchdown_does
 
 
 def test_a_warm_start_gone_far_off_is_solved_again_and_the_better_plan_kept():
-    result, policy, _, restarts = _pushed_episode()
+    result, policy, _, restarts = _pushed_episode(RESTART_SEED)
     assert not result.fell
     assert policy.options.restart_ratio == 10.0 and policy.stats["restarts"] == len(restarts) >= 1
     for rejected, kept in restarts:
         assert kept <= rejected
     assert policy.stats["restarts_kept"] == sum(kept < rejected for rejected, kept in restarts) >= 1
     # without it the same push ends in a fall
-    without, _, _, _ = _pushed_episode(restart_ratio=None)
+    without, _, _, _ = _pushed_episode(RESTART_SEED, restart_ratio=None)
     assert without.fell
 
 

@@ -6,7 +6,10 @@ Continuous dynamics (paper eq. 11), for the feet ``c`` in contact in a mode::
     M(q) a + b(q, v) = S^T u + J_c(q)^T lam,      J_c a + dJ_c v = 0
 
 solved with Pinocchio's ``constraintDynamics`` (3D point contacts in the x-z plane; the y row is
-identically zero, handled by the proximal solver) -- or plain ABA in flight. ``lam`` is the force of the
+identically zero, handled by the proximal solver) -- or plain ABA in flight. Over a horizon (the solver's rollouts
+and :meth:`HybridDynamics.linearize`) the same equations and their derivatives run compiled
+(:mod:`hsddp_gym.core.planar_dynamics`, checked against Pinocchio to rounding); the single-step methods stay
+Pinocchio's, the reference. ``lam`` is the force of the
 ground on the robot in the world frame. Discrete step ``f_i`` with step ``h``:
 
 * ``"euler"`` (paper): ``q+ = q + h v``, ``v+ = v + h a``;
@@ -28,6 +31,7 @@ import pinocchio as pin
 
 from hsddp_gym.core.conventions import NGRF, NQ, NU, NV, NX, Mode, as_mode
 from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.core.planar_dynamics import Scratch, kernel_params, linearize_knots
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 INTEGRATORS = ("euler", "semi_implicit")
@@ -90,6 +94,10 @@ class HybridDynamics:
         self._prox_impulse = _proximal(1e-12)
         self._tau = np.zeros(NV)
         self._zero_u = np.zeros(NU)
+        self.kernel_params = kernel_params(self.robot)
+        """``(13,)``: the model of the compiled dynamics (:mod:`hsddp_gym.core.planar_dynamics`: the rollouts)."""
+        self.scratch = Scratch()
+        """Work arrays of the compiled dynamics (one per ``HybridDynamics``, like its Pinocchio ``Data``)."""
 
     # ------------------------------------------------------------------ validation helpers
     @staticmethod
@@ -216,9 +224,9 @@ class HybridDynamics:
                   h: np.ndarray | float | None = None) -> None:
         """Derivatives of the discrete steps along a trajectory, written into ``out``.
 
-        Knot ``k`` steps ``X[k] -> X[k+1]`` with ``U[k]`` in ``modes[k]``. The per-knot loop only calls
-        Pinocchio and copies its results; discrete Jacobians and ground-force rows are assembled
-        vectorized over the horizon afterwards.
+        Knot ``k`` steps ``X[k] -> X[k+1]`` with ``U[k]`` in ``modes[k]``. The per-knot loop is compiled
+        (:func:`hsddp_gym.core.planar_dynamics.linearize_knots`: Pinocchio's derivatives to rounding, tested);
+        discrete Jacobians and ground-force rows are assembled over the horizon afterwards.
 
         Args:
             X: states ``(N+1, 14)`` (only ``X[:N]`` is read). U: controls ``(N, 4)``.
@@ -232,39 +240,12 @@ class HybridDynamics:
         """
         X, U, modes, h = _check_horizon(X, U, modes, out, h)
         n = U.shape[0]
-        tau = self._tau
-        model, free, prox = self.model, self._free, self._prox
-        contact = self._contact
-        a_q, a_v, a_t = out.a_q, out.a_v, out.a_tau
-        l_q, l_v, l_t, lam = out.lam6_q, out.lam6_v, out.lam6_tau, out.lam6
-        acc = out.acc
-        flight = int(Mode.FLIGHT)
-        for k in range(n):
-            xk = X[k]
-            q = xk[:NQ]
-            v = xk[NQ:]
-            tau[3:] = U[k]
-            m = int(modes[k])
-            if m == flight:
-                dq, dv, minv = pin.computeABADerivatives(model, free, q, v, tau)
-                a_q[k] = dq
-                a_v[k] = dv
-                a_t[k] = minv
-                acc[k] = free.ddq
-                continue
-            cs = contact[m]
-            data = cs.data
-            acc[k] = pin.constraintDynamics(model, data, q, v, tau, cs.models, cs.datas, prox)
-            dq, dv, dt_, lq, lv, lt = pin.computeConstraintDynamicsDerivatives(model, data, cs.models, cs.datas,
-                                                                               prox)
-            a_q[k] = dq
-            a_v[k] = dv
-            a_t[k] = dt_
-            nc = lq.shape[0]
-            l_q[k, :nc] = lq
-            l_v[k, :nc] = lv
-            l_t[k, :nc] = lt
-            lam[k, :nc] = data.lambda_c
+        failed = linearize_knots(np.ascontiguousarray(X), np.ascontiguousarray(U),
+                                 np.ascontiguousarray(modes, dtype=np.int64), self.kernel_params, self.scratch.arrays,
+                                 self._tau, out.lam6, out.acc, out.a_q, out.a_v, out.a_tau, out.lam6_q, out.lam6_v,
+                                 out.lam6_tau)
+        if failed >= 0:  # pragma: no cover - M and J_c M^-1 J_c^T are positive definite at every finite state
+            raise ArithmeticError(f"the dynamics at knot {failed} are singular")
         out.finish(n, modes, self.dt if h is None else h, self.integrator, self._contact)
 
     def simulate_step(self, x: np.ndarray, u: np.ndarray, mode: int, x_next: np.ndarray, grf: np.ndarray) -> None:
@@ -424,10 +405,8 @@ class Linearization:
     * ``grf (N, 4)``, ``grf_x (N, 4, 14)``, ``grf_u (N, 4, 4)``: ground force during each step and its
       Jacobians (zero rows for feet in the air).
 
-    The raw Pinocchio outputs (``a_q, a_v, a_tau (N, 7, 7)``, ``lam6_* (N, 6, 7)``, ``lam6 (N, 6)``,
-    ``acc (N, 7)``) stay available for callers that need continuous-time quantities; ``knot_views`` holds the
-    same eight arrays as lists of their ``capacity`` per-knot rows (views), for writers that fill them knot by
-    knot (the solver's rollout: indexing a list costs a fraction of indexing an array).
+    The continuous-time derivatives (``a_q, a_v, a_tau (N, 7, 7)``, ``lam6_* (N, 6, 7)``, ``lam6 (N, 6)``,
+    ``acc (N, 7)``, in the layout of Pinocchio's derivative functions) stay available for callers that need them.
     """
 
     def __init__(self, capacity: int) -> None:
@@ -446,8 +425,6 @@ class Linearization:
         self.grf = np.zeros((n, NGRF))
         self.grf_x = np.zeros((n, NGRF, NX))
         self.grf_u = np.zeros((n, NGRF, NU))
-        self.knot_views = tuple(list(a) for a in (self.a_q, self.a_v, self.a_tau, self.lam6_q, self.lam6_v,
-                                                  self.lam6_tau, self.lam6, self.acc))
 
     def finish(self, n: int, modes: np.ndarray, h, integrator: str, contact_sets: dict) -> None:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots: one compiled pass

@@ -21,11 +21,10 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pinocchio as pin
 
-from hsddp_gym.core.conventions import NGRF, NQ, NU, NX
+from hsddp_gym.core.conventions import NGRF, NU, NV, NX
 from hsddp_gym.core.dynamics import Linearization, grf_from_lambda
-from hsddp_gym.planners.optimizer import kernels
+from hsddp_gym.core.planar_dynamics import rollout_phase
 from hsddp_gym.planners.optimizer.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from hsddp_gym.planners.optimizer.objective import ConstraintState, CostBreakdown, Objective
 from hsddp_gym.planners.optimizer.problem import HybridProblem
@@ -37,10 +36,6 @@ from hsddp_gym.util.validation import check_array
 class _Traj:
     """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4), for N = ``n_knots`` knots and
     n = ``n_phases`` phases, or fewer (:meth:`resize`: they are the leading views of buffers of that capacity).
-
-    ``x_views``, ``q_views``, ``v_views`` (N + 1 rows of (14,), (7,), (7,)) and ``u_views`` (N rows of (4,)) are the
-    per-knot rows of the buffers, for the rollout's knot-by-knot writes (indexing a list costs a fraction of
-    indexing an array).
     """
 
     def __init__(self, n_knots: int, n_phases: int) -> None:
@@ -48,10 +43,6 @@ class _Traj:
         self._X_pre = np.zeros((n_phases, NX))
         self._U = np.zeros((n_knots, NU))
         self._GRF = np.zeros((n_knots, NGRF))
-        self.x_views = list(self._X)
-        self.q_views = [x[:NQ] for x in self.x_views]
-        self.v_views = [x[NQ:] for x in self.x_views]
-        self.u_views = list(self._U)
         self.resize(n_knots, n_phases)
 
     def resize(self, n_knots: int, n_phases: int) -> None:
@@ -109,106 +100,69 @@ class Workspace:
             setattr(self, name, self._buffers[name][:(n, m, n + 1)[rows]])
 
 
+# stand-ins for the arrays a rollout without feedback or derivatives does not use (compiled code wants arrays)
+_NO_GAINS = np.zeros((1, NU, NX))
+_SCRATCH = (np.zeros((1, NV, NV)), np.zeros((1, NV, NV)), np.zeros((1, NV, NV)), np.zeros((1, 6, NV)),
+            np.zeros((1, 6, NV)), np.zeros((1, 6, NV)), np.zeros((1, NV)))
+
+
 def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
                    K: np.ndarray | None = None, k_ff: np.ndarray | None = None, eps: float = 0.0,
                    lam6: np.ndarray | None = None, lin: Linearization | None = None) -> bool:
     """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` (eq. 8) through the hybrid system.
 
-    The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``, so each
-    knot costs one 4x14 product, its Pinocchio calls and the integrator step (compiled:
-    :func:`~hsddp_gym.planners.optimizer.kernels.integrate`); per-knot rows are taken from lists of views
-    (``out``'s, ``lin.knot_views``). Writes ``out``; returns False (leaving NaNs) as soon as a phase ends in a
-    non-finite state.
+    The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``; each phase is
+    one compiled call (:func:`hsddp_gym.core.planar_dynamics.rollout_phase`: the feedback law, the mode's dynamics
+    and, with ``lin``, their derivatives, the integrator step), and the reset map between phases is Pinocchio's.
+    Writes ``out``; returns False (leaving NaNs) as soon as a phase ends in a non-finite state.
 
     Args:
-        lam6: optional ``(N, 6)`` scratch for Pinocchio's contact forces.
+        lam6: optional ``(N, 6)`` scratch for the contact forces (Pinocchio's ``lambda_c`` layout).
         lin: when given, also linearize the dynamics at every knot of the new trajectory into it (the
             same numbers as :meth:`HybridDynamics.linearize`; the solver's speculative first trial, which
             saves a second pass over the horizon when the full step is accepted).
     """
     dyn = problem.dynamics
-    model, prox, free = dyn.model, dyn._prox, dyn._free
-    h_phase = problem.phase_dt
-    tau = dyn._tau
-    tau_u = tau[3:]
-    semi = dyn.integrator == "semi_implicit"
     N = problem.n_knots
-    X = out.X
-    xs, qs, vs, us = out.x_views, out.q_views, out.v_views, out.u_views
-    if K is not None:
+    X, U = out.X, out.U
+    feedback = K is not None
+    if feedback:
         c = U_ref - np.einsum("nux,nx->nu", K, X_ref[:N])
         if k_ff is not None and eps != 0.0:
             c += eps * k_ff
-        K_rows = list(K)
     else:
         c = U_ref if (k_ff is None or eps == 0.0) else U_ref + eps * k_ff
-    c_rows = list(c)
-    if lin is not None:
-        a_q, a_v, a_t, l_q, l_v, l_t, lam_rows, acc = lin.knot_views
+        K = _NO_GAINS
+    c = np.ascontiguousarray(c, dtype=np.float64)
+    derivs = lin is not None
+    if derivs:
+        a_q, a_v, a_t, l_q, l_v, l_t, lam, acc = (lin.a_q, lin.a_v, lin.a_tau, lin.lam6_q, lin.lam6_v, lin.lam6_tau,
+                                                  lin.lam6, lin.acc)
     else:
-        lam6 = np.zeros((N, 6)) if lam6 is None else lam6
-        lam_rows = list(lam6)
+        lam = np.zeros((N, 6)) if lam6 is None else lam6
+        a_q, a_v, a_t, l_q, l_v, l_t, acc = _SCRATCH
     X[0] = problem.x0
     ps = problem.phase_start
     e = problem.restitution
-    # locals, not module attributes, in the per-knot loop
-    add, integrate = np.add, kernels.integrate
-    constraint_dynamics, aba = pin.constraintDynamics, pin.aba
-    cd_derivatives, aba_derivatives = pin.computeConstraintDynamicsDerivatives, pin.computeABADerivatives
+    semi = dyn.integrator == "semi_implicit"
+    p, ws, tau = dyn.kernel_params, dyn.scratch.arrays, dyn._tau
+    modes, h_phase = problem.schedule.modes, problem.phase_dt
     for i in range(problem.n_phases):
-        mode = int(problem.schedule.modes[i])
-        h = float(h_phase[i])
-        if mode:
-            cset = dyn._contact[mode]
-            data, cms, cds, nl = cset.data, cset.models, cset.datas, 3 * len(cset.feet)
-        for k in range(ps[i], ps[i + 1]):
-            x = xs[k]
-            u = us[k]
-            if K is not None:
-                K_rows[k].dot(x, u)  # the method: np.dot's array-function dispatch costs a third of the product
-                add(u, c_rows[k], u)
-            else:
-                u[...] = c_rows[k]
-            tau_u[...] = u
-            q = qs[k]
-            v = vs[k]
-            if lin is None:
-                if mode:
-                    a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
-                    lam_rows[k][:nl] = data.lambda_c
-                else:
-                    a = aba(model, free, q, v, tau)
-            elif mode:
-                a = constraint_dynamics(model, data, q, v, tau, cms, cds, prox)
-                acc[k][...] = a
-                lam_rows[k][:nl] = data.lambda_c
-                dq, dv, dt_, lq, lv, lt = cd_derivatives(model, data, cms, cds, prox)
-                a_q[k][...] = dq
-                a_v[k][...] = dv
-                a_t[k][...] = dt_
-                l_q[k][:nl] = lq
-                l_v[k][:nl] = lv
-                l_t[k][:nl] = lt
-            else:
-                dq, dv, minv = aba_derivatives(model, free, q, v, tau)
-                a_q[k][...] = dq
-                a_v[k][...] = dv
-                a_t[k][...] = minv
-                a = free.ddq
-                acc[k][...] = a
-            integrate(a, x, xs[k + 1], h, semi)
-        x = X[ps[i + 1]]
-        if not np.isfinite(x).all():
-            X[ps[i + 1]:] = np.nan
+        k0, k1 = int(ps[i]), int(ps[i + 1])
+        failed = rollout_phase(X, U, K, c, feedback, k0, k1, int(modes[i]), float(h_phase[i]), semi, p, derivs,
+                               ws, tau, lam, acc, a_q, a_v, a_t, l_q, l_v, l_t)
+        x = X[k1]
+        if failed >= 0 or not np.isfinite(x).all():
+            X[(failed + 1 if failed >= 0 else k1):] = np.nan
             return False
         out.X_pre[i] = x
         if i + 1 < problem.n_phases:
-            X[ps[i + 1]], _ = dyn._reset(x, problem.schedule.next_mode(i), e)
+            X[k1], _ = dyn._reset(x, problem.schedule.next_mode(i), e)
     if lin is not None:
         lin.finish(N, problem.modes, problem.h, dyn.integrator, dyn._contact)
         out.GRF[:] = lin.grf[:N]
     else:
-        grf_from_lambda(lam6, problem.modes, dyn._contact, out.GRF)
+        grf_from_lambda(lam, problem.modes, dyn._contact, out.GRF)
     return True
 
 

@@ -1,8 +1,7 @@
 """Compiled (numba) elementwise kernels of the solver, fused over the horizon so that one call replaces a few dozen
 small NumPy temporaries: the quadratic cost terms and the relaxed barriers (paper eq. 27,
 :func:`~hsddp_gym.planners.optimizer.barrier.relaxed_barrier`) of
-:class:`~hsddp_gym.planners.optimizer.objective.Objective`, and the integrator step of the rollout
-(:func:`~hsddp_gym.planners.optimizer.hsddp.rollout_policy`).
+:class:`~hsddp_gym.planners.optimizer.objective.Objective`, and the assembly of the discrete Jacobians.
 
 Every kernel does, element by element, the same IEEE operations in the same order as the NumPy expressions it
 replaces (no fast-math, so no fused multiply-adds; NumPy's error model, so a division by zero gives inf or nan as in
@@ -13,7 +12,8 @@ library's in about 1e-4 of the cases), so a barrier value is computed in two pas
 
 Constraint layout (N knots): torque rows ``umax - U`` (N, 4) and ``umax + U`` (N, 4); ground-force rows
 ``c = GRF @ A_grf.T`` (N, 6), weighted by the stance mask ``mask`` (N, 6). Compiled once per machine with the
-backward pass, in :func:`hsddp_gym.planners.optimizer.riccati.warm_up` (cached on disk).
+backward pass, in :func:`hsddp_gym.planners.optimizer.riccati.warm_up` (cached on disk). The rollout's dynamics
+and integrator step are compiled in :mod:`hsddp_gym.core.planar_dynamics`.
 """
 
 from __future__ import annotations
@@ -145,16 +145,6 @@ def barrier_values(U, c, umax, delta_torque, delta_grf, log_delta_torque, log_de
             b_f[k, j] = b * mask[k, j]
 
 
-@numba.njit(cache=True, error_model="numpy")
-def integrate(a, x, x_next, h, semi_implicit):
-    """One integrator step of the rollout: ``v+ = v + h a``, then ``q+ = q + h v+`` (``semi_implicit``) or
-    ``q + h v`` (explicit Euler), from ``x = [q, v]`` (14,) and the accelerations ``a`` (7,) into ``x_next`` (14,)."""
-    for i in range(NQ):
-        x_next[NQ + i] = x[NQ + i] + a[i] * h
-    for i in range(NQ):
-        x_next[i] = x[i] + (x_next[NQ + i] if semi_implicit else x[NQ + i]) * h
-
-
 def warm_up_kernels() -> None:
     """Call every kernel once on a 2-knot problem with the dtypes and layouts the solver passes (C-contiguous
     float64), so that numba compiles or loads them before anything is timed."""
@@ -169,7 +159,6 @@ def warm_up_kernels() -> None:
     barrier_safe(z((n, NU)), z((n, 6)), 1.0, 0.1, 0.1, z((n, 2 * NU + 6)))
     barrier_values(z((n, NU)), z((n, 6)), 1.0, 0.1, 0.1, 0.0, 0.0, z((n, 2 * NU + 6)), z((n, 6)), z((n, NU)),
                    z((n, NU)), z((n, 6)))
-    integrate(z(NQ), z(NX), z(NX), 0.1, True)
     assemble_linearization(z((n, NQ, NQ)), z((n, NQ, NQ)), z((n, NQ, NQ)), z((n, 6)), z((n, 6, NQ)), z((n, 6, NQ)),
                            z((n, 6, NQ)), np.zeros(n, dtype=np.int64), np.ones(n), True,
                            np.zeros((4, NGRF, 2), dtype=np.int64), np.zeros(4, dtype=np.int64), z((n, NX, NX)),
@@ -177,7 +166,7 @@ def warm_up_kernels() -> None:
 
 
 KERNELS = (quadratic_derivatives, torque_barrier_derivatives, force_barrier_derivatives, barrier_safe, barrier_values,
-           integrate, assemble_linearization)
+           assemble_linearization)
 """The compiled entry points the solver calls besides the backward pass, with the linearization's assembly of
 :mod:`hsddp_gym.core.dynamics` (:meth:`~hsddp_gym.core.dynamics.Linearization.finish`): all warmed up by
 :func:`warm_up_kernels`, their numba caches checked by the warm-up."""

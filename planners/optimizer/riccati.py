@@ -22,6 +22,8 @@ import numba
 import numpy as np
 
 from hsddp_gym.core.conventions import NU, NX
+from hsddp_gym.core.planar_dynamics import KERNELS as DYNAMICS
+from hsddp_gym.core.planar_dynamics import warm_up as warm_up_dynamics
 from hsddp_gym.planners.optimizer.kernels import KERNELS, warm_up_kernels
 
 
@@ -270,7 +272,7 @@ def _cache_index_exists() -> bool:
     import os
 
     try:
-        return all(os.path.exists(k._cache._cache_file._index_path) for k in (backward_pass, *KERNELS))
+        return all(os.path.exists(k._cache._cache_file._index_path) for k in (backward_pass, *KERNELS, *DYNAMICS))
     except AttributeError:  # pragma: no cover (another numba version)
         return False
 
@@ -279,8 +281,9 @@ def warm_up(announce: bool = True) -> float:
     """Make the compiled kernels ready before anything is timed: compile them (the first run on a machine,
     10-20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
     process, on a 2-knot problem with the dtypes and layouts the solver passes (so its calls reuse this
-    specialization): the backward pass and the objective's kernels
-    (:func:`hsddp_gym.planners.optimizer.kernels.warm_up_kernels`). With ``announce``, a line on stderr says
+    specialization): the backward pass, the objective's kernels
+    (:func:`hsddp_gym.planners.optimizer.kernels.warm_up_kernels`) and the compiled dynamics of the rollouts
+    (:func:`hsddp_gym.core.planar_dynamics.warm_up`). With ``announce``, a line on stderr says
     when a compile is under way and how long it took. Returns the seconds spent (0 when already done).
     :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP` calls it before its clock starts, so compile time never
     lands in ``solve_time_s``."""
@@ -292,8 +295,8 @@ def warm_up(announce: bool = True) -> float:
     import time
 
     def say():
-        print(f"numba: compiling the HS-DDP backward pass and cost kernels, once (the first run on this machine "
-              f"takes 10-20 s; later runs load them from the cache in {backward_pass.stats.cache_path}) ...",
+        print(f"numba: compiling the HS-DDP dynamics, backward pass and cost kernels, once (the first run on this "
+              f"machine takes 20-40 s; later runs load them from the cache in {backward_pass.stats.cache_path}) ...",
               file=sys.stderr, flush=True)
 
     if announce and not _cache_index_exists():
@@ -314,11 +317,12 @@ def warm_up(announce: bool = True) -> float:
                       np.eye(nx)[None].copy(), np.eye(nx)[None].copy(), np.array([0, n], dtype=np.int64), 0.0,
                       np.zeros((n, nu)), np.zeros((n, nu, nx)), np.zeros((n + 1, nx)), np.zeros((n + 1, nx, nx)))
         warm_up_kernels()
+        warm_up_dynamics()
     finally:
         if timer is not None:
             timer.cancel()
     elapsed = time.perf_counter() - t0
-    if announce and any(sum(k.stats.cache_misses.values()) for k in (backward_pass, *KERNELS)):
+    if announce and any(sum(k.stats.cache_misses.values()) for k in (backward_pass, *KERNELS, *DYNAMICS)):
         print(f"numba: compiled in {elapsed:.1f} s (not counted in solver timings); cached for later runs",
               file=sys.stderr, flush=True)
     _READY = True
