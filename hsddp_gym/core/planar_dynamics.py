@@ -341,5 +341,6 @@ def warm_up() -> None:
                     z6.copy(), z6.copy())
 
 
-KERNELS = (_planar_terms.terms, _planar_terms.partials, knot_dynamics, rollout_phase, linearize_knots)
-"""The compiled functions of this module (numba dispatchers), for cache checks."""
+KERNELS = (rollout_phase, linearize_knots)
+"""The compiled entry points the solver calls (numba dispatchers; the functions they call are compiled into them), for
+the warm-up's cache checks."""
