@@ -540,11 +540,11 @@ def test_nonlinear_reset_v_xx_is_the_hessian_of_the_fixed_feedback_policy_cost(r
 
 def test_cholesky_rejects_non_finite_matrices():
     """A NaN Q_uu (derivatives that overflowed) is not positive definite: the sweep must fail, not emit NaN gains."""
-    from hsddp_gym.planners.optimizer.riccati import _cholesky_solve_4
+    from hsddp_gym.core.small_linalg import cholesky_solve
 
     L, out, B = np.zeros((4, 4)), np.zeros((4, 1)), np.ones((4, 1))
-    assert _cholesky_solve_4(np.eye(4), B, L, out) and np.allclose(out, 1.0)
+    assert cholesky_solve(np.eye(4), B, L, out) and np.allclose(out, 1.0)
     for bad in (np.nan, np.inf):
         A = np.eye(4)
         A[2, 2] = bad
-        assert not _cholesky_solve_4(A, B, L, out)
+        assert not cholesky_solve(A, B, L, out)

@@ -30,6 +30,7 @@ import pinocchio as pin
 from hsddp_gym.core import _planar_terms
 from hsddp_gym.core.conventions import NQ, NU, NV
 from hsddp_gym.core.model import LWA, CheetahModel
+from hsddp_gym.core.small_linalg import cholesky_solve
 
 
 def kernel_params(robot: CheetahModel) -> np.ndarray:
@@ -72,42 +73,6 @@ def _check_against_pinocchio(robot: CheetahModel, p: np.ndarray) -> None:
                                  "see hsddp_gym.core.planar_codegen")
 
 
-@numba.njit(cache=True, inline="always")
-def _cholesky(A, L, n):
-    """Lower Cholesky factor ``L`` of the SPD ``A[:n, :n]``; False if not positive definite (or not finite)."""
-    for i in range(n):
-        for j in range(i + 1):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                if not 0.0 < s < np.inf:
-                    return False
-                L[i, i] = np.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-        for j in range(i + 1, n):
-            L[i, j] = 0.0
-    return True
-
-
-@numba.njit(cache=True, inline="always")
-def _inverse_from_cholesky(L, n, out):
-    """``out[:n, :n] = (L L^T)^-1`` (symmetric)."""
-    for c in range(n):
-        # solve L y = e_c, then L^T x = y, into column c
-        for i in range(n):
-            s = 1.0 if i == c else 0.0
-            for k in range(i):
-                s -= L[i, k] * out[k, c]
-            out[i, c] = s / L[i, i]
-        for i in range(n - 1, -1, -1):
-            s = out[i, c]
-            for k in range(i + 1, n):
-                s -= L[k, i] * out[k, c]
-            out[i, c] = s / L[i, i]
-
-
 @numba.njit(cache=True)
 def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, l_v, l_tau):
     """Accelerations and contact forces of one knot, and optionally their derivatives.
@@ -124,11 +89,10 @@ def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, 
         False when ``M`` or ``G`` is not positive definite (a non-finite configuration): the outputs are then
         undefined. Non-finite velocities or torques give non-finite outputs (the caller checks the states).
     """
-    M, b, J, drift, Lm, Minv, Jc, MJ, G, Lg, Ginv, rhs, f_all, r_q, r_v, c_q, c_v, R, D = ws
+    M, b, J, drift, Lm, Minv, Jc, MJ, G, Lg, Ginv, rhs, f_all, r_q, r_v, c_q, c_v, R, D, eye = ws
     _planar_terms.terms(q, v, p, M, b, J, drift)
-    if not _cholesky(M, Lm, NV):
+    if not cholesky_solve(M, eye, Lm, Minv):
         return False
-    _inverse_from_cholesky(Lm, NV, Minv)
     # rows of the feet in contact (x, z per foot, in foot order)
     nc = 0
     for foot in range(2):
@@ -160,9 +124,8 @@ def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, 
                 for j in range(NV):
                     s += Jc[r, j] * MJ[j, c]
                 G[r, c] = s
-        if not _cholesky(G, Lg, nc):
+        if not cholesky_solve(G[:nc, :nc], eye[:nc, :nc], Lg, Ginv):
             return False
-        _inverse_from_cholesky(Lg, nc, Ginv)
         # f = -G^-1 (Jc a0 + drift), a = a0 + MJ f
         for r in range(nc):
             s = rhs[r]
@@ -260,7 +223,7 @@ class Scratch:
         self.arrays = (np.zeros((n, n)), np.zeros(n), np.zeros((4, n)), np.zeros(4), np.zeros((n, n)),
                        np.zeros((n, n)), np.zeros((4, n)), np.zeros((n, 4)), np.zeros((4, 4)), np.zeros((4, 4)),
                        np.zeros((4, 4)), np.zeros(4), np.zeros(4), np.zeros((n, n)), np.zeros((n, n)),
-                       np.zeros((4, n)), np.zeros((4, n)), np.zeros((n, n)), np.zeros((4, n)))
+                       np.zeros((4, n)), np.zeros((4, n)), np.zeros((n, n)), np.zeros((4, n)), np.eye(n))
 
 
 @numba.njit(cache=True)

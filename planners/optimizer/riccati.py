@@ -24,39 +24,8 @@ import numpy as np
 from hsddp_gym.core.conventions import NU, NX
 from hsddp_gym.core.planar_dynamics import KERNELS as DYNAMICS
 from hsddp_gym.core.planar_dynamics import warm_up as warm_up_dynamics
+from hsddp_gym.core.small_linalg import cholesky_solve
 from hsddp_gym.planners.optimizer.kernels import KERNELS, warm_up_kernels
-
-
-@numba.njit(cache=True, fastmath=False)
-def _cholesky_solve_4(A, B, L, out):
-    """Solve A X = B for SPD A (m x m, m <= small) via Cholesky; returns False if A is not PD."""
-    m = A.shape[0]
-    for i in range(m):
-        for j in range(i + 1):
-            s = A[i, j]
-            for p in range(j):
-                s -= L[i, p] * L[j, p]
-            if i == j:
-                if not 1e-12 < s < np.inf:  # also False for NaN and inf (non-finite Q_uu is not PD)
-                    return False
-                L[i, i] = np.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
-    ncol = B.shape[1]
-    for c in range(ncol):
-        # forward
-        for i in range(m):
-            s = B[i, c]
-            for p in range(i):
-                s -= L[i, p] * out[p, c]
-            out[i, c] = s / L[i, i]
-        # backward
-        for i in range(m - 1, -1, -1):
-            s = out[i, c]
-            for p in range(i + 1, m):
-                s -= L[p, i] * out[p, c]
-            out[i, c] = s / L[i, i]
-    return True
 
 
 @numba.njit(cache=True, inline="always")
@@ -214,7 +183,7 @@ def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, 
                 rhs[a, 0] = -Qu[a]
                 for b in range(nx):
                     rhs[a, b + 1] = -Qux[a, b]
-            if not _cholesky_solve_4(Quu_reg, rhs, L, sol):
+            if not cholesky_solve(Quu_reg, rhs, L, sol):
                 return False, k, dV1, dV2
             for a in range(nu):
                 k_ff[k, a] = sol[a, 0]
