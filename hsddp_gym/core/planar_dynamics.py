@@ -17,8 +17,8 @@ complement ``G = J_c M^-1 J_c^T``, and its derivatives follow from differentiati
 for ``z`` in ``(q, v, tau)``: the numbers of Pinocchio's ``computeConstraintDynamicsDerivatives`` (and
 ``computeABADerivatives`` in flight) to rounding, in the layout of :class:`hsddp_gym.core.dynamics.Linearization`
 (``tests/test_planar_dynamics.py``). One call rolls a whole phase out (:func:`rollout_phase`), with no Python in
-the per-knot loop: the solver's rollout costs a fifth of its Pinocchio calls
-(``python experiments/bench_mpc.py`` prints the ratio).
+the per-knot loop: a pass over a re-plan's horizon with derivatives costs about a fifth of the same Pinocchio calls
+(``python experiments/bench_mpc.py`` prints both).
 """
 
 from __future__ import annotations
