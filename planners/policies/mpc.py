@@ -96,9 +96,12 @@ class MPCOptions:
             condition. Both need one knot spacing (``fine_dt`` None).
         max_iterations: DDP iterations per re-plan (default 1: a real-time iteration scheme -- every re-plan takes one
             Newton-type step from the previous plan shifted to the new state, and the re-plans every
-            ``replan_period`` converge together as the horizon moves; more iterations per re-plan fit each plan
-            harder to one noisy state estimate: on the development seeds 10 iterations fell in 13 of 100 episodes
-            of the hardest conditions where 1 fell in 3 and 3 in 4, README "Robustness"; and it is the cheapest).
+            ``replan_period`` converge together as the horizon moves; and it is the cheapest). More were measured
+            and not adopted: stop 21's 10 iterations fitted each plan harder to one noisy state estimate (13 of 100
+            episodes of the hardest conditions fell where 1 fell in 3 and 3 in 4); stop 35's 2 fell less under
+            random pushes (3 against 6 of 400 development seeds, 3 against 9 of 300 MuJoCo episodes) and more under
+            the large pushes of the gait-phase sweep (41 against 30 of 156) and in the MuJoCo evaluation (1 against
+            0 of 260); 3 fell as often as 1 (README, "Stop 35").
             warmup_iterations: for a plan from scratch: the episode's first, or one the previous plan cannot warm-start
             (its phases do not cover the new schedule, e.g. after a lost stance).
         time_budget: wall-clock limit of one re-plan [s] (None: none).
