@@ -18,8 +18,9 @@ time limit (5 s) or a fall. Policies:
 
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: stop 30's scuff rule of the MPC's gait clock was found on seed 7012 of
-the ``obs_noise`` condition (README, "Stop 30"). Development used seeds 500-899. ``--seed-list S [S ...]`` runs
-exactly those seeds (e.g. an earlier run's ``fall_seeds``, or a subset of pushes chosen by their draw).
+the ``obs_noise`` condition (docs/robustness/issue14_history.md, "Stop 30"). Development used seeds 500-899.
+``--seed-list S [S ...]`` runs exactly those seeds (e.g. an earlier run's ``fall_seeds``, or a subset of pushes
+chosen by their draw).
 
 Per cell: falls / episodes, mean return (all episodes), mean forward speed of the episodes that did not fall
 (and its error to the target), real-time factor (simulated / wall time, policy + simulation), and for the MPC the

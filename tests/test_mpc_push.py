@@ -184,7 +184,7 @@ def test_in_loop_switching_time_adaptation_lands_earlier_after_a_downward_push()
                 {"switch_time_limit": 1.0}, {"switch_time_limit": 0.0}):
         with pytest.raises(ValueError, match=next(iter(bad))):
             MPCOptions(**bad)
-    assert MPCOptions().switch_time_weight is None  # off by default (README "Stop 25")
+    assert MPCOptions().switch_time_weight is None  # off by default (docs/robustness/issue14_history.md, "Stop 25")
 
 
 def _push_episode(options: MPCOptions, seed: int):

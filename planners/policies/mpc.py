@@ -101,7 +101,8 @@ class MPCOptions:
             episodes of the hardest conditions fell where 1 fell in 3 and 3 in 4); stop 35's 2 fell less under
             random pushes (3 against 6 of 400 development seeds, 3 against 9 of 300 MuJoCo episodes) and more under
             the large pushes of the gait-phase sweep (41 against 30 of 156) and in the MuJoCo evaluation (1 against
-            0 of 260); 3 fell as often as 1 (README, "Stop 35").
+            0 of 260); 3 fell as often as 1 (docs/robustness/issue14_history.md,
+            "Stop 35").
             warmup_iterations: for a plan from scratch: the episode's first, or one the previous plan cannot warm-start
             (its phases do not cover the new schedule, e.g. after a lost stance).
         time_budget: wall-clock limit of one re-plan [s] (None: none).
@@ -125,7 +126,7 @@ class MPCOptions:
             is its touchdown (before it, ``debounce_steps``): in the MuJoCo twin a soft landing's contact flag
             flickers, and a late flight that waited for two consecutive contact steps planned flight dynamics for a
             foot on the ground (4 of 10 falls; 0 with this rule; 30 ms: 0, 60 ms: 4). Development seeds in this env:
-            None fell in 3-5 of the hardest conditions' 100 episodes, 30 ms in 11 (README "Robustness").
+            None fell in 3-5 of the hardest conditions' 100 episodes, 30 ms in 11 (issue14_history.md, "Stop 22").
         z_velocity: vertical-velocity references at the phase ends (see
             :func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): "code" (default; the authors' +-1 m/s,
             real flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
@@ -203,9 +204,9 @@ class MPCOptions:
             nominal durations), and the next re-plans plan with the shifted phases (:meth:`GaitClock.shift_switch`; a
             stance ends at its shifted end, a flight still at its touchdown). After a downward push in a flight it
             brings the touchdown forward and lengthens the stance (tested). Off by default: on the development seeds it
-            fell more (MuJoCo twin: 27 of 200 episodes against 3; README "Stop 25"), and a learner's gait clock rebuilt
-            from observations (:func:`~hsddp_gym.learning.features.gait_clock_features`) cannot follow shifts that come
-            from the plans.
+            fell more (MuJoCo twin: 27 of 200 episodes against 3; issue14_history.md, "Stop 25"), and a learner's gait
+            clock rebuilt from observations (:func:`~hsddp_gym.learning.features.gait_clock_features`) cannot follow
+            shifts that come from the plans.
         switch_time_step: the largest move of a phase end per re-plan [s] (a trust region: the gradient of a
             one-iteration plan is only a local model, and larger moves made successive re-plans oscillate).
         switch_time_limit: each shifted phase stays within this fraction of its nominal duration (in (0, 1)).
@@ -213,7 +214,7 @@ class MPCOptions:
             feet where the authors' postures have them, the joints by inverse kinematics:
             :func:`~hsddp_gym.core.references.end_of_mode_reference`). The authors' gait bounds with the trunk at
             0.25-0.28 m, 13 cm above the env's fall height (0.12 m); 4 cm more leaves a push more room and keeps the
-            unpushed return (README, "Stop 28"). 0: the authors' postures.
+            unpushed return (issue14_history.md, "Stop 28"). 0: the authors' postures.
         restart_ratio: a warm-started re-plan whose objective ends above this many times the previous plan's is
             solved again from scratch (the start-up warm start, ``warmup_iterations``) and the better of the two
             plans is kept (None: never). The shifted previous plan is a good start while the robot stays near it;
