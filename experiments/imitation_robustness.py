@@ -37,7 +37,9 @@ and trains (BC recipe: gait-clock features, cosine lr decay, ``--epochs``; the s
   ``ds_speeds`` (undisturbed, where the estimate is the observation), its rollouts as ``dagger_speed_perturbed``'s;
 
 each with every seed of ``--train-seeds`` (labels ``NAME`` for seed 0, ``NAME@seedS`` for the others; with two or
-more seeds the table ends with each learner's falls over the seeds, mean and 95 % interval).
+more seeds the table ends with each learner's falls over the seeds, mean and 95 % interval; with ``--ensemble`` each
+learner's training seeds also act together, ``NAME@ens``: the mean action of those networks,
+:func:`hsddp_gym.learning.ensemble.load_mlp_ensemble`).
 
 Then every learner runs in every condition of ``--conditions`` (default: the benchmark suite,
 ``hsddp_gym.envs.perturbations.SUITE``) on the evaluation seeds
@@ -335,6 +337,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="training seeds of every learner (BC's seed; DAgger's rollouts from 10000 + 100 seed); seed 0 "
                         "is labelled by the learner's name, the others NAME@seedS, and with two or more the table "
                         "gains each learner's falls over the seeds with a 95 %% interval (default: %(default)s)")
+    p.add_argument("--ensemble", action="store_true",
+                   help="with two or more --train-seeds, also evaluate each learner's seeds together, labelled "
+                        "NAME@ens: the mean action of its networks (hsddp_gym.learning.ensemble)")
     p.add_argument("--conditions", nargs="+", default=list(SUITE), choices=list(CONDITIONS),
                    help="evaluation conditions (default: the benchmark suite, hsddp_gym.envs.perturbations.SUITE: "
                         "every condition but push_x3)")
@@ -356,6 +361,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("demos", "few", "perturbed_demos", "speed_demos", "dagger_episodes", "epochs", "seeds", "workers"):
         if getattr(args, name) < 1:
             p.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+    if args.ensemble and len(args.train_seeds) < 2:
+        p.error(f"--ensemble needs two or more --train-seeds, got {args.train_seeds}")
     if any(seed < 0 for seed in args.train_seeds) or len(set(args.train_seeds)) != len(args.train_seeds):
         p.error(f"--train-seeds must be distinct integers >= 0, got {args.train_seeds}")
     most = args.dagger_episodes if not {"dagger_speed_perturbed", "dagger_speed_est"} & set(args.learners) else max(
@@ -434,6 +441,11 @@ def main(argv: list[str] | None = None) -> int:
                 continue  # trained behind the estimator: evaluated behind it already
             policies[f"{label}+est"] = {**policies[label], "estimator": True}
             learners[f"{label}+est"] = {**info, "learner": f"{info['learner']}+est", "estimator": True}
+    if args.ensemble:  # each learner's training seeds as one policy (evaluated as its members were trained)
+        for name in args.learners:
+            members = [info for info in learners.values() if info["learner"] == name]
+            policies[f"{name}@ens"] = {"kind": "dagger" if name.startswith("dagger") else "bc",
+                                       "dirs": [info["dir"] for info in members], "estimator": members[0]["estimator"]}
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     _log(f"evaluating {len(policies)} learners x {len(args.conditions)} conditions x {len(seeds)} seeds")
     t1 = time.perf_counter()

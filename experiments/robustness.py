@@ -11,7 +11,8 @@ time limit (5 s) or a fall. Policies:
 * learned ones, ``--learned NAME=DIR`` (NAME ``bc`` / ``dagger``: ``DIR/policy.npz``; ``ppo`` / ``sac``:
   ``DIR/model.zip`` + ``summary.json``, ``--rl-checkpoint best`` for the best training-time evaluation's weights;
   ``NAME@TAG=DIR`` labels one of several of a kind, e.g. training seeds), skipped with a note when the files are
-  missing;
+  missing; ``bc`` / ``dagger`` with several directories, ``NAME=DIR1,DIR2,...``, is their mean-action ensemble
+  (:func:`hsddp_gym.learning.ensemble.load_mlp_ensemble`);
 * ``--estimated LABEL ...``: those policies once more behind the MPC's own perception
   (:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`: the state filter under observation
   noise, the model's prediction over an action delay), labelled ``LABEL+est``.
@@ -54,22 +55,28 @@ EVAL_FIRST_SEED = 7000
 
 
 def make_policy(spec: dict, env):
-    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ..., "estimator": bool}``) for
-    ``env``; with ``estimator`` the policy, built for the env without its delay, acts behind
-    :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (the MPC's state filter and latency
-    compensation)."""
+    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ..., "estimator": bool}``, or
+    ``"dirs": [...]`` for a bc/dagger ensemble) for ``env``; with ``estimator`` the policy, built for the env without
+    its delay, acts behind :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (the MPC's
+    state filter and latency compensation)."""
     from hsddp_gym.planners.policies.base import EnvInterface
 
     kind = spec["kind"]
     interface = EnvInterface.from_env(env)
     if kind in ("bc", "dagger"):
         from hsddp_gym.learning.bc import MLPPolicy
+        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
 
+        if spec.get("dirs"):  # a mean-action ensemble; members trained behind the estimator come wrapped in one
+            from hsddp_gym.learning.ensemble import load_mlp_ensemble
+
+            policy = load_mlp_ensemble(spec["dirs"], interface)
+            if not spec.get("estimator") or isinstance(policy, EstimatedStatePolicy):
+                return policy
+            return EstimatedStatePolicy.around(policy.with_interface, interface)
         policy = MLPPolicy.load(Path(spec["dir"]) / "policy.npz", interface)
         if not (spec.get("estimator") or policy.info.get("estimator")):  # trained behind it: always acts behind it
             return policy
-        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
-
         return EstimatedStatePolicy.around(policy.with_interface, interface)
     if spec.get("estimator"):
         from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
@@ -248,7 +255,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
     p.add_argument("--learned", action="append", default=[], metavar="NAME=DIR",
                    help=f"a trained policy, NAME one of {list(LEARNED)}, or NAME@TAG to run several of a kind (e.g. "
-                        "ppo@seed0=DIR0 ppo@seed1=DIR1) (repeatable; skipped if its files are missing)")
+                        "ppo@seed0=DIR0 ppo@seed1=DIR1); bc/dagger with comma-separated directories "
+                        "(dagger@ens=DIR0,DIR1,DIR2) is the mean action of those learners (repeatable; skipped if "
+                        "its files are missing)")
     p.add_argument("--rl-checkpoint", choices=("final", "best"), default="final",
                    help="ppo/sac: the final weights or the best training-time evaluation's (default: %(default)s)")
     p.add_argument("--estimated", nargs="+", default=[], metavar="LABEL",
@@ -320,11 +329,15 @@ def main(argv: list[str] | None = None) -> int:
         if not sep or kind not in LEARNED or name in policies or name in skipped:
             p.error(f"--learned must be NAME=DIR with NAME one of {list(LEARNED)}, optionally tagged NAME@TAG (e.g. "
                     f"ppo@seed1), each NAME once, got {item!r}")
-        if not (Path(path) / LEARNED[kind]).exists():
-            skipped[name] = f"missing {Path(path) / LEARNED[kind]}"
+        dirs = path.split(",")
+        if len(dirs) > 1 and kind not in ("bc", "dagger"):
+            p.error(f"--learned {item!r}: only bc and dagger learners form an ensemble of several directories")
+        missing = [str(Path(d) / LEARNED[kind]) for d in dirs if not (Path(d) / LEARNED[kind]).exists()]
+        if missing:
+            skipped[name] = f"missing {', '.join(missing)}"
             print(f"skipping {name}: {skipped[name]}", flush=True)
             continue
-        policies[name] = {"kind": kind, "dir": path}
+        policies[name] = {"kind": kind, "dir": path} if len(dirs) == 1 else {"kind": kind, "dirs": dirs}
         if kind in ("ppo", "sac"):
             policies[name]["checkpoint"] = args.rl_checkpoint
     for label in args.estimated:

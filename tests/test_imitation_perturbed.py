@@ -215,11 +215,15 @@ def test_imitation_robustness_experiment_smoke(tmp_path, experiment):
             "bc_speed |") in table
     assert "* **bc_speed**: falls met; speed " in table
     assert script.main(argv) == 0  # reuses the datasets and the learners
-    # a second training seed: its own learners (NAME@seed1), and each learner's falls over the seeds
-    assert script.main(argv + ["--train-seeds", "0", "1"]) == 0
+    # a second training seed: its own learners (NAME@seed1), each learner's falls over the seeds, and with --ensemble
+    # the seeds' mean action (NAME@ens)
+    with pytest.raises(SystemExit):
+        script.main(argv + ["--ensemble"])  # one training seed: nothing to average
+    assert script.main(argv + ["--train-seeds", "0", "1", "--ensemble"]) == 0
     res = json.loads((out / "imitation_robustness.json").read_text())
     learners = ("bc", "dagger_perturbed_queue", "bc_speed")
-    assert set(res["results"]) == {*learners, *(f"{n}@seed1" for n in learners)}
+    assert set(res["results"]) == {*learners, *(f"{n}@seed1" for n in learners), *(f"{n}@ens" for n in learners)}
+    assert set(res["over_seeds"]) == set(learners)  # an ensemble is no training seed
     assert res["learners"]["bc@seed1"]["training_seed"] == 1
     assert (out / "learners" / "bc@seed1" / "policy.npz").exists()
     cells = res["over_seeds"]["bc"]["cells"]
