@@ -35,7 +35,7 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
-from hsddp_gym.learning.sb3 import ALGOS, train_sb3
+from hsddp_gym.learning.sb3 import ALGOS, hyperparameters, train_sb3
 
 EVALS = ("eval", "eval_best", "eval_stochastic")
 """The protocol evaluations of each run's summary: the final weights' mean action, the best checkpoint's mean action
@@ -64,6 +64,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="step the --n-envs training robots in the compiled vector env (one numba call for all)")
     p.add_argument("--time-limit", type=float, default=None,
                    help="wall-clock budget per run [s]: training stops there and reports the steps that fit")
+    p.add_argument("--hidden", default=None,
+                   help="hidden layer sizes of every network, actor and critic alike, comma-separated, e.g. 128,128 "
+                        "(default: the preset's; SAC 256,256)")
     args = p.parse_args(argv)
     if args.select_episodes < 1:
         p.error(f"--select-episodes must be >= 1, got {args.select_episodes}")
@@ -79,6 +82,15 @@ def main(argv: list[str] | None = None) -> int:
                          if algo == "sac" and args.learning_starts is not None else {})
             if args.n_envs is not None:
                 overrides["n_envs"] = args.n_envs
+            if args.hidden is not None:
+                try:
+                    overrides["net_arch"] = [int(w) for w in args.hidden.split(",")]
+                except ValueError:
+                    p.error(f"--hidden: must be comma-separated integers, got {args.hidden!r}")
+            try:
+                hyperparameters(algo, overrides, args.preset)
+            except ValueError as e:
+                p.error(f"--hidden: {e}")
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,

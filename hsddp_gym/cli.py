@@ -390,6 +390,8 @@ def cmd_train(args) -> int:
         overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else {}
         if args.n_envs is not None:
             overrides["n_envs"] = args.n_envs
+        if args.hidden:
+            overrides["net_arch"] = list(args.hidden)
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
@@ -536,7 +538,9 @@ def _add_learning_parsers(sub) -> None:
                    help="bc/dagger: MLP inputs; gait_clock appends the MPC's gait clock (phase one-hot, time in "
                         "phase, cycle sin/cos) rebuilt from the observation history, since the MPC's phase drifts "
                         "from the observation clock (default: %(default)s)")
-    p.add_argument("--hidden", type=_int_list, default=None, help="bc/dagger: hidden layer sizes (default: 256,256)")
+    p.add_argument("--hidden", type=_int_list, default=None,
+                   help="hidden layer sizes, e.g. 128,128 (bc/dagger: the MLP, default 256,256; "
+                        "ppo/sac: every network, actor and critic alike, default the preset's)")
     p.add_argument("--weight-decay", type=_nonnegative_float, default=0.0,
                    help="bc/dagger: Adam weight decay (default: 0)")
     p.add_argument("--lr-decay", action="store_true", help="bc/dagger: cosine learning-rate decay to 0 over the epochs")

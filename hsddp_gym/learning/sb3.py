@@ -223,20 +223,35 @@ def _policy_kwargs(kwargs: dict) -> dict:
 
 def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFAULT_PRESET) -> dict:
     """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` (:data:`PRESETS`) with
-    ``overrides`` applied (e.g. ``{"n_envs": 4}``)."""
+    ``overrides`` applied (e.g. ``{"n_envs": 4}``). ``{"net_arch": [128, 128]}`` sets the hidden layers of every
+    network (actor and critic alike) in ``policy_kwargs``, keeping the preset's other policy settings."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
     if preset not in PRESETS[algo]:
         raise ValueError(f"preset must be one of {tuple(PRESETS[algo])}, got {preset!r}")
     hp = json.loads(json.dumps(PRESETS[algo][preset]))
     for k, v in (overrides or {}).items():
-        if v is not None:
-            hp[k] = v
+        if v is None:
+            continue
+        if k == "net_arch":
+            if (isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) == 0
+                    or any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1 for n in v)):
+                raise ValueError(f"net_arch must be a non-empty list of layer widths >= 1, got {v!r}")
+            widths = [int(n) for n in v]
+            hp.setdefault("policy_kwargs", {})["net_arch"] = (
+                {"pi": widths, "vf": widths} if algo == "ppo" else {"pi": widths, "qf": widths})
+            continue
+        hp[k] = v
     return hp
 
 
+TRAINER_KEYS = ("normalize", "n_envs")
+"""Hyperparameters the trainer applies around the SB3 model rather than passing to its constructor:
+``normalize`` (VecNormalize) and ``n_envs`` (robots stepped together)."""
+
+
 def _model_kwargs(hp: dict) -> dict:
-    kw = {k: v for k, v in hp.items() if k not in ("normalize", "n_envs")}
+    kw = {k: v for k, v in hp.items() if k not in TRAINER_KEYS}
     if "policy_kwargs" in kw:
         kw["policy_kwargs"] = _policy_kwargs(kw["policy_kwargs"])
     return kw
@@ -343,8 +358,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         eval_venv = VecNormalize(eval_venv, norm_obs=True, norm_reward=False, gamma=gamma, training=False)
     cls = PPO if algo == "ppo" else SAC
     model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **_model_kwargs(hp))
-    eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
     callbacks = []
+    eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
     best = None
     if eval_freq > 0:
         best = _save_best(out, venv if hp["normalize"] else None)
