@@ -67,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hidden", default=None,
                    help="hidden layer sizes of every network, actor and critic alike, comma-separated, e.g. 128,128 "
                         "(default: the preset's; SAC 256,256)")
+    p.add_argument("--learning-rate", default=None,
+                   help="the optimizer's step: a number, or lin_<number> for a step that falls linearly to 0 over "
+                        "--steps (RL-Zoo's notation; default: the preset's)")
     args = p.parse_args(argv)
     if args.select_episodes < 1:
         p.error(f"--select-episodes must be >= 1, got {args.select_episodes}")
@@ -82,6 +85,12 @@ def main(argv: list[str] | None = None) -> int:
                          if algo == "sac" and args.learning_starts is not None else {})
             if args.n_envs is not None:
                 overrides["n_envs"] = args.n_envs
+            if args.learning_rate is not None:
+                try:
+                    overrides["learning_rate"] = (args.learning_rate if args.learning_rate.startswith("lin_")
+                                                  else float(args.learning_rate))
+                except ValueError:
+                    p.error(f"--learning-rate: a number or lin_<number>, got {args.learning_rate!r}")
             if args.hidden is not None:
                 try:
                     overrides["net_arch"] = [int(w) for w in args.hidden.split(",")]
@@ -90,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 hyperparameters(algo, overrides, args.preset)
             except ValueError as e:
-                p.error(f"--hidden: {e}")
+                p.error(f"{'--learning-rate' if 'learning_rate' in str(e) else '--hidden'}: {e}")
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,

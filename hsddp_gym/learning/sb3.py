@@ -241,8 +241,27 @@ def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFA
             hp.setdefault("policy_kwargs", {})["net_arch"] = (
                 {"pi": widths, "vf": widths} if algo == "ppo" else {"pi": widths, "qf": widths})
             continue
+        if k == "learning_rate":
+            learning_rate_schedule(v)  # validates
         hp[k] = v
     return hp
+
+
+def learning_rate_schedule(value):
+    """SB3's ``learning_rate`` from a hyperparameter: a number (constant) or RL-Zoo's ``"lin_<number>"``, a step
+    that falls linearly from ``<number>`` to 0 over the run's ``steps`` (SB3's ``progress_remaining``; with a
+    ``time_limit`` that stops the run earlier, the step has not reached 0 there)."""
+    if isinstance(value, str) and value.startswith("lin_"):
+        try:
+            start = float(value[4:])
+        except ValueError:
+            start = float("nan")
+        if not (np.isfinite(start) and start > 0):
+            raise ValueError(f"learning_rate 'lin_<number>' needs a number > 0, got {value!r}")
+        return lambda progress_remaining: progress_remaining * start
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value > 0):
+        raise ValueError(f"learning_rate must be a number > 0 or 'lin_<number>', got {value!r}")
+    return float(value)
 
 
 TRAINER_KEYS = ("normalize", "n_envs")
@@ -252,6 +271,8 @@ TRAINER_KEYS = ("normalize", "n_envs")
 
 def _model_kwargs(hp: dict) -> dict:
     kw = {k: v for k, v in hp.items() if k not in TRAINER_KEYS}
+    if "learning_rate" in kw:
+        kw["learning_rate"] = learning_rate_schedule(kw["learning_rate"])
     if "policy_kwargs" in kw:
         kw["policy_kwargs"] = _policy_kwargs(kw["policy_kwargs"])
     return kw
