@@ -221,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in TRAINED:
         p.add_argument(f"--{name}", nargs="+", default=None,
                        help=f"{name} run directories, one per training seed, or folders of seed* runs (default: "
-                            f"RUNS/{name}); several seeds give the mean and a 95 % interval over seeds")
+                            f"RUNS/{name}); several seeds give the mean and a 95 %% interval over seeds")
     p.add_argument("--episodes", type=int, default=10, help="episodes per policy, seeds 0.. (default: %(default)s)")
     p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES),
                    help="policies to evaluate; trained ones whose run directory lacks its files are skipped with a "
