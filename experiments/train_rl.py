@@ -98,8 +98,9 @@ def main(argv: list[str] | None = None) -> int:
                     p.error(f"--hidden: must be comma-separated integers, got {args.hidden!r}")
             try:
                 hyperparameters(algo, overrides, args.preset)
-            except ValueError as e:
-                p.error(f"{'--learning-rate' if 'learning_rate' in str(e) else '--hidden'}: {e}")
+            except ValueError as e:  # name the option whose value hyperparameters() refused
+                flag = {"learning_rate": "--learning-rate", "net_arch": "--hidden"}.get(str(e).split()[0])
+                p.error(f"{flag}: {e}" if flag else str(e))
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,

@@ -259,7 +259,8 @@ def learning_rate_schedule(value):
         if not (np.isfinite(start) and start > 0):
             raise ValueError(f"learning_rate 'lin_<number>' needs a number > 0, got {value!r}")
         return lambda progress_remaining: progress_remaining * start
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (np.isfinite(value) and value > 0):
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not (np.isfinite(value) and value > 0):
         raise ValueError(f"learning_rate must be a number > 0 or 'lin_<number>', got {value!r}")
     return float(value)
 
