@@ -58,6 +58,21 @@ def _check_bool(value, name: str) -> bool:
     return bool(value)
 
 
+def pop_due_pushes(pushes: list, frame_start: float, n: int, h: float) -> list:
+    """Remove from ``pushes`` (scheduled ``[(time [s], delta_v (3,)), ...]`` in time order) those that come in the
+    control step of ``n`` simulation steps of ``h`` seconds starting at episode time ``frame_start``, and return
+    them as ``[(k, delta_v), ...]``: a push acts after the first ``k`` simulation steps of the frame (``k`` the
+    first step at or after its time, 0 <= k <= n, non-decreasing). One rule for the single env and the compiled
+    vector env (:class:`hsddp_gym.envs.vector.BoundingVectorEnv`)."""
+    due, done = [], 0
+    end = frame_start + n * h - 1e-12
+    while pushes and pushes[0][0] < end:
+        t_push, delta_v = pushes.pop(0)
+        done = min(n, max(done, math.ceil((t_push - frame_start) / h - 1e-9)))
+        due.append((done, delta_v))
+    return due
+
+
 class BoundingEnv(gym.Env):
     r"""Planar MIT Mini Cheetah on flat ground: run forward at a target speed without falling.
 
@@ -468,13 +483,10 @@ class BoundingEnv(gym.Env):
         sim = self.sim
         x_before = float(sim.x[IX])
         n = self.frame_skip
-        pushes = self._pushes
-        if pushes and pushes[0][0] < self.time + n * self.sim_timestep - 1e-12:
-            # split the frame at the first simulation step at or after each push time in it
+        due = pop_due_pushes(self._pushes, self.time, n, self.sim_timestep) if self._pushes else None
+        if due:  # split the frame at the first simulation step at or after each push time in it
             impulse, done = [0.0] * NGRF, 0
-            while pushes and pushes[0][0] < self.time + n * self.sim_timestep - 1e-12:
-                t_push, delta_v = pushes.pop(0)
-                k = min(n, max(done, math.ceil((t_push - self.time) / self.sim_timestep - 1e-9)))
+            for k, delta_v in due:
                 if k > done:
                     impulse = [i + r for i, r in zip(impulse, sim.run(self._u, k - done))]
                     done = k

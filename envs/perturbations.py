@@ -9,7 +9,8 @@ conditions of the robustness benchmark (:data:`SUITE`, ``experiments/robustness.
   first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
   policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it);
 * :class:`RandomPush`: one push (or ``count``) per episode at a random time, a random trunk-velocity change
-  ``[dvx, dvz, dpitch_rate]`` applied through the env's documented ``push`` reset option;
+  ``[dvx, dvz, dpitch_rate]`` (a :class:`PushDistribution`) applied through the env's documented ``push`` reset
+  option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
 * model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
   simulated trunk is heavier or lighter than the model every policy uses).
 
@@ -46,14 +47,20 @@ SIMULATORS = {"bounding": "hsddp_gym/Bounding-v0", "mujoco": "hsddp_gym/Bounding
 twin (soft contacts; the optional extra ``mujoco``) and the planner's own hybrid model (pinned feet)."""
 
 
-def _episode_rng(wrapper, seed, salt: int) -> np.random.Generator:
-    """The wrapper's generator for an episode reset with ``seed`` (None: continue, or start from the env)."""
+def episode_generator(seed, salt: int, current: np.random.Generator | None, env_rng) -> np.random.Generator:
+    """A perturbation's generator for an episode reset with ``seed``: ``SeedSequence([seed, salt])``; without a
+    seed the ``current`` one continues, or (first use) one seeded from a draw of the env's generator ``env_rng()``
+    (a callable, called only then)."""
     if seed is not None:
         return np.random.default_rng(np.random.SeedSequence([int(seed), salt]))
-    if wrapper._rng is None:
-        return np.random.default_rng(np.random.SeedSequence(
-            [int(wrapper.env.unwrapped.np_random.integers(2 ** 63)), salt]))
-    return wrapper._rng
+    if current is None:
+        return np.random.default_rng(np.random.SeedSequence([int(env_rng().integers(2 ** 63)), salt]))
+    return current
+
+
+def _episode_rng(wrapper, seed, salt: int) -> np.random.Generator:
+    """The wrapper's generator for an episode reset with ``seed`` (None: continue, or start from the env)."""
+    return episode_generator(seed, salt, wrapper._rng, lambda: wrapper.env.unwrapped.np_random)
 
 
 def _check_nonneg(value, name: str) -> float:
@@ -153,33 +160,85 @@ def _check_range(value, name: str, minimum: float | None = None) -> tuple[float,
     return float(lo), float(hi)
 
 
-class RandomPush(gym.Wrapper):
-    """Random pushes: ``count`` per episode (default one) at random times, each a change of the trunk velocities
-    by ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``, m/s, m/s, rad/s,
-    positive pitch rate nose-down), through the env's ``push`` reset option (a scheduled push, or a schedule of
-    them). With one push its time is ``t ~ U(time_range)``; with ``count`` pushes ``time_range`` is cut into
-    ``count`` equal slots and push ``j`` comes at a uniform time in slot ``j`` (so they come in order, one
-    recovery apart on average). The pushes of the episode are ``info["push"]`` at reset and :attr:`last_push`:
-    the reset option given to the env, ``{"delta_v": [3 floats], "time": t}`` for one push, a list of such dicts
-    for several. Giving the ``push`` reset option yourself as well raises ``ValueError``.
+PUSH_SALT = 0x9054
+"""The salt of the push generators (:class:`RandomPush`, the vector env's ``push``): an episode reset with seed ``s``
+draws its pushes from ``SeedSequence([s, PUSH_SALT])``."""
 
-    Args:
-        env: a (wrapped) ``Bounding-v0``. time_range: ``(low, high)`` push times [s] (>= 0).
-        max_delta_v: (3,) largest absolute velocity change per component (>= 0).
-        count: pushes per episode (>= 1).
+
+@dataclasses.dataclass(frozen=True)
+class PushDistribution:
+    """The random pushes of an episode: ``count`` of them (default one) at random times, each a change of the
+    trunk velocities by ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``,
+    m/s, m/s, rad/s, positive pitch rate nose-down). With one push its time is ``t ~ U(time_range)``; with
+    ``count`` pushes ``time_range`` is cut into ``count`` equal slots and push ``j`` comes at a uniform time in
+    slot ``j`` (so they come in order, one recovery apart on average). One definition for :class:`RandomPush`
+    and :class:`hsddp_gym.envs.vector.BoundingVectorEnv`'s ``push`` argument, so both draw the same pushes.
+
+    Args (validated, ``TypeError`` / ``ValueError`` naming the argument):
+        time_range: ``(low, high)`` push times [s] (>= 0). max_delta_v: (3,) largest absolute velocity change per
+        component (>= 0). count: pushes per episode (>= 1).
     """
 
-    SALT = 0x9054
+    time_range: tuple = (1.0, 4.0)
+    max_delta_v: tuple = (0.8, 0.8, 5.0)
+    count: int = 1
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "time_range", _check_range(self.time_range, "time_range", minimum=0.0))
+        m = self.max_delta_v
+        if not isinstance(m, (tuple, list, np.ndarray)) or len(m) != 3:
+            raise TypeError(f"max_delta_v must be 3 numbers [m/s, m/s, rad/s], got {m!r}")
+        object.__setattr__(self, "max_delta_v", tuple(_check_nonneg(v, f"max_delta_v[{i}]") for i, v in enumerate(m)))
+        object.__setattr__(self, "count", check_int(self.count, "count", minimum=1))
+
+    @classmethod
+    def parse(cls, value, name: str = "push") -> PushDistribution:
+        """``value`` as a distribution: a :class:`PushDistribution`, or a dict of its fields (``{}``: the
+        defaults); anything else raises ``TypeError`` naming ``name``."""
+        if isinstance(value, cls):
+            return value
+        if not isinstance(value, dict):
+            raise TypeError(f"{name} must be a PushDistribution or a dict of its fields (time_range, max_delta_v, "
+                            f"count), got {type(value).__name__}")
+        unknown = sorted(set(value) - {f.name for f in dataclasses.fields(cls)})
+        if unknown:
+            raise ValueError(f"{name}: unknown field(s) {unknown}; allowed: time_range, max_delta_v, count")
+        return cls(**value)
+
+    def draw(self, rng: np.random.Generator) -> list:
+        """The pushes of one episode from ``rng``: a list of ``count`` dicts ``{"delta_v": [3 floats], "time":
+        t}`` in time order (per push its time, then its velocity change), the env's ``push`` reset option."""
+        lo, hi = self.time_range
+        slot = (hi - lo) / self.count
+        m = np.asarray(self.max_delta_v)
+        pushes = []
+        for j in range(self.count):
+            t = float(rng.uniform(lo + j * slot, hi if j == self.count - 1 else lo + (j + 1) * slot))
+            pushes.append({"delta_v": (m * rng.uniform(-1.0, 1.0, size=3)).tolist(), "time": t})
+        return pushes
+
+
+class RandomPush(gym.Wrapper):
+    """Random pushes of a :class:`PushDistribution` (``count`` per episode, default one, at random times, each a
+    random change of the trunk velocities) through the env's ``push`` reset option (a scheduled push, or a schedule
+    of them). The pushes of the episode are ``info["push"]`` at reset and :attr:`last_push`: the reset option
+    given to the env, ``{"delta_v": [3 floats], "time": t}`` for one push, a list of such dicts for several.
+    Giving the ``push`` reset option yourself as well raises ``ValueError``.
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``. time_range, max_delta_v, count: the :class:`PushDistribution`.
+    """
+
+    SALT = PUSH_SALT
     INFO_KEYS = ("push",)
     """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
 
     def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0), count: int = 1) -> None:
         super().__init__(env)
-        self.time_range = _check_range(time_range, "time_range", minimum=0.0)
-        if not isinstance(max_delta_v, (tuple, list, np.ndarray)) or len(max_delta_v) != 3:
-            raise TypeError(f"max_delta_v must be 3 numbers [m/s, m/s, rad/s], got {max_delta_v!r}")
-        self.max_delta_v = tuple(_check_nonneg(v, f"max_delta_v[{i}]") for i, v in enumerate(max_delta_v))
-        self.count = check_int(count, "count", minimum=1)
+        self.distribution = PushDistribution(time_range, max_delta_v, count)
+        self.time_range = self.distribution.time_range
+        self.max_delta_v = self.distribution.max_delta_v
+        self.count = self.distribution.count
         self._rng: np.random.Generator | None = None
         self.last_push: dict | list | None = None
 
@@ -189,13 +248,7 @@ class RandomPush(gym.Wrapper):
             raise ValueError("RandomPush draws the push itself: do not also give the 'push' reset option")
         if seed is not None or self._rng is None:
             self._rng = _episode_rng(self, seed, self.SALT)
-        lo, hi = self.time_range
-        slot = (hi - lo) / self.count
-        m = np.asarray(self.max_delta_v)
-        pushes = []
-        for j in range(self.count):  # per push: its time, then its velocity change (one push: as it always drew)
-            t = float(self._rng.uniform(lo + j * slot, hi if j == self.count - 1 else lo + (j + 1) * slot))
-            pushes.append({"delta_v": (m * self._rng.uniform(-1.0, 1.0, size=3)).tolist(), "time": t})
+        pushes = self.distribution.draw(self._rng)
         self.last_push = pushes[0] if self.count == 1 else pushes
         options["push"] = copy.deepcopy(self.last_push)
         obs, info = self.env.reset(seed=seed, options=options)

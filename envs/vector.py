@@ -18,7 +18,8 @@ from hsddp_gym.core import batch_contact
 from hsddp_gym.core.contact import SEPARATE
 from hsddp_gym.core.conventions import IPITCH, IZ, NGRF, NQ, NU, NX
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout
-from hsddp_gym.envs.bounding import _MAX_PENETRATION_AT_RESET, DEFAULT_MAX_EPISODE_STEPS, BoundingEnv
+from hsddp_gym.envs.bounding import _MAX_PENETRATION_AT_RESET, DEFAULT_MAX_EPISODE_STEPS, BoundingEnv, pop_due_pushes
+from hsddp_gym.envs.perturbations import PUSH_SALT, PushDistribution, episode_generator
 from hsddp_gym.util.validation import check_int, check_positive
 
 UNSUPPORTED_KWARGS = ("render_mode", "width", "height", "render_grf")
@@ -202,13 +203,23 @@ class BoundingVectorEnv(VectorEnv):
     shape raise ValueError). ``reset(options=...)`` accepts ``"state"`` ((num_envs, 14): one start state per
     robot, checked as the single env's ``options["state"]``), ``"time"`` (a float or (num_envs,)), and
     ``"reset_mask"`` ((num_envs,) bool: reset only those robots); the single env's ``"push"`` is not offered.
+
+    Random pushes (training under perturbation): ``push`` (a
+    :class:`~hsddp_gym.envs.perturbations.PushDistribution` or a dict of its fields, ``{}`` its defaults) gives
+    every robot random pushes in every episode, drawn at each of its resets as
+    :class:`~hsddp_gym.envs.perturbations.RandomPush` draws them, and applied at the same simulation step as the
+    single env's ``push`` reset option: robot ``i`` reset with seed ``s`` moves exactly as
+    ``RandomPush(gym.make("hsddp_gym/Bounding-v0"), **push)`` reset with ``s`` (``tests/test_vector_env.py``).
+    The schedule of robot ``i``'s episode is :meth:`scheduled_pushes` (not in ``info``).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int | None = DEFAULT_MAX_EPISODE_STEPS,
-                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs) -> None:
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, push=None, **kwargs) -> None:
         self.num_envs = check_int(num_envs, "num_envs", minimum=1)
+        self.push: PushDistribution | None = None if push is None else PushDistribution.parse(push, "push")
+        """The random pushes of every episode (None: none)."""
         if max_episode_steps is not None:
             max_episode_steps = check_int(max_episode_steps, "max_episode_steps", minimum=1)
         self.max_episode_steps = max_episode_steps
@@ -290,6 +301,8 @@ class BoundingVectorEnv(VectorEnv):
         self._all = np.ones(n, dtype=np.bool_)
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._rng_seeds: list[int | None] = [None] * n
+        self._push_rngs: list[np.random.Generator | None] = [None] * n
+        self._push_schedules: list[list] = [[] for _ in range(n)]
         self._needs_reset = True
 
     # ------------------------------------------------------------------ seeding
@@ -328,8 +341,14 @@ class BoundingVectorEnv(VectorEnv):
                 float(pin.updateFramePlacement(model, data, sim._fids[1]).translation[2]))
 
     def _reset_one(self, i: int, seed, state, t0: float) -> None:
-        """BoundingEnv.reset for robot ``i`` (state: a checked (14,) array or None)."""
+        """BoundingEnv.reset for robot ``i`` (state: a checked (14,) array or None), after RandomPush.reset's
+        draws of the episode's pushes (with ``push``)."""
         template = self.template
+        if self.push is not None:
+            rng = episode_generator(seed, PUSH_SALT, self._push_rngs[i], lambda: self._rng(i))
+            self._push_rngs[i] = rng
+            self._push_schedules[i] = sorted(((float(p["time"]), np.asarray(p["delta_v"], dtype=np.float64))
+                                              for p in self.push.draw(rng)), key=lambda p: p[0])
         if seed is not None:
             self._rngs[i], self._rng_seeds[i] = seeding.np_random(seed)
         x = self._x[i]
@@ -443,9 +462,15 @@ class BoundingVectorEnv(VectorEnv):
         self._check_actions(actions)
         next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
         stepped = self._stepped
-        batch_contact.step_batch(self._p, self._x, self._u, self.template.frame_skip, stepped, self._lcp_states,
-                                 self._contact, self._impulse, self._sim_time, self._heights, self.counters,
-                                 self._model_cache, self._scratch)
+        due = self._due_pushes() if self.push is not None else None
+        bulk = stepped
+        if due:
+            bulk = stepped.copy()
+            bulk[list(due)] = False
+        self._run(self.template.frame_skip, bulk)
+        if due:
+            for i, pushes in due.items():
+                self._run_pushed(i, pushes)
         n_done = _finish(self._x, self._x_before, self._values, self._contact, self._heights, self._impulse,
                          self._t0, self._sim_time, stepped, self._env_p, self._bounds, self._low, self._high,
                          self._skip, self._obs, self._reward, self._terminated, self._valid, self._x_velocity,
@@ -475,6 +500,50 @@ class BoundingVectorEnv(VectorEnv):
             info["final_obs"], info["_final_obs"] = final[0], final[2]
             info["final_info"], info["_final_info"] = final[1], final[2]
         return obs, reward, terminated, truncated, info
+
+    def _run(self, n: int, active: np.ndarray) -> None:
+        """``n`` simulation steps of the robots of ``active`` ((num_envs,) bool)."""
+        batch_contact.step_batch(self._p, self._x, self._u, n, active, self._lcp_states, self._contact, self._impulse,
+                                 self._sim_time, self._heights, self.counters, self._model_cache, self._scratch)
+
+    def _due_pushes(self) -> dict:
+        """``{robot: [(k, delta_v), ...]}``: the robots to be stepped whose scheduled pushes come in this control
+        step (:func:`~hsddp_gym.envs.bounding.pop_due_pushes`, removed from their schedules)."""
+        n, h = self.template.frame_skip, self.template.sim_timestep
+        due = {}
+        for i in np.nonzero(self._stepped)[0]:
+            schedule = self._push_schedules[i]
+            if schedule:
+                pushes = pop_due_pushes(schedule, float(self._t0[i] + self._sim_time[i]), n, h)
+                if pushes:
+                    due[int(i)] = pushes
+        return due
+
+    def _run_pushed(self, i: int, pushes: list) -> None:
+        """Robot ``i``'s control step split at its pushes (the single env's arithmetic: its impulses summed over
+        the pieces in the same order)."""
+        n = self.template.frame_skip
+        one = np.zeros(self.num_envs, dtype=np.bool_)
+        one[i] = True
+        impulse, done = [0.0] * NGRF, 0
+        for k, delta_v in pushes:
+            if k > done:
+                self._run(k - done, one)
+                impulse = [a + r for a, r in zip(impulse, self._impulse[i])]
+                done = k
+            self._x[i, NQ:NQ + 3] += delta_v
+        if n > done:
+            self._run(n - done, one)
+            impulse = [a + r for a, r in zip(impulse, self._impulse[i])]
+        self._impulse[i] = impulse
+
+    def scheduled_pushes(self, i: int) -> list:
+        """Robot ``i``'s pushes still to come this episode: ``[(time [s], delta_v (3,)), ...]`` in time order
+        (empty without ``push``)."""
+        check_int(i, "i", minimum=0)
+        if i >= self.num_envs:
+            raise ValueError(f"i must be < num_envs={self.num_envs}, got {i}")
+        return [(t, dv.copy()) for t, dv in self._push_schedules[i]]
 
     def _info(self, mask: np.ndarray | None = None) -> dict:
         """The batched info (the single env's keys, :data:`INFO_KEYS`), each key with its ``_key`` mask."""

@@ -35,7 +35,7 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
-from hsddp_gym.learning.sb3 import ALGOS, hyperparameters, train_sb3
+from hsddp_gym.learning.sb3 import ALGOS, check_train_condition, hyperparameters, train_sb3
 
 EVALS = ("eval", "eval_best", "eval_stochastic")
 """The protocol evaluations of each run's summary: the final weights' mean action, the best checkpoint's mean action
@@ -70,7 +70,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--learning-rate", default=None,
                    help="the optimizer's step: a number, or lin_<number> for a step that falls linearly to 0 over "
                         "--steps (RL-Zoo's notation; default: the preset's)")
+    p.add_argument("--train-condition", default=None, metavar="CONDITION",
+                   help="train every robot under this condition of the robustness suite (domain randomization), "
+                        "e.g. push_x3 (three random pushes an episode) or push; the evaluations that pick and score "
+                        "the policy stay on the unperturbed task; with --vector-env only conditions of env "
+                        "arguments and pushes (default: none)")
     args = p.parse_args(argv)
+    if args.train_condition is not None:
+        try:
+            check_train_condition(args.train_condition, vector_env=args.vector_env)
+        except ValueError as e:
+            p.error(f"--train-condition: {e}")
     if args.select_episodes < 1:
         p.error(f"--select-episodes must be >= 1, got {args.select_episodes}")
     if args.n_envs is not None and args.n_envs < 1:
@@ -104,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,
-                            time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
+                            time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
+                            train_condition=args.train_condition)
             s = res.summary
             evals = {k: s.get(k) or {} for k in EVALS}
             rows.append((algo, seed, s["steps"], s["wall_time_s"], evals))

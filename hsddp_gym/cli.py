@@ -320,10 +320,21 @@ def _check_train(args) -> None:
         raise UsageError("--speed-input", f"given with --algo {args.algo}", "--algo bc or dagger")
     if args.action_queue and args.algo not in ("bc", "dagger"):
         raise UsageError("--action-queue", f"given with --algo {args.algo}", "--algo bc or dagger")
-    for flag, given in (("--condition", args.condition), ("--workers", args.workers is not None),
-                        ("--estimator", args.estimator)):
+    for flag, given in (("--workers", args.workers is not None), ("--estimator", args.estimator)):
         if given and args.algo != "dagger":
             raise UsageError(flag, f"given with --algo {args.algo}", "--algo dagger")
+    if args.condition and args.algo not in ("dagger", "ppo", "sac"):
+        raise UsageError("--condition", f"given with --algo {args.algo}", "--algo dagger, ppo or sac")
+    if args.condition and args.algo in ("ppo", "sac"):
+        if len(args.condition) != 1:
+            raise UsageError("--condition", f"{len(args.condition)} names with --algo {args.algo}",
+                             "one condition for the training robots")
+        from hsddp_gym.envs.perturbations import get_condition
+
+        condition = get_condition(args.condition[0])
+        if args.vector_env and (condition.observation_noise is not None or condition.action_delay):
+            raise UsageError("--condition", f"{condition.name} (observation noise or latency) with --vector-env",
+                             "a condition of env arguments and pushes, or no --vector-env")
     if args.estimator and args.action_queue:
         raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
                          "queue)", "one of them")
@@ -395,7 +406,8 @@ def cmd_train(args) -> int:
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
-                        time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env)
+                        time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
+                        train_condition=args.condition[0] if args.condition else None)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
@@ -576,7 +588,9 @@ def _add_learning_parsers(sub) -> None:
                    help="dagger: run the relabelling rollouts under perturbations, names of "
                         "hsddp_gym.envs.perturbations.CONDITIONS (episode j of a round in the (j mod n)-th); the "
                         "learner acts on the perturbed observation, the MPC labels the true state and is told the "
-                        "action sent (default: the plain env)")
+                        "action sent; ppo/sac: one name, under which every training robot runs (e.g. push_x3: "
+                        "three random pushes an episode; with --vector-env only env arguments and pushes), while the "
+                        "evaluations stay on the plain env (default: the plain env)")
     p.add_argument("--workers", type=_positive_int, default=None,
                    help="dagger: processes running each round's rollouts; results do not depend on it "
                         "(default: 1)")

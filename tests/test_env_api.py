@@ -344,6 +344,30 @@ def test_pushes_change_the_trunk_velocity():
         env.reset(options={"push": {"delta_v": [0, 0, 1]}})
 
 
+def test_two_pushes_in_one_control_step_act_at_their_own_simulation_steps():
+    """Pushes are placed from the control step's start time, also the second one in the same step (stop 37: it
+    was placed from the time after the first piece had run, two simulation steps early here): a 5 ms control step
+    with pushes at 1.1 ms and 3.2 ms equals five 1 ms steps with the pushes after the 2nd and the 4th."""
+    from hsddp_gym.envs.bounding import pop_due_pushes
+
+    a, b, c = np.array([0.0, 0.0, 4.0]), np.array([0.6, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    schedule = [(0.0061, a), (0.0082, b), (0.0101, c)]
+    due = pop_due_pushes(schedule, 0.005, 5, 0.001)
+    assert [k for k, _ in due] == [2, 4] and due[0][1] is a and due[1][1] is b and schedule == [(0.0101, c)]
+    assert pop_due_pushes([(0.0, a)], 0.0, 5, 0.001) == [(0, a)]  # at the start: before the first step
+    assert pop_due_pushes([(0.0049, a), (0.0049, b)], 0.0, 5, 0.001)[1][0] == 5  # in the last step: after it
+    coarse = BoundingEnv(reset_noise_scale=0.0, frame_skip=5)
+    fine = BoundingEnv(reset_noise_scale=0.0, frame_skip=1)
+    coarse.reset(options={"push": [{"delta_v": a.tolist(), "time": 0.0011}, {"delta_v": b.tolist(), "time": 0.0032}]})
+    fine.reset()
+    for k in range(5):
+        fine.step(np.zeros(4))
+        if k in (1, 3):
+            fine.unwrapped.apply_push(a if k == 1 else b)
+    coarse.step(np.zeros(4))
+    np.testing.assert_allclose(coarse.state, fine.state, atol=1e-9)
+
+
 # ------------------------------------------------------------------------------------------ bad inputs
 @pytest.mark.parametrize("action, message", [
     (np.array([np.nan, 0, 0, 0]), "finite"),

@@ -180,7 +180,11 @@ def test_cli_condition_errors(capsys):
             (["train", "--algo", "bc", "--dataset", "x", "--condition", "push", "--out", "y"],
              "--condition: given with --algo bc"),
             (["train", "--algo", "bc", "--dataset", "x", "--workers", "2", "--out", "y"],
-             "--workers: given with --algo bc")):
+             "--workers: given with --algo bc"),
+            (["train", "--algo", "ppo", "--steps", "8", "--condition", "push", "push_x3", "--out", "y"],
+             "--condition: 2 names with --algo ppo"),
+            (["train", "--algo", "ppo", "--steps", "8", "--vector-env", "--condition", "delay_5ms", "--out", "y"],
+             "--condition: delay_5ms (observation noise or latency) with --vector-env")):
         try:
             code = main(argv)
         except SystemExit as exc:  # argparse's own errors

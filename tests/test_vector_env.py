@@ -272,6 +272,43 @@ def test_whole_episodes_equal_single_envs_with_random_actions(kwargs):
         assert limits >= 4
 
 
+@pytest.mark.parametrize("push", [{"count": 3, "time_range": (0.02, 0.6)},
+                                  {"count": 2, "time_range": (0.101, 0.1035), "max_delta_v": (1.5, 1.0, 8.0)}])
+def test_random_pushes_equal_single_envs_with_random_push(push):
+    """``push=...``: every robot is pushed as ``RandomPush`` pushes a single env reset with the same seed, at the
+    same simulation step, over whole episodes with falls and autoresets (the push generators continue after
+    an unseeded reset alike), bit for bit; the second set puts both pushes of an episode in one control step."""
+    from hsddp_gym.envs.perturbations import RandomPush
+
+    n = 4
+    venv = BoundingVectorEnv(num_envs=n, push=push)
+    envs = [RandomPush(gym.make(ENV_ID), **push) for _ in range(n)]
+    obs_v, _ = venv.reset(seed=21)
+    firsts = [env.reset(seed=21 + i) for i, env in enumerate(envs)]
+    assert np.array_equal(obs_v, np.stack([o for o, _ in firsts]))
+    for i, (_, info) in enumerate(firsts):
+        drawn = venv.scheduled_pushes(i)
+        assert [t for t, _ in drawn] == [p["time"] for p in info["push"]]
+        assert [dv.tolist() for _, dv in drawn] == [p["delta_v"] for p in info["push"]]
+    pending = [False] * n
+    rng = np.random.default_rng(2)
+    falls = pushed = 0
+    for _ in range(400):
+        pushed += sum(bool(venv.scheduled_pushes(i)) for i in range(n))
+        actions = rng.uniform(-1.0, 1.0, (n, 4)).astype(np.float32)
+        rows = _step_singles(envs, actions, pending)
+        _compare(venv.step(actions), rows)
+        falls += sum(r[2] for r in rows)
+    assert falls >= 4 and pushed > 0
+    assert BoundingVectorEnv(num_envs=1).scheduled_pushes(0) == []
+    with pytest.raises(ValueError, match="count"):
+        BoundingVectorEnv(num_envs=1, push={"count": 0})
+    with pytest.raises(ValueError, match="unknown field"):
+        BoundingVectorEnv(num_envs=1, push={"times": (1.0, 2.0)})
+    with pytest.raises(TypeError, match="push must be"):
+        BoundingVectorEnv(num_envs=1, push=3)
+
+
 def test_invalid_states_are_reported_alike():
     """A non-finite state (set by hand in robot 1 and its single env): the same invalid_state transition
     (terminated, NaN foot heights, finite observation), then an autoreset in both."""
@@ -401,3 +438,36 @@ def test_cli_refuses_vector_env_for_other_learners(tmp_path, capsys):
                      "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: --vector-env:"), err
+
+
+def test_train_condition_perturbs_the_training_robots_only(tmp_path):
+    """``train_condition``: the training robots run under the condition (the vector env's pushes, or the
+    condition's wrappers around single envs), the evaluation env does not; bad conditions are refused by name
+    before anything is written."""
+    pytest.importorskip("stable_baselines3")
+    from hsddp_gym.envs.perturbations import ObservationNoise, RandomPush
+    from hsddp_gym.learning.sb3 import _make_venv, check_train_condition, train_sb3
+
+    push_x3 = check_train_condition("push_x3", vector_env=True)
+    venv = _make_venv(3, 0, {}, None, None, vector_env=True, condition=push_x3)
+    assert venv.venv.venv.push.count == 3  # VecMonitor -> SB3 adapter -> BoundingVectorEnv
+    venv.reset()
+    assert all(len(venv.venv.venv.scheduled_pushes(i)) == 3 for i in range(3))
+    assert _make_venv(1, 0, {}, None, None, vector_env=True).venv.venv.push is None
+    noisy = _make_venv(2, 0, {}, None, None, condition=check_train_condition("obs_noise"))
+    assert all(isinstance(e.env, ObservationNoise) for e in noisy.envs)  # Monitor around the condition's env
+    heavy = _make_venv(1, 0, {}, 50, None, condition=check_train_condition("mass_+15"))
+    assert heavy.envs[0].unwrapped.trunk_mass_scale == 1.15
+    single_push = _make_venv(1, 0, {}, None, None, condition=check_train_condition("push"))
+    assert isinstance(single_push.envs[0].env, RandomPush)
+
+    res = train_sb3("ppo", 64, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=0,
+                    overrides={"n_envs": 2, "n_steps": 32, "n_epochs": 1}, vector_env=True, train_condition="push")
+    assert res.summary["train_condition"]["name"] == "push" and res.summary["train_condition"]["push"] == {}
+    for kwargs, message in [({"train_condition": "nope"}, "train_condition must be one of"),
+                            ({"train_condition": "obs_noise", "vector_env": True}, "vector env does not offer"),
+                            ({"train_condition": "speed_2.0", "env_kwargs": {"target_speed": 1.0}},
+                             r"sets \['target_speed'\] itself")]:
+        with pytest.raises(ValueError, match=message):
+            train_sb3("ppo", 64, 0, tmp_path / "bad", **kwargs)
+    assert not (tmp_path / "bad").exists()

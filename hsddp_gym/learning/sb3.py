@@ -279,8 +279,30 @@ def _model_kwargs(hp: dict) -> dict:
     return kw
 
 
+def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool = False):
+    """The :class:`~hsddp_gym.envs.perturbations.Condition` called ``name`` for training robots (None: none), with
+    ``ValueError`` naming ``train_condition`` for an unknown name, for env arguments it sets that ``env_kwargs``
+    sets too, and (``vector_env``) for observation noise or latency, which the compiled vector env does not offer."""
+    if name is None:
+        return None
+    from hsddp_gym.envs.perturbations import CONDITIONS
+
+    if not isinstance(name, str) or name not in CONDITIONS:
+        raise ValueError(f"train_condition must be one of {list(CONDITIONS)} or None, got {name!r}")
+    condition = CONDITIONS[name]
+    both = sorted(set(condition.env_kwargs) & set(env_kwargs or {}))
+    if both:
+        raise ValueError(f"train_condition {name!r} sets {both} itself; do not give them in env_kwargs too")
+    if vector_env and (condition.observation_noise is not None or condition.action_delay):
+        raise ValueError(f"train_condition {name!r} has observation noise or latency, which the compiled vector "
+                         "env does not offer: train without vector_env (--vector-env) for it")
+    return condition
+
+
 def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None,
-               vector_env: bool = False):
+               vector_env: bool = False, condition=None):
+    """The training (or evaluation) envs; ``condition`` (a checked :class:`~hsddp_gym.envs.perturbations.Condition`
+    or None) perturbs every one of them."""
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
@@ -292,7 +314,10 @@ def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int 
         from hsddp_gym.learning.vector_sb3 import make_sb3_vec_env
 
         steps = DEFAULT_MAX_EPISODE_STEPS if max_episode_steps is None else int(max_episode_steps)
-        return VecMonitor(make_sb3_vec_env(n_envs, seed=seed, max_episode_steps=steps, **env_kwargs),
+        extra = {} if condition is None else dict(condition.env_kwargs)
+        if condition is not None and condition.push is not None:
+            extra["push"] = dict(condition.push)
+        return VecMonitor(make_sb3_vec_env(n_envs, seed=seed, max_episode_steps=steps, **env_kwargs, **extra),
                           filename=None if monitor_path is None else str(monitor_path))
 
     def make(i):
@@ -300,7 +325,7 @@ def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int 
             kw = dict(env_kwargs)
             if max_episode_steps is not None:
                 kw["max_episode_steps"] = int(max_episode_steps)
-            env = gym.make(ENV_ID, **kw)
+            env = gym.make(ENV_ID, **kw) if condition is None else condition.make(**kw)
             filename = None
             if monitor_path is not None:
                 filename = str(monitor_path) if n_envs == 1 else str(monitor_path).replace(".monitor.csv",
@@ -326,7 +351,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
               max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
               eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
               verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET,
-              vector_env: bool = False) -> TrainResult:
+              vector_env: bool = False, train_condition: str | None = None) -> TrainResult:
     """Train PPO or SAC on ``Bounding-v0`` and write the files of the module docstring into ``out``.
 
     Args:
@@ -345,6 +370,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
             (:func:`hsddp_gym.learning.reporting.evaluate_policy_episodes`: seeds 0, 1, ..., deterministic) into
             ``summary["eval"]`` (0: skip).
         threads: ``torch.set_num_threads`` (1 by default: the machines are shared).
+        train_condition: a condition of the robustness registry
+            (:data:`hsddp_gym.envs.perturbations.CONDITIONS`, e.g. ``"push_x3"``) under which every training robot
+            runs (domain randomization: pushes, env arguments; with ``vector_env`` observation noise and latency
+            are refused); the evaluations, training-time and final, stay on the unperturbed task. None: none.
         time_limit: wall-clock budget of the training [s] (None: none). Training stops at the first env step
             after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
             Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
@@ -363,15 +392,16 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         raise ValueError(f"steps must be >= 1, got {steps!r}")
     if time_limit is not None and not float(time_limit) > 0:
         raise ValueError(f"time_limit must be > 0 seconds or None, got {time_limit!r}")
+    env_kwargs = dict(env_kwargs or {})
+    condition = check_train_condition(train_condition, env_kwargs, bool(vector_env))
     torch.set_num_threads(int(threads))
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = dict(env_kwargs or {})
     hp = hyperparameters(algo, overrides, preset)
     if not isinstance(vector_env, (bool, np.bool_)):
         raise TypeError(f"vector_env must be a bool, got {type(vector_env).__name__}")
     venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv",
-                      vector_env=bool(vector_env))
+                      vector_env=bool(vector_env), condition=condition)
     # the evaluation env is wrapped as the training env (SB3 copies VecNormalize's statistics wrapper by wrapper)
     eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None, vector_env=bool(vector_env))
     if hp["normalize"]:
@@ -412,7 +442,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     summary = {
         "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
         "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
-        "preset": preset, "hyperparameters": hp, "vector_env": bool(vector_env), "wall_time_s": wall,
+        "preset": preset, "hyperparameters": hp, "vector_env": bool(vector_env),
+        "train_condition": None if condition is None else condition.as_dict(), "wall_time_s": wall,
         "threads": int(threads), "eval_freq": eval_freq,
         "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),
         "eval_episodes": eval_episodes, "files": files,
