@@ -135,8 +135,8 @@ def _read_csv(path: Path) -> list[dict]:
 def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bool:
     """``out/curves.png``: PPO/SAC return against env steps (with several training seeds: the mean and the 95 %
     interval of their evaluation curves), BC/DAgger (the first run) against expert labels, and the expert's
-    (MPC's) evaluation return as a dashed line in both; ``runs``: name -> list of run directories. False when
-    matplotlib is missing."""
+    (MPC's) evaluation return as a dashed line in both (a family without runs gets no panel); ``runs``: name ->
+    list of run directories. False when matplotlib is missing."""
     from hsddp_gym.viz.plotting import _plt, _save
 
     try:
@@ -208,6 +208,10 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
             ax.legend(fontsize=7)
         else:
             ax.text(0.5, 0.5, "no runs", ha="center", va="center", transform=ax.transAxes)
+    if any_a != any_b:  # one family only (e.g. a SAC-only comparison): its panel alone, full width
+        fig.delaxes(b if any_a else a)
+        (a if any_a else b).set_subplotspec(fig.add_gridspec(1, 1)[0])
+        fig.set_size_inches(6.5, 3.8)
     fig.tight_layout()
     _save(fig, out / "curves.png")  # atomic
     return True

@@ -400,6 +400,14 @@ def test_cli_dagger_relabels_the_learners_states_with_the_mpc(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------ the comparison
+def _png_width(path) -> int:
+    import struct
+
+    with open(path, "rb") as f:
+        head = f.read(24)
+    return struct.unpack(">I", head[16:20])[0]  # the IHDR chunk's width
+
+
 def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
     import importlib.util
     import json
@@ -425,6 +433,9 @@ def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
     for name in ("heuristic", "random", "bc", "dagger", "ppo"):
         assert f"| {name} |" in table, name
     assert "skipped sac" in table and "![curves](curves.png)" in table and (out / "curves.png").exists()
+    both_wide = _png_width(out / "curves.png")
+    assert compare.plot_curves({"ppo": [runs / "ppo"]}, tmp_path / "rl_only", 1460.0)
+    assert _png_width(tmp_path / "rl_only" / "curves.png") < 0.7 * both_wide  # no empty BC / DAgger panel
     rows = {r["policy"]: r for r in json.loads((out / "compare.json").read_text())["rows"]}
     assert rows["ppo"]["samples"].endswith("env steps") and rows["ppo"]["train_time_s"] > 0
     assert "demos" in rows["bc"]["samples"] and "expert labels" in rows["dagger"]["samples"]
