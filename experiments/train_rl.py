@@ -70,6 +70,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--learning-rate", default=None,
                    help="the optimizer's step: a number, or lin_<number> for a step that falls linearly to 0 over "
                         "--steps (RL-Zoo's notation; default: the preset's)")
+    p.add_argument("--sde", action="store_true",
+                   help="PPO: generalized state-dependent exploration (gSDE; RL-Zoo's PyBullet settings: noise "
+                        "weights drawn every 4 steps, log_std_init -2), whose mean action bounds as its draws do "
+                        "(hsddp_gym.learning.sb3.SDE_HYPERPARAMS)")
     p.add_argument("--train-condition", default=None, metavar="CONDITION",
                    help="train every robot under this condition of the robustness suite (domain randomization), "
                         "e.g. push_x3 (three random pushes an episode) or push; the evaluations that pick and score "
@@ -85,6 +89,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--select-episodes must be >= 1, got {args.select_episodes}")
     if args.n_envs is not None and args.n_envs < 1:
         p.error(f"--n-envs must be >= 1, got {args.n_envs}")
+    if args.sde and args.algos != ["ppo"]:
+        p.error(f"--sde is offered for PPO only: give --algos ppo, got {' '.join(args.algos)}")
     if args.preset == "parallel" and args.algos != ["ppo"]:
         p.error(f"--preset parallel is a PPO preset: give --algos ppo, got {' '.join(args.algos)}")
     rows = []
@@ -101,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
                                                   else float(args.learning_rate))
                 except ValueError:
                     p.error(f"--learning-rate: a number or lin_<number>, got {args.learning_rate!r}")
+            if args.sde:
+                overrides["sde"] = True
             if args.hidden is not None:
                 try:
                     overrides["net_arch"] = [int(w) for w in args.hidden.split(",")]

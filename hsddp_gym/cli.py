@@ -345,6 +345,8 @@ def _check_train(args) -> None:
         raise UsageError("--n-envs", f"given with --algo {args.algo}", "--algo ppo or sac")
     if args.vector_env and args.algo not in ("ppo", "sac"):
         raise UsageError("--vector-env", f"given with --algo {args.algo}", "--algo ppo or sac")
+    if args.sde and args.algo != "ppo":
+        raise UsageError("--sde", f"given with --algo {args.algo}", "--algo ppo")
     if args.algo in ("ppo", "sac"):
         if args.steps is None:
             raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
@@ -403,6 +405,8 @@ def cmd_train(args) -> int:
             overrides["n_envs"] = args.n_envs
         if args.hidden:
             overrides["net_arch"] = list(args.hidden)
+        if args.sde:
+            overrides["sde"] = True
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
@@ -524,6 +528,10 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--vector-env", action="store_true",
                    help="ppo/sac: step the --n-envs training robots with the compiled vector env "
                         "(hsddp_gym.envs.vector, one numba call for all) instead of a DummyVecEnv of single envs")
+    p.add_argument("--sde", action="store_true",
+                   help="ppo: generalized state-dependent exploration (gSDE, noise weights drawn every 4 steps, "
+                        "log_std_init -2; hsddp_gym.learning.sb3.SDE_HYPERPARAMS), whose mean action bounds as the "
+                        "draws it was trained with do")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")

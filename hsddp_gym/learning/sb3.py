@@ -224,7 +224,8 @@ def _policy_kwargs(kwargs: dict) -> dict:
 def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFAULT_PRESET) -> dict:
     """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` (:data:`PRESETS`) with
     ``overrides`` applied (e.g. ``{"n_envs": 4}``). ``{"net_arch": [128, 128]}`` sets the hidden layers of every
-    network (actor and critic alike) in ``policy_kwargs``, keeping the preset's other policy settings."""
+    network (actor and critic alike) in ``policy_kwargs``, keeping the preset's other policy settings;
+    ``{"sde": True}`` (PPO) switches to gSDE exploration (:data:`SDE_HYPERPARAMS`)."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
     if preset not in PRESETS[algo]:
@@ -243,8 +244,26 @@ def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFA
             continue
         if k == "learning_rate":
             learning_rate_schedule(v)  # validates
+        if k == "sde":
+            if not isinstance(v, (bool, np.bool_)):
+                raise ValueError(f"sde must be True or False, got {v!r}")
+            if v:
+                if algo != "ppo":
+                    raise ValueError(f"sde (gSDE exploration) is offered for ppo only, got algo {algo!r}")
+                hp.update(SDE_HYPERPARAMS)
+                hp.setdefault("policy_kwargs", {})["log_std_init"] = SDE_LOG_STD_INIT
+            continue
         hp[k] = v
     return hp
+
+
+SDE_HYPERPARAMS: dict = {"use_sde": True, "sde_sample_freq": 4}
+SDE_LOG_STD_INIT = -2.0
+"""``{"sde": True}`` (PPO): generalized state-dependent exploration (gSDE, Raffin et al., CoRL 2021) as RL-Zoo's
+PPO on the PyBullet locomotion tasks sets it: the exploration noise is a linear function of the policy's last
+hidden features, its weights drawn anew every 4 steps, and ``log_std_init`` -2. With SB3's default white Gaussian
+noise the parallel preset's mean action bounds differently from the draws it was trained with (stop 37: final
+weights 911 with 10/10 falls where the draws score 1471 with none); with gSDE the two agree."""
 
 
 def learning_rate_schedule(value):
@@ -590,8 +609,9 @@ class SB3ModelPolicy(Policy):
     statistics (if any) and returns the model's action, clipped to the action space.
 
     ``deterministic=True`` (the comparison protocol): the mean of PPO's Gaussian, SAC's squashed mean.
-    ``deterministic=False``: a draw of the policy's own distribution, as in training, from a generator seeded
-    with ``noise_seed`` at every :meth:`reset` (so an episode is the same whatever ran before it in the process).
+    ``deterministic=False``: a draw of the policy's own distribution, as in training (gSDE: noise weights held for
+    ``sde_sample_freq`` steps), from a generator seeded with ``noise_seed`` at every :meth:`reset` (so an episode
+    is the same whatever ran before it in the process).
 
     Build it with :func:`load_trained_policy`.
     """
@@ -608,10 +628,14 @@ class SB3ModelPolicy(Policy):
         self.deterministic = bool(deterministic)
         self.noise_seed = check_int(noise_seed, "noise_seed")
         self._torch_gen = None
+        self._sde_weights = None
+        self._sde_steps = 0
 
     def reset(self) -> None:
         super().reset()
         self._torch_gen = None
+        self._sde_weights = None
+        self._sde_steps = 0
 
     def normalize(self, obs: np.ndarray) -> np.ndarray:
         if not self.obs_stats:
@@ -635,10 +659,28 @@ class SB3ModelPolicy(Policy):
             if hasattr(policy, "actor"):  # SAC: a Gaussian squashed into the (normalized) action bounds by tanh
                 mean, log_std, _ = policy.actor.get_action_dist_params(x)
                 a = th.tanh(mean + th.exp(log_std) * th.randn(mean.shape, generator=self._torch_gen))
+            elif getattr(self.model, "use_sde", False):  # PPO with gSDE: the mean plus features @ noise weights
+                a = self._gsde_draw(policy, x)
             else:  # PPO: a diagonal Gaussian, clipped to the bounds as SB3 does
                 d = policy.get_distribution(x).distribution
                 a = d.mean + d.stddev * th.randn(d.mean.shape, generator=self._torch_gen)
         return np.clip(a.numpy()[0].astype(np.float32), -1.0, 1.0)
+
+    def _gsde_draw(self, policy, x):
+        """A gSDE PPO policy's own draw as SB3 acts in training: the mean action plus the last hidden features
+        times a noise matrix ``(features, actions)`` of N(0, exp(log_std)^2) weights, drawn anew every
+        ``sde_sample_freq`` steps of the episode (and at its start)."""
+        import torch as th
+
+        features = policy.extract_features(x, policy.pi_features_extractor)
+        latent = policy.mlp_extractor.forward_actor(features)
+        mean = policy.action_net(latent)
+        freq = int(self.model.sde_sample_freq)
+        if self._sde_weights is None or (freq > 0 and self._sde_steps % freq == 0):
+            std = policy.action_dist.get_std(policy.log_std)
+            self._sde_weights = std * th.randn(std.shape, generator=self._torch_gen)
+        self._sde_steps += 1
+        return mean + latent @ self._sde_weights
 
 
 def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,

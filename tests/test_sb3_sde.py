@@ -1,0 +1,51 @@
+"""gSDE exploration for the PPO baseline (``{"sde": True}``, ``train_rl.py --sde``): the settings it sets, its
+refusals, and a real short run whose policy loads and whose own draws follow gSDE (noise weights held for
+``sde_sample_freq`` steps, reproducible per noise seed)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from hsddp_gym.learning.sb3 import SDE_HYPERPARAMS, hyperparameters, load_trained_policy, train_sb3  # noqa: E402
+
+
+def test_sde_sets_gsde_and_is_refused_where_it_does_not_apply(tmp_path, capsys, experiment):
+    hp = hyperparameters("ppo", {"sde": True}, "parallel")
+    assert hp["use_sde"] is True and hp["sde_sample_freq"] == SDE_HYPERPARAMS["sde_sample_freq"]
+    assert hp["policy_kwargs"]["log_std_init"] == -2.0 and hp["policy_kwargs"]["activation_fn"] == "ELU"
+    assert "use_sde" not in hyperparameters("ppo", {"sde": False}, "parallel")
+    with pytest.raises(ValueError, match="ppo only"):
+        hyperparameters("sac", {"sde": True})
+    with pytest.raises(ValueError, match="sde must be"):
+        hyperparameters("ppo", {"sde": "yes"})
+    script = experiment("train_rl")
+    with pytest.raises(SystemExit):
+        script.main(["--algos", "sac", "--sde", "--out", str(tmp_path / "s")])
+    assert "--sde" in capsys.readouterr().err
+    from hsddp_gym import cli
+
+    assert cli.main(["train", "--algo", "sac", "--sde", "--steps", "5", "--out", str(tmp_path / "c")]) == 2
+    assert capsys.readouterr().err.startswith("error: --sde: given with --algo sac")
+
+
+def test_a_gsde_run_loads_and_its_draws_hold_the_noise_weights(tmp_path):
+    res = train_sb3("ppo", 256, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=2,
+                    preset="parallel", vector_env=True,
+                    overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1, "batch_size": 64, "sde": True,
+                               "net_arch": [16]})
+    assert res.summary["hyperparameters"]["use_sde"] is True
+    assert res.summary["eval"]["episodes"] == 2 and res.summary["eval_stochastic"]["episodes"] == 2
+    obs = np.zeros(17, dtype=np.float32)
+    draws = load_trained_policy(tmp_path / "ppo", deterministic=False, noise_seed=3)
+    mean = load_trained_policy(tmp_path / "ppo")
+    m = mean.act(obs)
+    run = [draws.act(obs) for _ in range(9)]
+    # the same observation: the same draw while the weights are held (4 steps), another after each redraw
+    assert all(np.array_equal(run[k], run[0]) for k in range(4))
+    assert not np.array_equal(run[4], run[0]) and all(np.array_equal(run[k], run[4]) for k in range(5, 8))
+    assert not np.array_equal(run[0], m)
+    draws.reset()
+    assert np.array_equal(draws.act(obs), run[0])  # reseeded at every reset
