@@ -49,3 +49,28 @@ def test_a_gsde_run_loads_and_its_draws_hold_the_noise_weights(tmp_path):
     assert not np.array_equal(run[0], m)
     draws.reset()
     assert np.array_equal(draws.act(obs), run[0])  # reseeded at every reset
+
+
+def test_noise_scale_sweep_reads_the_runs_and_scale_zero_is_the_mean_action(tmp_path, experiment):
+    import json
+
+    from hsddp_gym.learning.reporting import evaluate_policy_episodes
+
+    train_sb3("ppo", 128, 0, tmp_path / "ppo", max_episode_steps=30, eval_freq=0, final_eval_episodes=0,
+              preset="parallel", vector_env=True, overrides={"n_envs": 4, "n_steps": 32, "n_epochs": 1,
+                                                             "batch_size": 64, "net_arch": [16]})
+    script = experiment("rl_noise_scale")
+    out = tmp_path / "sweep"
+    assert script.main(["--runs", str(tmp_path / "ppo"), "--out", str(out), "--scales", "0", "0.5", "1",
+                        "--episodes", "2", "--max-episode-steps", "25"]) == 0
+    rows = json.loads((out / "noise_scale.json").read_text())["rows"]
+    assert [r["scale"] for r in rows] == [0.0, 0.5, 1.0] and all(r["episodes"] == 2 for r in rows)
+    mean = evaluate_policy_episodes(load_trained_policy(tmp_path / "ppo"), 2, 0, max_episode_steps=25)
+    assert rows[0]["returns"] == mean["returns"] and rows[2]["returns"] != rows[0]["returns"]
+    assert "| 0 (mean action) |" in (out / "noise_scale.md").read_text()
+    with pytest.raises(ValueError, match="noise_scale"):
+        load_trained_policy(tmp_path / "ppo", noise_scale=0.5)  # scales draws only
+    with pytest.raises(ValueError, match="noise_scale"):
+        load_trained_policy(tmp_path / "ppo", deterministic=False, noise_scale=-1.0)
+    with pytest.raises(SystemExit):
+        script.main(["--runs", str(tmp_path / "nothing"), "--out", str(out)])

@@ -37,7 +37,7 @@ import numpy as np
 
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import atomic_path, read_npz, write_json, write_npz
-from hsddp_gym.util.validation import check_int
+from hsddp_gym.util.validation import check_int, check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 ALGOS = ("ppo", "sac")
@@ -611,13 +611,15 @@ class SB3ModelPolicy(Policy):
     ``deterministic=True`` (the comparison protocol): the mean of PPO's Gaussian, SAC's squashed mean.
     ``deterministic=False``: a draw of the policy's own distribution, as in training (gSDE: noise weights held for
     ``sde_sample_freq`` steps), from a generator seeded with ``noise_seed`` at every :meth:`reset` (so an episode
-    is the same whatever ran before it in the process).
+    is the same whatever ran before it in the process); ``noise_scale`` (>= 0, default 1) multiplies the noise's
+    standard deviation (0: the mean action; a diagnostic of how much the policy rests on its noise,
+    ``experiments/rl_noise_scale.py``).
 
     Build it with :func:`load_trained_policy`.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), model=None, obs_stats: dict | None = None,
-                 deterministic: bool = True, noise_seed: int = 0) -> None:
+                 deterministic: bool = True, noise_seed: int = 0, noise_scale: float = 1.0) -> None:
         super().__init__(interface)
         if model is None:
             raise ValueError("model must be a trained SB3 model")
@@ -627,6 +629,10 @@ class SB3ModelPolicy(Policy):
         self.obs_stats = obs_stats
         self.deterministic = bool(deterministic)
         self.noise_seed = check_int(noise_seed, "noise_seed")
+        self.noise_scale = check_positive(noise_scale, "noise_scale", allow_zero=True)
+        if self.deterministic and self.noise_scale != 1.0:
+            raise ValueError(f"noise_scale scales the draws of deterministic=False; got noise_scale={noise_scale!r} "
+                             "with deterministic=True")
         self._torch_gen = None
         self._sde_weights = None
         self._sde_steps = 0
@@ -658,12 +664,13 @@ class SB3ModelPolicy(Policy):
         with th.no_grad():
             if hasattr(policy, "actor"):  # SAC: a Gaussian squashed into the (normalized) action bounds by tanh
                 mean, log_std, _ = policy.actor.get_action_dist_params(x)
-                a = th.tanh(mean + th.exp(log_std) * th.randn(mean.shape, generator=self._torch_gen))
+                a = th.tanh(mean + self.noise_scale * th.exp(log_std) * th.randn(mean.shape,
+                                                                                  generator=self._torch_gen))
             elif getattr(self.model, "use_sde", False):  # PPO with gSDE: the mean plus features @ noise weights
                 a = self._gsde_draw(policy, x)
             else:  # PPO: a diagonal Gaussian, clipped to the bounds as SB3 does
                 d = policy.get_distribution(x).distribution
-                a = d.mean + d.stddev * th.randn(d.mean.shape, generator=self._torch_gen)
+                a = d.mean + self.noise_scale * d.stddev * th.randn(d.mean.shape, generator=self._torch_gen)
         return np.clip(a.numpy()[0].astype(np.float32), -1.0, 1.0)
 
     def _gsde_draw(self, policy, x):
@@ -677,21 +684,22 @@ class SB3ModelPolicy(Policy):
         mean = policy.action_net(latent)
         freq = int(self.model.sde_sample_freq)
         if self._sde_weights is None or (freq > 0 and self._sde_steps % freq == 0):
-            std = policy.action_dist.get_std(policy.log_std)
+            std = self.noise_scale * policy.action_dist.get_std(policy.log_std)
             self._sde_weights = std * th.randn(std.shape, generator=self._torch_gen)
         self._sde_steps += 1
         return mean + latent @ self._sde_weights
 
 
 def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,
-                        checkpoint: str = "final") -> SB3ModelPolicy:
+                        checkpoint: str = "final", noise_scale: float = 1.0) -> SB3ModelPolicy:
     """The policy of a :func:`train_sb3` run in ``run_dir``, read without unpickling: the model is rebuilt
     from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
     (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
 
     Args:
         env: the env to act in (None: ``gym.make`` with the run's env kwargs).
-        deterministic, noise_seed: the mean action, or draws of the policy's distribution (:class:`SB3ModelPolicy`).
+        deterministic, noise_seed, noise_scale: the mean action, or draws of the policy's distribution (with its
+            noise scaled by ``noise_scale``; :class:`SB3ModelPolicy`).
         checkpoint: ``"final"`` or ``"best"`` (:data:`CHECKPOINTS`: ``best_model.zip`` and
             ``best_vecnormalize.npz``, the best training-time evaluation).
     """
@@ -722,4 +730,4 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     model.set_parameters(str(run_dir / weights), exact_match=True, device="cpu")
     stats = read_npz(run_dir / statistics) if (run_dir / statistics).exists() else None
     return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats, deterministic=deterministic,
-                          noise_seed=noise_seed)
+                          noise_seed=noise_seed, noise_scale=noise_scale)
