@@ -74,6 +74,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="PPO: generalized state-dependent exploration (gSDE; RL-Zoo's PyBullet settings: noise "
                         "weights drawn every 4 steps, log_std_init -2), whose mean action bounds as its draws do "
                         "(hsddp_gym.learning.sb3.SDE_HYPERPARAMS)")
+    p.add_argument("--log-std-init", type=float, default=None,
+                   help="PPO: initial log standard deviation of the exploration noise (with --sde: of the noise "
+                        "weights, whose action noise is the features times them; default: the preset's, -2 with "
+                        "--sde)")
     p.add_argument("--train-condition", default=None, metavar="CONDITION",
                    help="train every robot under this condition of the robustness suite (domain randomization), "
                         "e.g. push_x3 (three random pushes an episode) or push; the evaluations that pick and score "
@@ -109,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
                     p.error(f"--learning-rate: a number or lin_<number>, got {args.learning_rate!r}")
             if args.sde:
                 overrides["sde"] = True
+            if args.log_std_init is not None:
+                overrides["log_std_init"] = args.log_std_init
             if args.hidden is not None:
                 try:
                     overrides["net_arch"] = [int(w) for w in args.hidden.split(",")]
@@ -117,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 hyperparameters(algo, overrides, args.preset)
             except ValueError as e:  # name the option whose value hyperparameters() refused
-                flag = {"learning_rate": "--learning-rate", "net_arch": "--hidden"}.get(str(e).split()[0])
+                flag = {"learning_rate": "--learning-rate", "net_arch": "--hidden",
+                        "log_std_init": "--log-std-init"}.get(str(e).split()[0])
                 p.error(f"{flag}: {e}" if flag else str(e))
             res = train_sb3(algo, args.steps, seed, out, overrides=overrides or None, eval_freq=args.eval_freq,
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,

@@ -21,6 +21,16 @@ def test_sde_sets_gsde_and_is_refused_where_it_does_not_apply(tmp_path, capsys, 
         hyperparameters("sac", {"sde": True})
     with pytest.raises(ValueError, match="sde must be"):
         hyperparameters("ppo", {"sde": "yes"})
+    # an explicit initial log std wins over gSDE's -2 whatever the order of the overrides
+    for overrides in ({"log_std_init": -3, "sde": True}, {"sde": True, "log_std_init": -3}):
+        assert hyperparameters("ppo", overrides, "parallel")["policy_kwargs"]["log_std_init"] == -3.0
+    assert hyperparameters("ppo", {"log_std_init": -1.5})["policy_kwargs"]["log_std_init"] == -1.5
+    for algo, bad in (("ppo", float("nan")), ("ppo", "low"), ("ppo", True), ("sac", -3.0)):
+        with pytest.raises(ValueError, match="log_std_init"):
+            hyperparameters(algo, {"log_std_init": bad})
+    with pytest.raises(SystemExit):
+        experiment("train_rl").main(["--algos", "sac", "--log-std-init", "-3", "--out", str(tmp_path / "s")])
+    assert "--log-std-init" in capsys.readouterr().err
     script = experiment("train_rl")
     with pytest.raises(SystemExit):
         script.main(["--algos", "sac", "--sde", "--out", str(tmp_path / "s")])

@@ -225,14 +225,27 @@ def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFA
     """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` (:data:`PRESETS`) with
     ``overrides`` applied (e.g. ``{"n_envs": 4}``). ``{"net_arch": [128, 128]}`` sets the hidden layers of every
     network (actor and critic alike) in ``policy_kwargs``, keeping the preset's other policy settings;
-    ``{"sde": True}`` (PPO) switches to gSDE exploration (:data:`SDE_HYPERPARAMS`)."""
+    ``{"sde": True}`` (PPO) switches to gSDE exploration (:data:`SDE_HYPERPARAMS`); ``{"log_std_init": x}`` (PPO)
+    sets the initial log standard deviation of the exploration noise (gSDE: of its weights)."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
     if preset not in PRESETS[algo]:
         raise ValueError(f"preset must be one of {tuple(PRESETS[algo])}, got {preset!r}")
     hp = json.loads(json.dumps(PRESETS[algo][preset]))
-    for k, v in (overrides or {}).items():
+    overrides = dict(overrides or {})
+    if "sde" in overrides:  # first, so that an explicit log_std_init wins whatever the order given
+        overrides = {"sde": overrides.pop("sde"), **overrides}
+    for k, v in overrides.items():
         if v is None:
+            continue
+        if k == "log_std_init":
+            if algo != "ppo":
+                raise ValueError(f"log_std_init is offered for ppo only (SAC learns a state-dependent std), got "
+                                 f"algo {algo!r}")
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(v):
+                raise ValueError(f"log_std_init must be a finite number, got {v!r}")
+            hp.setdefault("policy_kwargs", {})["log_std_init"] = float(v)
             continue
         if k == "net_arch":
             if (isinstance(v, (str, bytes)) or not hasattr(v, "__len__") or len(v) == 0
