@@ -296,6 +296,12 @@ class Condition:
             env = ObservationNoise(env, *self.observation_noise)
         return env
 
+    @property
+    def acts_through_env_arguments(self) -> bool:
+        """True when the condition is env arguments and pushes only (no observation noise, no latency): what the
+        compiled vector env can run without wrappers."""
+        return self.observation_noise is None and not self.action_delay
+
     def as_dict(self) -> dict:
         """A JSON-serializable description."""
         return dataclasses.asdict(self)

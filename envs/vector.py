@@ -303,6 +303,7 @@ class BoundingVectorEnv(VectorEnv):
         self._rng_seeds: list[int | None] = [None] * n
         self._push_rngs: list[np.random.Generator | None] = [None] * n
         self._push_schedules: list[list] = [[] for _ in range(n)]
+        self._next_push = np.full(n, np.inf)  # each robot's next scheduled push time (inf: none)
         self._needs_reset = True
 
     # ------------------------------------------------------------------ seeding
@@ -349,6 +350,7 @@ class BoundingVectorEnv(VectorEnv):
             self._push_rngs[i] = rng
             self._push_schedules[i] = sorted(((float(p["time"]), np.asarray(p["delta_v"], dtype=np.float64))
                                               for p in self.push.draw(rng)), key=lambda p: p[0])
+            self._next_push[i] = self._push_schedules[i][0][0] if self._push_schedules[i] else np.inf
         if seed is not None:
             self._rngs[i], self._rng_seeds[i] = seeding.np_random(seed)
         x = self._x[i]
@@ -511,12 +513,14 @@ class BoundingVectorEnv(VectorEnv):
         step (:func:`~hsddp_gym.envs.bounding.pop_due_pushes`, removed from their schedules)."""
         n, h = self.template.frame_skip, self.template.sim_timestep
         due = {}
-        for i in np.nonzero(self._stepped)[0]:
+        # a cheap vectorized screen (pop_due_pushes' own test, elementwise), then the rule for those robots only
+        soon = self._stepped & (self._next_push < self._t0 + self._sim_time + n * h - 1e-12)
+        for i in np.nonzero(soon)[0]:
             schedule = self._push_schedules[i]
-            if schedule:
-                pushes = pop_due_pushes(schedule, float(self._t0[i] + self._sim_time[i]), n, h)
-                if pushes:
-                    due[int(i)] = pushes
+            pushes = pop_due_pushes(schedule, float(self._t0[i] + self._sim_time[i]), n, h)
+            if pushes:
+                due[int(i)] = pushes
+            self._next_push[i] = schedule[0][0] if schedule else np.inf
         return due
 
     def _run_pushed(self, i: int, pushes: list) -> None:

@@ -332,7 +332,7 @@ def _check_train(args) -> None:
         from hsddp_gym.envs.perturbations import get_condition
 
         condition = get_condition(args.condition[0])
-        if args.vector_env and (condition.observation_noise is not None or condition.action_delay):
+        if args.vector_env and not condition.acts_through_env_arguments:
             raise UsageError("--condition", f"{condition.name} (observation noise or latency) with --vector-env",
                              "a condition of env arguments and pushes, or no --vector-env")
     if args.estimator and args.action_queue:

@@ -327,7 +327,7 @@ def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool
     both = sorted(set(condition.env_kwargs) & set(env_kwargs or {}))
     if both:
         raise ValueError(f"train_condition {name!r} sets {both} itself; do not give them in env_kwargs too")
-    if vector_env and (condition.observation_noise is not None or condition.action_delay):
+    if vector_env and not condition.acts_through_env_arguments:
         raise ValueError(f"train_condition {name!r} has observation noise or latency, which the compiled vector "
                          "env does not offer: train without vector_env (--vector-env) for it")
     return condition
