@@ -73,9 +73,9 @@ def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
         raise FileNotFoundError(f"{name}: missing {', '.join(missing)} in {run_dir}")
     summary = json.loads((run_dir / "summary.json").read_text())
     if name in ("bc", "dagger"):
-        from hsddp_gym.learning.bc import MLPPolicy
+        from hsddp_gym.learning.ensemble import load_mlp_learner
 
-        policy = MLPPolicy.load(run_dir / "policy.npz", interface)
+        policy = load_mlp_learner(run_dir, interface)  # behind the MPC's perception if trained behind it
         if name == "bc":
             samples = f"{summary['demonstrations']} demos ({summary['transitions']} transitions, " \
                       f"{summary.get('dataset_policy')})"

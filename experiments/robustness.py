@@ -63,19 +63,12 @@ def make_policy(spec: dict, env):
 
     kind = spec["kind"]
     interface = EnvInterface.from_env(env)
-    if kind in ("bc", "dagger"):
-        from hsddp_gym.learning.bc import MLPPolicy
+    if kind in ("bc", "dagger"):  # a network or a mean-action ensemble, behind the estimator if trained behind it
+        from hsddp_gym.learning.ensemble import load_mlp_learner
         from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
 
-        if spec.get("dirs"):  # a mean-action ensemble; members trained behind the estimator come wrapped in one
-            from hsddp_gym.learning.ensemble import load_mlp_ensemble
-
-            policy = load_mlp_ensemble(spec["dirs"], interface)
-            if not spec.get("estimator") or isinstance(policy, EstimatedStatePolicy):
-                return policy
-            return EstimatedStatePolicy.around(policy.with_interface, interface)
-        policy = MLPPolicy.load(Path(spec["dir"]) / "policy.npz", interface)
-        if not (spec.get("estimator") or policy.info.get("estimator")):  # trained behind it: always acts behind it
+        policy = load_mlp_learner(spec.get("dirs") or spec["dir"], interface)
+        if not spec.get("estimator") or isinstance(policy, EstimatedStatePolicy):
             return policy
         return EstimatedStatePolicy.around(policy.with_interface, interface)
     if spec.get("estimator"):

@@ -125,15 +125,10 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     kind, run = parse_policy_spec(name, "policy")
     if run is not None:
         if kind in ("bc", "dagger"):
-            from hsddp_gym.learning.bc import MLPPolicy
+            from hsddp_gym.learning.ensemble import load_mlp_learner
 
             interface = EnvInterface.from_env(env) if env is not None else EnvInterface()
-            policy = MLPPolicy.load(run / "policy.npz", interface)
-            if policy.info.get("estimator"):  # trained behind the MPC's perception (DAggerConfig.estimator)
-                from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
-
-                policy = EstimatedStatePolicy.around(policy.with_interface, interface)
-            return policy, None
+            return load_mlp_learner(run, interface), None  # behind the MPC's perception if trained behind it
         from hsddp_gym.util.extras import require
 
         require(required_modules(name), f"the policy {name}")

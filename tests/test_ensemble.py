@@ -124,3 +124,37 @@ def test_the_robustness_benchmark_runs_an_ensemble_of_comma_separated_runs(tmp_p
     assert rob.main(["--out", str(out), "--policies", "heuristic", "--learned", f"bc@ens={dirs[0]},{tmp_path}/none",
                      "--conditions", "default", "--seeds", "1", "--max-steps", "5", "--quiet"]) == 0
     assert set(json.loads((out / "robustness.json").read_text())["skipped"]) == {"bc@ens"}
+
+
+def test_every_loader_of_a_learner_trained_behind_the_estimator_puts_it_behind_one(tmp_path, experiment):
+    """One loader (load_mlp_learner) for the CLI's policies, the robustness benchmark and the policy comparison: a
+    single run trained behind the MPC's perception acts behind it everywhere (the comparison used to load it bare)."""
+    import json
+
+    from hsddp_gym.learning.ensemble import load_mlp_learner
+    from hsddp_gym.workflows import load_policy
+
+    interface = EnvInterface()
+    plain = random_mlp(interface, 1).save(tmp_path / "plain" / "policy.npz").parent
+    behind = random_mlp(interface, 2, estimator=True).save(tmp_path / "behind" / "policy.npz").parent
+    for d in (plain, behind):
+        (d / "summary.json").write_text(json.dumps({"algo": "dagger", "expert_labels": 10,
+                                                    "expert": {"name": "heuristic"}}))
+    assert type(load_mlp_learner(plain, interface)) is MLPPolicy
+    single = load_mlp_learner(str(behind), interface)
+    assert isinstance(single, EstimatedStatePolicy) and type(single.inner) is MLPPolicy
+    env = make_env("default")
+    compared, _, info = experiment("compare_policies").build("dagger", behind)
+    assert isinstance(compared, EstimatedStatePolicy) and info["samples"].startswith("10 expert labels")
+    assert type(experiment("compare_policies").build("dagger", plain)[0]) is MLPPolicy
+    assert isinstance(load_policy(f"dagger:{behind}", env), EstimatedStatePolicy)
+    assert isinstance(experiment("robustness").make_policy({"kind": "dagger", "dir": str(behind)}, env),
+                      EstimatedStatePolicy)
+    bare = MLPPolicy.load(behind / "policy.npz", interface)
+    for obs in observations(20):  # exact observations, no delay: the estimator passes them through
+        np.testing.assert_array_equal(single.act(obs), bare.act(obs))
+    with pytest.raises(FileNotFoundError, match="run_dirs: no"):
+        load_mlp_learner(tmp_path / "none", interface)
+    for bad in ([], None, 3):
+        with pytest.raises(ValueError, match="run_dirs"):
+            load_mlp_learner(bad, interface)

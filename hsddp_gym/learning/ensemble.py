@@ -66,32 +66,54 @@ class EnsemblePolicy(Policy):
         self.members = [m.spawn() for m in self.members]
 
 
-def load_mlp_ensemble(run_dirs: Sequence, interface: EnvInterface = EnvInterface()) -> Policy:
-    """The mean-action ensemble of ``hsddp-gym train --algo bc|dagger`` runs (``DIR/policy.npz`` each) for the env
-    of ``interface``. Members trained behind the MPC's perception (``info["estimator"]``, DAgger's ``--estimator``)
-    act behind one shared :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`; mixing such
-    members with plain ones raises ``ValueError``.
+def load_mlp_learner(run_dirs, interface: EnvInterface = EnvInterface()) -> Policy:
+    """A trained ``hsddp-gym train --algo bc|dagger`` learner for the env of ``interface``, as it was trained to act:
+    one run directory (``DIR/policy.npz``) gives its network, several the mean-action :class:`EnsemblePolicy` of
+    theirs. A learner trained behind the MPC's perception (``info["estimator"]``, DAgger's ``--estimator``) acts
+    behind one :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (shared by the members of
+    an ensemble); mixing such members with plain ones raises ``ValueError``. The one loader of MLP learners
+    (``hsddp_gym.workflows.make_policy``, the robustness benchmark and the policy comparison use it).
 
     Args:
-        run_dirs: one or more run directories (str or Path).
+        run_dirs: a run directory (str or Path) or a non-empty list of them.
         interface: the env's interface.
     """
     from hsddp_gym.learning.bc import MLPPolicy
 
-    if isinstance(run_dirs, (str, Path)) or not list(run_dirs):
-        raise ValueError(f"run_dirs must be a non-empty list of run directories, got {run_dirs!r}")
+    single = isinstance(run_dirs, (str, Path))
+    dirs = [run_dirs] if single else (list(run_dirs) if isinstance(run_dirs, (list, tuple)) else None)
+    if not dirs:
+        raise ValueError(f"run_dirs must be a run directory or a non-empty list of them, got {run_dirs!r}")
     nets = []
-    for i, d in enumerate(run_dirs):
+    for i, d in enumerate(dirs):
         path = Path(d) / "policy.npz"
         if not path.exists():
-            raise FileNotFoundError(f"run_dirs[{i}]: no {path}")
+            raise FileNotFoundError(f"run_dirs{'' if single else f'[{i}]'}: no {path}")
         nets.append(MLPPolicy.load(path, interface))
     behind = {bool(n.info.get("estimator")) for n in nets}
     if len(behind) > 1:
         raise ValueError("run_dirs mixes learners trained behind the MPC's perception (--estimator) with plain "
                          "ones; an ensemble acts behind one estimator or none")
+
+    def build(i: EnvInterface) -> Policy:
+        members = [n.with_interface(i) for n in nets]
+        return members[0] if single else EnsemblePolicy(members)
+
     if behind.pop():
         from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
 
-        return EstimatedStatePolicy.around(lambda i: EnsemblePolicy([n.with_interface(i) for n in nets]), interface)
-    return EnsemblePolicy(nets)
+        return EstimatedStatePolicy.around(build, interface)
+    return nets[0] if single else EnsemblePolicy(nets)
+
+
+def load_mlp_ensemble(run_dirs: Sequence, interface: EnvInterface = EnvInterface()) -> Policy:
+    """The mean-action ensemble of two or more (or one) ``hsddp-gym train --algo bc|dagger`` runs: :func:`
+    load_mlp_learner` with a list of run directories (a single directory, not in a list, raises ``ValueError``).
+
+    Args:
+        run_dirs: one or more run directories (str or Path), in a list or tuple.
+        interface: the env's interface.
+    """
+    if isinstance(run_dirs, (str, Path)) or not list(run_dirs):
+        raise ValueError(f"run_dirs must be a non-empty list of run directories, got {run_dirs!r}")
+    return load_mlp_learner(list(run_dirs), interface)
