@@ -35,7 +35,7 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
-from hsddp_gym.learning.sb3 import ALGOS, check_train_condition, hyperparameters, train_sb3
+from hsddp_gym.learning.sb3 import ALGOS, check_train_condition, hyperparameters, parse_learning_rate, train_sb3
 
 EVALS = ("eval", "eval_best", "eval_stochastic")
 """The protocol evaluations of each run's summary: the final weights' mean action, the best checkpoint's mean action
@@ -107,10 +107,9 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["n_envs"] = args.n_envs
             if args.learning_rate is not None:
                 try:
-                    overrides["learning_rate"] = (args.learning_rate if args.learning_rate.startswith("lin_")
-                                                  else float(args.learning_rate))
-                except ValueError:
-                    p.error(f"--learning-rate: a number or lin_<number>, got {args.learning_rate!r}")
+                    overrides["learning_rate"] = parse_learning_rate(args.learning_rate)
+                except ValueError as e:
+                    p.error(f"--learning-rate: {e}")
             if args.sde:
                 overrides["sde"] = True
             if args.log_std_init is not None:

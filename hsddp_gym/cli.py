@@ -233,6 +233,16 @@ DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 
+def _learning_rate(text: str) -> float | str:
+    """A learning rate: a number > 0, or ``lin_<number>`` (RL-Zoo's linear decay; ppo/sac only, checked later)."""
+    from hsddp_gym.learning.sb3 import parse_learning_rate
+
+    try:
+        return parse_learning_rate(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+
+
 def _int_list(text: str) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
@@ -299,6 +309,25 @@ def cmd_dataset(args) -> int:
     return 0
 
 
+def _sb3_overrides(args) -> dict:
+    """ppo/sac: the hyperparameters the options change (``hsddp_gym.learning.sb3.hyperparameters``' overrides)."""
+    overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else {}
+    for key, value in (("n_envs", args.n_envs), ("net_arch", list(args.hidden) if args.hidden else None),
+                       ("sde", True if args.sde else None), ("log_std_init", args.log_std_init),
+                       ("learning_rate", args.lr)):
+        if value is not None:
+            overrides[key] = value
+    return overrides
+
+
+_SB3_OVERRIDE_FLAGS = {"learning_rate": "--lr", "net_arch": "--hidden", "log_std_init": "--log-std-init",
+                       "n_envs": "--n-envs", "learning_starts": "--learning-starts"}
+
+
+def _bc_lr(args) -> float:
+    return 1e-3 if args.lr is None else float(args.lr)  # BCConfig's default step
+
+
 def _bc_extra(args) -> dict:
     extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
              "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input),
@@ -347,6 +376,10 @@ def _check_train(args) -> None:
         raise UsageError("--vector-env", f"given with --algo {args.algo}", "--algo ppo or sac")
     if args.sde and args.algo != "ppo":
         raise UsageError("--sde", f"given with --algo {args.algo}", "--algo ppo")
+    if args.log_std_init is not None and args.algo != "ppo":
+        raise UsageError("--log-std-init", f"given with --algo {args.algo}", "--algo ppo")
+    if isinstance(args.lr, str) and args.algo not in ("ppo", "sac"):
+        raise UsageError("--lr", f"{args.lr} (a schedule) with --algo {args.algo}", "a number (Adam's step)")
     if args.algo in ("ppo", "sac"):
         if args.steps is None:
             raise UsageError("--steps", "missing", f"a number of env steps (required for --algo {args.algo})")
@@ -354,6 +387,14 @@ def _check_train(args) -> None:
             raise UsageError("--learning-starts", "given with --algo ppo", "--algo sac")
         if args.preset == "parallel" and args.algo != "ppo":
             raise UsageError("--preset", f"parallel given with --algo {args.algo}", "hopper or halfcheetah")
+        from hsddp_gym.learning.sb3 import hyperparameters
+
+        try:
+            hyperparameters(args.algo, _sb3_overrides(args), args.preset)
+        except ValueError as exc:  # name the option whose value the hyperparameters refused
+            key = str(exc).split()[0]
+            raise UsageError(_SB3_OVERRIDE_FLAGS.get(key, "--algo"), str(exc),
+                             "see hsddp-gym train --help") from exc
         require(["stable_baselines3", "torch"], f"hsddp-gym train --algo {args.algo}")
         return
     if args.algo == "bc" and args.dataset is None:
@@ -400,13 +441,7 @@ def cmd_train(args) -> int:
     if args.algo in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import train_sb3
 
-        overrides = {"learning_starts": args.learning_starts} if args.learning_starts is not None else {}
-        if args.n_envs is not None:
-            overrides["n_envs"] = args.n_envs
-        if args.hidden:
-            overrides["net_arch"] = list(args.hidden)
-        if args.sde:
-            overrides["sde"] = True
+        overrides = _sb3_overrides(args)
         res = train_sb3(args.algo, args.steps, args.seed, out, env_kwargs=env_kwargs,
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
@@ -416,7 +451,7 @@ def cmd_train(args) -> int:
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
 
-        config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, seed=args.seed,
+        config = BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=_bc_lr(args), seed=args.seed,
                           **_bc_extra(args))
         dataset = args.dataset[0] if len(args.dataset) == 1 else args.dataset
         summary = run_bc(dataset, out, seed=args.seed, config=config, demos=args.demos, fmt=args.format,
@@ -432,7 +467,7 @@ def cmd_train(args) -> int:
                               rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
                               rollout_steps=args.rollout_steps, conditions=tuple(args.condition or ()),
                               estimator=bool(args.estimator),
-                              bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                              bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=_bc_lr(args),
                                           seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config,
                              dataset=None if args.dataset is None else
@@ -532,6 +567,9 @@ def _add_learning_parsers(sub) -> None:
                    help="ppo: generalized state-dependent exploration (gSDE, noise weights drawn every 4 steps, "
                         "log_std_init -2; hsddp_gym.learning.sb3.SDE_HYPERPARAMS), whose mean action bounds as the "
                         "draws it was trained with do")
+    p.add_argument("--log-std-init", type=float, default=None,
+                   help="ppo: initial log standard deviation of the exploration noise (with --sde: of the noise "
+                        "weights) (default: the preset's, or --sde's -2)")
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
@@ -553,7 +591,9 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--epochs", type=_positive_int, default=50, help="bc/dagger: BC epochs (default: %(default)s)")
     p.add_argument("--batch-size", type=_positive_int, default=256,
                    help="bc/dagger: minibatch size of the BC updates (default: %(default)s)")
-    p.add_argument("--lr", type=_positive_float, default=1e-3, help="bc/dagger: Adam step (default: %(default)s)")
+    p.add_argument("--lr", type=_learning_rate, default=None,
+                   help="the learning rate: bc/dagger: Adam's step (default: 1e-3); ppo/sac: a number or RL-Zoo's "
+                        "lin_<number>, decaying linearly to 0 over --steps (default: the preset's)")
     p.add_argument("--features", choices=("obs", "gait_clock"), default="obs",
                    help="bc/dagger: MLP inputs; gait_clock appends the MPC's gait clock (phase one-hot, time in "
                         "phase, cycle sin/cos) rebuilt from the observation history, since the MPC's phase drifts "

@@ -84,3 +84,36 @@ def test_noise_scale_sweep_reads_the_runs_and_scale_zero_is_the_mean_action(tmp_
         load_trained_policy(tmp_path / "ppo", deterministic=False, noise_scale=-1.0)
     with pytest.raises(SystemExit):
         script.main(["--runs", str(tmp_path / "nothing"), "--out", str(out)])
+
+
+def test_the_cli_sets_the_learning_rate_and_the_initial_noise_of_rl_runs(tmp_path, capsys):
+    """``hsddp-gym train --lr`` (a number or lin_<number>) and ``--log-std-init``, as train_rl.py's options; bad
+    values stop before training with the option named."""
+    import json
+
+    from hsddp_gym import cli
+    from hsddp_gym.learning.sb3 import parse_learning_rate
+
+    assert parse_learning_rate("3e-4") == 3e-4 and parse_learning_rate("lin_3e-4") == "lin_3e-4"
+    for bad in ("fast", "lin_x", "0", "-1e-3", "nan"):
+        with pytest.raises(ValueError, match="learning_rate"):
+            parse_learning_rate(bad)
+    out = tmp_path / "ppo"
+    assert cli.main(["train", "--algo", "ppo", "--steps", "64", "--lr", "lin_2e-4", "--log-std-init", "-1.5",
+                     "--hidden", "8", "--eval-freq", "0", "--eval-episodes", "1", "--max-episode-steps", "10",
+                     "--out", str(out), "--quiet"]) == 0
+    hp = json.loads((out / "summary.json").read_text())["hyperparameters"]
+    assert hp["learning_rate"] == "lin_2e-4" and hp["policy_kwargs"]["log_std_init"] == -1.5
+    bc = cli.build_parser().parse_args(["train", "--algo", "bc", "--dataset", "d", "--out", "x", "--lr", "5e-4"])
+    assert bc.lr == 5e-4 and cli._bc_lr(cli.build_parser().parse_args(["train", "--algo", "bc", "--out", "x"])) == 1e-3
+    for argv, message in ((["--algo", "ppo", "--steps", "5", "--log-std-init", "nan"], "error: --log-std-init: "),
+                          (["--algo", "sac", "--steps", "5", "--log-std-init", "-1"], "error: --log-std-init: given"),
+                          (["--algo", "bc", "--dataset", "d", "--lr", "lin_1e-3"], "error: --lr: lin_1e-3"),
+                          (["--algo", "ppo", "--steps", "5", "--lr", "fast"], "--lr")):
+        code = None
+        try:
+            code = cli.main(["train", *argv, "--out", str(tmp_path / "bad")])
+        except SystemExit as exc:  # argparse's own refusal of a bad --lr
+            code = exc.code
+        assert code == 2 and message in capsys.readouterr().err, argv
+        assert not (tmp_path / "bad").exists()

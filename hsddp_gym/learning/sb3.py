@@ -281,6 +281,22 @@ its draws 1015, 1/10). SB3 redraws the weights every 4 steps of its rollouts; :c
 every 4 steps of the episode."""
 
 
+def parse_learning_rate(text: str) -> float | str:
+    """A learning rate as a command line gives it: ``"3e-4"`` -> 3e-4, ``"lin_3e-4"`` stays a string (RL-Zoo's
+    linear decay, see :func:`learning_rate_schedule`); ``ValueError`` for anything else (the front-ends name their
+    option)."""
+    value = text if text.startswith("lin_") else _float_or_text(text)
+    learning_rate_schedule(value)  # validates
+    return value
+
+
+def _float_or_text(text: str) -> float | str:
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
 def learning_rate_schedule(value):
     """SB3's ``learning_rate`` from a hyperparameter: a number (constant) or RL-Zoo's ``"lin_<number>"``, a step
     that falls linearly from ``<number>`` to 0 over the run's ``steps`` (SB3's ``progress_remaining``; with a
