@@ -8,7 +8,10 @@ limit), deterministic actions, via ``hsddp_gym.learning.reporting.evaluate_polic
 Policies: ``mpc`` (HS-DDP MPC, default options), ``expert`` (tracks the 5-cycle al-reb plan), ``heuristic``,
 ``random``, and the trained ones read from their run directories (skipped with a note when the files are
 missing): ``bc`` and ``dagger`` (``policy.npz`` + ``summary.json`` of ``hsddp-gym train --algo bc|dagger``),
-``ppo`` and ``sac`` (``model.zip`` + ``summary.json``, weights only, plus ``vecnormalize.npz`` for PPO).
+``ppo`` and ``sac`` (``model.zip`` + ``summary.json``, weights only, plus ``vecnormalize.npz`` for PPO); more
+rows of a trained kind with ``--learned NAME@TAG=DIR`` (e.g. two PPO recipes side by side). Learners trained behind
+the MPC's perception (DAgger's ``--estimator``) act behind it, as they were trained
+(:func:`hsddp_gym.learning.ensemble.load_mlp_learner`).
 
 Writes into ``--out``: ``compare.md`` and ``compare.json`` (mean +- std return, falls, forward speed, the
 samples each policy learned from -- env steps for PPO/SAC, demonstration episodes and transitions for BC,
@@ -18,6 +21,7 @@ BC and DAgger return vs expert-labelled transitions) when matplotlib is availabl
 Usage:
     python experiments/compare_policies.py --out runs/compare [--runs runs/train] [--episodes 10]
         [--policies mpc expert heuristic random bc dagger ppo sac] [--bc DIR] [--dagger DIR] [--ppo DIR] [--sac DIR]
+        [--learned ppo@sde=DIR ...]
         [--max-episode-steps N]   (N < 1000 only for smoke tests: the protocol is the env's 1000-step limit)
 """
 
@@ -113,7 +117,7 @@ def aggregate(name: str, evals: list[dict], infos: list[dict]) -> dict:
     times = [i.get("train_time_s") for i in infos if i.get("train_time_s") is not None]
     row = {"policy": name, "mean_return": mean, "ci95": None if len(evals) < 2 else half,
            "std_return": float(np.std(returns)), "returns": returns, "seed_mean_returns": per_seed,
-           "training_seeds": len(evals) if name in TRAINED else None,
+           "training_seeds": len(evals) if kind_of(name) in TRAINED else None,
            "falls": int(sum(e["falls"] for e in evals)), "episodes": int(sum(e["episodes"] for e in evals)),
            "mean_forward_speed": float(np.mean([e["mean_forward_speed"] for e in evals])),
            "mean_episode_length": float(np.mean([e["mean_episode_length"] for e in evals])),
@@ -123,6 +127,25 @@ def aggregate(name: str, evals: list[dict], infos: list[dict]) -> dict:
         row.update(replans=evals[0]["replans"], planner_failures=evals[0]["planner_failures"],
                    mean_replan_ms=evals[0]["mean_replan_ms"])
     return row
+
+
+def kind_of(label: str) -> str:
+    """The policy family of a row label: ``ppo@sde`` -> ``ppo``."""
+    return label.split("@")[0]
+
+
+def parse_learned(items: list[str], taken) -> dict[str, list[Path]]:
+    """``--learned NAME@TAG=DIR`` items -> ``{label: [DIR, ...]}`` in order (a label given again adds training
+    seeds to its row); ``ValueError`` naming the item for anything else."""
+    out: dict[str, list[Path]] = {}
+    for item in items:
+        label, sep, path = item.partition("=")
+        kind, at, tag = label.partition("@")
+        if not sep or not path or kind not in TRAINED or not at or not tag or label in taken:
+            raise ValueError(f"--learned must be NAME@TAG=DIR with NAME one of {list(TRAINED)} and a TAG naming the "
+                             f"row (e.g. ppo@sde=runs/ppo_sde/ppo), not a label of --policies, got {item!r}")
+        out.setdefault(label, []).append(Path(path))
+    return out
 
 
 def _read_csv(path: Path) -> list[dict]:
@@ -145,7 +168,9 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
         return False
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
     any_a = any_b = False
-    for i, name in enumerate(("ppo", "sac")):
+    rl = [label for label in runs if kind_of(label) in ("ppo", "sac")]
+    imitation = [label for label in runs if kind_of(label) in ("bc", "dagger")]
+    for i, name in enumerate(rl):
         dirs = runs.get(name) or []
         if len(dirs) > 1:  # several training seeds: mean and 95 % interval of the evaluation curves
             curves = []
@@ -181,21 +206,22 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
     a.set_xlabel("env steps")
     a.set_ylabel("episode return")
     a.set_title("PPO / SAC")
-    for i, name in enumerate(("bc", "dagger")):
+    for i, name in enumerate(imitation, start=len(rl)):
         dirs = runs.get(name) or []
         d = dirs[0] if dirs else None
         rows = _read_csv(d / "curve.csv") if d is not None else []
         rows = [r for r in rows if r.get("mean_return")]
         if not rows:
             continue
-        x = [float(r["transitions"]) if name == "bc" else float(r["expert_labels"]) for r in rows]
+        bc = kind_of(name) == "bc"
+        x = [float(r["transitions"]) if bc else float(r["expert_labels"]) for r in rows]
         y = [float(r["mean_return"]) for r in rows]
         b.errorbar(x, y, yerr=[float(r["std_return"]) for r in rows],
-                   color=f"C{i + 2}", marker="o", ms=3, capsize=2,
-                   label="BC (first n demos)" if name == "bc" else "DAgger (per round)")
+                   color=f"C{i}", marker="o", ms=3, capsize=2,
+                   label=f"{name} (first n demos)" if bc else f"{name} (per round)")
         for r, xi, yi in zip(rows, x, y):  # the number of demonstrations (BC) or the round (DAgger)
-            tag = f"{int(float(r['demonstrations']))} demos" if name == "bc" else f"round {r['round']}"
-            b.annotate(tag, (xi, yi), textcoords="offset points", xytext=(3, 4), fontsize=6, color=f"C{i + 2}")
+            tag = f"{int(float(r['demonstrations']))} demos" if bc else f"round {r['round']}"
+            b.annotate(tag, (xi, yi), textcoords="offset points", xytext=(3, 4), fontsize=6, color=f"C{i}")
         any_b = True
     b.set_xlabel("expert-labelled transitions")
     b.set_ylabel("mean return (eval)")
@@ -226,6 +252,10 @@ def main(argv: list[str] | None = None) -> int:
         p.add_argument(f"--{name}", nargs="+", default=None,
                        help=f"{name} run directories, one per training seed, or folders of seed* runs (default: "
                             f"RUNS/{name}); several seeds give the mean and a 95 %% interval over seeds")
+    p.add_argument("--learned", action="append", default=[], metavar="NAME@TAG=DIR",
+                   help=f"one more row of a trained kind, NAME one of {list(TRAINED)}, labelled NAME@TAG (e.g. "
+                        "ppo@sde=runs/ppo_sde/ppo beside --ppo runs/ppo_push/ppo); DIR a run directory or a folder "
+                        "of seed* runs; the same label again adds training seeds to its row (repeatable)")
     p.add_argument("--episodes", type=int, default=10, help="episodes per policy, seeds 0.. (default: %(default)s)")
     p.add_argument("--policies", nargs="+", choices=POLICIES, default=list(POLICIES),
                    help="policies to evaluate; trained ones whose run directory lacks its files are skipped with a "
@@ -245,19 +275,26 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     from hsddp_gym.learning.reporting import evaluate_policy_episodes
 
+    try:
+        learned = parse_learned(args.learned, POLICIES)
+    except ValueError as exc:
+        p.error(str(exc))
     runs = {n: expand_runs(n, getattr(args, n) or [Path(args.runs) / n]) for n in TRAINED}
+    runs.update({label: expand_runs(kind_of(label), paths) for label, paths in learned.items()})
+    given = {**{n: getattr(args, n) or [args.runs] for n in TRAINED}, **learned}
     rows, notes = [], []
-    for name in args.policies:
-        dirs = runs[name] if name in TRAINED else [None]
+    for name in [*args.policies, *learned]:
+        dirs = runs[name] if name in runs else [None]
         if not dirs:
-            msg = f"{name}: no run directory with {', '.join(TRAINED[name])} in {getattr(args, name) or args.runs}"
+            msg = (f"{name}: no run directory with {', '.join(TRAINED[kind_of(name)])} in "
+                   f"{' '.join(str(g) for g in given[name])}")
             notes.append(f"skipped {msg}")
             print(f"skip: {msg}", flush=True)
             continue
         t = time.perf_counter()
         evals, infos = [], []
         for d in dirs:
-            policy, options, info = build(name, d, args.rl_actions, args.rl_checkpoint)
+            policy, options, info = build(kind_of(name), d, args.rl_actions, args.rl_checkpoint)
             evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
                                                   reset_options=options))
             infos.append(info)
@@ -290,7 +327,7 @@ def main(argv: list[str] | None = None) -> int:
               "Return per step is at most 1.5 (tracking 1 + healthy 0.5, minus the control cost); 1000 steps."]
     lines += [f"- {n}" for n in notes]
     expert = next((r["mean_return"] for r in rows if r["policy"] == "mpc"), None)
-    plotted = plot_curves({n: d for n, d in runs.items() if d}, out, expert)
+    plotted = plot_curves({n: d for n, d in runs.items() if d and n in {r["policy"] for r in rows}}, out, expert)
     if plotted:
         lines += ["", "![curves](curves.png)"]
     with atomic_path(out / "compare.md") as tmp:

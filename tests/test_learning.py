@@ -479,6 +479,21 @@ def test_compare_policies_over_training_seeds_reports_a_95_interval(tmp_path):
     assert row["mean_return"] == pytest.approx(mean_ci95(row["seed_mean_returns"])[0])
     assert row["ci95"] == pytest.approx(mean_ci95(row["seed_mean_returns"])[1])
     assert "(95 % CI)" in (out / "compare.md").read_text()
+    # more rows of a kind: --learned NAME@TAG=DIR, a label given again adds a training seed to its row
+    out2 = tmp_path / "compare2"
+    assert compare.main(["--out", str(out2), "--ppo", str(runs / "ppo" / "seed0"), "--episodes", "2",
+                         "--max-episode-steps", "20", "--policies", "ppo", "--learned",
+                         f"ppo@b={runs / 'ppo' / 'seed1'}", "--learned", f"ppo@b={runs / 'ppo' / 'seed0'}",
+                         "--learned", f"sac@none={tmp_path / 'nothing'}"]) == 0
+    rows = {r["policy"]: r for r in json.loads((out2 / "compare.json").read_text())["rows"]}
+    assert set(rows) == {"ppo", "ppo@b"} and rows["ppo@b"]["training_seeds"] == 2
+    assert rows["ppo@b"]["seed_mean_returns"] == row["seed_mean_returns"][::-1]  # the same runs, evaluated alike
+    assert rows["ppo"]["seed_mean_returns"] == row["seed_mean_returns"][:1]
+    table = (out2 / "compare.md").read_text()
+    assert "| ppo@b |" in table and "skipped sac@none" in table and (out2 / "curves.png").exists()
+    for bad in ("ppo=x", "ppo@=x", "td3@a=x", "ppo@a", "mpc@a=x"):
+        with pytest.raises(SystemExit):
+            compare.main(["--out", str(tmp_path / "bad"), "--learned", bad])
 
 
 def test_mean_ci95_and_curve_band():
