@@ -203,6 +203,9 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
                        yerr=[float(r["std_return"]) for r in ev], color=f"C{i}", marker="o", ms=3, capsize=2,
                        label=f"{name} deterministic eval")
             any_a = True
+    spans = [max(line.get_xdata(), default=0) for line in a.get_lines()]
+    if spans and min(spans) > 0 and max(spans) > 10 * min(spans):  # SAC's 0.4M beside PPO's 10M: both readable
+        a.set_xscale("log")
     a.set_xlabel("env steps")
     a.set_ylabel("episode return")
     a.set_title("PPO / SAC")
