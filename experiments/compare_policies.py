@@ -81,17 +81,18 @@ def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
 
         policy = load_mlp_learner(run_dir, interface)  # behind the MPC's perception if trained behind it
         if name == "bc":
-            samples = f"{summary['demonstrations']} demos ({summary['transitions']} transitions, " \
-                      f"{summary.get('dataset_policy')})"
+            count, unit = summary["transitions"], f"transitions ({summary['demonstrations']} demos, " \
+                                                  f"{summary.get('dataset_policy')})"
         else:
-            samples = f"{summary['expert_labels']} expert labels ({summary['expert']['name']} expert)"
+            count, unit = summary["expert_labels"], f"expert labels ({summary['expert']['name']} expert)"
     else:
         from hsddp_gym.learning.sb3 import load_trained_policy
 
         policy = load_trained_policy(run_dir, env, deterministic=rl_actions == "deterministic",
                                      checkpoint=rl_checkpoint)
-        samples = f"{summary['steps']} env steps"
-    return policy, None, {"samples": samples, "train_time_s": summary.get("wall_time_s"), "summary": summary}
+        count, unit = summary["steps"], "env steps"
+    return policy, None, {"samples": f"{count:,} {unit}", "samples_count": int(count), "samples_unit": unit,
+                          "train_time_s": summary.get("wall_time_s"), "summary": summary}
 
 
 def expand_runs(name: str, paths) -> list[Path]:
@@ -121,12 +122,20 @@ def aggregate(name: str, evals: list[dict], infos: list[dict]) -> dict:
            "falls": int(sum(e["falls"] for e in evals)), "episodes": int(sum(e["episodes"] for e in evals)),
            "mean_forward_speed": float(np.mean([e["mean_forward_speed"] for e in evals])),
            "mean_episode_length": float(np.mean([e["mean_episode_length"] for e in evals])),
-           "samples": infos[0]["samples"], "train_time_s": float(np.mean(times)) if times else None,
+           "samples": samples_text(infos), "train_time_s": float(np.mean(times)) if times else None,
            "real_time_factor": evals[0].get("real_time_factor")}
     if evals[0].get("replans"):
         row.update(replans=evals[0]["replans"], planner_failures=evals[0]["planner_failures"],
                    mean_replan_ms=evals[0]["mean_replan_ms"])
     return row
+
+
+def samples_text(infos: list[dict]) -> str:
+    """What a row learned from: the one count of its training seeds, or the range of their counts."""
+    counts = [i["samples_count"] for i in infos if "samples_count" in i]
+    if len(counts) != len(infos) or len(set(counts)) == 1:
+        return infos[0]["samples"]
+    return f"{min(counts):,}–{max(counts):,} {infos[0]['samples_unit']}"
 
 
 def kind_of(label: str) -> str:
@@ -314,23 +323,26 @@ def main(argv: list[str] | None = None) -> int:
              f"deterministic{limit}{'; ppo/sac: stochastic actions' if args.rl_actions == 'stochastic' else ''}"
              f"{'; ppo/sac: best checkpoint' if args.rl_checkpoint == 'best' else ''})",
              "",
-             "| policy | return | training seeds | falls | forward speed [m/s] | episode length | learned from | "
-             "training wall time (per seed) |", "|---|---|---|---|---|---|---|---|"]
+             "| policy | return | of the MPC's | training seeds | falls | forward speed [m/s] | episode length | "
+             "learned from | training wall time (per seed) |", "|---|---|---|---|---|---|---|---|---|"]
+    reference = next((r["mean_return"] for r in rows if r["policy"] == "mpc"), None)
     for r in rows:
+        r["of_mpc"] = None if reference is None else r["mean_return"] / reference
         tt = "-" if r["train_time_s"] is None else f"{r['train_time_s']:.0f} s"
         ret = (f"{r['mean_return']:.1f} ± {r['ci95']:.1f} (95 % CI)" if r["ci95"] is not None
                else f"{r['mean_return']:.1f} ± {r['std_return']:.1f} (std)")
         seeds = "-" if r["training_seeds"] is None else str(r["training_seeds"])
-        lines.append(f"| {r['policy']} | {ret} | {seeds} | {r['falls']}/{r['episodes']} | "
+        share = "-" if r["of_mpc"] is None else f"{100 * r['of_mpc']:.0f} %"
+        lines.append(f"| {r['policy']} | {ret} | {share} | {seeds} | {r['falls']}/{r['episodes']} | "
                      f"{r['mean_forward_speed']:.2f} | {r['mean_episode_length']:.0f} | {r['samples']} | {tt} |")
     lines += ["", "Return: mean ± std over the episodes for a single policy; for learned policies with several "
               "training seeds, the mean over seeds of each seed's mean return ± the 95 % Student-t interval of that "
-              "mean (falls and episodes summed over seeds).",
+              "mean (falls and episodes summed over seeds); \"of the MPC's\": that mean over the MPC's mean return "
+              "(run with --policies mpc).",
               "The expert starts every episode at its plan's initial state (no reset noise).",
               "Return per step is at most 1.5 (tracking 1 + healthy 0.5, minus the control cost); 1000 steps."]
     lines += [f"- {n}" for n in notes]
-    expert = next((r["mean_return"] for r in rows if r["policy"] == "mpc"), None)
-    plotted = plot_curves({n: d for n, d in runs.items() if d and n in {r["policy"] for r in rows}}, out, expert)
+    plotted = plot_curves({n: d for n, d in runs.items() if d and n in {r["policy"] for r in rows}}, out, reference)
     if plotted:
         lines += ["", "![curves](curves.png)"]
     with atomic_path(out / "compare.md") as tmp:

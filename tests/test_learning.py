@@ -438,6 +438,7 @@ def test_compare_policies_writes_the_table_and_the_curves(dataset, tmp_path):
     assert _png_width(tmp_path / "rl_only" / "curves.png") < 0.7 * both_wide  # no empty BC / DAgger panel
     rows = {r["policy"]: r for r in json.loads((out / "compare.json").read_text())["rows"]}
     assert rows["ppo"]["samples"].endswith("env steps") and rows["ppo"]["train_time_s"] > 0
+    assert "of the MPC's" in table and rows["ppo"]["of_mpc"] is None
     assert "demos" in rows["bc"]["samples"] and "expert labels" in rows["dagger"]["samples"]
     # PPO's own Gaussian draws instead of its mean: another result, the same on a rerun
     rerun = []
@@ -487,6 +488,10 @@ def test_compare_policies_over_training_seeds_reports_a_95_interval(tmp_path):
                          "--learned", f"sac@none={tmp_path / 'nothing'}"]) == 0
     rows = {r["policy"]: r for r in json.loads((out2 / "compare.json").read_text())["rows"]}
     assert set(rows) == {"ppo", "ppo@b"} and rows["ppo@b"]["training_seeds"] == 2
+    steps = sorted(json.loads((runs / "ppo" / f"seed{k}" / "summary.json").read_text())["steps"] for k in (0, 1))
+    assert rows["ppo@b"]["samples"] == (f"{steps[0]:,} env steps" if steps[0] == steps[1] else
+                                        f"{steps[0]:,}–{steps[1]:,} env steps")
+    assert rows["ppo"]["of_mpc"] is None  # no MPC row to compare with
     assert rows["ppo@b"]["seed_mean_returns"] == row["seed_mean_returns"][::-1]  # the same runs, evaluated alike
     assert rows["ppo"]["seed_mean_returns"] == row["seed_mean_returns"][:1]
     table = (out2 / "compare.md").read_text()
