@@ -35,7 +35,14 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
-from hsddp_gym.learning.sb3 import ALGOS, check_train_condition, hyperparameters, parse_learning_rate, train_sb3
+from hsddp_gym.learning.sb3 import (
+    ALGOS,
+    OPTION_HELP,
+    check_train_condition,
+    hyperparameters,
+    parse_learning_rate,
+    train_sb3,
+)
 
 EVALS = ("eval", "eval_best", "eval_stochastic")
 """The protocol evaluations of each run's summary: the final weights' mean action, the best checkpoint's mean action
@@ -67,17 +74,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hidden", default=None,
                    help="hidden layer sizes of every network, actor and critic alike, comma-separated, e.g. 128,128 "
                         "(default: the preset's; SAC 256,256)")
-    p.add_argument("--learning-rate", default=None,
-                   help="the optimizer's step: a number, or lin_<number> for a step that falls linearly to 0 over "
-                        "--steps (RL-Zoo's notation; default: the preset's)")
-    p.add_argument("--sde", action="store_true",
-                   help="PPO: generalized state-dependent exploration (gSDE; RL-Zoo's PyBullet settings: noise "
-                        "weights drawn every 4 steps, log_std_init -2), whose mean action bounds as its draws do "
-                        "(hsddp_gym.learning.sb3.SDE_HYPERPARAMS)")
-    p.add_argument("--log-std-init", type=float, default=None,
-                   help="PPO: initial log standard deviation of the exploration noise (with --sde: of the noise "
-                        "weights, whose action noise is the features times them; default: the preset's, -2 with "
-                        "--sde)")
+    p.add_argument("--learning-rate", default=None, help=OPTION_HELP["learning_rate"])
+    p.add_argument("--sde", action="store_true", help=OPTION_HELP["sde"])
+    p.add_argument("--log-std-init", type=float, default=None, help=OPTION_HELP["log_std_init"])
     p.add_argument("--train-condition", default=None, metavar="CONDITION",
                    help="train every robot under this condition of the robustness suite (domain randomization), "
                         "e.g. push_x3 (three random pushes an episode) or push; the evaluations that pick and score "

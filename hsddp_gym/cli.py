@@ -532,6 +532,8 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)
 
+    from hsddp_gym.learning.sb3 import OPTION_HELP  # numpy-only at import; SB3 and torch load when training
+
     p = sub.add_parser("train", help="train a baseline: behaviour cloning, DAgger, PPO or SAC",
                        description="bc: MLP 2x256 ReLU, Adam 1e-3, MSE on normalized actions, on --dataset; dagger: "
                                    "BC + relabelling rounds by --expert with beta = BETA_DECAY**round; ppo / sac: "
@@ -563,13 +565,8 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--vector-env", action="store_true",
                    help="ppo/sac: step the --n-envs training robots with the compiled vector env "
                         "(hsddp_gym.envs.vector, one numba call for all) instead of a DummyVecEnv of single envs")
-    p.add_argument("--sde", action="store_true",
-                   help="ppo: generalized state-dependent exploration (gSDE, noise weights drawn every 4 steps, "
-                        "log_std_init -2; hsddp_gym.learning.sb3.SDE_HYPERPARAMS), whose mean action bounds as the "
-                        "draws it was trained with do")
-    p.add_argument("--log-std-init", type=float, default=None,
-                   help="ppo: initial log standard deviation of the exploration noise (with --sde: of the noise "
-                        "weights) (default: the preset's, or --sde's -2)")
+    p.add_argument("--sde", action="store_true", help=OPTION_HELP["sde"])
+    p.add_argument("--log-std-init", type=float, default=None, help=OPTION_HELP["log_std_init"])
     p.add_argument("--time-limit", type=_positive_float, default=None,
                    help="ppo/sac: wall-clock training budget [s]; training stops there and summary.json records "
                         "the steps that fit (--steps is then the upper bound)")
@@ -592,8 +589,7 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--batch-size", type=_positive_int, default=256,
                    help="bc/dagger: minibatch size of the BC updates (default: %(default)s)")
     p.add_argument("--lr", type=_learning_rate, default=None,
-                   help="the learning rate: bc/dagger: Adam's step (default: 1e-3); ppo/sac: a number or RL-Zoo's "
-                        "lin_<number>, decaying linearly to 0 over --steps (default: the preset's)")
+                   help="bc/dagger: Adam's step (default: 1e-3); ppo/sac: " + OPTION_HELP["learning_rate"])
     p.add_argument("--features", choices=("obs", "gait_clock"), default="obs",
                    help="bc/dagger: MLP inputs; gait_clock appends the MPC's gait clock (phase one-hot, time in "
                         "phase, cycle sin/cos) rebuilt from the observation history, since the MPC's phase drifts "

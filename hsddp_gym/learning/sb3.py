@@ -281,6 +281,18 @@ its draws 1015, 1/10). SB3 redraws the weights every 4 steps of its rollouts; :c
 every 4 steps of the episode."""
 
 
+#: The help of the RL options both front-ends offer (``hsddp-gym train`` and ``experiments/train_rl.py``).
+OPTION_HELP = {
+    "learning_rate": "the optimizer's step: a number, or lin_<number> for a step that falls linearly to 0 over "
+                     "--steps (RL-Zoo's notation; default: the preset's)",
+    "sde": "PPO: generalized state-dependent exploration (gSDE; RL-Zoo's PyBullet settings: noise weights drawn "
+           "every 4 steps, log_std_init -2), whose mean action bounds as its draws do "
+           "(hsddp_gym.learning.sb3.SDE_HYPERPARAMS)",
+    "log_std_init": "PPO: initial log standard deviation of the exploration noise (with --sde: of the noise weights, "
+                    "whose action noise is the features times them; default: the preset's, -2 with --sde)",
+}
+
+
 def parse_learning_rate(text: str) -> float | str:
     """A learning rate as a command line gives it: ``"3e-4"`` -> 3e-4, ``"lin_3e-4"`` stays a string (RL-Zoo's
     linear decay, see :func:`learning_rate_schedule`); ``ValueError`` for anything else (the front-ends name their
