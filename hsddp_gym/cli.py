@@ -325,7 +325,10 @@ _SB3_OVERRIDE_FLAGS = {"learning_rate": "--lr", "net_arch": "--hidden", "log_std
 
 
 def _bc_lr(args) -> float:
-    return 1e-3 if args.lr is None else float(args.lr)  # BCConfig's default step
+    """bc/dagger: ``--lr``, or BCConfig's default step."""
+    from hsddp_gym.learning.bc import BCConfig
+
+    return BCConfig.lr if args.lr is None else float(args.lr)
 
 
 def _bc_extra(args) -> dict:
