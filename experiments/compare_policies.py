@@ -192,6 +192,10 @@ def plot_curves(runs: dict, out: Path, expert_return: float | None = None) -> bo
                 a.plot(band["x"], band["mean"], color=f"C{i}", label=f"{name} eval, mean of {band['seeds']} seeds")
                 a.fill_between(band["x"], band["low"], band["high"], color=f"C{i}", alpha=0.25,
                                label=f"{name} 95 % interval over seeds")
+                if len({c[0][-1] for c in curves}) > 1:  # runs of unequal length: each seed beyond the common span
+                    for k, (x, y) in enumerate(curves):
+                        a.plot(x, y, color=f"C{i}", lw=0.7, alpha=0.5, ls=":",
+                               label=f"{name} each seed" if k == 0 else None)
                 any_a = True
             continue
         if not dirs:
