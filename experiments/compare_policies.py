@@ -143,16 +143,16 @@ def kind_of(label: str) -> str:
     return label.split("@")[0]
 
 
-def parse_learned(items: list[str], taken) -> dict[str, list[Path]]:
+def parse_learned(items: list[str]) -> dict[str, list[Path]]:
     """``--learned NAME@TAG=DIR`` items -> ``{label: [DIR, ...]}`` in order (a label given again adds training
     seeds to its row); ``ValueError`` naming the item for anything else."""
     out: dict[str, list[Path]] = {}
     for item in items:
         label, sep, path = item.partition("=")
         kind, at, tag = label.partition("@")
-        if not sep or not path or kind not in TRAINED or not at or not tag or label in taken:
+        if not sep or not path or kind not in TRAINED or not at or not tag:
             raise ValueError(f"--learned must be NAME@TAG=DIR with NAME one of {list(TRAINED)} and a TAG naming the "
-                             f"row (e.g. ppo@sde=runs/ppo_sde/ppo), not a label of --policies, got {item!r}")
+                             f"row (e.g. ppo@sde=runs/ppo_sde/ppo), got {item!r}")
         out.setdefault(label, []).append(Path(path))
     return out
 
@@ -292,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
     from hsddp_gym.learning.reporting import evaluate_policy_episodes
 
     try:
-        learned = parse_learned(args.learned, POLICIES)
+        learned = parse_learned(args.learned)
     except ValueError as exc:
         p.error(str(exc))
     runs = {n: expand_runs(n, getattr(args, n) or [Path(args.runs) / n]) for n in TRAINED}

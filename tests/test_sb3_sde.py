@@ -98,6 +98,8 @@ def test_the_cli_sets_the_learning_rate_and_the_initial_noise_of_rl_runs(tmp_pat
     for bad in ("fast", "lin_x", "0", "-1e-3", "nan"):
         with pytest.raises(ValueError, match="learning_rate"):
             parse_learning_rate(bad)
+    with pytest.raises(TypeError, match="str"):
+        parse_learning_rate(3e-4)
     out = tmp_path / "ppo"
     assert cli.main(["train", "--algo", "ppo", "--steps", "64", "--lr", "lin_2e-4", "--log-std-init", "-1.5",
                      "--hidden", "8", "--eval-freq", "0", "--eval-episodes", "1", "--max-episode-steps", "10",

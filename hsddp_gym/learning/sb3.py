@@ -297,6 +297,8 @@ def parse_learning_rate(text: str) -> float | str:
     """A learning rate as a command line gives it: ``"3e-4"`` -> 3e-4, ``"lin_3e-4"`` stays a string (RL-Zoo's
     linear decay, see :func:`learning_rate_schedule`); ``ValueError`` for anything else (the front-ends name their
     option)."""
+    if not isinstance(text, str):
+        raise TypeError(f"learning rate text must be a str, got {type(text).__name__}")
     value = text if text.startswith("lin_") else _float_or_text(text)
     learning_rate_schedule(value)  # validates
     return value
