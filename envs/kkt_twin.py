@@ -61,7 +61,8 @@ class KKTSimulator(SimulatorQueries):
         robot: the model (default: the paper's robot). timestep: ``h`` [s] (default 1e-3).
         friction: Coulomb ``mu`` used only to count friction-cone violations (the model pins its feet).
         gravity: [m/s^2] >= 0 (default ``robot.params.gravity``).
-        motor_speed_limits, torque_limit: the env's torque-speed limit (as ContactSimulator).
+        motor_speed_limits: with ``torque_limit``, the env's torque-speed limit (as ContactSimulator).
+        torque_limit: see ``motor_speed_limits``.
         stabilize: put pinned feet back on their anchors and zero their velocities after every step (step 5 of
             the module docstring; default True); False: the bare discrete planner's model.
 

@@ -119,7 +119,8 @@ class MuJoCoSimulator(SimulatorQueries):
 
     Args:
         robot: the model (default: the paper's robot). timestep, friction, gravity: as ContactSimulator.
-        motor_speed_limits, torque_limit: the env's torque-speed limit (same semantics).
+        motor_speed_limits: with ``torque_limit``, the env's torque-speed limit (same semantics).
+        torque_limit: see ``motor_speed_limits``.
         solref: MuJoCo contact ``solref`` (default :data:`DEFAULT_SOLREF`).
     """
 

@@ -332,8 +332,8 @@ CONDITIONS: dict[str, Condition] = _conditions(
 """Every named condition: the robustness benchmark's (:data:`SUITE`) and ``push_x3`` (three pushes an episode: a
 harder test, and a training condition that gives a learner's rollouts three push recoveries each)."""
 SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3")
-"""The robustness benchmark's conditions (issue 14's table, plus target speeds 0.5 and 1.5 m/s): the default of
-``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
+"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, target speeds 0.5
+and 1.5 m/s included): the default of ``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
 
 
 def get_condition(name: str) -> Condition:

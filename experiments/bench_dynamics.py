@@ -34,6 +34,7 @@ from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import Trajectory, rollout
 from hsddp_gym.core.schedule import ModeSchedule
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
+from hsddp_gym.reports.store import machine_info, write_record
 
 TARGET_US_PER_KNOT = 30.0
 MODES = (Mode.FLIGHT, Mode.FRONT_STANCE, Mode.BACK_STANCE, Mode.DOUBLE_STANCE)
@@ -182,7 +183,11 @@ def main(argv: list[str] | None = None) -> None:
                         help="minimum seconds per repeat; sets the number of calls per repeat (default 0.05)")
     parser.add_argument("--integrator", choices=INTEGRATORS, default="euler", help="default: euler (paper)")
     parser.add_argument("--cycles", type=int, default=5, help="bounding cycles of the trajectory (default 5)")
+    parser.add_argument("--record", default=None, metavar="FILE.json",
+                        help="also write the measurements as a record of the results store "
+                             "(results/speed/dynamics.json)")
     args = parser.parse_args(argv)
+    machine = machine_info()
     if args.repeat < 1 or args.min_time <= 0 or args.cycles < 1:
         parser.error("--repeat and --cycles must be >= 1 and --min-time > 0")
 
@@ -232,6 +237,15 @@ def main(argv: list[str] | None = None) -> None:
     key = f"linearize, {n} knots all in this mode (per knot)"
     print("  linearize (compiled) / Pinocchio's derivative calls, per knot: "
           + ", ".join(f"{m.short} {rows[key][m] / lin_floor[m]:.2f}" for m in MODES))
+    if args.record:
+        data = {"integrator": args.integrator, "cycles": args.cycles, "knots": n,
+                "per_call_us": {name: {m.short: by_mode[m] for m in MODES} for name, by_mode in rows.items()},
+                "per_knot_us": dict(traj_rows), "fused_per_knot_us": fused, "target_per_knot_us": TARGET_US_PER_KNOT,
+                "pinocchio_us": dict(floor), "linearize_key": key,
+                "pinocchio_derivatives_per_knot_us": {m.short: lin_floor[m] for m in MODES}}
+        write_record(args.record, data, "Microseconds per call of the hybrid dynamics and their derivatives, by "
+                     "contact mode, beside Pinocchio's own calls measured in the same run", machine=machine)
+        print(f"wrote {args.record}")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ and of simulated steps/s (the issue's comparison: about 42,000 MuJoCo steps/s on
 
 Usage::
 
-    python experiments/bench_env.py [--seconds 3] [--seed 0]
+    python experiments/bench_env.py [--seconds 3] [--seed 0] [--record results/speed/env.json]
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import numpy as np
 
 import hsddp_gym  # noqa: F401  (registers the env)
 from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP, BoundingEnv
+from hsddp_gym.reports.store import machine_info, write_record
 
 GOAL_SIM_STEPS_PER_S = 20_000
 GOAL_RATIO_TO_LEGACY = 0.8
@@ -75,7 +76,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=3.0, help="wall-clock seconds per measurement")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--record", default=None, metavar="FILE.json",
+                        help="also write the measurements as a record of the results store (results/speed/env.json)")
     args = parser.parse_args(argv)
+    machine = machine_info()
+    record = {"seconds": args.seconds, "rows": [], "interleaved": [], "halfcheetah": None}
     if not args.seconds > 0:
         parser.error(f"--seconds must be > 0, got {args.seconds}")
 
@@ -95,6 +100,8 @@ def main(argv=None) -> None:
         sim_rate = rate * frame_skip
         sim_dt = env.unwrapped.sim_timestep
         results[(frame_skip, policy, consistent)] = rate
+        record["rows"].append({"scheme": "energy" if consistent else "legacy", "frame_skip": frame_skip,
+                               "actions": policy, "env_steps_per_s": rate, "sim_steps_per_s": sim_rate})
         verdict = "meets" if sim_rate >= GOAL_SIM_STEPS_PER_S else "MISSES"
         print(f"{'energy' if consistent else 'legacy':>8} {frame_skip:>10} {policy:>14} {rate:>12,.0f} "
               f"{sim_rate:>12,.0f} {sim_rate * sim_dt:>11.1f} {verdict:>6}")
@@ -113,6 +120,8 @@ def main(argv=None) -> None:
             steps[consistent] += n
             wall[consistent] += n / rate
         ratio = (steps[True] / wall[True]) / (steps[False] / wall[False])
+        record["interleaved"].append({"actions": policy, "energy_env_steps_per_s": steps[True] / wall[True],
+                                      "legacy_env_steps_per_s": steps[False] / wall[False], "ratio": ratio})
         print(f"interleaved, frame_skip {DEFAULT_FRAME_SKIP}, {policy}: energy-consistent "
               f"{steps[True] / wall[True]:,.0f}, legacy {steps[False] / wall[False]:,.0f} env steps/s, "
               f"ratio {ratio:.3f} (goal >= {GOAL_RATIO_TO_LEGACY})")
@@ -123,6 +132,7 @@ def main(argv=None) -> None:
         cheetah = gym.make("HalfCheetah-v5")
     except Exception as exc:  # gymnasium[mujoco] missing (ImportError / DependencyNotInstalled)
         print(f"HalfCheetah-v5 skipped: gymnasium[mujoco] is not installed ({type(exc).__name__}: {exc})")
+        _write(args, record, machine)
         return
     cheetah_skip = int(cheetah.unwrapped.frame_skip)
     cheetah_dt = float(cheetah.unwrapped.model.opt.timestep)
@@ -137,6 +147,16 @@ def main(argv=None) -> None:
     print(f"ratio Bounding-v0 (frame_skip {DEFAULT_FRAME_SKIP}, random actions) / HalfCheetah-v5: "
           f"env steps/s {ours / rate:.3f}, simulated steps/s {ours_sim / cheetah_sim:.3f}, "
           f"simulated time per wall second {ours_sim * DEFAULT_SIM_TIMESTEP / (cheetah_sim * cheetah_dt):.3f}")
+    record["halfcheetah"] = {"env_steps_per_s": rate, "sim_steps_per_s": cheetah_sim, "frame_skip": cheetah_skip,
+                             "timestep": cheetah_dt, "ratio_env_steps": ours / rate}
+    _write(args, record, machine)
+
+
+def _write(args, record: dict, machine: dict) -> None:
+    if args.record:
+        write_record(args.record, record, "Bounding-v0's single-process throughput (energy-consistent and legacy "
+                     "schemes) beside HalfCheetah-v5's, measured in the same run", machine=machine)
+        print(f"wrote {args.record}")
 
 
 if __name__ == "__main__":

@@ -44,6 +44,7 @@ from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.tasks import heuristic_warm_start
+from hsddp_gym.reports.store import machine_info, write_record
 
 GOAL_MS_PER_DDP_ITERATION = 50.0
 GOAL_SOLVE_S = 5.0
@@ -159,8 +160,10 @@ def calibrate(problem: HybridProblem, sol, cs, repeat: int = 5) -> dict:
     }
 
 
-def breakdown(run: Run, n_knots: int, cal: dict) -> None:
-    """Print the per-DDP-iteration table of one run (``cal``: :func:`calibrate`)."""
+def breakdown(run: Run, n_knots: int, cal: dict) -> list[dict]:
+    """Print the per-DDP-iteration table of one run (``cal``: :func:`calibrate`); returns its rows
+    (``name``, ``total_ms``, ``ms_per_iteration``)."""
+    table = []
     tm = run.timings
     it = max(run.ddp_iterations, 1)
     trials = int(tm.get("line_search_trials", 0))
@@ -179,6 +182,7 @@ def breakdown(run: Run, n_knots: int, cal: dict) -> None:
 
     def row(name, total_s, calls=None, note="", knots=True):
         ms_it = 1e3 * total_s / it
+        table.append({"name": name.strip(), "total_ms": 1e3 * total_s, "ms_per_iteration": ms_it})
         extra = " " * 34
         if calls == 0:
             extra = f"{0:5d} calls" + " " * 23
@@ -210,6 +214,7 @@ def breakdown(run: Run, n_knots: int, cal: dict) -> None:
           f"{1e3 * cal['rollout_lin']:.1f} ms ({1e6 * cal['rollout_lin'] / n_knots:.1f} us/knot), separate "
           f"linearize pass {1e3 * cal['linearize']:.1f} ms ({1e6 * cal['linearize'] / n_knots:.1f} us/knot), "
           f"objective evaluation {1e3 * cal['evaluate']:.2f} ms")
+    return table
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -226,7 +231,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="max_total_ddp_iterations of the MPC-like warm re-solve; 0 skips it (default %(default)s)")
     parser.add_argument("--profile", action="store_true", help="cProfile one extra solve; print the top 10 "
                                                                 "functions by cumulative time")
+    parser.add_argument("--record", default=None, metavar="FILE.json",
+                        help="also write the measurements as a record of the results store (results/speed/solver.json)")
     args = parser.parse_args(argv)
+    machine = machine_info()
     if args.repeats < 1 or args.cycles < 1 or args.mpc_iterations < 0:
         parser.error("--repeats and --cycles must be >= 1, --mpc-iterations >= 0")
 
@@ -266,7 +274,7 @@ def main(argv: list[str] | None = None) -> int:
         print("WARNING: repeats differ in iterations or objective (the solver should be deterministic)")
 
     print(f"\nbreakdown of the best run ({best.solve_s:.3f} s, {best.ddp_iterations} DDP iterations):")
-    breakdown(best, n, calibrate(problem, sol, solver.last_constraint_state))
+    table = breakdown(best, n, calibrate(problem, sol, solver.last_constraint_state))
 
     best_s, med_s = min(times), statistics.median(times)
     best_it, med_it = min(per_it), statistics.median(per_it)
@@ -279,6 +287,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"goal: whole {args.method} solve <= {GOAL_SOLVE_S:.0f} s -> measured/goal = "
           f"{best_s / GOAL_SOLVE_S:.2f} (best), {med_s / GOAL_SOLVE_S:.2f} (median)")
 
+    record = {"cycles": args.cycles, "knots": n, "method": args.method, "repeats": args.repeats,
+              "ddp_iterations": best.ddp_iterations, "al_iterations": best.al_iterations,
+              "solve_s": {"best": best_s, "median": med_s}, "ms_per_ddp_iteration": {"best": best_it, "median": med_it},
+              "breakdown": table, "goal_ms_per_ddp_iteration": GOAL_MS_PER_DDP_ITERATION, "goal_solve_s": GOAL_SOLVE_S,
+              "mpc_resolves": []}
     if args.mpc_iterations > 0:
         mpc_opts = dataclasses.replace(options, max_total_ddp_iterations=args.mpc_iterations)
         cs = solver.last_constraint_state
@@ -297,6 +310,12 @@ def main(argv: list[str] | None = None) -> int:
                 rb = min(rs, key=lambda r: r.solve_s)
                 print(f"  {name}: {1e3 * rb.solve_s:.1f} ms, {rb.ddp_iterations} DDP iterations, status {rb.status}, "
                       f"objective {rb.objective:.6g} (previous {sol.objective:.6g})")
+                record["mpc_resolves"].append({"case": name, "ms": 1e3 * rb.solve_s,
+                                               "ddp_iterations": rb.ddp_iterations})
+    if args.record:
+        write_record(args.record, record, "HS-DDP's time per DDP iteration and its breakdown on the paper's "
+                     "five-cycle bounding problem", machine=machine)
+        print(f"wrote {args.record}")
 
     if args.profile:
         prof = cProfile.Profile()

@@ -29,6 +29,7 @@ import numpy as np
 
 import hsddp_gym  # noqa: F401  (registers the env)
 from hsddp_gym.core import batch_contact
+from hsddp_gym.reports.store import machine_info, write_record
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 GOAL_N = 64
@@ -93,6 +94,9 @@ def main(argv=None) -> None:
                         help="numbers of robots N of the vector env (default 1 8 64 256)")
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the actions and resets (default 0)")
+    parser.add_argument("--record", default=None, metavar="FILE.json",
+                        help="also write the measurements as a record of the results store "
+                             "(results/speed/vector_env.json)")
     args = parser.parse_args(argv)
     if not args.seconds > 0:
         parser.error(f"--seconds must be > 0, got {args.seconds}")
@@ -113,6 +117,7 @@ def main(argv=None) -> None:
         runner.run(0.2)
     totals = {name: [0, 0.0, 0.0] for name in runners}
     chunk = args.seconds / args.rounds
+    machine = machine_info()
     load_before = os.getloadavg()
     for _ in range(args.rounds):
         for name, runner in runners.items():
@@ -142,6 +147,13 @@ def main(argv=None) -> None:
             ratio_hc = rate[key] / hc
             print(f"goal at N = {GOAL_N}: >= {GOAL_VS_HALFCHEETAH:g}x HalfCheetah-v5: {ratio_hc:.2f}x "
                   f"({'met' if ratio_hc >= GOAL_VS_HALFCHEETAH else 'NOT met'})")
+    if args.record:
+        rows = [{"configuration": name, "env_steps_per_cpu_s": rate[name], "env_steps_per_wall_s": wall[name]}
+                for name in rate]
+        write_record(args.record, {"seconds": args.seconds, "rounds": args.rounds, "rows": rows},
+                     "Env steps per CPU second of the compiled vector env against N, the single env and "
+                     "HalfCheetah-v5, timed interleaved in one run", machine=machine)
+        print(f"wrote {args.record}")
 
 
 if __name__ == "__main__":

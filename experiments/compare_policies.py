@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.learning.reporting import curve_band, mean_ci95
+from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import atomic_path, write_json
 
 POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
@@ -284,7 +285,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rl-checkpoint", choices=("final", "best"), default="final",
                    help="ppo/sac: the weights at the end of training or the checkpoint of the best training-time "
                         "evaluation (best_model.zip; its own seeds, not the protocol's) (default: %(default)s)")
+    p.add_argument("--record", default=None, metavar="FILE.json",
+                   help="also write the rows as a record of the results store, e.g. results/policies/model_based.json")
     args = p.parse_args(argv)
+    machine = machine_info()
     if args.episodes < 10:
         print(f"note: {args.episodes} episodes per policy (the protocol asks for at least 10)")
     out = Path(args.out)
@@ -356,6 +360,15 @@ def main(argv: list[str] | None = None) -> int:
                                       "notes": notes, "runs": {n: [str(x) for x in d] for n, d in runs.items()}})
     print("\n".join(lines))
     print(f"wrote {out / 'compare.md'}, {out / 'compare.json'}" + (", curves.png" if plotted else ""))
+    if args.record:
+        write_record(args.record, {"episodes": args.episodes, "seeds": list(range(args.episodes)),
+                                   "max_episode_steps": args.max_episode_steps, "rl_actions": args.rl_actions,
+                                   "rl_checkpoint": args.rl_checkpoint,
+                                   "rows": [{k: v for k, v in r.items() if k != "returns"} for r in rows],
+                                   "notes": notes},
+                     f"{', '.join(r['policy'] for r in rows)} under the comparison protocol ({args.episodes} "
+                     f"episodes, seeds 0-{args.episodes - 1}, the default env)", machine=machine)
+        print(f"wrote {args.record}")
     return 0
 
 

@@ -8,7 +8,7 @@ foot in a rocking double stance, and the deepest foot after landings at 1, 5, 10
 
 Usage::
 
-    python experiments/env_physics.py [--states 20] [--steps 120]
+    python experiments/env_physics.py [--states 20] [--steps 120] [--record results/env/physics.json]
 """
 
 from __future__ import annotations
@@ -22,15 +22,20 @@ import numpy as np
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS
 from hsddp_gym.envs.contact import ContactSimulator
+from hsddp_gym.reports.store import machine_info, write_record
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--states", type=int, default=20, help="random states per contact combination (default: 20)")
     p.add_argument("--steps", type=int, default=120, help="1 ms steps from each state (default: 120)")
+    p.add_argument("--record", default=None, metavar="FILE.json",
+                   help="also write the measurements as a record of the results store (results/env/physics.json)")
     args = p.parse_args(argv)
     if args.states < 1 or args.steps < 1:
         p.error("--states and --steps must be >= 1")
+    machine = machine_info()
+    record = {"states_per_combination": args.states, "steps": args.steps, "schemes": {}}
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from test_env_physics import COMBOS, energy_excess, random_state, stick_drift
 
@@ -38,6 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     for consistent in (True, False):
         name = "energy-consistent (default)" if consistent else "legacy (energy_consistent=False)"
         print(f"== {name}")
+        rec = record["schemes"]["energy_consistent" if consistent else "legacy"] = {
+            "energy_excess_J": {}, "free_flight_energy_ratio": {}, "landing_depth_mm": {}}
         for gravity, torques in ((9.81, False), (0.0, False), (9.81, True)):
             sim = ContactSimulator(robot, gravity=gravity, motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS,
                                    energy_consistent=consistent)
@@ -48,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
                     for _ in range(args.states):
                         u = rng.uniform(-33.0, 33.0, 4) if torques else None
                         worst = max(worst, energy_excess(sim, random_state(robot, rng, combo, 1.0), args.steps, u))
+            rec["energy_excess_J"][f"g={gravity:g}, {'random torques' if torques else 'zero torque'}"] = worst
             print(f"  max per-step dE - tau.dq, g = {gravity:g}, {'random torques' if torques else 'zero torque'}, "
                   f"{4 * args.states} states x {args.steps} steps: {worst:+.3e} J")
         ratios = []
@@ -62,8 +70,10 @@ def main(argv: list[str] | None = None) -> int:
             with np.errstate(all="ignore"):
                 sim.run(np.zeros(4), 500)
                 ratios.append(f"{rate:g} rad/s: {sim.energy() / e0:.4g}")
+                rec["free_flight_energy_ratio"][f"{rate:g}"] = sim.energy() / e0
         print("  spinning front hip, free flight, g = 0, E(0.5 s)/E(0): " + ", ".join(ratios))
         drift, _ = stick_drift(robot, consistent)
+        rec["stick_drift_m"] = drift
         print(f"  sticking foot, largest motion in one step (200 ms rocking double stance): {drift:.3e} m")
         depths = []
         for speed in (1.0, 5.0, 10.0):
@@ -80,7 +90,13 @@ def main(argv: list[str] | None = None) -> int:
                     sim.run(np.zeros(4), 1)
                     deepest = min(deepest, float(sim.foot_heights().min()))
             depths.append(f"{speed:g} m/s: {1e3 * max(0.0, -deepest):.3f} mm")
+            rec["landing_depth_mm"][f"{speed:g}"] = 1e3 * max(0.0, -deepest)
         print("  deepest foot after a landing (zero torque, pitch 0 and 0.2): " + ", ".join(depths))
+    if args.record:
+        write_record(args.record, record, "Physical checks of Bounding-v0's contact scheme (energy per step, "
+                     "free-flight energy, sticking, landing depth), the energy-consistent and the legacy scheme",
+                     machine=machine)
+        print(f"wrote {args.record}")
     return 0
 
 

@@ -87,9 +87,10 @@ LEARNERS = ("bc", "bc_few", "bc_gains_few", "bc_gains_few_small", "bc_perturbed"
             "dagger_speed_est")
 QUEUE_SLOTS = 2
 """Latency-queue slots of the ``*_queue`` learners (``BCConfig.action_queue``): the suite's longest delay."""
-REFERENCE = ("docs/robustness/issue14_stop31/robustness.json", "docs/robustness/issue14_stop32/heuristic_est.json")
-"""The MPC's and the heuristic's evaluation records (stop 31's MPC, the current default; stop 32's run of the heuristic,
-bare and behind the estimator): the first file holding a policy gives its row."""
+REFERENCE = ("results/robustness/suite.json",)
+"""The MPC's and the heuristic's evaluation record in the results store (the MPC with its default options; the heuristic
+bare and behind the estimator), or robustness.json files of ``experiments/robustness.py``: the first file holding a
+policy gives its row."""
 REFERENCE_POLICIES = ("mpc", "heuristic", "heuristic+est")
 """The reference rows of the table (from ``--reference``), where the reference files hold them."""
 FALL_MARGIN = 1
@@ -396,6 +397,7 @@ def main(argv: list[str] | None = None) -> int:
             if not Path(f).is_file():
                 p.error(f"--reference: no such file {f!r} (or 'none')")
             ref = json.loads(Path(f).read_text())
+            ref = ref.get("data", ref)  # a record of the results store holds robustness.json's fields in "data"
             if args.max_steps is None and ref.get("max_steps") is None and ref.get("seeds") != list(
                     range(args.first_seed, args.first_seed + args.seeds)):
                 print(f"note: --reference {f} was measured on other seeds", file=sys.stderr)

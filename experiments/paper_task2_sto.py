@@ -24,46 +24,12 @@ import numpy as np
 
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.tasks import fig8_study, run_sto, sto_problem
+from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import write_json
-from hsddp_gym.viz.plotting import _plt, _save
+from hsddp_gym.viz.plotting import plot_step_size, plot_sto_durations
 
 PAPER = {"initial_total_time": 0.296, "hsddp": {"total_time": 0.2335, "reduction": 0.211},
          "open-loop": {"reduction": 0.063}}
-
-
-def fig7(summary: dict, path) -> None:
-    plt = _plt()
-    labels = ["BS", "FL1", "FS", "FL2"]
-    init = 1e3 * np.array(summary["hsddp"]["initial_durations"])
-    bars = {"initial": init, "HS-DDP": 1e3 * np.array(summary["hsddp"]["mode_durations"]),
-            "open loop [24]": 1e3 * np.array(summary["open-loop"]["mode_durations"])}
-    fig, ax = plt.subplots(figsize=(7, 4))
-    width = 0.27
-    for j, (name, vals) in enumerate(bars.items()):
-        ax.bar(np.arange(4) + (j - 1) * width, vals, width, label=name)
-    ax.set_xticks(np.arange(4), labels)
-    ax.set_ylabel("mode duration [ms]")
-    ax.set_title(f"total: initial {init.sum():.1f} ms, HS-DDP {bars['HS-DDP'].sum():.1f} ms, "
-                 f"open loop {bars['open loop [24]'].sum():.1f} ms", fontsize=9)
-    ax.legend()
-    _save(fig, path)
-
-
-def fig8(study: dict, path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    s = np.array(study["steps"])
-    colors = {"durations": ("r", r"$\epsilon=0,\ \epsilon_z=s$"), "control": ("m", r"$\epsilon=s,\ \epsilon_z=0$"),
-              "both": ("b", r"$\epsilon=\epsilon_z=s$")}
-    for case, (c, label) in colors.items():
-        ax.plot(s, study[case]["actual"], "-", color=c, label=f"{label} actual")
-        ax.plot(s, study[case]["predicted"], "--", color=c, label=f"{label} predicted")
-    ax.axhline(0.0, color="grey", lw=0.8)
-    ax.set_yscale("symlog", linthresh=1.0)  # the duration step's actual change grows by orders of magnitude
-    ax.set_xlabel("step size s")
-    ax.set_ylabel("change of the objective (symlog)")
-    ax.legend(fontsize=8)
-    _save(fig, path)
 
 
 def _variant_kwargs(args) -> dict:
@@ -101,6 +67,7 @@ def run_variants(args) -> int:
                   "max_touchdown_error": 1e-3} for z in ("paper", "code")]
     variants += [{"z_velocity": z, "grf_tracking": True, "terminal_half": True, "periodic": True,
                   "max_touchdown_error": None} for z in ("paper", "code")]
+    machine = machine_info()
     jobs = [(m, v, args.iterations, args.second_order) for v in variants for m in ("hsddp", "open-loop")]
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(_run, jobs, chunksize=1)
@@ -124,6 +91,11 @@ def run_variants(args) -> int:
               f"{' / '.join(f'{1e3 * d:.1f}' for d in hs['mode_durations'])} | {hs['iterations']} ({hs['stopped']}) "
               f"| {1e3 * hs['max_touchdown_error']:.2f} / {1e3 * ol['max_touchdown_error']:.2f} |", flush=True)
     print(f"wrote {out / 'variants.json'}")
+    if args.record:
+        write_record(args.record, {"rows": rows, "paper": PAPER, "iterations": args.iterations},
+                     "Paper task 2: one-cycle STO, HS-DDP and the open-loop method on every cost and reference variant",
+                     machine=machine)
+        print(f"wrote {args.record}")
     return 0
 
 
@@ -143,6 +115,9 @@ def main(argv=None) -> int:
     parser.add_argument("--periodic", action="store_true", help="the periodic task (see hsddp-gym sto --help)")
     parser.add_argument("--variants", action="store_true", help="run every variant (see the usage above)")
     parser.add_argument("--workers", type=int, default=2, help="--variants: worker processes (default: %(default)s)")
+    parser.add_argument("--record", default=None, metavar="FILE.json",
+                        help="also write the results as a record of the results store (e.g. results/paper/sto.json, "
+                             "with --variants results/paper/sto_variants.json)")
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)
     if args.iterations < 0:
@@ -154,6 +129,7 @@ def main(argv=None) -> int:
     if args.variants:
         return run_variants(args)
     out = Path(args.out)
+    machine = machine_info()
     variant = _variant_kwargs(args)
     summary = {"variant": variant}
     for method in ("hsddp", "open-loop"):
@@ -176,8 +152,11 @@ def main(argv=None) -> int:
     summary["fig8"] = study
     write_json(out / "summary.json", summary)
     if not variant["periodic"]:
-        fig7(summary, out / "fig7_durations.png")
-    fig8(study, out / "fig8_step_size.png")
+        plot_sto_durations(summary, out / "fig7_durations.png")
+    plot_step_size(study, out / "fig8_step_size.png")
+    if args.record:
+        write_record(args.record, summary, "Paper task 2: one-cycle STO with HS-DDP and the open-loop method, with the "
+                     "data of Figs. 7 and 8", machine=machine)
     ratio_text = "n/a (the open-loop method lengthened the cycle)" if ratio is None else f"{ratio:.2f}"
     print(f"HS-DDP / open-loop reduction ratio: {ratio_text} (paper: {0.211 / 0.063:.2f}); wrote {out}")
     return 0

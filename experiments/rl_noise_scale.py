@@ -2,7 +2,7 @@
 0, 1, ..., default env, 1000-step limit) with the policy's own draws, their noise's standard deviation scaled by
 each ``--scales`` value: 0 is the mean action (the protocol's deterministic policy), 1 the draws it was trained
 with (gSDE: noise weights held for ``sde_sample_freq`` steps). A policy whose return and falls change with the
-scale acts differently without the noise it was trained with (stop 37: PPO's white Gaussian noise).
+scale acts differently without the noise it was trained with (e.g. PPO with SB3's white Gaussian noise).
 
 Writes ``noise_scale.md`` and ``noise_scale.json`` (every episode's return, falls, speed; the command) into
 ``--out`` atomically and prints the table.

@@ -18,8 +18,9 @@ time limit (5 s) or a fall. Policies:
   noise, the model's prediction over an action delay), labelled ``LABEL+est``.
 
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
-develop or tune anything, with one exception: stop 30's scuff rule of the MPC's gait clock was found on seed 7012 of
-the ``obs_noise`` condition (docs/robustness/issue14_history.md, "Stop 30"). Development used seeds 500-899.
+develop or tune anything, with one exception: the scuff rule of the MPC's gait clock (a contact counts as a landing
+only after a swing of at least ``min_flight`` of the flight) was found on seed 7012 of the ``obs_noise`` condition.
+Development used seeds 500-899.
 ``--seed-list S [S ...]`` runs exactly those seeds (e.g. an earlier run's ``fall_seeds``, or a subset of pushes
 chosen by their draw).
 
@@ -46,8 +47,10 @@ from pathlib import Path
 
 import numpy as np
 
+from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import atomic_path, write_json
 from hsddp_gym.util.parallel import add_backend_arguments, check_backend, run_parallel
+from hsddp_gym.viz.plotting import plot_robustness
 
 BUILTIN = ("mpc", "mpc-options", "heuristic", "random")
 LEARNED = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
@@ -181,38 +184,6 @@ def markdown(results: dict, conditions) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(results: dict, conditions, path: Path) -> bool:
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return False
-    labels = list(results)
-    x = np.arange(len(conditions))
-    w = 0.8 / len(labels)
-    fig, (a, b) = plt.subplots(2, 1, figsize=(max(8, 0.9 * len(conditions)), 6.5), sharex=True)
-    for i, label in enumerate(labels):
-        falls = [results[label][c]["falls"] / results[label][c]["episodes"] for c in conditions]
-        err = [100 * (results[label][c]["speed_error"] or np.nan) for c in conditions]
-        a.bar(x + i * w - 0.4 + w / 2, falls, w, label=label)
-        b.bar(x + i * w - 0.4 + w / 2, err, w, label=label)
-    a.set_ylabel("fall rate")
-    a.axhline(0.05, color="k", ls="--", lw=0.8)
-    a.legend()
-    b.set_ylabel("speed error [%]")
-    for y in (-10, 10):
-        b.axhline(y, color="k", ls="--", lw=0.8)
-    b.set_xticks(x)
-    b.set_xticklabels(conditions, rotation=35, ha="right")
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
-    plt.close(fig)
-    return True
-
-
 def combine(paths, out: Path) -> dict:
     """One table from several ``robustness.json`` files (e.g. a baseline, the current default, ablations): every
     policy of every file, labelled ``NAME`` or, when two files hold the same name, ``NAME@DIRNAME``; only the
@@ -231,7 +202,7 @@ def combine(paths, out: Path) -> dict:
     table = markdown(results, common)
     with atomic_path(out / "robustness.md") as tmp:
         tmp.write_text(table)
-    plot(results, common, out / "robustness.png")
+    plot_robustness(results, common, out / "robustness.png")
     print(table)
     return results
 
@@ -276,6 +247,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--combine", nargs="+", default=None, metavar="JSON",
                    help="run nothing: merge these robustness.json files into one table in --out")
+    p.add_argument("--record", default=None, metavar="FILE.json",
+                   help="also write the table's cells (no per-episode rows) as a record of the results store, e.g. "
+                        "results/robustness/suite.json")
     args = p.parse_args(argv)
     if args.combine:
         missing = [f for f in args.combine if not Path(f).is_file()]
@@ -345,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error("no policy to run: give --policies or a --learned policy whose files exist")
     seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.first_seed,
                                                                                  args.first_seed + args.seeds))
+    machine = machine_info()
     t0 = time.perf_counter()
     results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet,
                             args.backend, args.address, args.simulator)
@@ -357,8 +332,18 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown(results, args.conditions)
     with atomic_path(out / "robustness.md") as tmp:
         tmp.write_text(table)
-    plot(results, args.conditions, out / "robustness.png")
+    plot_robustness(results, args.conditions, out / "robustness.png")
     print("\n" + table)
+    if args.record:
+        cells = {pol: {c: {k: v for k, v in cell.items() if k != "runs"} for c, cell in by_cond.items()}
+                 for pol, by_cond in results.items()}
+        write_record(args.record, {"seeds": seeds, "max_steps": args.max_steps, "simulator": args.simulator,
+                                   "policies": policies, "conditions": {c: CONDITIONS[c].as_dict()
+                                                                        for c in args.conditions},
+                                   "results": cells},
+                     f"Falls, returns and speeds of {', '.join(results)} under the perturbation conditions "
+                     f"({len(seeds)} seeds each, {args.simulator})", machine=machine)
+        print(f"wrote {args.record}")
     return 0
 
 

@@ -9,8 +9,8 @@ directories (``--bc DIR`` ...; skipped with a note when the files are missing). 
 
 Usage::
 
-    python experiments/two_simulators.py --out runs/two_sims --policies mpc heuristic bc sac --bc runs/issue7/bc \
-        --sac runs/rl1h/sac/seed0 [--episodes 10] [--max-episode-steps N]
+    python experiments/two_simulators.py --out runs/two_sims --policies mpc heuristic bc sac --bc runs/bc \
+        --sac runs/sac [--episodes 10] [--max-episode-steps N]
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import atomic_path, write_json
 
 ENVS = {"planner's model (BoundingKKT-v0)": "hsddp_gym/BoundingKKT-v0",
@@ -78,7 +79,10 @@ def main(argv: list[str] | None = None) -> int:
         p.add_argument(f"--{name}", default=None, help=f"{name} run directory (policy.npz / model.zip + summary.json)")
     p.add_argument("--episodes", type=int, default=10, help="episodes per policy and simulator (default: 10)")
     p.add_argument("--max-episode-steps", type=int, default=None, help="time limit (default: the env's 1000)")
+    p.add_argument("--record", default=None, metavar="FILE.json",
+                   help="also write the results as a record of the results store (results/robustness/simulators.json)")
     args = p.parse_args(argv)
+    machine = machine_info()
     if args.episodes < 1:
         p.error(f"--episodes must be >= 1, got {args.episodes}")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -117,6 +121,15 @@ def main(argv: list[str] | None = None) -> int:
         Path(tmp).write_text(table + "\n")
     write_json(out / "two_simulators.json", {"episodes": args.episodes, "max_episode_steps": args.max_episode_steps,
                                              "envs": ENVS, "results": rows, "notes": notes})
+    if args.record:
+        slim = {name: {label: {k: v for k, v in s.items() if k != "episodes_detail"} for label, s in by_env.items()}
+                for name, by_env in rows.items()}
+        write_record(args.record, {"episodes": args.episodes, "max_episode_steps": args.max_episode_steps,
+                                   "envs": ENVS, "reference": REFERENCE, "mujoco": MUJOCO, "results": slim,
+                                   "notes": notes},
+                     "Each policy in the planner's own model, the exact-LCP env and the MuJoCo twin, seeds 0.. of "
+                     "each", machine=machine)
+        print(f"wrote {args.record}")
     return 0
 
 

@@ -10,7 +10,7 @@ vectorization_mode="vector_entry_point")`` gives the compiled vector env (``hsdd
 dynamics, touchdown reset maps).
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 BOUNDING_ENV_ID = "hsddp_gym/Bounding-v0"
 BOUNDING_MUJOCO_ENV_ID = "hsddp_gym/BoundingMuJoCo-v0"

@@ -168,8 +168,9 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
     the same costs, AL parameters and heuristic warm start as task 1).
 
     Args:
-        min_duration, max_duration: duration bounds [s] (a number or one per phase; None:
-            :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' defaults).
+        min_duration: lower duration bound [s] (a number or one per phase; None:
+            :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' default).
+        max_duration: upper duration bound [s] (the same forms).
         z_velocity: vertical-velocity references at the phase ends, ``"paper"`` (0, the paper's text) or
             ``"code"`` (the authors' code: +1 m/s after a stance, -1 m/s before a touchdown).
         grf_tracking: the authors' ground-force tracking term in the running cost (the paper has none).

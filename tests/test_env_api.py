@@ -69,7 +69,12 @@ def test_registration_spec_and_time_limit():
     spec = gym.spec(ENV_ID)
     assert spec.entry_point == "hsddp_gym.envs.bounding:BoundingEnv"
     assert spec.max_episode_steps == hsddp_gym.BOUNDING_MAX_EPISODE_STEPS
-    assert hsddp_gym.__version__ == "0.1.0"
+    from pathlib import Path
+
+    import tomllib
+
+    pyproject = tomllib.loads((Path(__file__).resolve().parents[1] / "pyproject.toml").read_text())
+    assert hsddp_gym.__version__ == pyproject["project"]["version"]
     env = gym.make(ENV_ID, max_episode_steps=3, reset_noise_scale=0.0)
     env.reset(seed=0)
     flags = [env.step(np.zeros(4, dtype=np.float32))[3] for _ in range(3)]
@@ -345,8 +350,8 @@ def test_pushes_change_the_trunk_velocity():
 
 
 def test_two_pushes_in_one_control_step_act_at_their_own_simulation_steps():
-    """Pushes are placed from the control step's start time, also the second one in the same step (stop 37: it
-    was placed from the time after the first piece had run, two simulation steps early here): a 5 ms control step
+    """Pushes are placed from the control step's start time, also the second one in the same step (not from the
+    time after the first piece has run, which would be two simulation steps early here): a 5 ms control step
     with pushes at 1.1 ms and 3.2 ms equals five 1 ms steps with the pushes after the 2nd and the 4th."""
     from hsddp_gym.envs.bounding import pop_due_pushes
 

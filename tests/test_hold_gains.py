@@ -165,29 +165,3 @@ def test_held_feedforward_is_the_mean_over_the_held_knots_and_follows_the_plan_c
     err_mean = np.linalg.norm(A[1] @ (B[0] @ F[0]) + B[1] @ F[0] - plan)
     err_first = np.linalg.norm(A[1] @ (B[0] @ u[0]) + B[1] @ u[0] - plan)
     assert err_mean < 0.25 * err_first
-
-
-def test_mpc_acts_with_the_held_control_law_when_asked():
-    import gymnasium as gym
-
-    import hsddp_gym  # noqa: F401
-    from hsddp_gym.planners.optimizer.hold import held_feedforward
-    from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-    env = gym.make("hsddp_gym/Bounding-v0")
-    obs, _ = env.reset(seed=0)
-    held = MPCPolicy(EnvInterface.from_env(env), MPCOptions(hold_gains=True, hold_feedforward=True))
-    plain = MPCPolicy(EnvInterface.from_env(env), MPCOptions())
-    held(obs), plain(obs)
-    sol, tr = held.last_solution, held.tracker
-    assert held._hold == 2  # 5 ms control, 2.5 ms knots
-    np.testing.assert_array_equal(tr.K, held_input_gains(held._solver, held._problem, 2))
-    np.testing.assert_array_equal(tr.U, held_feedforward(sol.U, sol.phase_start, 2))
-    assert not np.allclose(tr.K, sol.K)
-    np.testing.assert_array_equal(plain.tracker.K, plain.last_solution.K)  # off by default: the per-knot law
-    for name in ("hold_gains", "hold_feedforward"):
-        with pytest.raises(TypeError, match=name):
-            MPCOptions(**{name: 1})
-        with pytest.raises(ValueError, match="fine_dt"):
-            MPCOptions(**{name: True, "fine_dt": 0.00125})

@@ -1,4 +1,4 @@
-"""Demonstrations and DAgger rollouts under the perturbation conditions (issue 18): the expert on the true state,
+"""Demonstrations and DAgger rollouts under the perturbation conditions: the expert on the true state,
 the learner's (perturbed) observation stored, the condition and target speed of every episode recorded."""
 
 from __future__ import annotations

@@ -31,6 +31,7 @@ ROOMS = {  # module-name prefix -> room (the longest matching prefix wins)
     "hsddp_gym.learning": "learning",
     "hsddp_gym.workflows": "workflows",
     "hsddp_gym.cli": "cli",
+    "hsddp_gym.reports": "reports",
 }
 _BELOW = {
     "root": set(),
@@ -47,6 +48,7 @@ _BELOW = {
 _BELOW["learning"] = _BELOW["datasets"] | {"datasets"}
 _BELOW["workflows"] = _BELOW["learning"] | {"learning"}
 _BELOW["cli"] = _BELOW["workflows"] | {"workflows"}
+_BELOW["reports"] = _BELOW["learning"] | {"learning"}  # tables and figures from the results store
 ALLOWED = {room: below | {room, "root"} for room, below in _BELOW.items()}
 """Rooms each room may import (``root``, the registering ``hsddp_gym/__init__``, imports nothing and may be
 imported by anyone)."""

@@ -15,16 +15,19 @@ from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCO
 
 
 def test_clock_rules():
-    c = GaitClock((0.02, 0.02, 0.02, 0.02), 0.005, debounce_steps=2, min_flight=0.3, max_wait=0.01)
+    c = GaitClock((0.02, 0.02, 0.02, 0.02), 0.005, debounce_steps=2, min_flight=0.3)
     assert c.update(Mode.BACK_STANCE, 0.0) == Mode.BACK_STANCE and c.phase == 0
     for _ in range(4):  # stance ends on time
         c.tick()
         c.update(Mode.BACK_STANCE, 0.0)
     assert c.phase == 1 and c.tau == 0.0
-    # late touchdown: the flight waits max_wait past its nominal end, then moves on
+    # late touchdown: the flight waits past its nominal end, and its landing (front) foot's first contact ends it
     for _ in range(6):
         c.tick()
         c.update(Mode.FLIGHT, 0.0)
+    assert c.phase == 1
+    c.tick()
+    c.update(Mode.FRONT_STANCE, 0.0)
     assert c.phase == 2
     # early touchdown of the landing (back) foot ends flight 3 after debounce_steps contact steps
     for _ in range(4):
@@ -75,11 +78,7 @@ def test_lost_stance_rule():
     c.update(Mode.FRONT_STANCE, 0.0)
     _stance_then(c, Mode.FRONT_STANCE, 4, Mode.FLIGHT, 2)
     assert c.phase == 3 and c.tau == 0.0 and not c.resynced
-    # a stance entered on time whose foot has not touched yet is not lost; nor with the rule off
-    c = GaitClock(durs, 0.005, lost_stance_steps=2, max_wait=0.0)
-    c.update(Mode.FLIGHT, -1.0)  # flight 3 (lands the back foot)
-    _stance_then(c, Mode.FLIGHT, 6, Mode.FLIGHT, 3)
-    assert c.phase == 0 and c.tau < durs[0]
+    # with the rule off a stance is never lost
     c = GaitClock(durs, 0.005, lost_stance_steps=0)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, Mode.BACK_STANCE, 1, Mode.FLIGHT, 3)
@@ -87,35 +86,6 @@ def test_lost_stance_rule():
     assert c.copy().lost_stance_steps == 0 and GaitClock(durs, 0.005, lost_stance_steps=3).copy().lost_stance_steps == 3
     with pytest.raises(ValueError, match="lost_stance_steps"):
         GaitClock(durs, 0.005, lost_stance_steps=-1)
-
-
-def test_shift_switch_moves_the_end_of_the_current_phase_and_not_the_next():
-    """``GaitClock.shift_switch`` (the MPC's in-loop switching-time adaptation): the current phase gets ``delta``
-    longer, the next one ``delta`` shorter; a stance ends at its shifted end, the next phase inherits the complement; a
-    lost stance clears both; ``copy`` keeps them."""
-    durs = (0.04, 0.03, 0.04, 0.03)
-    c = GaitClock(durs, 0.005, lost_stance_steps=1)
-    c.update(Mode.BACK_STANCE, 0.0)
-    c.shift_switch(0.01)  # the back stance ends 10 ms late, the flight after it is 10 ms shorter
-    assert (c.shift, c.next_shift) == (pytest.approx(0.01), pytest.approx(-0.01))
-    assert c.copy().shift == c.shift and c.copy().next_shift == c.next_shift
-    _stance_then(c, Mode.BACK_STANCE, 8, Mode.BACK_STANCE, 0)
-    assert c.phase == 0 and c.tau == pytest.approx(0.04)  # the nominal end has passed: still in the stance
-    _stance_then(c, Mode.BACK_STANCE, 2, Mode.BACK_STANCE, 0)
-    assert c.phase == 1 and c.tau == 0.0
-    assert (c.shift, c.next_shift) == (pytest.approx(-0.01), 0.0)  # the flight is the shorter one
-    # a shorter flight: from its shifted end (20 ms) on, one contact step of the landing foot is its touchdown
-    _stance_then(c, Mode.FLIGHT, 4, Mode.FLIGHT, 0)
-    assert c.phase == 1
-    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)
-    assert c.phase == 2 and c.shift == 0.0
-    # a lost stance clears the shifts (the schedule restarts from the flight that lands the foot)
-    c.shift_switch(-0.005)
-    _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FLIGHT, 1)
-    assert c.phase == 1 and c.resynced and (c.shift, c.next_shift) == (0.0, 0.0)
-    for bad in (float("nan"), float("inf"), "0.01", True):
-        with pytest.raises(ValueError, match="delta"):
-            c.shift_switch(bad)
 
 
 @pytest.mark.slow
@@ -194,10 +164,10 @@ def test_double_stance_rule():
 
 def test_double_stance_starts_only_at_a_touchdown():
     """A double stance that ends on its duration with both feet still down is followed by the stance of the foot
-    that landed, which plans the other foot's lift-off: the foot that stayed down is not a new touchdown (before
-    this rule the clock went from one double stance to the next, swapping which stance followed, and pushed
-    development seeds 625, 727, 839 and 863 fell). Nor is a scuff: that foot lifting off for less than ``min_flight``
-    of its flight and touching again. Once it has swung that long and lands, it is a touchdown."""
+    that landed, which plans the other foot's lift-off: the foot that stayed down is not a new touchdown (else
+    the clock would go from one double stance to the next, swapping which stance follows). Nor is a scuff: that foot
+    lifting off for less than ``min_flight`` of its flight and touching again. Once it has swung that long and lands,
+    it is a touchdown."""
     durs = (0.1, 0.03, 0.1, 0.03)
     ds = Mode.DOUBLE_STANCE
     c = GaitClock(durs, 0.005, double_stance=0.02)
@@ -246,11 +216,9 @@ def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
 
 
 def test_a_flight_waits_for_its_landing_foot_however_late():
-    """With ``max_wait`` None (the MPC's default) the clock never moves into a stance whose foot is in the air, and a
-    late flight ends at the landing foot's first contact step (a flickering soft contact); with a number it moves on
-    that long after the flight's nominal end."""
+    """The clock never moves into a stance whose foot is in the air, and a late flight ends at the landing foot's
+    first contact step (a flickering soft contact)."""
     durs = (0.04, 0.03, 0.04, 0.03)
-    assert MPCOptions().max_wait is None and MPCPolicy().clock.max_wait is None
     c = GaitClock(durs, 0.005)
     c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
     assert c.phase == 1
@@ -264,20 +232,26 @@ def test_a_flight_waits_for_its_landing_foot_however_late():
     assert early.phase == 1
     _stance_then(early, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)
     assert early.phase == 2
-    late = GaitClock(durs, 0.005, max_wait=0.01)
-    late.update(Mode.FLIGHT, 1.0)
-    _stance_then(late, Mode.FLIGHT, 8, Mode.FLIGHT, 0)  # 0.04 s >= 0.03 + 0.01
-    assert late.phase == 2
+
+
+def test_saved_clock_settings_round_trip_and_refuse_a_flight_time_limit():
+    """:func:`clock_params` / :func:`clock_from_params` (saved with a learner): the same clock back; a saved
+    ``"max_wait": None`` is accepted, a time limit on a flight is refused (flights wait for their touchdown)."""
+    from hsddp_gym.learning.features import clock_from_params, clock_params
+
+    params = clock_params(MPCPolicy(EnvInterface()).clock)
+    assert "max_wait" not in params
+    rebuilt = clock_from_params(params)
+    assert clock_params(rebuilt) == params
+    assert clock_params(clock_from_params({**params, "max_wait": None})) == params
     with pytest.raises(ValueError, match="max_wait"):
-        GaitClock(durs, 0.005, max_wait=-0.01)
-    with pytest.raises(ValueError, match="max_wait"):
-        MPCOptions(max_wait=-1.0)
+        clock_from_params({**params, "max_wait": 0.03})
 
 
 def test_a_foot_that_bounces_off_at_touchdown_is_a_lost_stance():
     """A stance entered at its foot's touchdown counts as touched: if the foot leaves the ground again early in the
-    stance, the clock goes back to the flight that lands it (before, such a stance was planned on a foot in the
-    air for its whole duration)."""
+    stance, the clock goes back to the flight that lands it (and the MPC does not plan the stance on a foot in the
+    air)."""
     durs = (0.08, 0.072, 0.072, 0.072)
     c = GaitClock(durs, 0.005, lost_stance_steps=2)
     c.update(Mode.FLIGHT, -1.0)  # flight 3 (lands the back foot)

@@ -1,7 +1,7 @@
-"""The MPC's re-plan safeguards and its raised gait (stop 28): the augmented Lagrangian's outer loop is not carried
-across re-plans (``MPCOptions.carry_outer_loop``), a warm-started re-plan that ends far above the previous plan's
-objective is solved again from scratch (``restart_ratio``), and the plans' reference postures stand the trunk 4 cm
-higher than the authors' with the feet where theirs are (``height_offset``,
+"""The MPC's re-plan safeguards and its raised gait: the augmented Lagrangian's multipliers are not updated between
+re-plans (each keeps the ones it was warm-started with), a warm-started re-plan that ends far above the previous plan's
+objective is solved again from scratch (``MPCOptions.restart_ratio``), and the plans' reference postures stand the
+trunk 4 cm higher than the authors' with the feet where theirs are (``height_offset``,
 :func:`hsddp_gym.core.references.end_of_mode_reference`)."""
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ stance) whose touchdown after the push comes late: the re-plans cannot meet it f
 PUSHED_STEPS = 560
 RESTART_SEED = 508
 """A push-condition seed (push at 1.17 s: -0.69 m/s forward, +0.57 m/s up, +4.65 rad/s nose-down) on which the
-default MPC restarts re-plans and bounds on, and falls without the restarts (with the compiled dynamics of stop 34;
-seed 514 did before, when rounding differed)."""
+default MPC restarts re-plans and bounds on, and falls without the restarts (the outcome is sensitive to rounding:
+it depends on the compiled dynamics' arithmetic)."""
 
 
 @pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),
@@ -57,8 +57,6 @@ def test_height_offset_reaches_the_plans_and_the_warm_start_and_is_validated():
     for bad in (1.0, 0.5, -2.0, float("inf")):
         with pytest.raises(ValueError, match="restart_ratio"):
             MPCOptions(restart_ratio=bad)
-    with pytest.raises(TypeError, match="carry_outer_loop"):
-        MPCOptions(carry_outer_loop=1)
     with pytest.raises(TypeError, match="refresh_gains"):
         MPCOptions(refresh_gains="no")
 
@@ -87,15 +85,12 @@ def _pushed_episode(seed=PUSHED_SEED, **options):
     return result, policy, np.array(multipliers), restarts
 
 
-def test_the_outer_loop_is_not_carried_across_replans_so_a_missed_touchdown_does_not_wind_it_up():
-    """Carried across re-plans (the old behaviour), the multiplier update after each one-iteration re-plan winds the
-    multipliers up while a touchdown cannot be met; by default every re-plan keeps the multipliers it was
-    warm-started with (the first plan's, shifted phase by phase, or a restart's)."""
-    _, default, lam, _ = _pushed_episode()
-    _, carried, lam_carried, _ = _pushed_episode(carry_outer_loop=True, restart_ratio=None)
-    assert default.stats["replans"] > 100 and carried.stats["replans"] > 100
+def test_a_missed_touchdown_does_not_wind_up_the_multipliers():
+    """Every re-plan keeps the multipliers it was warm-started with (the first plan's, shifted phase by phase, or a
+    restart's): while the touchdown after the push cannot be met, they stay small."""
+    _, policy, lam, _ = _pushed_episode()
+    assert policy.stats["replans"] > 100
     assert lam.max() < 10.0
-    assert lam_carried.max() > 5 * lam.max()
 
 
 def test_a_warm_start_gone_far_off_is_solved_again_and_the_better_plan_kept():

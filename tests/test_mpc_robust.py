@@ -343,28 +343,6 @@ def test_mpc_tracks_a_fast_target_speed():
     assert speed == pytest.approx(2.0, rel=0.05)
 
 
-def test_contact_events_trigger_a_replan_at_once():
-    env = gym.make(ENV_ID, max_episode_steps=120)
-    policy = MPCPolicy.from_env(env, options=MPCOptions(replan_on_contact=True, replan_period=0.04))
-    obs, _ = env.reset(seed=507)
-    policy.reset()
-    changes = 0
-    for _ in range(120):
-        phase = policy.clock.phase
-        replans = policy.stats["replans"] + policy.stats["planner_failures"]
-        obs, _, terminated, truncated, _ = env.step(policy(obs))
-        assert not terminated
-        if phase is not None and policy.clock.phase != phase:  # a touchdown, a lift-off or a phase's end
-            changes += 1
-            assert policy.stats["replans"] + policy.stats["planner_failures"] == replans + 1
-            assert policy._since_replan == pytest.approx(policy.interface.control_dt)  # the period restarts
-        if truncated:
-            break
-    assert changes >= 4 and policy.stats["event_replans"] == changes
-    with pytest.raises(TypeError, match="replan_on_contact"):
-        MPCOptions(replan_on_contact="yes")
-
-
 def test_note_sent_action_replaces_the_action_the_predictions_use():
     env = make_env("delay_5ms", max_episode_steps=50)
     policy = MPCPolicy.from_env(env)

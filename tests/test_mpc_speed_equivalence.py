@@ -1,8 +1,7 @@
 """A regression pin of the solver and the MPC loop: a closed-loop MPC episode, one with an action delay (latency
 compensation through the contact-model predictor) and a one-shot al-reb solve give the numbers of the reference
-recorded from the code (first from commit 1ab71c2 before the speed work, which left every number bit-identical;
-re-recorded when the MPC's defaults changed to one DDP iteration per re-plan, when its state filter became a
-Kalman filter, and in stop 28: the raised gait, re-plan restarts and no outer loop across re-plans).
+recorded from the code: every optimization of the code's speed must leave these numbers bit-identical, and the
+reference is re-recorded only when the MPC's default behaviour is meant to change.
 
 Compared to round-off (``rtol`` 1e-9): on this machine the numbers are bit-identical; another CPU or BLAS may
 round differently. The reference ``tests/data/mpc_speed_reference.npz`` is written (atomically) by running this

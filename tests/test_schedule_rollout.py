@@ -315,7 +315,7 @@ def test_cli_plan_heuristic_writes_the_summary_and_the_plot(tmp_path, bounding_t
 
 
 def test_summary_cost_uses_the_section_3_5_weights(bounding_traj):
-    """Issue 2: ``cost`` is the paper's eq. 32-33 cost with the weights of §3.5, recomputed here independently."""
+    """``cost`` is the paper's eq. 32-33 cost with the weights of §3.5, recomputed here independently."""
     from hsddp_gym.planners.tasks import plan_bounding
 
     t = bounding_traj

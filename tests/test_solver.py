@@ -2,7 +2,7 @@
 never accepts an increase, callbacks see every record (and the verbose printer prints them), the AL update
 follows eq. 24, warm starts with states, gains and multipliers are used, the stop statuses, solves are
 bit-for-bit deterministic, solutions round-trip through ``.npz`` without pickle, ``hsddp-gym plan`` writes
-the summary keys of issue 3, and options are validated."""
+its summary keys, and options are validated."""
 
 from __future__ import annotations
 
@@ -565,13 +565,13 @@ def test_load_never_unpickles(tmp_path):
 PLAN_SUMMARY_KEYS = {"al_iterations", "ddp_iterations", "switching_violation", "min_normal_grf",
                      "max_friction_violation", "max_abs_torque", "avg_forward_speed", "cost", "solve_time_s",
                      "time_per_ddp_iteration_s"}
-"""The keys issue 3 asks ``hsddp-gym plan`` to add to summary.json."""
+"""The keys ``hsddp-gym plan`` adds to summary.json."""
 
 
 @pytest.mark.parametrize("method", ["heuristic", "ddp", "al", "al-reb"])
 def test_plan_cli_writes_the_summary_keys(method, tmp_path):
-    """One cycle (the five-cycle numbers are the README's): the keys, and for al-reb the constraint bounds of
-    issue 3 on this small horizon."""
+    """One cycle (the five-cycle numbers are in the paper-reproduction results): the keys, and for al-reb the
+    switching, torque, normal-force and friction bounds (to small tolerances) on this small horizon."""
     from hsddp_gym.cli import main
 
     out = tmp_path / method

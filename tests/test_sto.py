@@ -555,7 +555,7 @@ def test_per_phase_bounds_are_checked_against_the_problem():
 # ------------------------------------------------------------------------------------ CLI summary
 STO_SUMMARY_KEYS = {"initial_total_time", "total_time", "reduction", "mode_durations", "iterations", "final_cost",
                     "switching_violation"}
-"""The keys issue 4 asks ``hsddp-gym sto`` to write."""
+"""The keys ``hsddp-gym sto`` writes to summary.json."""
 
 
 @pytest.mark.parametrize("method", ["hsddp", "open-loop"])
@@ -649,7 +649,7 @@ def test_line_search_options_are_validated(field, value):
         STOOptions(**{field: value})
 
 
-# ------------------------------------------------------------------ task-2 variants (issue 16)
+# ------------------------------------------------------------------ task-2 cost and reference variants
 def test_cost_variants_build_the_paper_form():
     """terminal_half=False is the paper's eq. 33 (no 1/2): the same objective as doubled weights; grf_tracking
     False removes the force term; z_velocity='code' puts the authors' +-1 m/s in the phase-end references."""

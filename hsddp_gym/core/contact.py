@@ -356,7 +356,8 @@ def solve_contact_lcp(G, c, mu: float, guess=None, tol_v: float = 1e-9, tol_l: f
         mu: friction coefficient >= 0.
         guess: states (k,) to try first (e.g. the previous step's); any of
             ``SEPARATE, STICK, SLIDE_POS, SLIDE_NEG``.
-        tol_v, tol_l: feasibility tolerances on velocities [m/s] and impulses [N s].
+        tol_v: feasibility tolerance on velocities [m/s].
+        tol_l: feasibility tolerance on impulses [N s].
     Returns:
         ``(lam (2k,), states (k,) ints, exact)``; ``exact`` is False only if round-off made every
         combination infeasible and the least-violating one was returned.

@@ -235,8 +235,9 @@ class HybridDynamics:
                 optimization) give each phase its own step.
 
         Raises:
-            ValueError/TypeError naming the argument for wrong shapes, non-finite states or controls, unknown
-            modes, a too small ``out`` or non-positive steps (checks are O(N) numpy calls, a few us).
+            ValueError: naming the argument, for wrong shapes, non-finite states or controls, unknown modes, a too
+                small ``out`` or non-positive steps (checks are O(N) numpy calls, a few us).
+            TypeError: ``out`` is not a :class:`Linearization`.
         """
         X, U, modes, h = _check_horizon(X, U, modes, out, h)
         n = U.shape[0]
@@ -376,9 +377,13 @@ def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h
     """Discrete Jacobians for a batch of knots from the continuous ones (vectorized over knots).
 
     Args:
-        a_q, a_v: ``(N, 7, 7)``; a_u: ``(N, 7, 4)``; h: step, a scalar or ``(N,)``; integrator: see
-            :data:`INTEGRATORS`.
-        f_x: output ``(N, 14, 14)``; f_u: output ``(N, 14, 4)``.
+        a_q: ``(N, 7, 7)``.
+        a_v: ``(N, 7, 7)``.
+        a_u: ``(N, 7, 4)``.
+        h: step, a scalar or ``(N,)``.
+        integrator: see :data:`INTEGRATORS`.
+        f_x: output ``(N, 14, 14)``.
+        f_u: output ``(N, 14, 4)``.
     """
     eye = np.eye(NV)
     h = np.asarray(h, dtype=np.float64)

@@ -78,8 +78,12 @@ def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, 
     """Accelerations and contact forces of one knot, and optionally their derivatives.
 
     Args:
-        q, v (7,), tau (7,) (generalized forces; the base rows are 0 for the robot), mode: contact mode bits
-        (``FRONT_STANCE = 1``, ``BACK_STANCE = 2``), p (13,): :func:`kernel_params`, derivs: also the derivatives;
+        q: ``(7,)``.
+        v: ``(7,)``.
+        tau: ``(7,)`` generalized forces (the base rows are 0 for the robot).
+        mode: contact mode bits (``FRONT_STANCE = 1``, ``BACK_STANCE = 2``).
+        p: ``(13,)``, :func:`kernel_params`.
+        derivs: also the derivatives.
         ws: a :class:`Scratch`'s arrays (``ws.arrays``).
     Writes:
         ``a (7,)``; ``lam (>= 3 nc,)``: Pinocchio's ``lambda_c`` layout, ``[fx, fy, fz]`` per foot in contact in

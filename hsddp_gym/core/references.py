@@ -48,7 +48,7 @@ MAX_HEIGHT_OFFSET = 0.1
 
 
 def check_height_offset(value, name: str = "height_offset") -> float:
-    """``value`` as a float if it is a real number in [-MAX_HEIGHT_OFFSET, MAX_HEIGHT_OFFSET] [m], else a
+    """``value`` as a float if it is a real number in ``[-MAX_HEIGHT_OFFSET, MAX_HEIGHT_OFFSET]`` [m], else a
     ValueError naming ``name`` (bools, strings and NaN included)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (
             -MAX_HEIGHT_OFFSET <= float(value) <= MAX_HEIGHT_OFFSET):

@@ -119,9 +119,10 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
             :class:`PolicySpec`); called once per episode, in the worker.
         workers: with ``backend="local"``, 1 runs in this process and more use ``spawn``-started worker
             processes (one BLAS/OpenMP thread each); with ``"ray"``, the CPUs of the local Ray instance.
-        backend, address: where the episodes run (:func:`hsddp_gym.util.parallel.run_parallel`: ``"local"``
-            or ``"ray"``, a local Ray instance or the cluster at ``address``). An episode whose worker dies is
-            run again; the data do not depend on the backend or the number of workers.
+        backend: where the episodes run (:func:`hsddp_gym.util.parallel.run_parallel`): ``"local"`` or ``"ray"``.
+            An episode whose worker dies is run again; the data do not depend on the backend or the number of
+            workers.
+        address: with ``"ray"``, the cluster to connect to (None: a local Ray instance).
         action_noise: DART noise on the executed actions (see :func:`record_episode`).
         checkpoint_dir: if given, every finished episode is saved there (:func:`checkpoint_path`, written
             atomically as it arrives) and episodes already saved there are loaded instead of being run again

@@ -45,7 +45,7 @@ class PolicySpec:
         name: one of :data:`POLICIES`.
         options: ``MPCOptions`` fields for ``mpc`` (JSON-serializable values); unused otherwise.
         plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
-        ``expert`` only.
+            ``expert`` only.
     """
 
     name: str

@@ -89,11 +89,12 @@ class MLPPolicy(Policy):
 
     Args:
         weights: ``[(W (out, in), b (out,)), ...]`` float arrays, last layer linear before the tanh.
-        obs_mean, obs_std: standardization of the inputs (obs_dim, plus 7 with ``gait_clock`` features, plus
+        obs_mean: standardization of the inputs, their mean (obs_dim, plus 7 with ``gait_clock`` features, plus
             5 per slot with ``action_queue``, plus 1 with ``speed_input``).
+        obs_std: their standard deviation (the same size).
         config: the :class:`BCConfig` it was trained with.
         clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
-        features; the policy then has memory (the clock), reset by :meth:`reset`.
+            features; the policy then has memory (the clock), reset by :meth:`reset`.
 
     With ``config.action_queue`` slots the policy also remembers the actions it sent: it sees the
     ``interface.action_delay_steps`` of them that the env has not executed yet

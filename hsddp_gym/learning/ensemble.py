@@ -1,7 +1,7 @@
 """A policy ensemble: the mean action of several independently trained learners.
 
-Learners trained on the same recipe with different seeds fall on different episodes (issue 18's imitation runs:
-DAgger's three training seeds fell 4, 3 and 11 times in 260 evaluation episodes, mostly on different seeds).
+Learners trained on the same recipe with different seeds fall on different episodes (DAgger learners of three
+training seeds fall mostly on different evaluation episodes).
 Averaging their actions is the classic variance reduction of bagging; for a policy it also smooths the
 idiosyncratic corrections each network learned off the expert's states. Each member keeps its own memory (its
 gait clock, its latency queue); members trained behind the MPC's perception share one estimator

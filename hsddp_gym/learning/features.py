@@ -33,18 +33,25 @@ has them."""
 
 
 def clock_params(clock) -> dict:
+    """The settings of ``clock`` (a :class:`hsddp_gym.planners.policies.mpc.GaitClock`) as JSON-ready values, saved
+    with a learner that uses its features (:func:`clock_from_params` rebuilds the clock)."""
     params = {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
-              "min_flight": clock.min_flight, "max_wait": clock.max_wait}
+              "min_flight": clock.min_flight}
     params.update({k: getattr(clock, k) for k in _CLOCK_EXTRA if getattr(clock, k, None)})
     return params
 
 
 def clock_from_params(params: dict):
+    """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of :func:`clock_params`' ``params``. A
+    ``"max_wait": None`` entry (in learners saved by hsddp_gym 0.1.0) is accepted and ignored; any other
+    ``max_wait`` is refused (the clock's flights always wait for their touchdown)."""
     from hsddp_gym.planners.policies.mpc import GaitClock
 
+    if params.get("max_wait") is not None:
+        raise ValueError(f"the gait clock's max_wait setting is not supported, got {params['max_wait']!r}")
     extra = {k: params[k] for k in _CLOCK_EXTRA if params.get(k)}
     return GaitClock(tuple(params["durations"]), params["dt"], params["debounce_steps"], params["min_flight"],
-                     params["max_wait"], **extra)
+                     **extra)
 
 
 def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:

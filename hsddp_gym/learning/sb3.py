@@ -140,9 +140,11 @@ def as_sb3_policy(policy, observation_space, action_space):
     """Wrap ``policy`` into an SB3 ``BasePolicy`` (see the module docstring).
 
     Args:
-        policy: a :class:`~hsddp_gym.planners.policies.base.Policy` (memory handled per env through ``episode_start``)
-        or a callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
-        observation_space, action_space: the env's ``gymnasium.spaces.Box`` spaces.
+        policy: a :class:`~hsddp_gym.planners.policies.base.Policy` (memory handled per env through
+            ``episode_start``) or a callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
+        observation_space: the env's observation space (a ``gymnasium.spaces.Box``).
+        action_space: the env's action space (a ``gymnasium.spaces.Box``).
+
     Returns:
         A ``CallableSB3Policy`` (an ``stable_baselines3.common.policies.BasePolicy``) with no parameters; it
         runs on the CPU and cannot be saved (the callable is arbitrary Python).
@@ -275,10 +277,9 @@ SDE_LOG_STD_INIT = -2.0
 """``{"sde": True}`` (PPO): generalized state-dependent exploration (gSDE, Raffin et al., CoRL 2021) as RL-Zoo's
 PPO on the PyBullet locomotion tasks sets it: the exploration noise is a linear function of the policy's last
 hidden features, its weights drawn anew every 4 steps, and ``log_std_init`` -2. With SB3's default white Gaussian
-noise the parallel preset's mean action bounds differently from the draws it was trained with (stop 37: final
-weights 911 with 10/10 falls where the draws score 1471 with none); with gSDE the mean action is sound (1153, 0/10;
-its draws 1015, 1/10). SB3 redraws the weights every 4 steps of its rollouts; :class:`SB3ModelPolicy`'s own draws
-every 4 steps of the episode."""
+noise the parallel preset's mean action bounds differently from the draws it was trained with (its mean action
+fell where its draws did not; docs/results/what-did-not-work.md); with gSDE the mean action is sound. SB3 redraws
+the weights every 4 steps of its rollouts; :class:`SB3ModelPolicy`'s own draws every 4 steps of the episode."""
 
 
 #: The help of the RL options both front-ends offer (``hsddp-gym train`` and ``experiments/train_rl.py``).
@@ -743,8 +744,9 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
 
     Args:
         env: the env to act in (None: ``gym.make`` with the run's env kwargs).
-        deterministic, noise_seed, noise_scale: the mean action, or draws of the policy's distribution (with its
-            noise scaled by ``noise_scale``; :class:`SB3ModelPolicy`).
+        deterministic: the mean action (True) or draws of the policy's distribution (:class:`SB3ModelPolicy`).
+        noise_seed: the seed of those draws.
+        noise_scale: the factor on the draws' noise (1: the policy's own distribution).
         checkpoint: ``"final"`` or ``"best"`` (:data:`CHECKPOINTS`: ``best_model.zip`` and
             ``best_vecnormalize.npz``, the best training-time evaluation).
     """

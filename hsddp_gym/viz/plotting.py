@@ -102,20 +102,30 @@ def plot_states(trajectories: dict, dt: float, path, target_speed: float | None 
     return _save(fig, path)
 
 
+def convergence_series(solution) -> dict:
+    """What :func:`plot_convergence` draws of a :class:`~hsddp_gym.planners.optimizer.solution.Solution`: per
+    logged DDP iteration its index, penalty-free cost, sum g^2, and whether an AL iteration starts there (lists)."""
+    events = np.array([r.event for r in solution.log])
+    return {"ddp_iteration": solution.log_array("ddp_iteration").tolist(),
+            "cost": solution.log_array("cost").tolist(),
+            "switching_violation": solution.log_array("switching_violation").tolist(),
+            "al_start": ((events == "init") | (events == "al_update")).tolist()}
+
+
 def plot_convergence(solutions: dict, path) -> Path:
     """Paper Fig. 4: penalty-free cost and sum g^2 per DDP iteration, markers at the AL iterations'
-    starts (``{label: Solution}``)."""
+    starts (``{label: Solution}``, or ``{label: convergence_series(Solution)}``)."""
     plt = _plt()
+    series = {label: s if isinstance(s, dict) else convergence_series(s) for label, s in solutions.items()}
     fig, axes = plt.subplots(2, 1, figsize=(9, 6.5), sharex=True)
-    for j, (label, sol) in enumerate(solutions.items()):
-        it = sol.log_array("ddp_iteration")
-        cost = sol.log_array("cost")
-        viol = sol.log_array("switching_violation")
-        ev = np.array([r.event for r in sol.log])
+    for j, (label, ser) in enumerate(series.items()):
+        it = np.asarray(ser["ddp_iteration"], dtype=float)
+        cost = np.asarray(ser["cost"], dtype=float)
+        viol = np.asarray(ser["switching_violation"], dtype=float)
+        starts = np.asarray(ser["al_start"], dtype=bool)
         color = f"C{j}"
         axes[0].plot(it, cost, "-", color=color, label=label)
         axes[1].semilogy(it, np.maximum(viol, 1e-12), "-", color=color, label=label)
-        starts = (ev == "init") | (ev == "al_update")
         axes[0].plot(it[starts], cost[starts], "s", color=color, ms=6, mfc="none")
         axes[1].semilogy(it[starts], np.maximum(viol[starts], 1e-12), "o", color=color, ms=6, mfc="none")
     axes[1].axhline(1e-4, color="k", ls="--", lw=1, label=r"$\epsilon_{AL}$ = 1e-4")
@@ -125,10 +135,10 @@ def plot_convergence(solutions: dict, path) -> Path:
     axes[1].set_xlabel("DDP iteration (markers: start of an AL iteration)")
     axes[0].legend(fontsize=8)
     axes[1].legend(fontsize=8)
-    _pad_log_limits(axes[0], [sol.log_array("cost") for sol in solutions.values()])
-    _pad_log_limits(axes[1], [np.maximum(sol.log_array("switching_violation"), 1e-12) for sol in solutions.values()]
-                    + [np.array([1e-4])])
-    n_it = max((sol.log_array("ddp_iteration").max() for sol in solutions.values() if sol.log), default=1)
+    _pad_log_limits(axes[0], [np.asarray(ser["cost"], dtype=float) for ser in series.values()])
+    _pad_log_limits(axes[1], [np.maximum(np.asarray(ser["switching_violation"], dtype=float), 1e-12)
+                              for ser in series.values()] + [np.array([1e-4])])
+    n_it = max((max(ser["ddp_iteration"]) for ser in series.values() if ser["ddp_iteration"]), default=1)
     axes[1].set_xlim(-0.04 * n_it - 0.5, 1.04 * n_it + 0.5)  # room for the markers at both ends
     return _save(fig, path)
 
@@ -173,3 +183,75 @@ def plot_forces_torques(dt: float, U: np.ndarray, GRF: np.ndarray, torque_limit:
     if title:
         axes[0].set_title(title, fontsize=10)
     return _save(fig, path)
+
+
+def plot_sto_durations(summary: dict, path) -> Path:
+    """Paper Fig. 7: the mode durations before STO and after HS-DDP and the open-loop method (a task-2 summary)."""
+    plt = _plt()
+    labels = ["BS", "FL1", "FS", "FL2"]
+    init = 1e3 * np.array(summary["hsddp"]["initial_durations"])
+    bars = {"initial": init, "HS-DDP": 1e3 * np.array(summary["hsddp"]["mode_durations"]),
+            "open loop [24]": 1e3 * np.array(summary["open-loop"]["mode_durations"])}
+    fig, ax = plt.subplots(figsize=(7, 4))
+    width = 0.27
+    for j, (name, vals) in enumerate(bars.items()):
+        ax.bar(np.arange(4) + (j - 1) * width, vals, width, label=name)
+    ax.set_xticks(np.arange(4), labels)
+    ax.set_ylabel("mode duration [ms]")
+    ax.set_title(f"total: initial {init.sum():.1f} ms, HS-DDP {bars['HS-DDP'].sum():.1f} ms, "
+                 f"open loop {bars['open loop [24]'].sum():.1f} ms", fontsize=9)
+    ax.legend()
+    return _save(fig, path)
+
+
+def plot_step_size(study: dict, path) -> Path:
+    """Paper Fig. 8: actual and predicted change of the objective against the step size.
+
+    Args:
+        study: the result of :func:`hsddp_gym.planners.tasks.fig8_study`.
+        path: the PNG to write.
+    """
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    s = np.array(study["steps"])
+    colors = {"durations": ("r", r"$\epsilon=0,\ \epsilon_z=s$"), "control": ("m", r"$\epsilon=s,\ \epsilon_z=0$"),
+              "both": ("b", r"$\epsilon=\epsilon_z=s$")}
+    for case, (c, label) in colors.items():
+        ax.plot(s, study[case]["actual"], "-", color=c, label=f"{label} actual")
+        ax.plot(s, study[case]["predicted"], "--", color=c, label=f"{label} predicted")
+    ax.axhline(0.0, color="grey", lw=0.8)
+    ax.set_yscale("symlog", linthresh=1.0)  # the duration step's actual change grows by orders of magnitude
+    ax.set_xlabel("step size s")
+    ax.set_ylabel("change of the objective (symlog)")
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_robustness(results: dict, conditions, path) -> bool:
+    """Fall rate and speed error per condition and policy (``results[policy][condition]``: a cell with
+    ``falls``, ``episodes``, ``speed_error``). False when matplotlib is missing."""
+    try:
+        plt = _plt()
+    except ImportError:  # matplotlib is in the viz extra
+        return False
+    labels = list(results)
+    x = np.arange(len(conditions))
+    w = 0.8 / len(labels)
+    fig, (a, b) = plt.subplots(2, 1, figsize=(max(8, 0.9 * len(conditions)), 6.5), sharex=True)
+    for i, label in enumerate(labels):
+        cells = [results[label].get(c) for c in conditions]
+        falls = [np.nan if c is None else c["falls"] / c["episodes"] for c in cells]
+        err = [np.nan if c is None or c.get("speed_error") is None else 100 * c["speed_error"] for c in cells]
+        a.bar(x + i * w - 0.4 + w / 2, falls, w, label=label)
+        b.bar(x + i * w - 0.4 + w / 2, err, w, label=label)
+    a.set_ylabel("fall rate")
+    a.axhline(0.05, color="k", ls="--", lw=0.8)
+    a.legend()
+    b.set_ylabel("speed error [%]")
+    for y in (-10, 10):
+        b.axhline(y, color="k", ls="--", lw=0.8)
+    b.set_xticks(x)
+    b.set_xticklabels(conditions, rotation=35, ha="right")
+    fig.tight_layout()
+    _save(fig, path)
+    return True

@@ -213,9 +213,11 @@ class HSDDP:
         Args:
             problem: the hybrid OCP.
             U_init: ``(N, 4)`` initial controls (e.g. the heuristic controller's).
-            X_init, K_init: optional ``(N+1, 14)`` states and ``(N, 4, 14)`` gains: the first rollout then
-                uses ``u = U_init + K_init (x - X_init)`` (warm start from a previous solution).
-            multipliers: ``(n,)`` initial AL multipliers (default ``lambda0``). sigma: initial penalty.
+            X_init: optional ``(N+1, 14)`` states; with ``K_init`` the first rollout uses
+                ``u = U_init + K_init (x - X_init)`` (warm start from a previous solution).
+            K_init: optional ``(N, 4, 14)`` gains (together with ``X_init``).
+            multipliers: ``(n,)`` initial AL multipliers (default ``lambda0``).
+            sigma: initial penalty (default ``sigma0``).
             constraint_state: continue from a previous solve's outer-loop state (multipliers, penalty,
                 barrier relaxations and weights: ``HSDDP.last_constraint_state``); overrides the two above.
         Returns:

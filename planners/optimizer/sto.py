@@ -278,8 +278,7 @@ def duration_gradient(solver: HSDDP, problem: HybridProblem) -> np.ndarray:
 
     Vectorized over the horizon (no per-knot Python): about 50 times cheaper than :func:`time_derivatives`, which
     also gives ``V_zz`` and the time-augmented gains. Exact at a converged solve; after a single DDP iteration (the
-    MPC's re-plans) it is the gradient of the quadratic model the iteration stopped at. Used by the MPC's in-loop
-    switching-time adaptation (:class:`hsddp_gym.planners.policies.mpc.MPCOptions`, ``switch_time_weight``).
+    MPC's re-plans) it is the gradient of the quadratic model the iteration stopped at.
     """
     ws = solver._ws
     if ws is None or solver.last_problem is not problem or solver.last_objective is None:

@@ -20,7 +20,7 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    previous plan copy the same mode one cycle earlier;
 4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds); a plan that ends far above the
    previous plan's objective is solved again from scratch (``restart_ratio``), and the augmented Lagrangian's
-   multipliers are not updated between re-plans (``carry_outer_loop``);
+   multipliers and penalty are the warm start's (no outer-loop update between re-plans);
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
@@ -41,7 +41,6 @@ import collections
 import dataclasses
 import functools
 import math
-import numbers
 import time
 
 import numpy as np
@@ -50,12 +49,10 @@ from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.references import check_height_offset
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
-from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
-from hsddp_gym.planners.optimizer.sto import duration_gradient
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
@@ -71,233 +68,196 @@ FAST_BOUNDING_DURATIONS = (0.080, 0.100, 0.080, 0.100)
 
 @dataclasses.dataclass(frozen=True)
 class MPCOptions:
-    """Settings of :class:`MPCPolicy`.
+    """Settings of :class:`MPCPolicy`, grouped by purpose.
 
-    Attributes:
-        horizon: planned time at least [s] (None: one gait cycle of the durations).
-        planner_dt: knot spacing of the planner [s] (coarser than the simulator's 1 ms is allowed).
-        fine_dt: knot spacing [s] of the plan's first ``fine_phases`` phases (the current one and the next; None:
-            ``planner_dt`` everywhere): a multi-rate grid, fine where the plan is acted on and its contact timing
-            matters, coarse beyond. ``planner_dt`` divided by a whole number; every phase's duration stays on the
-            ``planner_dt`` grid, so a phase keeps its duration when it moves onto the fine grid.
-        fine_phases: number of leading phases on the ``fine_dt`` grid (>= 1).
-        replan_on_contact: re-plan at once when the gait clock changes phase (a touchdown, a lift-off, a phase's
-            end), then every ``replan_period`` from there (counted in ``stats["event_replans"]``).
-        replan_period: env time between re-plans [s].
-        hold_gains: act with the feedback gains of a control held over the control period
-            (:func:`~hsddp_gym.planners.optimizer.hold.held_input_gains`, from the re-plan's own backward pass)
-            instead of the planner's per-knot gains, when the control period is a whole number ``m > 1`` of
-            ``planner_dt`` (the defaults: 5 ms and 2.5 ms, ``m = 2``). The per-knot gains are designed for a control
-            that changes every knot; held for ``m`` knots, the stiff ones near a touchdown drive a light leg's
-            joint velocity to flip sign from one control step to the next (after a push: torques at their limits,
-            the stance foot kicked off the ground).
-        hold_feedforward: act with the mean of the plan's controls over the held knots
-            (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`) instead of the first knot's, under the same
-            condition. Both need one knot spacing (``fine_dt`` None).
-        max_iterations: DDP iterations per re-plan (default 1: a real-time iteration scheme -- every re-plan takes one
-            Newton-type step from the previous plan shifted to the new state, and the re-plans every
-            ``replan_period`` converge together as the horizon moves; and it is the cheapest). More were measured
-            and not adopted: stop 21's 10 iterations fitted each plan harder to one noisy state estimate (13 of 100
-            episodes of the hardest conditions fell where 1 fell in 3 and 3 in 4); stop 35's 2 fell less under
-            random pushes (3 against 6 of 400 development seeds, 3 against 9 of 300 MuJoCo episodes) and more under
-            the large pushes of the gait-phase sweep (41 against 30 of 156) and in the MuJoCo evaluation (1 against
-            0 of 260); 3 fell as often as 1 (docs/robustness/issue14_history.md,
-            "Stop 35").
-            warmup_iterations: for a plan from scratch: the episode's first, or one the previous plan cannot warm-start
-            (its phases do not cover the new schedule, e.g. after a lost stance).
-        time_budget: wall-clock limit of one re-plan [s] (None: none).
-        latency_steps: control steps between the start of a re-plan and the moment its plan is used.
-        durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
-            80/72/72/72 ms at every target speed; the speed comes from the stride, see ``speed_integral_gain``).
-        weights: cost weights (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`; None: ``"paper"``).
-            Measured on the development seeds 500-519 at 2 m/s (README, "Robustness"): the authors' 1.5 m/s gait
-            (80/100/80/100 ms, their later weights), which this MPC used above 1.2 m/s before, fell on more seeds than
-            the paper's gait once the plans' speed reference is integral-corrected.
-        min_phase: shortest remaining duration given to the current phase [s].
-        method: HS-DDP constraint handling ("al-reb", "al" or "ddp").
-        sigma_max: cap of the AL penalty carried across re-plans.
-        integrator: the planner's integrator; semi-implicit Euler keeps the light shanks' closed loops
-            stable at a coarse ``planner_dt``.
-        debounce_steps: control steps the landing foot must touch before a flight phase ends.
-        min_flight: fraction of the nominal flight before which a touchdown is taken for a graze.
-        max_wait: how long past its nominal end a flight waits for the touchdown before the gait clock
-            moves on anyway [s]; None (default): until the touchdown, however late -- the plan never puts a foot
-            that is in the air into a stance. From the flight's nominal end on, one contact step of the landing foot
-            is its touchdown (before it, ``debounce_steps``): in the MuJoCo twin a soft landing's contact flag
-            flickers, and a late flight that waited for two consecutive contact steps planned flight dynamics for a
-            foot on the ground (4 of 10 falls; 0 with this rule; 30 ms: 0, 60 ms: 4). Development seeds in this env:
-            None fell in 3-5 of the hardest conditions' 100 episodes, 30 ms in 11 (issue14_history.md, "Stop 22").
-        z_velocity: vertical-velocity references at the phase ends (see
-            :func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): "code" (default; the authors' +-1 m/s,
-            real flights with clearance) or "paper" (0: the swing feet barely leave the ground, and a graze in
-            flight made 2 of 10 seeded MPC episodes fall).
-        reb_delta, reb_eps: relaxed-barrier relaxation and weight used in every re-plan (kept moderate:
-            the one-shot solve's shrinking delta makes warm-started re-plans needlessly stiff).
-        warm_start_kd: joint damping of the heuristic controller that warm-starts the first plan (the
-            heuristic's default 1 N m s/rad is unstable for explicit integration at steps above ~1.5 ms).
-        lost_stance_steps: control steps a stance foot that has touched must be off the ground before the
-            gait clock takes the stance as lost (0: never; see :class:`GaitClock`): after a push that lifts the
-            stance foot early in its stance, the clock goes back to the flight that lands it and the MPC
-            re-plans at once, instead of planning stance dynamics for a foot in the air. Default 1: no re-plan
-            ever pins a foot that the last observation reports in the air. With 2 (the default until stop 24)
-            the one observation in between was planned as a stance: the planner's model holds the airborne foot
-            on the ground, and in the MuJoCo twin, whose soft feet bounce off after a late or hard landing, those
-            plans asked for normal forces from +441 N to -15,735 N at consecutive re-plans, the hip torque
-            chattered between its limits from one control step to the next and the foot was kicked off the
-            ground (seed 541 at 2 m/s with a 10 ms re-plan period). Development seeds 500-599 in that simulator:
-            2 m/s 10 falls of 100 with 2, 1 with 1; observation noise 8 and 2. In Bounding-v0 the same falls on
-            the development seeds and one more push fall on the evaluation seeds (seed 7000: a foot that leaves the
-            ground for one step right after landing is now planned as a 36 ms flight; README, "Evaluation").
-        double_stance: duration [s] of a planned double stance (default 0.04; None: never, the authors' bounding
-            gait has none). When a touchdown finds the other foot still on the ground, the gait clock enters a
-            double stance (:class:`GaitClock`), the MPC re-plans at once, and its plans start with the double stance,
-            then the stance of the foot that landed (:meth:`MPCPolicy._schedule`): both feet on the ground are
-            planned as both feet on the ground, not as a single stance whose other foot the plan holds in the air.
-            Unperturbed bounding rarely enters one (seeds 0-9 of the default env: one, on seed 4); it serves the
-            landings after pushes: on development seeds, random pushes fell 13 of 400 times with it against 14
-            without, the gait-phase push sweep 41 of 156 against 47 (stop 30, ``docs/robustness/issue14_stop30/``).
-        speed_ramp: the largest difference [m/s] between a plan's forward-speed reference and the measured
-            forward speed (:meth:`MPCPolicy.plan_speed`; None: always the target). A reference governor: after a
-            push that changes the speed by more than this, the plan does not demand the whole change within
-            one gait cycle (whose phase-end terminal costs would otherwise ask for torques that saturate and
-            feet swung high to get there). While bounding, the speed stays within 0.5 m/s of the target and the
-            reference is the target.
-        action_delay: control steps between an action's return and its execution (None: the env's, read from
-            ``EnvInterface.action_delay_steps``, e.g. :class:`hsddp_gym.envs.perturbations.ActionDelay`).
-        latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps
-            ahead, predicted with the model (:class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`:
-            contact dynamics, impacts, lift-offs, motor speed limits) from the observed state under the ``d``
-            actions already sent; the gait clock is advanced over the prediction with the predicted contacts.
-            False: act on the observed state as if there were no delay (the ablation).
-        speed_acceleration: the largest rate [m/s^2] at which the plans' forward-speed reference moves from the speed
-            measured at the episode's first observation toward the target (None: no limit; ``speed_ramp`` still
-            applies after it): a start-up that does not ask a 0.9 m/s robot for 2 m/s within one gait cycle.
-        plan_friction: the friction coefficient of the plans' friction cones (default 0.45; None: the model's
-            0.6): a friction margin, the ground forces planned inside a narrower cone than the model's.
-        state_filter: estimate the state from the observations with the model
-            (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`: a Kalman filter; each observation
-            corrects the previous estimate propagated with the executed torques, by the Kalman gain of the noise
-            model below (the steady-state gain a few steps after a start), and an innovation far beyond that noise
-            restarts it from the observation). With
-            exact observations of the nominal robot the estimate is the observation (to round-off). False: use the
-            observation as the state.
-        filter_position_noise, filter_velocity_noise: the sensor noise the filter assumes, standard deviations of an
-            observed position [m, rad] and velocity [m/s, rad/s] (the defaults are the robustness suite's
-            ``obs_noise``).
-        filter_acceleration_noise: standard deviation of the accelerations the model misses [m/s^2, rad/s^2]
-            (larger: the estimate follows the observations more closely).
-        filter_innovation_gate: threshold of the filter's innovation test (normalized innovation squared over 13
-            observed coordinates; 35 is exceeded by chance about once in 1000 observations).
-        speed_integral_gain: integral action on the plans' forward-speed reference [1/s] (None: off): at every
-            re-plan, once a whole gait cycle has been observed, :attr:`MPCPolicy.speed_bias` moves by
-            ``gain * (time since the last re-plan) * (mean reference - mean estimated speed over the last cycle)``
-            and is added to the reference (offset-free tracking: at 1.5 / 2 m/s the closed loop otherwise runs
-            11-13 % slow, whatever the cause: the cost's trade-offs, model error). Cycle means on both sides, so
-            the bounding's within-cycle speed swing and a ramping reference (``speed_acceleration``) do not wind
-            it up.
-        speed_bias_limit: the largest ``|speed_bias|`` [m/s].
-        switch_time_weight: switching-time optimization inside the MPC (None: off, the default): after every re-plan the
-            end of the current phase moves by a gradient step on the plan's objective, the end of the next phase held
-            (:func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`, the first-order information of the paper's
-            Algorithm 2 at the cost of one vectorized pass; the step is ``-(g + w (shift - next_shift)) / 2w`` for the
-            gradient ``g`` and this weight ``w`` [objective units / s^2], which pulls both phases back toward their
-            nominal durations), and the next re-plans plan with the shifted phases (:meth:`GaitClock.shift_switch`; a
-            stance ends at its shifted end, a flight still at its touchdown). After a downward push in a flight it
-            brings the touchdown forward and lengthens the stance (tested). Off by default: on the development seeds it
-            fell more (MuJoCo twin: 27 of 200 episodes against 3; issue14_history.md, "Stop 25"), and a learner's gait
-            clock rebuilt from observations (:func:`~hsddp_gym.learning.features.gait_clock_features`) cannot follow
-            shifts that come from the plans.
-        switch_time_step: the largest move of a phase end per re-plan [s] (a trust region: the gradient of a
-            one-iteration plan is only a local model, and larger moves made successive re-plans oscillate).
-        switch_time_limit: each shifted phase stays within this fraction of its nominal duration (in (0, 1)).
-        height_offset: the plans' reference postures with the trunk this much higher [m] than the authors' (their
-            feet where the authors' postures have them, the joints by inverse kinematics:
-            :func:`~hsddp_gym.core.references.end_of_mode_reference`). The authors' gait bounds with the trunk at
-            0.25-0.28 m, 13 cm above the env's fall height (0.12 m); 4 cm more leaves a push more room and keeps the
-            unpushed return (issue14_history.md, "Stop 28"). 0: the authors' postures.
+    The defaults are the configuration evaluated in the results pages; every field can be given by name
+    (``MPCOptions(replan_period=0.01)``), and the experiment scripts accept any of them as JSON
+    (``--mpc-options '{"planner_dt": 0.005}'``). The groups: **Timing** (the plan's horizon and grid, when re-plans
+    happen and how the gait clock reads contacts), **Solver** (the HS-DDP run of each re-plan), **References** (the
+    gait and the speed the plans aim at), **Perception** (the state estimate the plans start from) and **Recovery**
+    (how the gait clock and the schedule follow a robot that leaves the nominal gait, e.g. after a push).
+
+    Attributes: Timing
+        horizon: the least planned time [s] (None: one gait cycle of ``durations``, 0.296 s for the paper's gait).
+            The schedule continues the bounding cycle until it covers the horizon and ends after a stance. Change
+            this to look further ahead, at the cost of a longer re-plan.
+        planner_dt: the planner's knot spacing [s]; it may be coarser than the simulator's 1 ms step. Change this to
+            trade re-plan time (coarser) against the accuracy of the planned contact timing (finer).
+        fine_dt: knot spacing [s] of the plan's first ``fine_phases`` phases (None: ``planner_dt`` everywhere): a
+            multi-rate grid, fine where the plan is acted on, coarse beyond. Must be ``planner_dt`` divided by a
+            whole number; every phase duration stays on the ``planner_dt`` grid, so a phase keeps its duration when
+            it moves onto the fine grid. Change this to make re-plans cheaper with a coarse ``planner_dt``.
+        fine_phases: number of leading plan phases on the ``fine_dt`` grid (>= 1).
+        replan_period: env time between re-plans [s]. Shorter re-plans react sooner and cost more computation per
+            second of env time.
+        latency_steps: control steps between the start of a re-plan and the moment its plan replaces the previous
+            one (a simulated solver latency; 0: at once). Change this to emulate a deployment where solving takes
+            time.
+        time_budget: wall-clock limit of one re-plan [s] (None: no limit). A re-plan stopped by it keeps its best
+            iterate (counted in ``stats["time_budget_stops"]``). Change this for real-time operation.
+        min_phase: the shortest remaining duration [s] a plan gives the current phase, so that a phase that
+            outlasts its nominal duration still gets a few knots.
+        debounce_steps: control steps the landing foot must be in contact before a flight ends ahead of its
+            nominal end (from the nominal end on, one contact step ends it). Raise it for noisier contact flags.
+        min_flight: a fraction of the nominal flight: a touchdown before it is taken for a graze, and a foot must
+            have been in the air at least that long for its contact to count as a landing (double stance,
+            ``plan_retouch``).
+
+    Attributes: Solver
+        method: HS-DDP constraint handling: ``"al-reb"`` (augmented Lagrangian on the switching constraints and
+            relaxed barriers on torques, normal forces and friction), ``"al"`` (switching constraints only) or
+            ``"ddp"`` (neither).
+        max_iterations: DDP iterations of a warm-started re-plan. One iteration is a real-time iteration scheme:
+            each re-plan takes one Newton-type step from the previous plan shifted to the new state, and the plans
+            converge as the horizon moves. More iterations cost proportionally more time per re-plan.
+        warmup_iterations: DDP iterations of a plan from scratch: the episode's first, one the previous plan cannot
+            warm-start (its phases do not cover the new schedule, e.g. after a lost stance) and a restart
+            (``restart_ratio``).
+        sigma_max: cap of the augmented-Lagrangian penalty a warm-started re-plan starts with. Each re-plan keeps
+            the multipliers and penalty it is warm-started with (the first plan's, shifted phase by phase, or a
+            restart's): one DDP iteration does not solve its inner problem, so no outer-loop update is made
+            between re-plans.
+        reb_delta: the relaxed barriers' relaxation, the same in every re-plan (the one-shot solve's shrinking
+            ``delta`` would make warm-started re-plans needlessly stiff).
+        reb_eps: the relaxed barriers' weight, the same in every re-plan.
+        integrator: the planner's integrator, ``"semi_implicit"`` or ``"euler"``. Semi-implicit Euler keeps the
+            light shanks' closed loops stable at a coarse ``planner_dt``.
+        refresh_gains: the solver's :attr:`SolverOptions.refresh_gains`. True: each plan's feedback gains come from
+            one more linearization and backward pass at the plan's final trajectory. False: the gains of the backward
+            pass that made the plan's last DDP step (``u = U + K (x - X)`` is then exactly that step's forward-pass
+            law), which saves a linearization and a backward pass, about a third of a one-iteration re-plan. Change
+            this when re-plan time matters more than the gains' consistency with the final trajectory.
         restart_ratio: a warm-started re-plan whose objective ends above this many times the previous plan's is
-            solved again from scratch (the start-up warm start, ``warmup_iterations``) and the better of the two
-            plans is kept (None: never). The shifted previous plan is a good start while the robot stays near it;
-            after a push or a late touchdown that stretches the current phase, its feedback rollout can leave the
-            plan's later phases far off (objectives 1e5-1e9 against the usual 1e2-1e3), and one DDP iteration from
-            there gives a plan that drives the robot into the ground. Counted in ``stats["restarts"]`` (and
-            ``stats["restarts_kept"]`` when the fresh plan was the better one).
-        carry_outer_loop: continue the augmented Lagrangian's outer loop across re-plans (the multiplier update
-            ``lambda += sigma g`` and the penalty growth after every re-plan whose switching violation is above
-            the solver's tolerance). Off (default): each re-plan keeps the multipliers and penalty it was warm-started
-            with. The update is a dual step for a solved inner problem; one DDP iteration per re-plan does not solve
-            it, and after a push whose touchdown cannot be met the multipliers wound up from about 1 to 100-600 in
-            0.2 s (seed 514), pulling each plan's feet to the ground at any cost.
-        refresh_gains: the solver's :attr:`SolverOptions.refresh_gains`: True: each plan's feedback gains come
-            from one more linearization and backward pass at the plan's final trajectory; False: the gains of the
-            backward pass that made the plan's last DDP step (``u = U + K (x - X)`` is then exactly that step's
-            forward-pass law; Crocoddyl's MPC practice), which saves a linearization and a backward pass per
-            re-plan (about a third of a one-iteration re-plan). ``hold_gains`` and ``switch_time_weight`` read
-            the solver's last backward pass, which then belongs to the trajectory before the step.
-        flight_reach: a flight is planned to last at least until the hip of the foot that lands at its end is within
-            ``flight_reach`` leg lengths of the ground (default 0.85, 0.343 m of the 0.404 m leg; None: the rest of
-            the flight's nominal duration, at least ``min_phase``), the trunk flying ballistically from the
-            re-plan's state: its velocity, gravity, its pitch rate held (:meth:`MPCPolicy._reach_time`). Why: after
-            an upward push in a flight, the flight outlasts its nominal duration, and past its nominal end the plan
-            put the touchdown ``min_phase`` (10 ms) ahead at every re-plan while the foot was 10 cm or more above
-            the ground, a switching constraint no leg could meet (push seed 709: a 190 ms flight planned as 10 ms
-            from its 85th ms on; the front foot landed at -1.4 m/s with the nose 32 degrees up, and the robot fell).
-            Bounding height keeps the hips within reach, so unperturbed bounding is planned as before.
-        plan_retouch: in a flight whose other foot, the foot of the stance before it, is back on the ground
-            (:attr:`GaitClock.retouched`: its contact began in this flight after a swing of at least ``min_flight``
-            of the flight, and has lasted ``debounce_steps``), the plan's first phase is that foot's stance for the
-            rest of the planned flight, then the stance of the landing foot (default True; False: the flight is
-            planned as a flight). Why: after a nose-down push the front foot comes down again while the clock waits
-            for the back foot; planned as a flight, the front leg that held the trunk up got no planned force, its
-            hip torque alternated between its limits and the nose went down (push seeds 883, 885).
+            solved again from scratch (``warmup_iterations``) and the better of the two plans is kept (None: never;
+            must be > 1). After a push or a late touchdown the shifted previous plan's feedback rollout can leave
+            the later phases far off, and one iteration from there does not recover. Counted in
+            ``stats["restarts"]`` and ``stats["restarts_kept"]``.
+        warm_start_kd: joint damping [N m s/rad] of the heuristic controller whose rollout warm-starts a plan from
+            scratch (the heuristic's default 1 N m s/rad is unstable for explicit integration at steps above about
+            1.5 ms).
+
+    Attributes: References
+        durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
+            80/72/72/72 ms at every target speed). :data:`FAST_BOUNDING_DURATIONS` are the authors' 1.5 m/s gait.
+            The speed comes from the stride (see ``speed_integral_gain``), not from the durations.
+        weights: cost weights, one of ``"paper"`` or ``"later"``
+            (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`; None: ``"paper"``).
+        z_velocity: vertical-velocity references at the phase ends
+            (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): ``"code"`` (the authors' +-1 m/s:
+            real flights with clearance) or ``"paper"`` (0: the swing feet barely leave the ground and graze it).
+        height_offset: the plans' reference postures with the trunk this much higher [m] than the authors', the
+            feet where the authors' postures have them and the joints by inverse kinematics
+            (:func:`~hsddp_gym.core.references.end_of_mode_reference`; in [-0.1, 0.1]; 0: the authors' postures).
+            A higher trunk leaves more room above the env's fall height (0.12 m) for a push.
+        plan_friction: friction coefficient of the plans' friction cones (None: the model's 0.6). Below the
+            model's, it is a friction margin: the ground forces are planned inside a narrower cone. Change this
+            when the ground's friction differs (``gym.make("hsddp_gym/Bounding-v0", friction=...)``).
+        speed_ramp: the largest difference [m/s] between a plan's forward-speed reference and the measured forward
+            speed (:meth:`MPCPolicy.plan_speed`; None: always the reference speed). A reference governor: after a
+            push that changes the speed by more than this, a plan does not demand the whole change within one gait
+            cycle (the phase-end costs would ask for saturating torques and feet swung high).
+        speed_acceleration: the largest rate [m/s^2] at which the plans' speed reference moves from the speed
+            measured at the episode's first observation toward the target (None: no limit): a start-up that does
+            not ask a robot at rest for the full speed within one gait cycle.
+        speed_integral_gain: integral action on the plans' speed reference [1/s] (None: off). At every re-plan, once
+            a whole gait cycle has been observed, :attr:`MPCPolicy.speed_bias` moves by ``gain * (time since the
+            last re-plan) * (mean reference - mean estimated speed over the last cycle)`` and is added to the
+            reference: offset-free speed tracking, which the cost's trade-offs and model error otherwise prevent at
+            high speed. Cycle means on both sides, so the within-cycle speed swing and a ramping reference
+            (``speed_acceleration``) do not wind it up.
+        speed_bias_limit: the largest ``|speed_bias|`` [m/s].
+
+    Attributes: Perception
+        state_filter: estimate the state from the observations with the model
+            (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`, a Kalman filter: each observation
+            corrects the previous estimate propagated with the executed torques; an innovation far beyond the noise
+            model restarts it from the observation). With exact observations of the nominal robot the estimate is
+            the observation to round-off. False: the observation is the state.
+        filter_position_noise: the observed positions' noise the filter assumes, a standard deviation [m, rad]
+            (the default is the robustness suite's ``obs_noise``). Change the ``filter_*`` fields to the sensor
+            noise of the env the MPC runs in.
+        filter_velocity_noise: the observed velocities' noise the filter assumes, a standard deviation
+            [m/s, rad/s].
+        filter_acceleration_noise: standard deviation of the accelerations the model misses [m/s^2, rad/s^2];
+            larger: the estimate follows the observations more closely.
+        filter_innovation_gate: threshold of the filter's innovation test (the normalized innovation squared over
+            the 13 observed coordinates; 35 is exceeded by chance about once in 1000 observations).
+        action_delay: control steps between an action's return and its execution (None: the env's,
+            ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
+        latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
+            predicted with the model
+            (:class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`: contact dynamics, impacts,
+            lift-offs, motor speed limits) from the estimated state under the ``d`` actions already sent; the gait
+            clock is advanced over the prediction with the predicted contacts. False: act on the estimated state as
+            if there were no delay.
+
+    Attributes: Recovery
+        lost_stance_steps: control steps a stance foot that has touched must be off the ground before the gait
+            clock takes the stance as lost (0: never; see :class:`GaitClock`). Early in the stance the clock goes
+            back to the flight that lands the foot and the MPC re-plans at once. With 1 no plan ever holds a foot
+            that the last observation reports in the air on the ground.
+        double_stance: duration [s] of a planned double stance (None: never; the authors' bounding gait has none).
+            When a touchdown finds the other foot still on the ground, the gait clock enters a double stance, the
+            MPC re-plans at once and its plans start with the double stance, then the stance of the foot that
+            landed (:meth:`MPCPolicy._schedule`). Unperturbed bounding rarely enters one; it serves landings after
+            pushes.
+        flight_reach: a flight is planned to last at least until the hip of the foot that lands at its end is
+            within ``flight_reach`` leg lengths of the ground (in (0, 1]; 0.85 is 0.343 m of the 0.404 m leg; None:
+            the rest of the flight's nominal duration, at least ``min_phase``), the trunk flying ballistically from
+            the re-plan's state (:meth:`MPCPolicy._reach_time`). After an upward push the flight outlasts its
+            nominal duration; without this rule each plan would put the touchdown ``min_phase`` ahead while the
+            foot is still far above the ground. At bounding height the hips are within reach, so unperturbed
+            bounding is planned the same.
+        plan_retouch: in a flight whose other foot (the foot of the stance before it) is back on the ground
+            (:attr:`GaitClock.retouched`), plan that foot's stance for the rest of the flight, then the landing
+            foot's stance (False: plan the flight). After a nose-down push the front foot can come down again while
+            the clock waits for the back foot; planned as a flight, the leg that holds the trunk up would get no
+            planned force.
     """
 
+    # Timing
     horizon: float | None = None
     planner_dt: float = 0.0025
     fine_dt: float | None = None
     fine_phases: int = 2
     replan_period: float = 0.02
-    hold_gains: bool = False
-    hold_feedforward: bool = False
-    max_iterations: int = 1
-    warmup_iterations: int = 30
-    time_budget: float | None = None
     latency_steps: int = 0
-    durations: tuple | None = None
+    time_budget: float | None = None
     min_phase: float = 0.01
-    method: str = "al-reb"
-    sigma_max: float = 500.0
-    integrator: str = "semi_implicit"
-    warm_start_kd: float = 0.1
     debounce_steps: int = 2
     min_flight: float = 0.3
-    max_wait: float | None = None
+    # Solver
+    method: str = "al-reb"
+    max_iterations: int = 1
+    warmup_iterations: int = 30
+    sigma_max: float = 500.0
     reb_delta: float = 0.2
     reb_eps: float = 1e-4
-    z_velocity: str = "code"
-    lost_stance_steps: int = 1
-    double_stance: float | None = 0.04
-    speed_ramp: float | None = 0.5
+    integrator: str = "semi_implicit"
+    refresh_gains: bool = True
+    restart_ratio: float | None = 10.0
+    warm_start_kd: float = 0.1
+    # References
+    durations: tuple | None = None
     weights: str | None = None
-    action_delay: int | None = None
-    latency_compensation: bool = True
-    state_filter: bool = True
-    speed_acceleration: float | None = 1.0
+    z_velocity: str = "code"
+    height_offset: float = 0.04
     plan_friction: float | None = 0.45
+    speed_ramp: float | None = 0.5
+    speed_acceleration: float | None = 1.0
+    speed_integral_gain: float | None = 1.5
+    speed_bias_limit: float = 0.5
+    # Perception
+    state_filter: bool = True
     filter_position_noise: float = 0.01
     filter_velocity_noise: float = 0.1
     filter_acceleration_noise: float = 3.0
     filter_innovation_gate: float = 35.0
-    speed_integral_gain: float | None = 1.5
-    replan_on_contact: bool = False
-    speed_bias_limit: float = 0.5
-    switch_time_weight: float | None = None
-    switch_time_limit: float = 0.5
-    switch_time_step: float = 0.005
-    height_offset: float = 0.04
-    restart_ratio: float | None = 10.0
-    carry_outer_loop: bool = False
-    refresh_gains: bool = True
+    action_delay: int | None = None
+    latency_compensation: bool = True
+    # Recovery
+    lost_stance_steps: int = 1
+    double_stance: float | None = 0.04
     flight_reach: float | None = 0.85
     plan_retouch: bool = True
 
@@ -325,8 +285,6 @@ class MPCOptions:
         if self.flight_reach is not None:
             if check_in_range(self.flight_reach, 0.0, 1.0, "flight_reach") == 0.0:
                 raise ValueError("flight_reach must be in (0, 1] (a fraction of the leg length) or None, got 0.0")
-        if self.max_wait is not None:
-            check_positive(self.max_wait, "max_wait", allow_zero=True)
         if not (0.0 <= self.min_flight <= 1.0):
             raise ValueError(f"min_flight must be in [0, 1], got {self.min_flight!r}")
         check_positive(self.reb_delta, "reb_delta")
@@ -351,27 +309,16 @@ class MPCOptions:
         if self.speed_integral_gain is not None:
             check_positive(self.speed_integral_gain, "speed_integral_gain")
         check_positive(self.speed_bias_limit, "speed_bias_limit", allow_zero=True)
-        if self.switch_time_weight is not None:
-            check_positive(self.switch_time_weight, "switch_time_weight")
-        check_positive(self.switch_time_step, "switch_time_step")
-        if not (0.0 < check_positive(self.switch_time_limit, "switch_time_limit") < 1.0):
-            raise ValueError(f"switch_time_limit must be in (0, 1), got {self.switch_time_limit!r}")
-        for name in ("latency_compensation", "state_filter", "replan_on_contact", "hold_gains", "hold_feedforward"):
+        for name in ("latency_compensation", "state_filter"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise TypeError(f"{name} must be a bool, got {getattr(self, name)!r}")
-        if (self.hold_gains or self.hold_feedforward) and self.fine_dt is not None:
-            raise ValueError("hold_gains and hold_feedforward need one knot spacing (planner_dt): fine_dt must be "
-                             f"None, got {self.fine_dt!r}")
         check_height_offset(self.height_offset)
         if self.restart_ratio is not None and not (check_positive(self.restart_ratio, "restart_ratio") > 1.0):
             raise ValueError(f"restart_ratio must be None or > 1, got {self.restart_ratio!r}")
-        if not isinstance(self.carry_outer_loop, (bool, np.bool_)):
-            raise TypeError(f"carry_outer_loop must be a bool, got {self.carry_outer_loop!r}")
         if not isinstance(self.refresh_gains, (bool, np.bool_)):
             raise TypeError(f"refresh_gains must be a bool, got {self.refresh_gains!r}")
         if self.method not in ("ddp", "al", "al-reb"):
             raise ValueError(f"method must be 'ddp', 'al' or 'al-reb', got {self.method!r}")
-
 
 class GaitClock:
     """The MPC's gait clock: the bounding phase ``phase`` (index into (back stance, flight, front stance,
@@ -379,9 +326,8 @@ class GaitClock:
 
     The plan's phase follows the contacts: a stance ends on time, a flight ends when its landing foot has touched
     for ``debounce_steps`` control steps (early, once ``min_flight`` of it has passed), or, from its nominal end on,
-    at the landing foot's first contact step, however late (with ``max_wait`` None the clock never assumes a
-    touchdown that has not happened, otherwise it moves on ``max_wait`` after the flight's nominal end); grazes of
-    the other foot are ignored. A stance is *lost* when its
+    at the landing foot's first contact step, however late (the clock never assumes a touchdown that has not
+    happened); grazes of the other foot are ignored. A stance is *lost* when its
     foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
     half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
     foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
@@ -404,20 +350,21 @@ class GaitClock:
     Args:
         durations: nominal (back stance, flight, front stance, flight) durations [s].
         dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
-        debounce_steps, min_flight, max_wait, lost_stance_steps: the rules above (see :class:`MPCOptions`).
+        debounce_steps: control steps the landing foot must touch before a flight ends (:class:`MPCOptions`).
+        min_flight: fraction of the nominal flight before which a touchdown is taken for a graze.
+        lost_stance_steps: control steps a stance foot must be off the ground before its stance is lost (0: never).
         double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC's clock has
             ``MPCOptions.double_stance``).
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
-                 max_wait: float | None = None, lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
+                 lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
         if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
             raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
         self.durations = tuple(float(d) for d in durations)
         self.dt = check_positive(dt, "dt")
         self.debounce_steps = check_int(debounce_steps, "debounce_steps", minimum=1)
         self.min_flight = float(min_flight)
-        self.max_wait = None if max_wait is None else check_positive(max_wait, "max_wait", allow_zero=True)
         self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
         self.double_stance = check_positive(double_stance, "double_stance", allow_zero=True)
         """Duration [s] of a double stance entered now (0: the clock never enters one)."""
@@ -439,19 +386,14 @@ class GaitClock:
         """The duration [s] of the current double stance (``double_stance`` when it started)."""
         self.resynced = False
         """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
-        self.shift = 0.0
-        """Time [s] added to the current phase's nominal duration (:meth:`shift_switch`)."""
-        self.next_shift = 0.0
-        """Time [s] added to the next phase's nominal duration; it becomes :attr:`shift` when the phase advances."""
 
     def copy(self) -> GaitClock:
-        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.max_wait,
-                         self.lost_stance_steps, self.double_stance)
+        twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.lost_stance_steps,
+                         self.double_stance)
         twin.after_double, twin.double_duration = self.after_double, self.double_duration
         twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
         twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
             self._stance_touched
-        twin.shift, twin.next_shift = self.shift, self.next_shift
         twin._phase_updates, twin._swing_steps = self._phase_updates, list(self._swing_steps)
         return twin
 
@@ -498,21 +440,19 @@ class GaitClock:
                 self.phase, self.tau, self.after_double = self.after_double, 0.0, None
                 self._stance_touched = True
             return self.mode
-        nominal = self.durations[j] + self.shift
+        nominal = self.durations[j]
         if self.double_stance and self._double_starts(j, mode):
             # a swing foot landed while the stance foot is down (a stance, or a flight whose lift-off is late)
             self.after_double = 2 if _CYCLE[j] == Mode.BACK_STANCE or j == 1 else 0
             self.double_duration = self.double_stance
             self.phase, self.tau, self.resynced = DOUBLE_STANCE_PHASE, 0.0, True
-            self.shift = self.next_shift = 0.0
             return self.mode
         touched = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
             # debounced early in the flight (a graze is not a touchdown); from its nominal end on, any contact is
             touched = self._contact_steps[landing] >= (self.debounce_steps if self.tau < nominal - 1e-9 else 1)
-            advance = (touched and self.tau >= self.min_flight * self.durations[j]) or (
-                self.max_wait is not None and self.tau >= nominal + self.max_wait)
+            advance = touched and self.tau >= self.min_flight * self.durations[j]
         else:
             stance_foot = BACK if j == 0 else FRONT
             advance = self.tau >= nominal - 1e-9
@@ -529,11 +469,9 @@ class GaitClock:
                     self.tau = 0.5 * self.durations[self.phase]
                     self._stance_touched = False
                     self.resynced = True
-                    self.shift = self.next_shift = 0.0
         if advance:
             self.phase = (j + 1) % 4
             self.tau = 0.0
-            self.shift, self.next_shift = self.next_shift, 0.0
             # a stance that starts at its foot's touchdown has touched: if the foot bounces off, it is lost
             self._stance_touched = touched
         return _CYCLE[self.phase]
@@ -580,16 +518,6 @@ class GaitClock:
         else:
             foot = FRONT if j == 0 else BACK
         return self._landed(foot)
-
-    def shift_switch(self, delta: float) -> None:
-        """Move the end of the current phase by ``delta`` [s] (negative: earlier), keeping the end of the next phase
-        where it was: the current phase gets ``delta`` longer, the next one ``delta`` shorter (:attr:`shift`,
-        :attr:`next_shift`). A stance then ends at its shifted end; a flight still ends at its landing foot's
-        touchdown, from the shifted end on at the first contact step."""
-        if isinstance(delta, bool) or not isinstance(delta, numbers.Real) or not math.isfinite(delta):
-            raise ValueError(f"delta must be a finite number [s], got {delta!r}")
-        self.shift += float(delta)
-        self.next_shift -= float(delta)
 
     def tick(self) -> None:
         """One control period has passed."""
@@ -659,8 +587,8 @@ class MPCPolicy(Policy):
     Attributes:
         stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list),
             ``time_budget_stops`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
-            MPC does, and counted here rather than as failures), ``event_replans`` (re-plans brought forward by a
-            gait-clock phase change, ``replan_on_contact``).
+            MPC does, and counted here rather than as failures), ``restarts`` and ``restarts_kept``
+            (``MPCOptions.restart_ratio``).
         last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
     """
 
@@ -682,8 +610,6 @@ class MPCPolicy(Policy):
         """Control steps between an action's return and its execution (the latency compensated for)."""
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
-        ratio = interface.control_dt / options.planner_dt
-        self._hold = int(round(ratio)) if abs(ratio - round(ratio)) < 1e-9 and ratio >= 1 else 1
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
@@ -718,14 +644,14 @@ class MPCPolicy(Policy):
         self._solver = HSDDP(SolverOptions(method=self.options.method))
         self._restart_solver = HSDDP(SolverOptions(method=self.options.method))
         """Solves the restarts (``restart_ratio``); swapped with :attr:`_solver` when its plan is kept, so that
-        :attr:`_solver` always holds the kept plan's backward pass (``hold_gains``, ``switch_time_weight``)."""
+        :attr:`_solver` always holds the kept plan's backward pass and outer-loop state."""
         self.tracker: PlanTracker | None = None
         self._pending: tuple | None = None
         self.last_solution = None
         self._problem = None
         self._cs: ConstraintState | None = None
         o = self.options
-        self.clock = GaitClock(self.durations, self.interface.control_dt, o.debounce_steps, o.min_flight, o.max_wait,
+        self.clock = GaitClock(self.durations, self.interface.control_dt, o.debounce_steps, o.min_flight,
                                o.lost_stance_steps, o.double_stance or 0.0)
         self._plan_clock = self.clock
         # the last action_delay + 1 actions returned (oldest first): the oldest was executed over the last control
@@ -741,8 +667,7 @@ class MPCPolicy(Policy):
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
-                      "iterations": [], "time_budget_stops": 0, "event_replans": 0, "switch_shifts": [],
-                      "switch_skipped": 0}
+                      "iterations": [], "time_budget_stops": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -779,8 +704,7 @@ class MPCPolicy(Policy):
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
             durs = [max(self._plan_clock.double_duration - self._tau, o.min_phase), self.durations[j]]
         else:
-            # the current phase's end and the next phase moved by the in-loop switching-time adaptation, if any
-            modes, durs = [_CYCLE[j]], [max(self.durations[j] + self._plan_clock.shift - self._tau, o.min_phase)]
+            modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
             if _CYCLE[j] == Mode.FLIGHT and o.flight_reach is not None and x is not None:
                 # a flight lasts at least until the landing foot can reach the ground
                 durs[0] = max(durs[0], self._reach_time(x, _CYCLE[(j + 1) % 4]))
@@ -790,7 +714,7 @@ class MPCPolicy(Policy):
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
-            durs.append(self.durations[j] + (self._plan_clock.next_shift if len(durs) == 1 else 0.0))
+            durs.append(self.durations[j])
         # every duration on the coarse grid, so that a phase keeps its duration when it moves onto the fine grid of
         # the first phases at a later re-plan (fine_dt divides planner_dt)
         h = o.planner_dt
@@ -973,21 +897,12 @@ class MPCPolicy(Policy):
             self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
             return False
         cs = self._solver.last_constraint_state
-        if (o.carry_outer_loop and cs is not None and o.method != "ddp"
-                and sol.switching_violation > sol.options.al_tolerance):
-            cs.lam = cs.lam + cs.sigma * sol.switching  # continue the outer loop across re-plans (eq. 24)
-            cs.sigma = min(cs.sigma * sol.options.beta, o.sigma_max)
         self._cs = cs
         self.stats["replans"] += 1
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
         self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
         self.stats["iterations"].append(sol.ddp_iterations)
-        self._adapt_switch_time(problem)
         new_tracker = PlanTracker.from_solution(sol, problem)
-        if o.hold_gains and self._hold > 1:
-            new_tracker.K = held_input_gains(self._solver, problem, self._hold)
-        if o.hold_feedforward and self._hold > 1:
-            new_tracker.U = held_feedforward(sol.U, problem.phase_start, self._hold)
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
 
@@ -1022,39 +937,6 @@ class MPCPolicy(Policy):
             return fresh
         return sol
 
-    def _adapt_switch_time(self, problem: HybridProblem) -> None:
-        """Switching-time optimization inside the loop (``switch_time_weight``): move the end of the current phase
-        by a regularized gradient step on the plan's objective, the next phase's end held (Algorithm 2's first-order
-        information, :func:`~hsddp_gym.planners.optimizer.sto.duration_gradient`); the next re-plan plans with it. A
-        non-finite gradient leaves the durations as they are (counted in ``stats["switch_skipped"]``)."""
-        o = self.options
-        clock = self.clock
-        if (o.switch_time_weight is None or problem.n_phases < 2 or clock.phase == DOUBLE_STANCE_PHASE
-                or self._plan_clock.phase != clock.phase):
-            return
-        V_z = duration_gradient(self._solver, problem)
-        g = float(V_z[0] - V_z[1])  # d objective / d (end of the current phase), the next phase's end held
-        w = o.switch_time_weight
-        # the plan's current phase ends at max(nominal + shift - tau, min_phase) from now: the step moves that end
-        d_cur, d_next = self.durations[clock.phase], self.durations[(clock.phase + 1) % 4]
-        shift = max(clock.shift, o.min_phase + clock.tau - d_cur)  # the shift the plan was made with
-        delta = -(g + w * (shift - clock.next_shift)) / (2.0 * w)
-        step = o.switch_time_step
-        delta = min(max(delta, -step), step)
-        # bounds: each of the two phases within switch_time_limit of its nominal duration, and at least min_phase of
-        # the current one still to come
-        lim = o.switch_time_limit
-        new = min(max(shift + delta, -lim * d_cur, o.min_phase + clock.tau - d_cur), lim * d_cur)
-        new_next = clock.next_shift - (new - shift)
-        if not (-lim * d_next <= new_next <= lim * d_next):
-            new_next = min(max(new_next, -lim * d_next), lim * d_next)
-            new = shift + clock.next_shift - new_next
-        if not math.isfinite(new):
-            self.stats["switch_skipped"] += 1
-        elif new >= o.min_phase + clock.tau - d_cur - 1e-12:
-            self.stats["switch_shifts"].append(new - clock.shift)
-            clock.shift, clock.next_shift = new, new_next
-
     def _activate_pending(self) -> None:
         tracker, sol, problem, lam, _ = self._pending
         if self.tracker is not None and self._pending[4] > 0:
@@ -1065,9 +947,9 @@ class MPCPolicy(Policy):
 
     # ------------------------------------------------------------------ act
     def act(self, obs: np.ndarray) -> np.ndarray:
-        """The plan's feedback law at the cursor, re-planning every ``replan_period`` (at once after a lost stance,
-        a double stance's start or, with ``replan_on_contact``, any phase change of the gait clock); before the
-        first plan exists, the start-up controller (:attr:`_startup_controller`)."""
+        """The plan's feedback law at the cursor, re-planning every ``replan_period`` (at once after a lost stance or
+        a double stance's start); before the first plan exists, the start-up controller
+        (:attr:`_startup_controller`)."""
         x_obs, mode, _ = self._parse(obs)
         o = self.options
         if o.state_filter:
@@ -1079,11 +961,7 @@ class MPCPolicy(Policy):
         self.last_estimate = x_obs
         self._vx_window.append(float(x_obs[NQ]))
         self._ref_window.append(self.reference_speed())
-        phase_before = self.clock.phase
         eff = self._update_clock(mode, x_obs)
-        if self.options.replan_on_contact and phase_before is not None and self.clock.phase != phase_before:
-            self._since_replan = np.inf  # a contact event (or a phase's end): re-plan from the new phase now
-            self.stats["event_replans"] += 1
         x, eff = self._predict_ahead(x_obs, mode, eff)
         self.last_prediction = x.copy()
         if self.tracker is not None:

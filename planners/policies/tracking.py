@@ -30,9 +30,13 @@ class PlanTracker:
     """Cursor-based tracking of one plan.
 
     Args:
-        X, U, K: plan arrays ``(N+1, 14)``, ``(N, 4)``, ``(N, 4, 14)``.
-        phase_start: ``(n+1,)`` first knot of each phase. modes: ``(n,)`` phase modes. phase_dt: ``(n,)``
-            step of each phase [s]. next_mode: mode after the last phase.
+        X: plan states ``(N+1, 14)``.
+        U: plan controls ``(N, 4)``.
+        K: plan gains ``(N, 4, 14)``.
+        phase_start: ``(n+1,)`` first knot of each phase.
+        modes: ``(n,)`` phase modes.
+        phase_dt: ``(n,)`` step of each phase [s].
+        next_mode: mode after the last phase.
     """
 
     def __init__(self, X, U, K, phase_start, modes, phase_dt, next_mode) -> None:

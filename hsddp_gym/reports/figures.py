@@ -1,0 +1,118 @@
+"""Every results figure of the README and the documentation site, drawn from the records of the results store.
+
+Each figure is a function of record data; :data:`FIGURES` maps a published figure (its path under the repository)
+to the record it is drawn from and the function that draws it. The experiment scripts call the same functions on
+the data they record, so a figure from a run and a figure from the store are the same drawing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from hsddp_gym.viz import plotting
+
+FIG5_SNAPSHOTS = 14
+"""Snapshots per motion in Fig. 5 (the record keeps exactly these states)."""
+
+
+def paper_task1(data: dict, out_dir) -> list[Path]:
+    """Paper Figs. 4, 5 and 6 from a task-1 record's data (``experiments/paper_task1.py``).
+
+    Returns:
+        the written paths: ``fig4_convergence.png``, ``fig5_motion.png``, ``fig6_forces_torques.png``.
+    """
+    from hsddp_gym.core.model import CheetahModel
+
+    out_dir = Path(out_dir)
+    fig = data["figures"]
+    fig5 = fig["fig5"]
+    snapshots = {label: np.asarray(v["snapshots"], dtype=float) for label, v in fig5.items()}
+    touchdowns = {label: [tuple(p) for p in v["touchdowns"]] for label, v in fig5.items()}
+    paths = [plotting.plot_convergence(fig["fig4"], out_dir / "fig4_convergence.png")]
+    # The snapshots are the motion's states at FIG5_SNAPSHOTS evenly spaced knots: drawn as a motion of that many
+    # knots, with the knot spacing that keeps the colour bar's time span the motion's duration.
+    paths.append(plotting.plot_motion_strips(CheetahModel(), snapshots, out_dir / "fig5_motion.png",
+                                             n_snapshots=FIG5_SNAPSHOTS, touchdowns=touchdowns,
+                                             dt=fig["duration"] / (FIG5_SNAPSHOTS - 1)))
+    f6 = fig["fig6"]
+    paths.append(plotting.plot_forces_torques(fig["dt"], np.asarray(f6["U"], dtype=float),
+                                              np.asarray(f6["GRF"], dtype=float), f6["torque_limit"],
+                                              f6["friction"], out_dir / "fig6_forces_torques.png",
+                                              stance=np.asarray(f6["stance"], dtype=bool), foot=0,
+                                              title="AL + ReB: front-foot GRF (top) and joint torques (bottom)"))
+    return paths
+
+
+def paper_task2(data: dict, out_dir) -> list[Path]:
+    """Paper Figs. 7 and 8 from a task-2 record's data (``experiments/paper_task2_sto.py``)."""
+    out_dir = Path(out_dir)
+    return [plotting.plot_sto_durations(data, out_dir / "fig7_durations.png"),
+            plotting.plot_step_size(data["fig8"], out_dir / "fig8_step_size.png")]
+
+
+def rl_curves(data: dict, out_dir) -> list[Path]:
+    """``rl_curves.png``: each RL recipe's deterministic evaluations during training against env steps (log axis),
+    the mean and 95 % interval over its training seeds, each seed dotted, and the MPC's return (an
+    ``rl/curves`` record)."""
+    from hsddp_gym.learning.reporting import curve_band
+
+    plt = plotting._plt()
+    fig, ax = plt.subplots(figsize=(9, 4.2))
+    for i, (name, seeds) in enumerate(data["rows"].items()):
+        curves = [(c["env_step"], c["mean_return"]) for c in seeds if len(c["env_step"]) >= 2]
+        band = curve_band(curves)
+        ax.plot(band["x"], band["mean"], color=f"C{i}", label=f"{name}: mean of {band['seeds']} seeds")
+        ax.fill_between(band["x"], band["low"], band["high"], color=f"C{i}", alpha=0.25)
+        for k, (x, y) in enumerate(curves):
+            ax.plot(x, y, color=f"C{i}", lw=0.7, alpha=0.5, ls=":", label=f"{name}: each seed" if k == 0 else None)
+    ax.axhline(data["mpc_return"], color="k", ls="--", lw=1, label=f"HS-DDP MPC {data['mpc_return']:.0f}")
+    ax.set_xscale("log")
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("episode return (deterministic evaluation)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    return [plotting._save(fig, Path(out_dir) / "rl_curves.png")]
+
+
+def robustness(store, out_dir) -> list[Path]:
+    """``robustness.png``: fall rate and speed error per condition of the suite (the columns of the
+    ``robustness/suite`` table)."""
+    from hsddp_gym.reports.tables import SUITE_LABELS, _suite_columns
+
+    conds, columns, _ = _suite_columns(store)
+    results = {SUITE_LABELS.get(k, k): v for k, v in columns.items()}
+    path = Path(out_dir) / "robustness.png"
+    plotting.plot_robustness(results, conds, path)
+    return [path]
+
+
+FIGURE_DIR = "docs/figures"
+"""Where the published figures live (relative to the repository's top folder)."""
+
+FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
+    "paper/task1": paper_task1,
+    "paper/sto": paper_task2,
+    "rl/curves": rl_curves,
+}
+"""``{record id: drawing function of the record's data}``; each writes its figures into the folder it is given."""
+
+STORE_FIGURES: list[Callable] = [robustness]
+"""Figures drawn from several records: functions of the store and the folder."""
+
+
+def regenerate(store, root) -> list[Path]:
+    """Draw every figure of :data:`FIGURES` from ``store`` into ``root/docs/figures``.
+
+    Returns:
+        the paths written.
+    """
+    written = []
+    out = Path(root) / FIGURE_DIR
+    for rid, draw in FIGURES.items():
+        written += draw(store.data(rid), out)
+    for draw in STORE_FIGURES:
+        written += draw(store, out)
+    return written

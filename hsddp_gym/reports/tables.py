@@ -1,0 +1,520 @@
+"""Every results table of the README and the documentation site, rendered from the records of the results store.
+
+:data:`TABLES` maps a table id (the ``ID`` of ``<!-- results: ID -->``) to a function of the
+:class:`~hsddp_gym.reports.store.Store` that returns the table as Markdown, followed by a line naming the records it
+comes from and the commands that made them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+from hsddp_gym.reports.store import Store
+
+NA = "–"
+
+
+def fmt(value, spec: str = ".3g", none: str = NA) -> str:
+    """``value`` formatted with ``spec`` (``none`` for None or NaN)."""
+    if value is None or (isinstance(value, float) and value != value):
+        return none
+    return format(value, spec)
+
+
+def markdown_table(header: list[str], rows: Iterable[list], align: list[str] | None = None) -> str:
+    """A GitHub-flavoured Markdown table (``align``: one of ``"l"``, ``"r"`` per column; default left)."""
+    rows = [[str(c) for c in r] for r in rows]
+    for r in rows:
+        if len(r) != len(header):
+            raise ValueError(f"row {r} has {len(r)} cells, the header {len(header)}")
+    align = align or ["l"] * len(header)
+    rule = ["---:" if a == "r" else "---" for a in align]
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join(rule) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def source_line(store: Store, *rids: str) -> str:
+    """The provenance line under a table: the records and the commands that made them."""
+    parts = []
+    for rid in rids:
+        rec = store[rid]
+        if len(rec.commands) > 2:
+            cmds = f"{len(rec.commands)} commands, listed in the record"
+        else:
+            cmds = "; ".join(f"`{c}`" for c in rec.commands)
+        parts.append(f"`results/{rid}.json` ({cmds})")
+    return "Generated from " + ", ".join(parts) + " by `python -m hsddp_gym.reports`."
+
+
+# -- paper ---------------------------------------------------------------------------------------------------------
+
+def paper_task1(store: Store) -> str:
+    """Task 1 side by side with the paper: iterations, constraint satisfaction, speed, cost, solve time."""
+    d = store.data("paper/task1")
+    header = ["method", "AL it.", "DDP it.", "Σ g² [m²]", "max \\|u\\| [N m]", "min f_z [N]",
+              "max (\\|f_x\\| − μ f_z) [N]", "speed [m/s]", "cost (eq. 18)", "solve [s]"]
+    rows = []
+    for m, s in d["methods"].items():
+        planned = m != "heuristic"
+        rows.append([m, s["al_iterations"] if planned else NA, s["ddp_iterations"] if planned else NA,
+                     fmt(s["switching_violation"], ".2e"), fmt(s["max_abs_torque"], ".2f"),
+                     fmt(s["min_normal_grf"], ".1f"), fmt(s["max_friction_violation"], ".2f"),
+                     fmt(s["avg_forward_speed"], ".3f"), fmt(s["cost"], ".0f"),
+                     fmt(s["solve_time_s"], ".2f") if planned else NA])
+    paper = d["paper"]
+    rows.append(["*paper*", f"*al: {paper['al']['al_iterations']}, al-reb: {paper['al-reb']['al_iterations']}*", "",
+                 "*≤ 1e-4*", "*≤ 33*", "*≥ 0*", "*≤ 0*", "*1.0*", "", "*(MATLAB)*"])
+    note = (f"{d['cycles']} cycles, 80/72/72/72 ms phases, h = 1 ms. Solve times are wall-clock on the recording "
+            f"machine ({store['paper/task1'].machine.get('cpus')} cores, load average "
+            f"{_load(store['paper/task1'].machine)}).")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, "paper/task1")])
+
+
+def _load(machine: dict) -> str:
+    before, after = machine.get("load_average_before"), machine.get("load_average_after")
+    if not before:
+        return "unknown"
+    return f"{before[0]:.2f} before, {after[0]:.2f} after" if after else f"{before[0]:.2f}"
+
+
+def _zref(v: dict) -> str:
+    return "0" if v["z_velocity"] == "paper" else "±1 m/s"
+
+
+def _on(flag: bool) -> str:
+    return "on" if flag else "off"
+
+
+def _ms(durations) -> str:
+    return " / ".join(f"{1e3 * d:.1f}" for d in durations)
+
+
+def paper_sto_variants(store: Store) -> str:
+    """Task 2: every cost/reference variant, HS-DDP against the open-loop method, and the paper's numbers."""
+    d = store.data("paper/sto_variants")
+    header = ["ż_ref", "GRF term", "½ in Φ", "max \\|g\\| stop", "HS-DDP total [s]", "HS-DDP", "open loop total [s]",
+              "open loop", "ratio", "HS-DDP BS/FL1/FS/FL2 [ms]", "max \\|g\\| HS-DDP / OL [mm]"]
+    rows = []
+    for r in d["rows"]:
+        v, hs, ol = r["variant"], r["hsddp"], r["open-loop"]
+        if v["periodic"]:
+            continue
+        ratio = r["reduction_ratio"]
+        stop = NA if v["max_touchdown_error"] is None else f"{1e3 * v['max_touchdown_error']:g} mm"
+        rows.append([_zref(v), _on(v["grf_tracking"]), _on(v["terminal_half"]), stop, f"{hs['total_time']:.4f}",
+                     f"{100 * hs['reduction']:.1f} %", f"{ol['total_time']:.4f}", f"{100 * ol['reduction']:.1f} %",
+                     NA if ratio is None else f"{ratio:.1f}×", _ms(hs["mode_durations"]),
+                     f"{1e3 * hs['max_touchdown_error']:.2f} / {1e3 * ol['max_touchdown_error']:.2f}"])
+    p = d["paper"]
+    rows.append(["*paper*", "", "", "", f"*{p['hsddp']['total_time']}*", f"*{100 * p['hsddp']['reduction']:.1f} %*",
+                 "", f"*{100 * p['open-loop']['reduction']:.1f} %*",
+                 f"*{p['hsddp']['reduction'] / p['open-loop']['reduction']:.1f}×*", "*FL1 and FS shortened*", ""])
+    note = (f"One cycle from 80/72/72/72 ms ({1e3 * d['rows'][0]['hsddp']['initial_total_time']:.0f} ms), "
+            f"{d['iterations']} STO iterations at most. Reduction = 1 − total / initial total (negative: the cycle "
+            "got longer); ratio = HS-DDP's reduction over the open-loop method's (– where the open loop lengthened "
+            "the cycle).")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, "paper/sto_variants")])
+
+
+def paper_sto_periodic(store: Store) -> str:
+    """Task 2 on the periodic cycle: durations, periodicity residual, vertical velocity and mean normal force."""
+    d = store.data("paper/sto_variants")
+    header = ["ż_ref", "method", "total [s]", "reduction", "BS/FL1/FS/FL2/BS [ms]",
+              "end − start, max: positions / velocities", "v_z start → end [m/s]", "mean normal force [N]"]
+    rows = []
+    for r in d["rows"]:
+        if not r["variant"]["periodic"]:
+            continue
+        for method, label in (("hsddp", "HS-DDP"), ("open-loop", "open loop")):
+            s = r[method]
+            rows.append([_zref(r["variant"]), label, f"{s['total_time']:.4f}", f"{100 * s['reduction']:.1f} %",
+                         _ms(s["mode_durations"]),
+                         f"{1e3 * s['max_periodicity_error_position']:.1f} mm / "
+                         f"{s['max_periodicity_error_velocity']:.3f} m/s",
+                         f"{s['initial_vertical_velocity']:+.2f} → {s['final_vertical_velocity']:+.2f}",
+                         f"{s['mean_normal_grf']:.1f} (weight {s['weight']:.1f})"])
+    return "\n".join([markdown_table(header, rows), "", source_line(store, "paper/sto_variants")])
+
+
+# -- env ---------------------------------------------------------------------------------------------------------
+
+def env_physics(store: Store) -> str:
+    """The env's physical claims, the energy-consistent scheme (default) beside the legacy one."""
+    d = store.data("env/physics")
+    e, lg = d["schemes"]["energy_consistent"], d["schemes"]["legacy"]
+    n = 4 * d["states_per_combination"]
+
+    def energy(rec, key):
+        return f"{rec['energy_excess_J'][key]:+.1e} J"
+
+    def ratios(rec):
+        return " / ".join(f"{v:.3g}" for v in rec["free_flight_energy_ratio"].values())
+
+    def depths(rec):
+        return " / ".join(f"{v:.3g}" for v in rec["landing_depth_mm"].values())
+
+    rates = " / ".join(e["free_flight_energy_ratio"])
+    speeds = " / ".join(e["landing_depth_mm"])
+    rows = [
+        [f"largest ΔE per 1 ms step, zero torque, g = 9.81 ({n} states in all contact combinations × "
+         f"{d['steps']} steps)", energy(e, "g=9.81, zero torque"), energy(lg, "g=9.81, zero torque")],
+        ["the same, g = 0", energy(e, "g=0, zero torque"), energy(lg, "g=0, zero torque")],
+        ["largest ΔE − τ·Δq per step, random constant torques", energy(e, "g=9.81, random torques"),
+         energy(lg, "g=9.81, random torques")],
+        [f"free flight, g = 0, front hip at {rates} rad/s: E(0.5 s) / E(0)", ratios(e), ratios(lg)],
+        ["sticking foot, largest motion in one step (rocking double stance)", f"{e['stick_drift_m']:.1e} m",
+         f"{lg['stick_drift_m']:.1e} m"],
+        [f"deepest foot after landings at {speeds} m/s [mm]", depths(e), depths(lg)],
+    ]
+    table = markdown_table(["claim", "default scheme", "legacy scheme (`energy_consistent=False`)"], rows)
+    return "\n".join([table, "", source_line(store, "env/physics")])
+
+
+# -- speed -------------------------------------------------------------------------------------------------------
+
+def _machine_note(store: Store, rid: str) -> str:
+    m = store[rid].machine
+    return f"{m.get('cpus')} cores, load average {_load(m)}"
+
+
+def _env_rows(d: dict) -> dict:
+    return {(r["scheme"], r["frame_skip"], r["actions"]): r for r in d["rows"]}
+
+
+def speed_env(store: Store) -> str:
+    """Bounding-v0's env steps per second (single process) and HalfCheetah-v5's in the same run."""
+    d = store.data("speed/env")
+    hc = d["halfcheetah"]
+    rows = []
+    for r in d["rows"]:
+        ratio = fmt(r["env_steps_per_s"] / hc["env_steps_per_s"], ".2f") if hc else NA
+        rows.append([r["scheme"], r["frame_skip"], r["actions"], f"{r['env_steps_per_s']:,.0f}",
+                     f"{r['sim_steps_per_s']:,.0f}", ratio])
+    if hc:
+        rows.append(["HalfCheetah-v5 (MuJoCo)", hc["frame_skip"], "random", f"{hc['env_steps_per_s']:,.0f}",
+                     f"{hc['sim_steps_per_s']:,.0f}", "1.00"])
+    table = markdown_table(["scheme", "frame_skip", "actions", "env steps/s", "simulated steps/s",
+                            "× HalfCheetah-v5"], rows, ["l", "r", "l", "r", "r", "r"])
+    inter = "; ".join(f"{r['actions']}: energy-consistent / legacy = {r['ratio']:.2f}" for r in d["interleaved"])
+    return "\n".join([table, "", f"Timed interleaved in the same run: {inter}. Machine: "
+                      f"{_machine_note(store, 'speed/env')}.", source_line(store, "speed/env")])
+
+
+def speed_vector_env(store: Store) -> str:
+    """The vector env against N, the single env and HalfCheetah-v5 (env steps per CPU second)."""
+    d = store.data("speed/vector_env")
+    rate = {r["configuration"]: r for r in d["rows"]}
+    single = rate["single"]["env_steps_per_cpu_s"]
+    hc = rate.get("halfcheetah", {}).get("env_steps_per_cpu_s")
+    names = {"single": "single env `gym.make(\"hsddp_gym/Bounding-v0\")`", "halfcheetah": "HalfCheetah-v5 (MuJoCo)"}
+    rows = []
+    for name, r in rate.items():
+        v = r["env_steps_per_cpu_s"]
+        rows.append([names.get(name, name.replace("vector N=", "vector env, N = ")), f"{v:,.0f}",
+                     f"{v / single:.2f}", fmt(v / hc if hc else None, ".2f"), f"{r['env_steps_per_wall_s']:,.0f}"])
+    table = markdown_table(["configuration", "env steps per CPU second", "× single env", "× HalfCheetah-v5",
+                            "env steps per wall second"], rows, ["l", "r", "r", "r", "r"])
+    return "\n".join([table, "", f"{d['seconds']:g} s per row in {d['rounds']} interleaved rounds, one thread each. "
+                      f"Machine: {_machine_note(store, 'speed/vector_env')}.", source_line(store, "speed/vector_env")])
+
+
+def speed_dynamics(store: Store) -> str:
+    """Microseconds per call by contact mode, and the compiled linearization against Pinocchio's calls."""
+    d = store.data("speed/dynamics")
+    modes = ["FL", "FS", "BS", "DS"]
+    label = {"FL": "flight", "FS": "front stance", "BS": "back stance", "DS": "double stance"}
+    rows = [[name] + [f"{by_mode[m]:.1f}" for m in modes] for name, by_mode in d["per_call_us"].items()]
+    pin = d["pinocchio_derivatives_per_knot_us"]
+    lin = d["per_call_us"][d["linearize_key"]]
+    rows.append(["Pinocchio's derivative calls (reference, same run)"] + [f"{pin[m]:.1f}" for m in modes])
+    rows.append(["**compiled linearize / Pinocchio**"] + [f"**{lin[m] / pin[m]:.2f}**" for m in modes])
+    table = markdown_table(["µs per call"] + [label[m] for m in modes], rows, ["l", "r", "r", "r", "r"])
+    fused = d["fused_per_knot_us"]
+    return "\n".join([table, "", f"On the {d['knots']}-knot bounding trajectory a rollout that linearizes every "
+                      f"knot on the way costs {fused:.1f} µs per knot (the solver's path). Machine: "
+                      f"{_machine_note(store, 'speed/dynamics')}.", source_line(store, "speed/dynamics")])
+
+
+def speed_solver(store: Store) -> str:
+    """The time per DDP iteration and its breakdown."""
+    d = store.data("speed/solver")
+    keep = ("line search", "backward pass", "cost derivatives", "reset-map Jacobians (19 per linearization)",
+            "warm-start rollout + linearization", "other (objective values, AL updates, logging)", "TOTAL")
+    rows = []
+    for r in d["breakdown"]:
+        if r["name"] in keep:
+            name = "**total**" if r["name"] == "TOTAL" else r["name"]
+            rows.append([name, f"{r['ms_per_iteration']:.2f}", f"{1e3 * r['ms_per_iteration'] / d['knots']:.2f}"])
+    table = markdown_table(["per DDP iteration", "ms", "µs per knot"], rows, ["l", "r", "r"])
+    return "\n".join([table, "", f"Paper task 1 ({d['cycles']} cycles, {d['knots']} knots, `{d['method']}`): "
+                      f"{d['ddp_iterations']} DDP iterations in {d['solve_s']['best']:.2f} s (best of "
+                      f"{d['repeats']}). Machine: {_machine_note(store, 'speed/solver')}.",
+                      source_line(store, "speed/solver")])
+
+
+def speed_mpc(store: Store) -> str:
+    """The MPC's re-plan time and real-time factor, beside the Pinocchio reference of the same knots."""
+    d = store.data("speed/mpc")
+    rows = [
+        ["re-plan (one DDP iteration over the horizon), mean", f"{d['replan_ms']['mean']:.2f} ms"],
+        [f"Pinocchio's derivative calls over the same {d['knots']} knots (reference)",
+         f"{d['pinocchio_reference_ms']:.2f} ms"],
+        ["**re-plan / reference**", f"**{d['replan_ms']['mean'] / d['pinocchio_reference_ms']:.2f}**"],
+        ["the compiled dynamics' pass over those knots", f"{d['compiled_pass_ms']:.2f} ms"],
+        ["re-plan period (the real-time budget)", f"{d['replan_period_ms']:.0f} ms"],
+        ["**real-time factor** (simulated / wall time of the closed loop, env included)",
+         f"**{d['real_time_factor']:.2f}**"],
+    ]
+    table = markdown_table(["MPC at its defaults", "measured"], rows, ["l", "r"])
+    return "\n".join([table, "", f"{d['seconds']:.1f} s of bounding, {d['replans']} re-plans, "
+                      f"{d['planner_failures']} failed. Machine: {_machine_note(store, 'speed/mpc')}.",
+                      source_line(store, "speed/mpc")])
+
+
+def speed_summary(store: Store) -> str:
+    """One row per benchmark: the figure and its ratio to a reference measured in the same run (README)."""
+    env = store.data("speed/env")
+    vec = {r["configuration"]: r["env_steps_per_cpu_s"] for r in store.data("speed/vector_env")["rows"]}
+    dyn = store.data("speed/dynamics")
+    sol = store.data("speed/solver")
+    mpc = store.data("speed/mpc")
+    ours = next(r for r in env["rows"] if r["scheme"] == "energy" and r["frame_skip"] == 5
+                and r["actions"] == "random")
+    rows = []
+    if env["halfcheetah"]:
+        rows.append(["`Bounding-v0`, single env, random actions", f"{ours['env_steps_per_s']:,.0f} env steps/s",
+                     f"{ours['env_steps_per_s'] / env['halfcheetah']['env_steps_per_s']:.2f}× HalfCheetah-v5"])
+    big = max((k for k in vec if k.startswith("vector")), key=lambda k: int(k.split("=")[1]))
+    n64 = "vector N=64" if "vector N=64" in vec else big
+    rows.append([f"vector env, N = {n64.split('=')[1]}", f"{vec[n64]:,.0f} env steps per CPU second",
+                 f"{vec[n64] / vec['single']:.1f}× the single env"])
+    lin = dyn["per_call_us"][dyn["linearize_key"]]
+    pin = dyn["pinocchio_derivatives_per_knot_us"]
+    rows.append(["dynamics + derivatives per knot (compiled), double stance", f"{lin['DS']:.1f} µs",
+                 f"{lin['DS'] / pin['DS']:.2f}× Pinocchio's derivative calls"])
+    rows.append([f"HS-DDP, paper task 1 ({sol['knots']} knots)", f"{sol['ms_per_ddp_iteration']['best']:.1f} ms per "
+                 f"DDP iteration, {sol['solve_s']['best']:.2f} s per solve",
+                 f"{1e3 * sol['ms_per_ddp_iteration']['best'] / sol['knots']:.1f} µs per knot"])
+    rows.append(["MPC re-plan", f"{mpc['replan_ms']['mean']:.1f} ms",
+                 f"{mpc['replan_ms']['mean'] / mpc['pinocchio_reference_ms']:.2f}× Pinocchio's derivative calls of "
+                 "the same knots"])
+    rows.append(["MPC closed loop", f"real-time factor {mpc['real_time_factor']:.2f}", "simulated / wall time"])
+    table = markdown_table(["what", "measured", "ratio"], rows)
+    return "\n".join([table, "", "More rows and the machines' loads: the speed page of the docs.",
+                      source_line(store, "speed/env", "speed/vector_env", "speed/dynamics", "speed/solver",
+                                  "speed/mpc")])
+
+
+# -- robustness --------------------------------------------------------------------------------------------------
+
+SUITE_LABELS = {"mpc": "MPC", "heuristic": "heuristic", "heuristic+est": "heuristic + estimator",
+                "dagger@ensemble_a": "DAgger ensemble A", "dagger@ensemble_b": "DAgger ensemble B",
+                "dagger@ensemble_c": "DAgger ensemble C"}
+ENSEMBLES = ("dagger@ensemble_a", "dagger@ensemble_b", "dagger@ensemble_c")
+
+
+def _suite_columns(store: Store) -> tuple[list[str], dict, dict]:
+    """(condition order, {label: {condition: cell}}, {condition: description}) of the suite table: the model-based
+    policies of ``robustness/suite`` and the DAgger ensembles of ``robustness/learners``."""
+    suite = store.data("robustness/suite")
+    learners = store.data("robustness/learners")
+    conds = list(suite["conditions"])
+    columns = dict(suite["results"])
+    for label in ENSEMBLES:
+        columns[label] = learners["learners"][label]
+    desc = {c: suite["conditions"][c]["description"] for c in conds}
+    return conds, columns, desc
+
+
+def _falls(cell: dict | None) -> str:
+    return NA if cell is None else f"{cell['falls']}/{cell['episodes']}"
+
+
+def robustness_suite(store: Store) -> str:
+    """Falls per condition of the suite for the model-based policies and the DAgger ensembles."""
+    conds, columns, desc = _suite_columns(store)
+    header = ["condition"] + [SUITE_LABELS.get(k, k) for k in columns]
+    rows = []
+    for c in conds:
+        row = [f"`{c}`: {desc[c]}"]
+        for cells in columns.values():
+            cell = cells.get(c)
+            if cell is None:
+                row.append(NA)
+                continue
+            speed = "" if cell.get("mean_speed") is None else f", {cell['mean_speed']:.2f} m/s"
+            row.append(f"**{_falls(cell)}**, {cell['mean_return']:.0f}{speed}")
+        rows.append(row)
+    totals = ["**falls, total**"]
+    for cells in columns.values():
+        have = [cells[c] for c in conds if c in cells]
+        totals.append(f"**{sum(x['falls'] for x in have)}/{sum(x['episodes'] for x in have)}**")
+    rows.append(totals)
+    seeds = store.data("robustness/suite")["seeds"]
+    note = (f"Cells: falls / episodes, mean return, mean forward speed of the episodes that did not fall. Evaluation "
+            f"seeds {seeds[0]}-{seeds[-1]}, one 1000-step episode (5 s) per seed and condition. The DAgger ensembles "
+            "(the mean action of three networks trained with different seeds) were evaluated with version "
+            f"{store['robustness/learners'].version}.")
+    return "\n".join([markdown_table(header, rows), "", note,
+                      source_line(store, "robustness/suite", "robustness/learners")])
+
+
+def robustness_summary(store: Store) -> str:
+    """One line per policy: falls over the suite and the worst condition (for the README)."""
+    conds, columns, _ = _suite_columns(store)
+    rows = []
+    for label, cells in columns.items():
+        have = {c: cells[c] for c in conds if c in cells}
+        falls = sum(x["falls"] for x in have.values())
+        eps = sum(x["episodes"] for x in have.values())
+        worst = max(have, key=lambda c: have[c]["falls"])
+        worst_text = NA if have[worst]["falls"] == 0 else f"`{worst}` ({_falls(have[worst])})"
+        rows.append([SUITE_LABELS.get(label, label), f"{falls}/{eps}", worst_text])
+    table = markdown_table(["policy", f"falls over the {len(conds)} conditions", "worst condition"], rows)
+    return "\n".join([table, "", source_line(store, "robustness/suite", "robustness/learners")])
+
+
+def robustness_simulators(store: Store) -> str:
+    """Each policy in the three simulators."""
+    d = store.data("robustness/simulators")
+    envs = list(d["envs"])
+    rows = []
+    for name, by_env in d["results"].items():
+        row = [name]
+        for label in envs:
+            s = by_env[label]
+            cell = f"{s['mean_return']:.1f} ± {s['std_return']:.1f}, {s['falls']}/{s['episodes']} falls, " \
+                   f"{s['mean_forward_speed']:.2f} m/s"
+            if "friction_over_mu" in s:
+                cell += f"; \\|f_x\\|/f_z > μ in {100 * s['friction_over_mu']:.1f} % of control steps"
+            row.append(cell)
+        kept = by_env[d["mujoco"]]["mean_return"] / by_env[d["reference"]]["mean_return"]
+        row.append(f"{100 * kept:.1f} %")
+        rows.append(row)
+    table = markdown_table(["policy"] + envs + ["return kept in MuJoCo"], rows)
+    return "\n".join([table, "", f"{d['episodes']} episodes per policy and simulator (seeds 0-{d['episodes'] - 1}).",
+                      source_line(store, "robustness/simulators")])
+
+
+# -- policies and learning -----------------------------------------------------------------------------------------
+
+def _suite_total(cells: dict) -> int:
+    """Falls over the suite's conditions (a record may hold more conditions, e.g. ``push_x3``)."""
+    from hsddp_gym.envs.perturbations import SUITE
+
+    return sum(cells[c]["falls"] for c in SUITE if c in cells)
+
+
+def _learner_suite(learners: dict, policy: str) -> str:
+    """The suite falls of each training seed of a protocol row (``bc``, ``sac``, ``ppo@sde``, ...)."""
+    prefix = {"dagger@speed_est": "dagger@speed_est@"}.get(policy, f"{policy}@")
+    totals = [str(_suite_total(v)) for k, v in learners.items() if k.startswith(prefix) and "ensemble" not in k
+              and k[len(prefix):].startswith("seed")]
+    text = ", ".join(totals) if totals else NA
+    if policy == "dagger@speed_est":
+        ens = ", ".join(str(_suite_total(learners[e])) for e in ENSEMBLES if e in learners)
+        text += f"; three acting together: {ens}"
+    return text
+
+
+ROW_NAMES = {"mpc": "HS-DDP MPC (the expert)", "expert": "plan-tracking expert (5-cycle plan)",
+             "heuristic": "contact-event heuristic", "random": "random", "bc": "BC, 24 DART demonstrations",
+             "dagger@speed_est": "DAgger (speed input, perturbed rollouts, behind the estimator)",
+             "sac": "SAC `--hidden 128,128`, 1 h", "ppo@push_x3": "PPO `parallel`, trained under `push_x3`, 1 h",
+             "ppo@sde": "PPO `parallel --sde` (gSDE), 1 h"}
+READING = {"best": "best checkpoint", "final": "final weights", "stochastic": "own draws (final weights)"}
+
+
+def policies_protocol(store: Store) -> str:
+    """Every policy under one protocol, with its suite falls."""
+    model = store.data("policies/model_based")
+    learned = store.data("policies/learned")
+    learners = store.data("robustness/learners")["learners"]
+    suite = store.data("robustness/suite")["results"]
+    mpc = next(r for r in model["rows"] if r["policy"] == "mpc")["mean_return"]
+    header = ["policy", "reading", "training seeds", "return", "of the MPC's", "falls", "speed [m/s]",
+              "learned from (per seed)", "training wall time (per seed)", "suite: falls of 260 (per seed)"]
+    rows = []
+    for r in model["rows"]:
+        cells = suite.get(r["policy"])
+        rows.append([ROW_NAMES.get(r["policy"], r["policy"]), NA, NA,
+                     f"{r['mean_return']:.1f} ± {r['std_return']:.1f} (std)", f"{100 * r['mean_return'] / mpc:.0f} %",
+                     f"{r['falls']}/{r['episodes']}", f"{r['mean_forward_speed']:.2f}", NA, NA,
+                     str(_suite_total(cells)) if cells else NA])
+    order = ["bc", "dagger@speed_est", "sac", "ppo@push_x3", "ppo@sde"]
+    for policy in order:
+        for reading in ("best", "final", "stochastic"):
+            r = next((x for x in learned["readings"][reading] if x["policy"] == policy), None)
+            if r is None or (reading != "best" and policy in ("bc", "dagger@speed_est")):
+                continue
+            first = reading == "best"
+            tt = NA if r.get("train_time_s") is None else f"{r['train_time_s']:.0f} s"
+            rows.append([ROW_NAMES[policy] if first else "", READING[reading] if policy.startswith(("sac", "ppo"))
+                         else NA, r["training_seeds"], f"{r['mean_return']:.1f} ± {r['ci95']:.1f}",
+                         f"{100 * r['mean_return'] / mpc:.0f} %", f"{r['falls']}/{r['episodes']}",
+                         f"{r['mean_forward_speed']:.2f}", r["samples"] if first else "", tt if first else "",
+                         _learner_suite(learners, policy) if first else ""])
+    p = learned["protocol"]
+    note = (f"{p['episodes']} episodes, seeds {p['seeds']}, the default env, the mean action of learned policies "
+            "unless the reading says otherwise. Learned rows: the mean over training seeds of each seed's mean "
+            "return ± the 95 % Student-t interval of that mean, falls summed over seeds; model-based rows: mean ± "
+            f"std over the episodes. The learned policies were trained and evaluated with version "
+            f"{store['policies/learned'].version}, their demonstrations and labels from that version's MPC "
+            f"(return {learned['mpc_return_at_evaluation']:.1f} then). Suite: the perturbation suite's 13 "
+            "conditions × 20 evaluation seeds.")
+    return "\n".join([markdown_table(header, rows), "", note,
+                      source_line(store, "policies/model_based", "policies/learned", "robustness/suite",
+                                  "robustness/learners")])
+
+
+SHORT = {"default": "default", "reset_noise_x4": "reset ×4", "obs_noise": "obs. noise", "delay_5ms": "5 ms",
+         "delay_10ms": "10 ms", "push": "push", "friction_0.4": "μ 0.4", "mass_+15": "mass +15 %",
+         "mass_-15": "mass −15 %", "speed_0.5": "0.5 m/s", "speed_1.25": "1.25 m/s", "speed_1.5": "1.5 m/s",
+         "speed_2.0": "2 m/s"}
+
+
+def learning_imitation(store: Store) -> str:
+    """Every learned policy under the suite: falls of 20 per condition."""
+    d = store.data("robustness/learners")
+    conds = d["suite_conditions"]
+    rows = []
+    for label, cells in d["learners"].items():
+        rows.append([f"`{label}`"] + [str(cells[c]["falls"]) if c in cells else NA for c in conds]
+                    + [f"**{_suite_total({c: cells[c] for c in conds if c in cells})}**"])
+    table = markdown_table(["policy"] + [SHORT.get(c, c) for c in conds] + ["total of 260"], rows,
+                           ["l"] + ["r"] * (len(conds) + 1))
+    ens = "; ".join(f"`{k}`: {v}" for k, v in d["ensembles"].items())
+    return "\n".join([table, "", f"Falls of 20 per condition (evaluation seeds {d['seeds']}). {ens}. Recorded with "
+                      f"version {store['robustness/learners'].version}.", source_line(store, "robustness/learners")])
+
+
+TABLES: dict[str, Callable[[Store], str]] = {
+    "paper/task1": paper_task1,
+    "paper/sto_variants": paper_sto_variants,
+    "paper/sto_periodic": paper_sto_periodic,
+    "env/physics": env_physics,
+    "speed/env": speed_env,
+    "speed/vector_env": speed_vector_env,
+    "speed/dynamics": speed_dynamics,
+    "speed/solver": speed_solver,
+    "speed/mpc": speed_mpc,
+    "speed/summary": speed_summary,
+    "robustness/suite": robustness_suite,
+    "robustness/summary": robustness_summary,
+    "robustness/simulators": robustness_simulators,
+    "policies/protocol": policies_protocol,
+    "learning/imitation": learning_imitation,
+}
+"""``{table id: renderer}``."""
+
+
+def render(store: Store, table_id: str) -> str:
+    """The Markdown of table ``table_id``.
+
+    Raises:
+        KeyError: an unknown table id (naming the known ones).
+    """
+    if table_id not in TABLES:
+        raise KeyError(f"unknown results table {table_id!r} (known: {', '.join(sorted(TABLES))})")
+    return TABLES[table_id](store)
