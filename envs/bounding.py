@@ -16,7 +16,7 @@ from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
 from hsddp_gym.core.params import DEFAULT_PARAMS
 from hsddp_gym.core.references import paper_initial_state
-from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector, real_array
 
 DEFAULT_FRAME_SKIP = 5
 DEFAULT_SIM_TIMESTEP = 1e-3
@@ -520,27 +520,10 @@ class BoundingEnv(gym.Env):
     @staticmethod
     def _parse_action(action) -> list:
         """The action as a list of 4 finite Python floats (not yet clipped); raises naming ``action``."""
-        a = action if isinstance(action, np.ndarray) else None
-        if a is None:
-            try:
-                a = np.asarray(action)
-            except (TypeError, ValueError, OverflowError) as exc:
-                raise ValueError(f"action must be an array of {NU} real numbers, got {action!r}") from exc
-        kind = a.dtype.kind
-        if kind not in "fiu":
-            if kind == "c":
-                raise TypeError(f"action must be real, got the complex array {a!r}")
-            if kind != "O":
-                raise TypeError(f"action must be an array of {NU} real numbers, got dtype {a.dtype} ({action!r})")
-            for v in a.ravel().tolist():  # object arrays (e.g. huge Python ints): each entry must be real
-                if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
-                    raise TypeError(f"action must hold real numbers, got {v!r} of type {type(v).__name__}")
+        a = real_array(action, "action")
         if a.shape != (NU,):
             raise ValueError(f"action must have shape ({NU},), got {a.shape}")
-        try:
-            values = [float(v) for v in a.tolist()]
-        except OverflowError as exc:
-            raise ValueError(f"action must be finite, got entries too large for a float: {action!r}") from exc
+        values = [float(v) for v in a.tolist()]
         if not all(map(math.isfinite, values)):
             raise ValueError(f"action must be finite, got {a}")
         return values

@@ -20,7 +20,7 @@ from hsddp_gym.core.conventions import IPITCH, IZ, NGRF, NQ, NU, NX
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout
 from hsddp_gym.envs.bounding import _MAX_PENETRATION_AT_RESET, DEFAULT_MAX_EPISODE_STEPS, BoundingEnv, pop_due_pushes
 from hsddp_gym.envs.perturbations import PUSH_SALT, PushDistribution, episode_generator
-from hsddp_gym.util.validation import check_int, check_positive
+from hsddp_gym.util.validation import check_int, check_positive, real_array
 
 UNSUPPORTED_KWARGS = ("render_mode", "width", "height", "render_grf")
 """BoundingEnv arguments the vector env does not take (it does not render)."""
@@ -442,9 +442,7 @@ class BoundingVectorEnv(VectorEnv):
     def _check_actions(self, actions) -> None:
         """Check the actions (real, shape (num_envs, 4), finite: else TypeError / ValueError naming the robots) and
         load them (:func:`_prepare`: clipped values, torques, the trunk x before the step, the robots to step)."""
-        a = actions if isinstance(actions, np.ndarray) else np.asarray(actions)
-        if a.dtype.kind not in "fiu":
-            raise TypeError(f"actions must be real numbers, got dtype {a.dtype}")
+        a = real_array(actions, "actions")
         if a.shape != (self.num_envs, NU):
             raise ValueError(f"actions must have shape ({self.num_envs}, {NU}), got {a.shape}")
         if _prepare(a, self._values, self._u, self.template.torque_limit, self._x, self._x_before, self._autoreset,

@@ -18,6 +18,7 @@ from hsddp_gym.core.conventions import NX, Mode
 from hsddp_gym.core.observation import ObservationLayout, state_from_observation
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.envs.bounding import BoundingEnv
+from hsddp_gym.envs.vector import BoundingVectorEnv
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 INFO_KEYS = {"x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
@@ -407,6 +408,28 @@ def test_non_real_actions_raise_type_error_without_warnings(action):
         with pytest.raises(TypeError, match="action"):
             env.step(action)
     np.testing.assert_array_equal(env.state, x)  # nothing was simulated
+
+
+@pytest.mark.parametrize("action", [
+    [10**400, 0, 0, 0], np.array([10**400, 0, 0, 0], dtype=object), np.array([np.nan, 0, 0, 0]),
+    np.array([-np.inf, 0, 0, 0]), np.zeros(3), np.array([0.1 + 0.5j, 0, 0, 0]), np.array([True, False, True, False]),
+    np.array(["a", "b", "c", "d"]), np.array([None, 0, 0, 0], dtype=object), [1.0, "2", 0, 0],
+])
+def test_single_and_vector_env_raise_the_same_error_type(action):
+    """One rule for bad actions: the vector env raises what the single env raises for the same action (given to
+    each of its robots), ``ValueError`` for values (shape, NaN, too large for a float), ``TypeError`` for types."""
+    env = BoundingEnv()
+    env.reset(seed=0)
+    with pytest.raises((TypeError, ValueError)) as single:
+        env.step(action)
+    vec = BoundingVectorEnv(2)
+    vec.reset(seed=0)
+    batch = np.array([action, action], dtype=object) if not isinstance(action, np.ndarray) or action.dtype == object \
+        else np.stack([action, action])
+    with pytest.raises((TypeError, ValueError)) as vector:
+        vec.step(batch)
+    assert vector.type is single.type, (single.value, vector.value)
+    assert "action" in str(vector.value)
 
 
 def test_real_action_types_are_accepted():

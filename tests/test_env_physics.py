@@ -125,41 +125,92 @@ def momentum(sim):
 
 
 @pytest.mark.parametrize("kind", IMPLEMENTATIONS)
-@pytest.mark.parametrize("rate, kept", [(10.0, 0.995), (50.0, 0.88), (75.0, 0.78), (100.0, 0.70)])
-def test_spinning_leg_in_free_flight(robot, rate, kept, kind):
-    """g = 0, no torque, high above the ground, the front hip spinning at ``rate``: over 0.5 s the energy never
-    rises in a step and nothing blows up, where the legacy scheme gains energy (x13 at 100 rad/s). The price is
-    numerical dissipation, measured here (energy kept >= ``kept``: 99.85 %, 90 %, 81 %, 74 % of E(0) at 10, 50,
-    75, 100 rad/s), and the momentum drift of the underlying semi-implicit Euler step, which the energy
-    projection does not add to (it keeps the momentum of the step it projects)."""
+@pytest.mark.parametrize("rate", [10.0, 50.0, 100.0, 300.0])
+def test_free_flight_conserves_momentum_and_energy(robot, rate, kind):
+    """g = 0, no torque, 2 m above the ground, the trunk moving and pitching and the joints spinning at up to
+    ``rate`` rad/s: over 10 s (10,000 steps) the linear and the angular momentum about the centre of mass are
+    conserved to 1e-9 relative and the energy to 1e-6 relative (the goal: 1e-3); no step raises the energy.
+    The legacy semi-implicit scheme (``energy_consistent=False``) gains energy (x13 in 0.5 s at 100 rad/s) and the
+    step the default scheme had before lost 49 % of it in 0.5 s at 100 rad/s and drifted in momentum."""
     x = np.zeros(14)
     x[1] = 2.0
-    x[3], x[4], x[5], x[6] = 0.7, -1.4, 0.7, -1.4
-    x[7], x[10] = 1.0, rate
-    drift = {}
-    for consistent in (True, False):
-        sim = consistent_sim(kind, robot, gravity=0.0) if consistent \
-            else ContactSimulator(robot, gravity=0.0, energy_consistent=False)
-        sim.set_state(x)
-        e0, p0 = sim.energy(), momentum(sim)
-        e, rises = e0, 0.0
-        with np.errstate(all="ignore"):
-            for _ in range(500):
-                sim.run(np.zeros(4), 1)
-                e1 = sim.energy()
-                rises = max(rises, e1 - e)
-                e = e1
-            drift[consistent] = float(np.abs(momentum(sim) - p0).max())
-        if consistent:
-            assert rises <= TOL_J
-            assert np.all(np.isfinite(sim.x))
-            assert kept * e0 <= e <= e0
-            assert sim.momentum_fallbacks == 0
-        else:
-            assert not np.isfinite(e) or e > 1.001 * e0
-    assert drift[True] <= drift[False] * (1 + 1e-6)
+    x[3:7] = 0.7, -1.4, 0.7, -1.4
+    x[7], x[8], x[9] = 1.0, 0.3, 2.0  # up and forward: the CoM rises 3 m in the 10 s
+    x[10:14] = rate, -0.5 * rate, 0.3 * rate, -0.8 * rate
+    sim = consistent_sim(kind, robot, gravity=0.0)
+    sim.set_state(x)
+    e0, p0 = sim.energy(), momentum(sim)
+    e, rises = e0, 0.0
+    for _ in range(10):
+        for _ in range(1000):
+            sim.run(np.zeros(4), 1)
+            e1 = sim.energy()
+            rises = max(rises, e1 - e)
+            e = e1
+        p = momentum(sim)
+        assert np.linalg.norm(p[:2] - p0[:2]) <= 1e-9 * np.linalg.norm(p0[:2])
+        assert abs(p[2] - p0[2]) <= 1e-9 * abs(p0[2])
+    assert sim.time == pytest.approx(10.0)
+    assert rises <= TOL_J
+    assert abs(e / e0 - 1.0) <= 1e-6
+    assert sim.momentum_fallbacks == 0 and not sim.contact.any()
+    legacy = ContactSimulator(robot, gravity=0.0, energy_consistent=False)
+    legacy.set_state(x)
+    with np.errstate(all="ignore"):
+        legacy.run(np.zeros(4), 500)
+        assert rate < 50.0 or not np.isfinite(legacy.energy()) or legacy.energy() > 1.001 * e0
 
 
+def rk4_flight(robot, x, tau, duration, h=1e-4):
+    """An independent reference: classical RK4 on ``qdd = ABA(q, v, tau)`` (free flight, no contact) with step
+    ``h``; returns ``(q, v)`` at ``duration``."""
+    model, data = robot.model, robot.model.createData()
+    q, v = x[:7].copy(), x[7:].copy()
+
+    def f(q, v):
+        return v, pin.aba(model, data, q, v, tau)
+
+    for _ in range(int(round(duration / h))):
+        k1 = f(q, v)
+        k2 = f(q + 0.5 * h * k1[0], v + 0.5 * h * k1[1])
+        k3 = f(q + 0.5 * h * k2[0], v + 0.5 * h * k2[1])
+        k4 = f(q + h * k3[0], v + h * k3[1])
+        q = q + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+        v = v + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+    return q, v
+
+
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
+def test_flight_under_gravity_and_torques_follows_the_impulse_and_the_work(robot, kind):
+    """0.3 s of flight with g = 9.81 and constant torques of up to 3 N m (the legs reach hundreds of rad/s): the
+    momentum changes by exactly gravity's impulse ``(0, -m g t, 0)``, and the energy gain is within 6 % of the
+    exact one (an RK4 reference at 0.1 ms) and at least 5x nearer to it than the semi-implicit scheme's
+    (measured: errors of 3.8 %, 5.1 %, 4.4 % against 42 %, 71 %, 30 %; first order: they halve with the step).
+    The work per step is taken second order in the step, where ``tau . h v+`` counts the torques' own
+    acceleration twice."""
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        x = np.zeros(14)
+        x[1] = 4.0
+        x[3:7] = 0.7, -1.4, 0.7, -1.4
+        x[7:] = rng.normal(0.0, 1.0, 7) * np.array([1, 1, 2, 20, 20, 20, 20])
+        u = rng.uniform(-3.0, 3.0, 4)
+        tau = np.r_[np.zeros(3), u]
+        gains = {}
+        for consistent in (True, False):
+            sim = consistent_sim(kind, robot) if consistent else ContactSimulator(robot, energy_consistent=False)
+            sim.set_state(x)
+            p0, e0 = momentum(sim), sim.energy()
+            sim.run(u, 300)
+            assert not sim.contact.any() and robot.foot_heights(sim.q).min() > 0.5
+            gains[consistent] = sim.energy() - e0
+            if consistent:
+                expected = p0 + np.array([0.0, -robot.total_mass * 9.81 * sim.time, 0.0])
+                np.testing.assert_allclose(momentum(sim), expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+        q_ref, v_ref = rk4_flight(robot, x, tau, 0.3)
+        exact = float(tau @ (q_ref - x[:7]))  # the torques' work = the energy gain of the exact flight
+        assert abs(gains[True] - exact) <= 0.06 * abs(exact)
+        assert abs(gains[True] - exact) <= 0.2 * abs(gains[False] - exact)
 
 
 def stick_drift(robot, consistent: bool, kind: str = "reference") -> tuple[float, int]:
@@ -275,3 +326,58 @@ def test_no_blow_up_from_accepted_reset_states():
                 action = np.zeros(4) if mode == "zero" else rng.uniform(-1.0, 1.0, 4)
                 _, _, _, _, info = env.step(action)
                 assert not info["invalid_state"]
+
+
+def bound_state(robot, rng) -> np.ndarray:
+    """A start state the env accepts, its velocities drawn up to 98 % of ``RESET_VELOCITY_BOUNDS`` (joints up to
+    98 rad/s) and its lowest foot 1 mm above the ground (14,)."""
+    q = np.array([0.0, 0.0, rng.uniform(-0.3, 0.3), rng.uniform(-1, 1), rng.uniform(-2, -0.5),
+                  rng.uniform(-1, 1), rng.uniform(-2, -0.5)])
+    q[1] = 0.001 - robot.foot_heights(q).min()
+    return np.r_[q, rng.uniform(-0.98, 0.98, 7) * np.array(RESET_VELOCITY_BOUNDS)]
+
+
+@pytest.mark.parametrize("motor_limits", [True, False], ids=["motor_limits", "ideal_torques"])
+@pytest.mark.parametrize("actions", ["zero", "bang_bang"])
+def test_no_tunnelling_from_bound_states(motor_limits, actions):
+    """Through the env: 40 start states at the reset bounds, 1 s each of zero action or of actions alternating
+    between -1 and +1 every control step: no foot ever ends a control step more than 1 mm below the ground (the
+    scheme the env had before sank 37.9 mm from such states with zero action, 1.25 mm bang-bang, 4-7 mm with
+    ideal torques)."""
+    env = BoundingEnv(terminate_when_unhealthy=False,
+                      **({} if motor_limits else {"motor_speed_limits": None}))
+    rng = np.random.default_rng(43 + 2 * motor_limits + (actions == "zero"))
+    deepest = 0.0
+    for k in range(40):
+        env.reset(seed=k, options={"state": bound_state(env.robot, rng)})
+        for t in range(200):
+            a = np.zeros(4) if actions == "zero" else np.full(4, 1.0 if t % 2 == 0 else -1.0)
+            _, _, _, _, info = env.step(a)
+            if info["invalid_state"]:  # refused from here on; never seen with these states
+                break
+            deepest = max(deepest, -float(np.min(info["foot_heights"])))
+    assert deepest <= 1e-3
+
+
+@pytest.mark.parametrize("kind", IMPLEMENTATIONS)
+def test_no_tunnelling_in_any_physics_step(robot, kind):
+    """Every 1 ms step (not just every control step): 10 bound states, 0.3 s of bang-bang joint torques (the
+    torque limit, sign flipped every 5 ms) without motor speed limits: the lowest foot never ends a step more
+    than 1 mm below the ground, and the energy balance holds in every step."""
+    rng = np.random.default_rng(7)
+    limit = BoundingEnv().torque_limit
+    deepest, worst_excess = 0.0, -np.inf
+    for _ in range(10):
+        sim = consistent_sim(kind, robot)
+        sim.set_state(bound_state(robot, rng))
+        e = sim.energy()
+        for t in range(300):
+            q0 = sim.q.copy()
+            sim.run(np.full(4, limit if (t // 5) % 2 == 0 else -limit), 1)
+            e1 = sim.energy()
+            worst_excess = max(worst_excess, e1 - e - float(sim._tau[3:] @ (sim.q[3:] - q0[3:])))
+            e = e1
+            deepest = max(deepest, -float(sim.foot_heights().min()))
+        assert np.all(np.isfinite(sim.x))
+    assert deepest <= 1e-3
+    assert worst_excess <= TOL_J

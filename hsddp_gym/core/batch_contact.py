@@ -3,8 +3,10 @@
 :class:`~hsddp_gym.core.contact.ContactSimulator` steps one robot with Pinocchio calls from Python; this
 module is the same scheme -- semi-implicit Euler velocity step, the exact planar Coulomb LCP by
 enumeration of foot states (the previous states first, then the same fixed order), the mass-metric
-position projection (Newton to :data:`~hsddp_gym.core.contact.POSITION_TOLERANCE`), the energy projection
-(flight: keep the centroidal momentum; contacts: scale ``v``) and the motor torque-speed law -- written
+position projection (Newton to :data:`~hsddp_gym.core.contact.POSITION_TOLERANCE`; contact feet and every
+foot that ended below the ground), the energy projection (flight: the centroidal momentum of the step's start
+plus gravity's impulse and the energy of the torques' second-order work; contacts: scale ``v``) and the motor
+torque-speed law -- written
 out in closed form for the planar tree ``x -> z -> pitch -> {front, back} hip -> knee -> foot`` and
 compiled with numba (``cache=True``), one loop over the robots.
 
@@ -706,7 +708,7 @@ _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
-    "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,),
+    "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,), "pt": (3,), "yt": (4,),
 }
 _INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
 Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
@@ -721,25 +723,48 @@ def kernel_scratch() -> Scratch:
 
 # ------------------------------------------------------------------------------ one step
 @_jit
+def _momentum_target(p, v, sc):
+    """``sc.pt`` (3,): the centroidal momentum (linear x, z, angular y about the CoM) of ``v`` at the configuration
+    whose inertia ``sc.M`` holds, plus gravity's impulse over one step (ContactSimulator._step, a free step)."""
+    s_P = sc.P
+    pt = sc.pt
+    centroidal_rows(sc.M, s_P)
+    for a in range(3):
+        acc = 0.0
+        for j in range(7):
+            acc += s_P[a, j] * v[j]
+        pt[a] = acc
+    pt[1] -= sc.M[0, 0] * p[P_GRAVITY] * p[P_DT]
+
+
+@_jit
 def _project_flight(p, q, v, kinetic, target, sc, counters):
-    """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and
-    the same centroidal momentum (``sc.pts``, ``sc.M`` at the current q)."""
+    """ContactSimulator._project_flight: the nearest ``v`` (mass metric) with kinetic energy ``target`` and the
+    momentum ``sc.pt`` (``sc.pts``, ``sc.M`` at the current q)."""
     s_B = sc.B
-    s_BT = sc.BT
     s_L = sc.L
-    s_Lm = sc.Lm
     s_M = sc.M
     s_P = sc.P
     s_S = sc.S
     s_c = sc.c
     s_rhs = sc.rhs
     s_zz = sc.zz
+    pt = sc.pt
+    yt = sc.yt
     centroidal_rows(s_M, s_P)
-    tree_factor7(s_M, s_Lm, sc.dinv)
-    tree_solve_rows(s_Lm, sc.dinv, s_P, 3, s_BT)  # B = M^-1 P^T
-    for a in range(3):
-        for j in range(7):
-            s_B[j, a] = s_BT[a, j]
+    # B = M^-1 P^T without a solve: P = T M[:3, :] (centroidal_rows), so M^-1 P^T = I[:, :3] T^T, the rigid
+    # motions of the locked robot: translations along x and z, and the rotation about the centre of mass
+    rz = s_M[0, 2] / s_M[0, 0]
+    rx = -s_M[1, 2] / s_M[0, 0]
+    for j in range(7):
+        s_B[j, 0] = 0.0
+        s_B[j, 1] = 0.0
+        s_B[j, 2] = 0.0
+    s_B[0, 0] = 1.0
+    s_B[1, 1] = 1.0
+    s_B[0, 2] = -rz
+    s_B[1, 2] = rx
+    s_B[2, 2] = 1.0
     pm = s_c
     for a in range(3):
         acc = 0.0
@@ -749,21 +774,32 @@ def _project_flight(p, q, v, kinetic, target, sc, counters):
     for a in range(3):
         for b in range(3):
             acc = 0.0
-            for j in range(7):
+            for j in range(3):  # B's rows past the base are zero
                 acc += s_P[a, j] * s_B[j, b]
             s_S[a, b] = acc
+    for a in range(3):
+        s_rhs[a] = pt[a]
+    ok = _solve_spd(s_S, s_rhs, 3, s_zz, s_L)
+    for a in range(3):
+        yt[a] = s_zz[a]
         s_rhs[a] = pm[a]
-    if not _solve_spd(s_S, s_rhs, 3, s_zz, s_L):
-        s_zz[0] = 0.0
-        s_zz[1] = 0.0
-        s_zz[2] = 0.0
+    ok = _solve_spd(s_S, s_rhs, 3, s_zz, s_L) and ok
+    if not ok:
+        for a in range(3):
+            s_zz[a] = 0.0
+            yt[a] = 0.0
     y = s_zz
     k_c = 0.5 * (pm[0] * y[0] + pm[1] * y[1] + pm[2] * y[2])
-    if target >= k_c and kinetic > k_c:
-        factor = math.sqrt((target - k_c) / (kinetic - k_c))
-        for j in range(7):
+    k_t = 0.5 * (pt[0] * yt[0] + pt[1] * yt[1] + pt[2] * yt[2])
+    free = kinetic - k_c
+    if target >= k_t and free > 1e-14 * kinetic:
+        factor = math.sqrt((target - k_t) / free)
+        for j in range(3):
             vc = s_B[j, 0] * y[0] + s_B[j, 1] * y[1] + s_B[j, 2] * y[2]
-            v[j] = v[j] * factor + (1.0 - factor) * vc
+            vt = s_B[j, 0] * yt[0] + s_B[j, 1] * yt[1] + s_B[j, 2] * yt[2]
+            v[j] = (v[j] - vc) * factor + vt
+        for j in range(3, 7):
+            v[j] *= factor
         return target
     counters[2] += 1
     s = math.sqrt(target / kinetic)
@@ -933,7 +969,11 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         cfoot[ncand] = foot
                         cphi[ncand] = phi
                         ncand += 1
+                power_start = 0.0
                 if ncand == 0:
+                    _momentum_target(p, v, sc)  # s_M holds the inertia of the step's start
+                    for i in range(7):
+                        power_start += s_tau[i] * v[i]
                     for i in range(7):
                         v[i] = vf[i]
                     states[0] = SEPARATE
@@ -988,65 +1028,69 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                     s_q_old[i] = q[i]
                 for i in range(7):
                     q[i] += v[i] * h
-                if ncand > 0:
-                    tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
-                    nt = 0
-                    for i in range(ncand):
-                        foot = cfoot[i]
-                        st = states[foot]
-                        if st == STICK:
-                            jz_pitch = s_fjz[foot, 2]  # LWA z row, pitch column, at the step's start
-                            tfoot[nt] = foot
-                            taxis[nt] = 0
-                            tval[nt] = s_q_old[0] - jz_pitch
-                            nt += 1
-                        if st != SEPARATE:
-                            tfoot[nt] = foot
-                            taxis[nt] = 1
-                            tval[nt] = 0.0
-                            nt += 1
-                    kinematics(p, q, s_pts)
-                    for i in range(ncand):
-                        foot = cfoot[i]
-                        if states[foot] == SEPARATE and s_pts[_FOOT_POINT[foot], 1] < 0.0:
-                            tfoot[nt] = foot
-                            taxis[nt] = 1
-                            tval[nt] = 0.0
-                            nt += 1
-                    if nt > 0:
-                        res = s_rhs
-                        for _ in range(_MAX_PROJECTION_ITERATIONS):
-                            residual = 0.0
-                            for a in range(nt):
-                                res[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
-                                residual = max(residual, abs(res[a]))
-                            if residual <= POSITION_TOLERANCE:
-                                break
-                            for a in range(nt):
-                                point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
-                                row = s_jx if taxis[a] == 0 else s_jz
-                                for j in range(7):
-                                    s_Jr[a, j] = row[j]
-                            tree_solve_rows(s_Lm, s_dinv, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
-                            for a in range(nt):
-                                for j in range(7):
-                                    s_B[j, a] = s_BT[a, j]
-                            for a in range(nt):
-                                for b in range(nt):
-                                    acc = 0.0
-                                    for j in range(7):
-                                        acc += s_Jr[a, j] * s_B[j, b]
-                                    s_S[a, b] = acc
-                            if not _solve_spd(s_S, res, nt, s_zz, s_L):
-                                break
-                            for i in range(7):
+                tfoot, taxis, tval = s_tfoot, s_taxis, s_tval
+                nt = 0
+                held0 = False
+                held1 = False
+                for i in range(ncand):
+                    foot = cfoot[i]
+                    st = states[foot]
+                    if st == STICK:
+                        jz_pitch = s_fjz[foot, 2]  # LWA z row, pitch column, at the step's start
+                        tfoot[nt] = foot
+                        taxis[nt] = 0
+                        tval[nt] = s_q_old[0] - jz_pitch
+                        nt += 1
+                    if st != SEPARATE:
+                        tfoot[nt] = foot
+                        taxis[nt] = 1
+                        tval[nt] = 0.0
+                        nt += 1
+                        if foot == 0:
+                            held0 = True
+                        else:
+                            held1 = True
+                kinematics(p, q, s_pts)
+                for foot in range(2):  # any other foot that ends below the ground is lifted onto it
+                    held = held0 if foot == 0 else held1
+                    if not held and s_pts[_FOOT_POINT[foot], 1] < 0.0:
+                        tfoot[nt] = foot
+                        taxis[nt] = 1
+                        tval[nt] = 0.0
+                        nt += 1
+                constrained = ncand > 0 or nt > 0
+                if nt > 0:
+                    res = s_rhs
+                    for _ in range(_MAX_PROJECTION_ITERATIONS):
+                        residual = 0.0
+                        for a in range(nt):
+                            res[a] = tval[a] - s_pts[_FOOT_POINT[tfoot[a]], taxis[a]]
+                            residual = max(residual, abs(res[a]))
+                        if residual <= POSITION_TOLERANCE:
+                            break
+                        for a in range(nt):
+                            point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
+                            row = s_jx if taxis[a] == 0 else s_jz
+                            for j in range(7):
+                                s_Jr[a, j] = row[j]
+                        tree_solve_rows(s_Lm, s_dinv, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                        for a in range(nt):
+                            for j in range(7):
+                                s_B[j, a] = s_BT[a, j]
+                        for a in range(nt):
+                            for b in range(nt):
                                 acc = 0.0
-                                for a in range(nt):
-                                    acc += s_B[i, a] * s_zz[a]
-                                q[i] += acc
-                            kinematics(p, q, s_pts)
-                else:
-                    kinematics(p, q, s_pts)
+                                for j in range(7):
+                                    acc += s_Jr[a, j] * s_B[j, b]
+                                s_S[a, b] = acc
+                        if not _solve_spd(s_S, res, nt, s_zz, s_L):
+                            break
+                        for i in range(7):
+                            acc = 0.0
+                            for a in range(nt):
+                                acc += s_B[i, a] * s_zz[a]
+                            q[i] += acc
+                        kinematics(p, q, s_pts)
                 mass_matrix(p, s_pts, s_M)
                 kinetic = kinetic_energy(s_M, v)
                 potential = potential_energy(p, s_pts)
@@ -1055,9 +1099,19 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                 for i in range(7):
                     tq += s_tau[i] * q[i]
                     tq_old += s_tau[i] * s_q_old[i]
-                allowed = energy + (tq - tq_old)
-                if kinetic + potential > allowed:
-                    counters[1] += 1
+                work = tq - tq_old
+                if not constrained:  # flight: the second-order work, capped (ContactSimulator._finish_consistent)
+                    power_end = 0.0
+                    work = 0.0
+                    for i in range(7):
+                        power_end += s_tau[i] * v[i]
+                        work += s_tau[i] * (v[i] * h)
+                    work = min(work, 0.5 * h * (power_start + power_end))
+                allowed = energy + work
+                if kinetic + potential > allowed or not constrained:
+                    # contacts: only an energy gain is removed; free flight: the allowed energy exactly
+                    if kinetic + potential > allowed:
+                        counters[1] += 1
                     target = allowed - potential
                     target -= 1e-13 * (abs(allowed) + abs(potential))
                     if target <= 0.0:
@@ -1065,7 +1119,7 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
                         for i in range(7):
                             v[i] = 0.0
                         kinetic = 0.0
-                    elif ncand > 0:
+                    elif constrained:
                         s = math.sqrt(target / kinetic)
                         for i in range(7):
                             v[i] *= s

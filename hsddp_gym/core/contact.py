@@ -30,29 +30,41 @@ Energy-consistent stepping (the default, ``energy_consistent=True``)
 --------------------------------------------------------------------
 The velocity-level step above is the legacy scheme; on its own it creates energy (the explicit Coriolis terms
 of the semi-implicit step at high joint rates, and the O(h^2) curvature of a foot's path, which makes a
-sticking foot creep and a landing foot penetrate). Two projections after ``q+ = q + h v+`` close it:
+sticking foot creep and a landing foot penetrate), lets a fast foot cross the ground between two steps and
+does not keep momentum in flight. Two projections after ``q+ = q + h v+`` close it:
 
 1. *Position projection* (mass metric): every candidate foot in contact is moved back to height 0, every
-   sticking foot back to its position at the start of the step, and a separating candidate foot that ended
-   below the ground onto it: ``q+ += M^-1 J^T mu`` with ``J`` the rows of those constraints, Newton iterations
-   on the exact kinematics until the residual is below :data:`POSITION_TOLERANCE` (1e-9 m); the first uses the
-   exact Jacobians at ``q+`` and the step's ``M^-1``. So a sticking foot does not move (<= 1e-9 m per step) and
-   a contact foot ends each step on the ground.
-2. *Energy projection*: with ``E = 1/2 v^T M v + V`` and the joint-torque work ``W = tau . (q+ - q)`` (tau
-   constant over the step), if ``E(q+, v+) > E(q, v) + W``, ``v+`` is moved to the nearest point (mass metric)
-   with exactly that energy: in flight keeping the linear (x, z) and angular momentum of ``v+`` (scaling only
-   its momentum-free part), with contacts by scaling ``v+`` (which keeps every contact velocity condition,
-   ``J v+ = 0`` when sticking). A step that loses energy is left alone. Counted in
-   :attr:`ContactSimulator.energy_projections`.
+   sticking foot back to its position at the start of the step, and **every other foot that ended below the
+   ground onto it** (a candidate that separates, or a foot too fast for the candidate test's linear
+   prediction: at hundreds of rad/s a foot's path curves within one step): ``q+ += M^-1 J^T mu`` with ``J``
+   the rows of those constraints, Newton iterations on the exact kinematics until the residual is below
+   :data:`POSITION_TOLERANCE` (1e-9 m); the first uses the exact Jacobians at ``q+`` and the step's ``M^-1``.
+   So a sticking foot does not move (<= 1e-9 m per step), a contact foot ends each step on the ground, and no
+   foot ends a step below it, at any joint rate (no tunnelling).
+2. *Energy and momentum projection*, with ``E = 1/2 v^T M v + V``:
+
+   * with contacts (or after a position correction), the work ``W = tau . (q+ - q)`` (tau constant over the
+     step): if ``E(q+, v+) > E(q, v) + W``, ``v+`` is scaled to exactly that energy, which keeps every contact
+     velocity condition (``J v+ = 0`` when sticking); a step that loses energy is left alone (contacts only
+     dissipate);
+   * in free flight, ``v+`` is moved to the nearest point (mass metric) with the centroidal momentum
+     (linear x, z and angular y about the centre of mass) ``P(q) v + (0, -m g h, 0)`` (what gravity's impulse
+     leaves of the step's start) and with energy exactly ``E(q, v) + W``, where ``W`` is the torques' work to
+     second order, ``h/2 tau . (v + v+)``, capped by ``tau . h v+`` (semi-implicit Euler's ``tau . h v+``
+     counts the torques' own acceleration twice and would pump energy into a leg driven bang-bang).
+
+   Counted in :attr:`ContactSimulator.energy_projections` (steps whose energy had to come down).
 
 Hence ``E(t+h) - E(t) <= tau . dq`` for every step, impacts and position corrections included (tested to
 1e-9 J from random states in every contact combination, any gravity), and velocities stay bounded by the
-energy (no blow-up). What it does not do: it is still a first-order step, so at high joint rates it is
-numerically dissipative instead of conservative (measured in free flight, g = 0, over 0.5 s: 0.15 % of the
-energy lost at 10 rad/s on a hip, 10 % at 50 rad/s, 26 % at 100 rad/s) and it keeps the momentum drift of the
-semi-implicit step. The legacy scheme (``energy_consistent=False``) corrects penetration before the step
-(``q += M^-1 J_n^T mu`` lifting each penetrating contact foot by ``erp * (-phi)``, slop 1 um) and does neither
-projection.
+energy (no blow-up). In flight the momentum is exact (to round-off: 1e-13 relative over 10 s) and, with zero
+torque, so is the energy (a relative 1e-13 margin per step against round-off: 1e-9 over 10 s), at any joint
+rate; the scheme it had before lost 49 % of a 100 rad/s leg's energy in 0.5 s and drifted 1 kg m/s in
+momentum over 10 s. **Order**: the step stays first order in ``h`` (semi-implicit Euler, then projections onto
+the constraint and invariant manifolds, which keep its order): trajectories converge linearly in the step, while
+the invariants are kept exactly rather than to O(h). The legacy scheme (``energy_consistent=False``) corrects
+penetration before the step (``q += M^-1 J_n^T mu`` lifting each penetrating contact foot by ``erp * (-phi)``,
+slop 1 um) and does neither projection.
 
 The restitution is zero (the constraint is on ``v+``: a landing foot stops in one step, an inelastic
 impact), the ground only pushes (``lam_n >= 0``), a foot lifts off exactly when keeping it on the ground
@@ -83,12 +95,13 @@ Newton correction (two small products, an unrolled Cholesky, one product) whose 
 kinematics of the result, and an exact bound on the Newton remainder
 (:meth:`ContactSimulator._newton_remainder_bound`) that makes the final placement check unnecessary (in 90 % of the
 double-stick steps of a collapsing stance); two sticking feet take a straight-line version of the first Newton step.
-When a step gains energy in flight it adds the centroidal map and ``M^-1``. ``experiments/bench_env.py`` times both
-schemes, interleaved: on a loaded 2-core machine (load average 5-5.7) the default made 0.65-0.76x the legacy env
-steps/s under random actions (0.70x both with and without these shortcuts in the one run that timed both) and
-0.54-0.56x in a collapsing double stance (0.50x before), short of the 0.8x goal: the remaining gap is the Python and
-NumPy call overhead of the projection (about 40 % glue, 27 % the 4x4 solve with its list conversion, 20 % the small
-NumPy products, 15 % the Pinocchio calls of a double-stance step, line_profiler).
+Every flight step adds the centroidal map twice (the momentum target at the step's start, its projection at the end;
+``M^-1 P^T`` is read off ``P`` without a solve). ``experiments/bench_env.py`` times both schemes, interleaved: on a
+loaded 2-core machine (load average 5-5.7) the default made 0.65-0.76x the legacy env steps/s under random actions
+(0.70x both with and without these shortcuts in the one run that timed both) and 0.54-0.56x in a collapsing double
+stance (0.50x before), short of the 0.8x goal: the remaining gap is the Python and NumPy call overhead of the
+projection (about 40 % glue, 27 % the 4x4 solve with its list conversion, 20 % the small NumPy products, 15 % the
+Pinocchio calls of a double-stance step, line_profiler).
 
 Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.core.conventions`
 (``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``, the force of the ground on the robot).
@@ -531,6 +544,9 @@ class ContactSimulator(SimulatorQueries):
         self._minv = None
         self._q_old = np.zeros(NQ)
         self._energy = 0.0
+        self._momentum_target = np.zeros(3)
+        self._power_start = 0.0
+        self._total_mass = float(self.robot.total_mass)
         self._imp_sum = [0.0, 0.0, 0.0, 0.0]
         p = self.robot.params
         self._link_lengths = (abs(p.hip_offset), abs(p.thigh.length), abs(p.shank.length))  # |c_0|, |c_1|, |c_2|
@@ -609,6 +625,11 @@ class ContactSimulator(SimulatorQueries):
                 cand.append((foot, J, phi))
         states = self.states
         if not cand:
+            if self.energy_consistent:  # the exact momentum after a free step: gravity's impulse only
+                pm = self._momentum_target
+                pm[:] = pin.computeCentroidalMap(model, data, q)[_MOMENTUM_ROWS] @ v
+                pm[1] -= self._total_mass * self.gravity * h
+                self._power_start = float(self._tau.dot(v))  # tau . v at the step's start (its work estimate)
             v[:] = vf
             if states[0] or states[1] or self._had_contact:
                 states[0] = states[1] = SEPARATE
@@ -664,61 +685,99 @@ class ContactSimulator(SimulatorQueries):
         self.time += h
 
     def _finish_consistent(self, cand: list) -> None:
-        """End of an energy-consistent step: ``q+ = q + h v+``, then the position projection of the contact
-        feet, then the energy projection of ``v+``; see the module docstring (*Energy-consistent stepping*)."""
+        """End of an energy-consistent step: ``q+ = q + h v+``, then the position projection of the contact feet
+        and of every foot that ended below the ground, then the energy projection of ``v+``; see the module
+        docstring (*Energy-consistent stepping*)."""
         model, data, q, v = self.model, self.data, self.q, self.v
         tau, dq = self._tau, self._dq
         np.multiply(v, self.dt, out=dq)
         # work of the joint torques over the step (tau is constant during it; its base entries are 0)
-        if cand:
-            q_old = self._q_old
-            q_old[:] = q
-            q += dq
+        q_old = self._q_old
+        q_old[:] = q
+        q += dq
+        constrained = bool(cand)
+        if not constrained:
+            pin.forwardKinematics(model, data, q)
+            fids = self._fids
+            if (pin.updateFramePlacement(model, data, fids[0]).translation[2] < 0.0
+                    or pin.updateFramePlacement(model, data, fids[1]).translation[2] < 0.0):
+                # a foot crossed the ground within the step without being a candidate (a foot that moves faster
+                # than the candidate test's linear prediction sees): back onto the ground, in the step's metric
+                self._minv = pin.computeMinverse(model, data, q_old)
+                constrained = True
+        if constrained:
             self._project_positions(cand, q_old)  # leaves the mechanical energy of the result in data
             work = tau.dot(q) - tau.dot(q_old)
         else:
-            q += dq
             pin.computeMechanicalEnergy(model, data, q, v)  # one call: kinematics, kinetic and potential energy
-            work = tau.dot(dq)  # the displacement is h v+ (equal to tau . (q+ - q) up to round-off)
+            # The work of the torques along the step, second order (trapezoidal in the velocity), capped by the
+            # work along the scheme's displacement h v+ (which overestimates it by h^2 tau^T M^-1 tau / 2 when the
+            # torques accelerate the joints): the flight's energy follows the torques' work, never more.
+            work = min(tau.dot(dq), 0.5 * self.dt * (self._power_start + tau.dot(v)))
         kinetic, potential = data.kinetic_energy, data.potential_energy
         allowed = self._energy + work
-        if kinetic + potential > allowed:
-            self.energy_projections += 1
+        if constrained:
+            if kinetic + potential > allowed:
+                self.energy_projections += 1
+                target = allowed - potential
+                target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
+                if target <= 0.0:
+                    # the positions alone exceed the allowed energy (never seen; counted): stop the robot, the
+                    # least energy this step can leave
+                    self.energy_deficits += 1
+                    v[:] = 0.0
+                    kinetic = 0.0
+                else:
+                    # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
+                    v *= (target / kinetic) ** 0.5
+                    kinetic = target
+        else:
+            # free flight: the momentum gravity leaves and exactly the allowed energy (no numerical damping)
+            if kinetic + potential > allowed:
+                self.energy_projections += 1
             target = allowed - potential
             target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
             if target <= 0.0:
-                # the positions alone exceed the allowed energy (never seen; counted): stop the robot, the
-                # least energy this step can leave
                 self.energy_deficits += 1
                 v[:] = 0.0
                 kinetic = 0.0
-            elif cand:
-                # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
-                v *= (target / kinetic) ** 0.5
-                kinetic = target
             else:
                 kinetic = self._project_flight(kinetic, target)
         self._energy = kinetic + potential
 
     def _project_flight(self, kinetic: float, target: float) -> float:
-        """Flight: the point nearest to ``v+`` in the mass metric with kinetic energy ``target`` and the same
-        linear (x, z) and angular (y) momentum about the centre of mass as ``v+``. With ``P`` (3, 7) those rows
-        of the centroidal momentum matrix and ``v_c = M^-1 P^T (P M^-1 P^T)^-1 P v+`` (the least-energy motion
-        with that momentum, M-orthogonal to every momentum-free motion), ``v = v_c + s (v+ - v_c)``. Falls back
-        to scaling ``v+`` (counted in :attr:`momentum_fallbacks`) when ``target`` is below ``K(v_c)``."""
+        """Free flight: the point nearest to ``v+`` in the mass metric with kinetic energy ``target`` and the
+        centroidal momentum (linear x, z and angular y about the centre of mass) of the step's start plus gravity's
+        impulse (``_momentum_target``). With ``P`` (3, 7) those rows of the centroidal momentum matrix at ``q+``,
+        ``B = M^-1 P^T``, ``S = P B`` and ``v_c(p) = B S^-1 p`` (the least-energy motion with momentum ``p``,
+        M-orthogonal to every momentum-free motion), ``v = v_c(p_target) + s (v+ - v_c(P v+))`` with ``s`` giving
+        the kinetic energy ``target``. Falls back to scaling ``v+`` (counted in :attr:`momentum_fallbacks`) when
+        ``target`` is below the least energy of that momentum or ``v+`` has no momentum-free part."""
         model, data, q, v = self.model, self.data, self.q, self.v
         P = pin.computeCentroidalMap(model, data, q)[_MOMENTUM_ROWS]
-        B = pin.computeMinverse(model, data, q) @ P.T  # (7, 3)
+        # B = M^-1 P^T (7, 3) without a solve: the centroidal rows are P = T M[:3, :] with T the 3x3 shift of the
+        # angular row from the trunk origin to the centre of mass, so M^-1 P^T = I[:, :3] T^T -- the rigid motions
+        # of the locked robot (translations along x and z, the rotation about the centre of mass)
+        # (the linear rows of P are M's x and z rows, so the CoM offset from the trunk origin reads off P)
+        B = np.zeros((NV, 3))
+        B[0, 0] = B[1, 1] = B[2, 2] = 1.0
+        B[0, 2] = -P[0, 2] / P[0, 0]
+        B[1, 2] = -P[1, 2] / P[0, 0]
+        S = (P @ B).tolist()  # P M^-1 P^T (3, 3): symmetric positive definite
         p = (P @ v).tolist()
-        y = _solve_spd((P @ B).tolist(), p)  # P M^-1 P^T (3, 3): symmetric positive definite
-        if y is None:  # pragma: no cover - the momentum rows are independent for this robot
-            y = [0.0, 0.0, 0.0]
+        pt = self._momentum_target.tolist()
+        y = _solve_spd(S, p)
+        yt = _solve_spd(S, pt)
+        if y is None or yt is None:  # pragma: no cover - the momentum rows are independent for this robot
+            y = yt = [0.0, 0.0, 0.0]
         k_c = 0.5 * (p[0] * y[0] + p[1] * y[1] + p[2] * y[2])
-        if target >= k_c and kinetic > k_c:
-            factor = ((target - k_c) / (kinetic - k_c)) ** 0.5
-            vc = B @ y
+        k_t = 0.5 * (pt[0] * yt[0] + pt[1] * yt[1] + pt[2] * yt[2])
+        free = kinetic - k_c  # kinetic energy of the momentum-free part of v+
+        if target >= k_t and free > 1e-14 * kinetic:
+            factor = ((target - k_t) / free) ** 0.5
+            v -= B @ y
             v *= factor
-            v += (1.0 - factor) * vc
+            v += B @ yt
             return target
         self.momentum_fallbacks += 1
         v *= (target / kinetic) ** 0.5
@@ -753,8 +812,9 @@ class ContactSimulator(SimulatorQueries):
             if state != SEPARATE:
                 rows.append((foot, 2, 0.0))
         pin.computeJointJacobians(model, data, q)
-        for foot, _, _ in cand:  # a separating candidate foot that ends below the ground is lifted onto it
-            if states[foot] == SEPARATE and pin.updateFramePlacement(model, data, fids[foot]).translation[2] < 0.0:
+        held = {foot for foot, _, _ in cand if states[foot] != SEPARATE}
+        for foot in FEET:  # any other foot that ends below the ground is lifted onto it
+            if foot not in held and pin.updateFramePlacement(model, data, fids[foot]).translation[2] < 0.0:
                 rows.append((foot, 2, 0.0))
         if not rows:
             pin.computeMechanicalEnergy(model, data, q, v)

@@ -37,6 +37,35 @@ def _as_float_array(value, name: str, what: str) -> np.ndarray:
         raise TypeError(f"{name} must be {what}, got {type(value).__name__}") from exc
 
 
+def real_array(value, name: str) -> np.ndarray:
+    """``value`` as a real array (dtype kind ``f``, ``i`` or ``u``; shape unchecked), the one rule the single and
+    vector envs apply to actions. An object array (e.g. of Python ints) becomes float64 entry by entry.
+
+    Raises ``TypeError`` for what is not a real number (text, complex, bools in an object array) and
+    ``ValueError`` ("must be finite") for entries too large for a float, e.g. ``10**400``."""
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
+        return value
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{name} must be an array of real numbers, got {value!r}") from exc
+    kind = a.dtype.kind
+    if kind in "fiu":
+        return a
+    if kind == "c":
+        raise TypeError(f"{name} must be real, got the complex array {a!r}")
+    if kind != "O":
+        raise TypeError(f"{name} must be an array of real numbers, got dtype {a.dtype} ({value!r})")
+    entries = a.ravel().tolist()
+    for v in entries:
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+            raise TypeError(f"{name} must hold real numbers, got {v!r} of type {type(v).__name__}")
+    try:
+        return np.array([float(v) for v in entries], dtype=np.float64).reshape(a.shape)
+    except OverflowError as exc:
+        raise ValueError(f"{name} must be finite, got entries too large for a float: {value!r}") from exc
+
+
 def check_positive(value, name: str, *, allow_zero: bool = False) -> float:
     """A finite real number > 0 (or >= 0 with ``allow_zero``)."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
