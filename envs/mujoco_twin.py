@@ -1,6 +1,6 @@
 """A MuJoCo twin of ``hsddp_gym/Bounding-v0``: the same robot, task and API on an established soft-contact
 simulator, registered as ``hsddp_gym/BoundingMuJoCo-v0`` (needs the optional extra ``mujoco``:
-``pip install hsddp_gym[mujoco]``).
+``pip install hsddp_gym[mujoco]``), and a family of contact models to test a policy on (:class:`ContactModel`).
 
 Model (:func:`build_mjcf`, from :mod:`hsddp_gym.core.params`)
 -------------------------------------------------------------
@@ -10,26 +10,41 @@ hinge at ``(+-hip_offset, 0, 0)``) and a ``shank`` (knee hinge ``thigh.length`` 
 mass, CoM (``com_z`` along the link) and ``I_yy`` come from :class:`~hsddp_gym.core.params.RobotParams`
 (``diaginertia = I_yy (1, 1, 1)`` as in the Pinocchio model; off-plane axes cannot act), with
 ``inertiafromgeom="false"`` so that geoms add no mass; no armature, damping or joint limits. The point foot is a
-sphere of radius :data:`FOOT_RADIUS` centred on the foot point, and the floor plane lies ``FOOT_RADIUS`` below
-``z = 0``, so a foot touches exactly when the foot point reaches ``z = 0`` (the env's ground). Only the feet
-collide, with the floor. Joint torques enter as ``qfrc_applied`` (the motors' torque-speed limit of the env is
-applied first, the same code).
+sphere of radius ``foot_radius`` (default :data:`FOOT_RADIUS`, 5 mm) centred on the foot point, and the floor plane
+lies ``foot_radius`` below ``z = 0``, so a foot touches exactly when the foot point reaches ``z = 0`` (the env's
+ground). Only the feet collide, with the floor. Joint torques enter as ``qfrc_applied`` (the motors' torque-speed
+limit of the env is applied first, the same code).
 
-Simulation: ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator, elliptic friction cone with
-``mu`` = 0.6, and a stiff soft contact ``solref = (0.005, 1)`` (5 ms time constant, critically damped; MuJoCo's
-default is 0.02 s) with the default ``solimp``. Unlike the exact-LCP env, contacts are compliant: feet sink
-millimetres, may bounce and slip slightly while "sticking".
+Simulation (the default :data:`ContactModel`): ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator,
+elliptic friction cone with ``mu`` = 0.6, and a stiff soft contact ``solref = (0.005, 1)`` (5 ms time constant,
+critically damped; MuJoCo's default is 0.02 s) with MuJoCo's default ``solimp`` and ``impratio``. Unlike the
+exact-LCP env, contacts are compliant: feet sink millimetres, may bounce and slip slightly while "sticking".
+
+Contact models
+--------------
+:class:`ContactModel` (frozen, validated) is one contact model of the twin: friction cone, ``solref``, ``solimp``,
+foot radius, ``impratio``, time step and friction. :data:`ContactModel.DEFAULT <ContactModel>` is the model above
+(its MJCF is the twin's, byte for byte); :meth:`ContactModel.sample` draws one from the documented family
+(:data:`FAMILY_RANGES`); :data:`CONTACT_CORNERS` names the family's corners. The env takes a model as
+``contact_model=`` (a :class:`ContactModel`, a dict of its fields or a corner name) and each field as its own
+keyword. The control period stays 5 ms whatever the time step: the time step must divide it
+(``timestep = 5 ms / n``, ``n`` = 3..10) and the env's ``frame_skip`` defaults to ``n``.
 
 Divergence: when MuJoCo meets a non-finite or huge ``qpos``/``qvel``/``qacc`` it warns and silently resets the
 state to ``qpos0``; the twin turns that into a non-finite state, so the env reports ``info["invalid_state"]``
 exactly as Bounding-v0 does.
 
-Checks (``tests/test_mujoco_twin.py``): mass matrix, bias forces (Coriolis + gravity) and foot positions equal
-the Pinocchio model's to 1e-9 at random states, and a free-flight step equals the legacy Bounding-v0 step (the
-same semi-implicit Euler) to 1e-9.
+Checks (``tests/test_mujoco_twin.py``, ``tests/test_contact_family.py``): mass matrix, bias forces (Coriolis +
+gravity) and foot positions equal the Pinocchio model's to 1e-9 at random states, a free-flight step equals the
+legacy Bounding-v0 step (the same semi-implicit Euler) to 1e-9, the default contact model gives the twin's MJCF and
+trajectory bit for bit, and a robot dropped in every corner model lands and stands.
 """
 
 from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
 
 import numpy as np
 
@@ -41,10 +56,227 @@ from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.util.validation import check_positive, check_vector
 
 FOOT_RADIUS = 0.005
-"""Radius [m] of the foot spheres; the floor is this far below z = 0 (contact when the foot point reaches 0)."""
+"""Radius [m] of the foot spheres of the default model; the floor is this far below z = 0 (contact when the foot
+point reaches 0)."""
 DEFAULT_SOLREF = (0.005, 1.0)
-"""MuJoCo contact ``solref`` (time constant [s], damping ratio): stiff and critically damped."""
+"""MuJoCo contact ``solref`` (time constant [s], damping ratio) of the default model: stiff and critically damped."""
+MUJOCO_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
+"""MuJoCo's default ``solimp`` ``(d_min, d_max, width [m], midpoint, power)``, the default model's."""
+MUJOCO_IMPRATIO = 1.0
+"""MuJoCo's default ``impratio`` (ratio of frictional to normal constraint impedance, elliptic cones)."""
+CONTROL_PERIOD = 0.005
+"""The env's control period [s]; a contact model's time step divides it."""
 JOINT_NAMES = ("x", "z", "pitch", "hip_front", "knee_front", "hip_back", "knee_back")
+
+FAMILY_RANGES = {
+    "cone": ("pyramidal", "elliptic"),
+    "solref_time_constant": (0.002, 0.020),
+    "solref_damping_ratio": (0.5, 2.0),
+    "solimp_d_min": (0.8, 0.95),
+    "solimp_d_max": (0.95, 0.99),
+    "solimp_width": (0.0005, 0.005),
+    "foot_radius": (0.001, 0.020),
+    "impratio": (1.0, 10.0),
+    "timestep": (0.0005, 0.002),
+    "friction": (0.4, 1.0),
+}
+"""The ranges of the contact-model family: :meth:`ContactModel.sample` draws from them (see there for the
+distribution). Units: s, m; the damping ratio, ``d`` and ``impratio`` have none."""
+ACCEPTED_RANGES = {
+    "solref_time_constant": (0.0005, 0.1),
+    "solref_damping_ratio": (0.1, 10.0),
+    "solimp_d": (0.01, 0.9999),
+    "solimp_width": (1e-5, 0.05),
+    "foot_radius": (0.0005, 0.05),
+    "impratio": (1.0, 100.0),
+    "timestep_divisions": (1, 20),
+    "friction": (0.01, 2.0),
+}
+"""The values a :class:`ContactModel` accepts, wider than the family's (:data:`FAMILY_RANGES`) so that a user can
+build a model outside it (e.g. ``friction=0.3``): ``solimp``'s ``d_min`` and ``d_max`` in ``solimp_d``, its midpoint
+in (0, 1) and power >= 1, the time step ``5 ms / n`` for a whole ``n`` in ``timestep_divisions``. Units: s, m."""
+
+
+def _real(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
+        raise ValueError(f"{name} must be a finite real number, got {value!r}")
+    return float(value)
+
+
+def _in(value, lo: float, hi: float, name: str, unit: str = "") -> float:
+    v = _real(value, name)
+    if not lo <= v <= hi:
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}]{unit}, got {value!r}")
+    return v
+
+
+def _numbers(value, size: int, name: str) -> tuple:
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != size:
+        raise ValueError(f"{name} must be {size} numbers, got {value!r}")
+    return tuple(_real(v, f"{name}[{i}]") for i, v in enumerate(value))
+
+
+@dataclasses.dataclass(frozen=True)
+class ContactModel:
+    """One contact model of the MuJoCo twin (validated on construction; ``ValueError`` naming the field, its range
+    and the value received). :data:`DEFAULT <ContactModel.DEFAULT>` is the twin's model, bit for bit.
+
+    Attributes:
+        cone: MuJoCo's friction cone, ``"elliptic"`` (default) or ``"pyramidal"``.
+        solref: ``(time constant [s], damping ratio)`` of the soft contact: time constant in [0.5, 100] ms (default
+            5 ms; MuJoCo raises a time constant below two time steps to two time steps), damping ratio in
+            [0.1, 10] (default 1, critically damped).
+        solimp: MuJoCo's impedance shape ``(d_min, d_max, width [m], midpoint, power)`` (default MuJoCo's
+            :data:`MUJOCO_SOLIMP`): ``d_min <= d_max`` in [0.01, 0.9999], ``width`` in [0.01, 50] mm, ``midpoint`` in
+            (0, 1), ``power`` >= 1.
+        foot_radius: radius [m] of the foot spheres, in [0.5, 50] mm (default 5 mm); the floor lies ``foot_radius``
+            below ``z = 0`` so a foot touches when its foot point reaches the ground. A larger sphere rolls: its
+            contact point moves along the ground as the shank turns.
+        impratio: MuJoCo's ratio of frictional to normal impedance, in [1, 100] (default 1; elliptic cones only).
+        timestep: MuJoCo's step [s]: ``5 ms / n`` for a whole ``n`` from 1 to 20 (0.25 to 5 ms; default 1 ms), so
+            that the 5 ms control period is ``n`` steps (:attr:`frame_skip`); stored as exactly ``0.005 / n``.
+        friction: Coulomb coefficient ``mu`` of feet and floor, in [0.01, 2] (default 0.6, the planner's model).
+
+    The accepted ranges (:data:`ACCEPTED_RANGES`) are wider than the family's (:data:`FAMILY_RANGES`), which
+    :meth:`sample` draws from.
+    """
+
+    cone: str = "elliptic"
+    solref: tuple = DEFAULT_SOLREF
+    solimp: tuple = MUJOCO_SOLIMP
+    foot_radius: float = FOOT_RADIUS
+    impratio: float = MUJOCO_IMPRATIO
+    timestep: float = 0.001
+    friction: float = 0.6
+
+    def __post_init__(self) -> None:
+        r = ACCEPTED_RANGES
+        if not isinstance(self.cone, str) or self.cone not in FAMILY_RANGES["cone"]:
+            raise ValueError(f"cone must be one of {FAMILY_RANGES['cone']}, got {self.cone!r}")
+        tc, dr = _numbers(self.solref, 2, "solref")
+        _in(tc, *r["solref_time_constant"], "solref[0] (time constant)", " s")
+        _in(dr, *r["solref_damping_ratio"], "solref[1] (damping ratio)")
+        imp = _numbers(self.solimp, 5, "solimp")
+        _in(imp[0], *r["solimp_d"], "solimp[0] (d_min)")
+        _in(imp[1], *r["solimp_d"], "solimp[1] (d_max)")
+        _in(imp[2], *r["solimp_width"], "solimp[2] (width)", " m")
+        if imp[0] > imp[1]:
+            raise ValueError(f"solimp must have d_min <= d_max, got {self.solimp!r}")
+        if not 0.0 < imp[3] < 1.0:
+            raise ValueError(f"solimp[3] (midpoint) must be in (0, 1), got {self.solimp!r}")
+        if not imp[4] >= 1.0:
+            raise ValueError(f"solimp[4] (power) must be >= 1, got {self.solimp!r}")
+        radius = _in(self.foot_radius, *r["foot_radius"], "foot_radius", " m")
+        impratio = _in(self.impratio, *r["impratio"], "impratio")
+        lo, hi = r["timestep_divisions"]
+        h = _in(self.timestep, CONTROL_PERIOD / hi, CONTROL_PERIOD / lo, "timestep", " s")
+        n = round(CONTROL_PERIOD / h)
+        if abs(CONTROL_PERIOD / h - n) > 1e-6 * n:
+            raise ValueError(f"timestep must divide the 5 ms control period (5 ms / n, n = {lo}..{hi}), got "
+                             f"{self.timestep!r}")
+        mu = _in(self.friction, *r["friction"], "friction")
+        for name, value in (("solref", (tc, dr)), ("solimp", imp), ("foot_radius", radius), ("impratio", impratio),
+                            ("timestep", CONTROL_PERIOD / n), ("friction", mu)):
+            object.__setattr__(self, name, value)
+
+    @property
+    def frame_skip(self) -> int:
+        """MuJoCo steps per 5 ms control period (``5 ms / timestep``)."""
+        return round(CONTROL_PERIOD / self.timestep)
+
+    def as_dict(self) -> dict:
+        """The fields as a JSON-serializable dict (tuples as lists)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+
+    def replace(self, **changes) -> ContactModel:
+        """A copy with ``changes`` (field names; validated)."""
+        fields = [f.name for f in dataclasses.fields(self)]
+        unknown = sorted(set(changes) - set(fields))
+        if unknown:
+            raise TypeError(f"unknown ContactModel field(s) {unknown}; fields: {fields}")
+        return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def parse(cls, value, name: str = "contact_model") -> ContactModel:
+        """``value`` as a model: a :class:`ContactModel`, a dict of its fields (missing ones: the default's) or the
+        name of a corner of :data:`CONTACT_CORNERS`; ``TypeError``/``ValueError`` naming ``name`` otherwise."""
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, str):
+            if value not in CONTACT_CORNERS:
+                raise ValueError(f"{name} must be a ContactModel, a dict of its fields or one of the corners "
+                                 f"{list(CONTACT_CORNERS)}, got {value!r}")
+            return CONTACT_CORNERS[value]
+        if isinstance(value, dict):
+            fields = {f.name for f in dataclasses.fields(cls)}
+            unknown = sorted(set(value) - fields)
+            if unknown:
+                raise ValueError(f"{name}: unknown field(s) {unknown}; allowed: {sorted(fields)}")
+            return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in value.items()})
+        raise TypeError(f"{name} must be a ContactModel, a dict of its fields or a corner name, got "
+                        f"{type(value).__name__}")
+
+    @classmethod
+    def sample(cls, rng: np.random.Generator) -> ContactModel:
+        """One model of the family, drawn from ``rng`` in this order (every draw made, so the sequence of draws
+        does not depend on the values):
+
+        * ``cone``: pyramidal or elliptic, probability 1/2 each;
+        * ``solref``: time constant log-uniform in [2, 20] ms, damping ratio log-uniform in [0.5, 2];
+        * ``solimp``: ``d_min`` uniform in [0.8, 0.95], ``d_max`` uniform in [0.95, 0.99], ``width``
+          log-uniform in [0.5, 5] mm, midpoint 0.5 and power 2 (MuJoCo's);
+        * ``foot_radius``: log-uniform in [1, 20] mm;
+        * ``impratio``: log-uniform in [1, 10];
+        * ``timestep``: ``5 ms / n``, ``n`` uniform in {3, ..., 10} (1.667 ms to 0.5 ms);
+        * ``friction``: uniform in [0.4, 1].
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+        r = FAMILY_RANGES
+
+        def log_uniform(lo: float, hi: float) -> float:
+            return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+        cone = r["cone"][int(rng.integers(2))]
+        solref = (log_uniform(*r["solref_time_constant"]), log_uniform(*r["solref_damping_ratio"]))
+        solimp = (float(rng.uniform(*r["solimp_d_min"])), float(rng.uniform(*r["solimp_d_max"])),
+                  log_uniform(*r["solimp_width"]), 0.5, 2.0)
+        foot_radius = log_uniform(*r["foot_radius"])
+        impratio = log_uniform(*r["impratio"])
+        timestep = CONTROL_PERIOD / int(rng.integers(3, 11))
+        friction = float(rng.uniform(*r["friction"]))
+        return cls(cone, solref, solimp, foot_radius, impratio, timestep, friction)
+
+
+ContactModel.DEFAULT = ContactModel()  # type: ignore[attr-defined]
+"""The twin's contact model (its MJCF and trajectories are the twin's, bit for bit)."""
+
+CONTACT_CORNERS: dict[str, ContactModel] = {
+    "softest": ContactModel(solref=(0.020, 0.5)),
+    "stiffest": ContactModel(solref=(0.002, 1.0)),
+    "pyramidal": ContactModel(cone="pyramidal"),
+    "large_feet": ContactModel(foot_radius=0.020),
+    "low_friction": ContactModel(friction=0.4),
+    "coarse_step": ContactModel(timestep=CONTROL_PERIOD / 3),
+}
+"""Named corners of the contact-model family, each the default model with one setting at the end of its range:
+``softest`` (``solref = (20 ms, 0.5)``: the slowest, least damped contact, springy and deep), ``stiffest``
+(``solref = (2 ms, 1)``, at the 1 ms step the stiffest MuJoCo allows), ``pyramidal`` (pyramidal friction cone),
+``large_feet`` (20 mm foot spheres, which roll), ``low_friction`` (``mu = 0.4``; the planner assumes 0.6) and
+``coarse_step`` (``timestep = 5/3 ms``, three steps per control period)."""
+
+
+def _resolve(contact_model, friction_default: float | None = None, **fields) -> ContactModel:
+    """``contact_model`` (see :meth:`ContactModel.parse`; None: the default, with ``friction_default`` when given)
+    with the non-None ``fields`` replacing its own (validated)."""
+    if contact_model is None:
+        base = ContactModel.DEFAULT
+        if friction_default is not None and fields.get("friction") is None:
+            fields["friction"] = friction_default
+    else:
+        base = ContactModel.parse(contact_model)
+    changes = {k: v for k, v in fields.items() if v is not None}
+    return base.replace(**changes) if changes else base
 
 
 def _import_mujoco():
@@ -55,22 +287,35 @@ def _import_mujoco():
     return mujoco
 
 
-def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float = 1e-3, friction: float | None = None,
-               gravity: float | None = None, solref=DEFAULT_SOLREF) -> str:
+def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = None, friction: float | None = None,
+               gravity: float | None = None, solref=None, *, cone: str | None = None, solimp=None,
+               foot_radius: float | None = None, impratio: float | None = None, contact_model=None) -> str:
     """The MJCF (XML string) of the planar Mini Cheetah; see the module docstring.
 
     Args:
-        params: the robot. timestep: [s]. friction: Coulomb ``mu`` (default ``params.friction``).
-        gravity: [m/s^2] (default ``params.gravity``). solref: contact ``(time constant [s], damping ratio)``.
+        params: the robot. gravity: [m/s^2] (default ``params.gravity``).
+        timestep: MuJoCo's step [s] (5 ms / n); replaces ``contact_model``'s (None: keep it). Every contact argument
+            below likewise replaces that field of ``contact_model`` and is validated as :class:`ContactModel`.
+        friction: Coulomb ``mu`` (in [0.01, 2]).
+        solref: ``(time constant [s], damping ratio)``.
+        cone: ``"elliptic"`` or ``"pyramidal"``.
+        solimp: ``(d_min, d_max, width [m], midpoint, power)``.
+        foot_radius: [m].
+        impratio: frictional / normal impedance ratio.
+        contact_model: a :class:`ContactModel` (or a dict of its fields, or a corner name); None: the default
+            model with ``params.friction``.
+
+    The ``solimp`` and ``impratio`` attributes are written only when they differ from MuJoCo's defaults, so the
+    default model's XML is the twin's original one, byte for byte.
     """
     if not isinstance(params, RobotParams):
         raise TypeError(f"params must be a RobotParams, got {type(params).__name__}")
-    timestep = check_positive(timestep, "timestep")
-    mu = check_positive(params.friction if friction is None else friction, "friction", allow_zero=True)
+    cm = _resolve(contact_model, params.friction, timestep=timestep, friction=friction, solref=solref, cone=cone,
+                  solimp=solimp, foot_radius=foot_radius, impratio=impratio)
     g = check_positive(params.gravity if gravity is None else gravity, "gravity", allow_zero=True)
-    ref = [float(s) for s in check_vector(solref, 2, "solref")]
-    if not ref[0] > 0.0 or not ref[1] > 0.0:
-        raise ValueError(f"solref must hold a positive time constant and damping ratio, got {solref!r}")
+    mu, ref, radius = cm.friction, cm.solref, cm.foot_radius
+    imp = "" if cm.solimp == MUJOCO_SOLIMP else ' solimp="' + " ".join(repr(v) for v in cm.solimp) + '"'
+    impratio_attr = "" if cm.impratio == MUJOCO_IMPRATIO else f' impratio="{cm.impratio!r}"'
 
     def inertial(link) -> str:
         i = link.inertia_yy
@@ -89,17 +334,17 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float = 1e-3, fri
           {inertial(params.shank)}
           <geom type="capsule" fromto="0 0 0 0 0 {-params.shank.length!r}" size="0.008" contype="0"
                 conaffinity="0"/>
-          <geom name="foot_{name}" type="sphere" pos="0 0 {-params.shank.length!r}" size="{FOOT_RADIUS!r}"
-                contype="1" conaffinity="0" condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"/>
+          <geom name="foot_{name}" type="sphere" pos="0 0 {-params.shank.length!r}" size="{radius!r}"
+                contype="1" conaffinity="0" condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"{imp}/>
           <site name="foot_{name}" pos="0 0 {-params.shank.length!r}"/>
         </body>
       </body>''')
     return f'''<mujoco model="planar_mini_cheetah">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
-  <option timestep="{timestep!r}" gravity="0 0 {-g!r}" integrator="Euler" cone="elliptic"/>
+  <option timestep="{cm.timestep!r}" gravity="0 0 {-g!r}" integrator="Euler" cone="{cm.cone}"{impratio_attr}/>
   <worldbody>
-    <geom name="floor" type="plane" size="0 0 1" pos="0 0 {-FOOT_RADIUS!r}" contype="0" conaffinity="1"
-          condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"/>
+    <geom name="floor" type="plane" size="0 0 1" pos="0 0 {-radius!r}" contype="0" conaffinity="1"
+          condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"{imp}/>
     <body name="trunk">
       <joint name="x" type="slide" axis="1 0 0"/>
       <joint name="z" type="slide" axis="0 0 1"/>
@@ -118,20 +363,38 @@ class MuJoCoSimulator(SimulatorQueries):
     ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...).
 
     Args:
-        robot: the model (default: the paper's robot). timestep, friction, gravity: as ContactSimulator.
+        robot: the model (default: the paper's robot). gravity: as ContactSimulator.
         motor_speed_limits: with ``torque_limit``, the env's torque-speed limit (same semantics).
         torque_limit: see ``motor_speed_limits``.
-        solref: MuJoCo contact ``solref`` (default :data:`DEFAULT_SOLREF`).
+        contact_model: the contact model (a :class:`ContactModel`, a dict of its fields or a corner name of
+            :data:`CONTACT_CORNERS`; None: :data:`ContactModel.DEFAULT <ContactModel>` with the robot's friction).
+        timestep: MuJoCo's step [s] (5 ms / n). This and every contact argument below replace that field of
+            ``contact_model`` (None: keep it), validated as :class:`ContactModel` (``ValueError`` naming the argument).
+        friction: Coulomb ``mu`` (in [0.01, 2]).
+        solref: ``(time constant [s], damping ratio)``.
+        cone: ``"elliptic"`` or ``"pyramidal"``.
+        solimp: ``(d_min, d_max, width [m], midpoint, power)``.
+        foot_radius: [m].
+        impratio: frictional / normal impedance ratio.
+
+    Attributes:
+        contact_model: the :class:`ContactModel` simulated. dt: its time step [s]. mu: its friction.
     """
 
-    def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
+    def __init__(self, robot: CheetahModel | None = None, timestep: float | None = None, friction: float | None = None,
                  gravity: float | None = None, motor_speed_limits=None, torque_limit: float | None = None,
-                 solref=DEFAULT_SOLREF) -> None:
+                 solref=None, *, cone: str | None = None, solimp=None, foot_radius: float | None = None,
+                 impratio: float | None = None, contact_model=None) -> None:
         mujoco = _import_mujoco()
         self._mj = mujoco
-        self.robot = self._set_common(robot, timestep, friction, gravity, torque_limit, motor_speed_limits)
+        params = (robot.params if isinstance(robot, CheetahModel) else DEFAULT_PARAMS)
+        self.contact_model = _resolve(contact_model, params.friction, timestep=timestep, friction=friction,
+                                      solref=solref, cone=cone, solimp=solimp, foot_radius=foot_radius,
+                                      impratio=impratio)
+        cm = self.contact_model
+        self.robot = self._set_common(robot, cm.timestep, cm.friction, gravity, torque_limit, motor_speed_limits)
         params = self.robot.params
-        self.xml = build_mjcf(params, self.dt, self.mu, self.gravity, solref)
+        self.xml = build_mjcf(params, gravity=self.gravity, contact_model=cm)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         self._foot_geoms = tuple(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, f"foot_{FOOT_NAMES[f]}")
@@ -243,15 +506,57 @@ class MuJoCoSimulator(SimulatorQueries):
 class MuJoCoBoundingEnv(BoundingEnv):
     """``hsddp_gym/BoundingMuJoCo-v0``: :class:`~hsddp_gym.envs.bounding.BoundingEnv` (same observation, action,
     reward, reset, termination, info and arguments) simulated by MuJoCo (:class:`MuJoCoSimulator`) instead of the
-    exact-LCP contact simulator. Extra argument ``solref`` (the MuJoCo contact's ``(time constant, damping
-    ratio)``, default (0.005, 1)); ``contact_erp`` and ``energy_consistent`` do not apply (accepted, ignored).
-    Contact flags are set when MuJoCo reports a positive normal force on the foot in the last 1 ms step."""
+    exact-LCP contact simulator. Contact flags are set when MuJoCo reports a positive normal force on the foot in the
+    last MuJoCo step. ``contact_erp`` and ``energy_consistent`` do not apply (accepted, ignored).
 
-    def __init__(self, *args, solref=DEFAULT_SOLREF, **kwargs) -> None:
-        self._solref = tuple(float(s) for s in check_vector(solref, 2, "solref"))
-        super().__init__(*args, **kwargs)
+    Extra (keyword) arguments, the contact model (``ValueError`` naming the argument for a value out of range):
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``contact_model`` | None | a :class:`ContactModel`, a dict of its fields or a corner name (None: the default) |
+    | ``cone`` | ``"elliptic"`` | friction cone, ``"elliptic"`` or ``"pyramidal"`` |
+    | ``solref`` | (0.005, 1) | (time constant in [0.5, 100] ms, damping ratio in [0.1, 10]) |
+    | ``solimp`` | (0.9, 0.95, 0.001, 0.5, 2) | MuJoCo's impedance shape (see :class:`ContactModel`) |
+    | ``foot_radius`` | 0.005 | foot sphere radius [m], in [0.5, 50] mm |
+    | ``impratio`` | 1 | frictional / normal impedance ratio, in [1, 100] |
+    | ``sim_timestep`` | 0.001 | MuJoCo step [s]: 5 ms / n, n = 1..20 |
+    | ``friction`` | 0.6 | Coulomb ``mu``, in [0.01, 2] |
+    | ``frame_skip`` | None | steps per action (None: 5 ms / ``sim_timestep``, the control period stays 5 ms) |
+
+    Each of ``cone`` .. ``friction`` given (not None) replaces that field of ``contact_model``; the model
+    simulated is :attr:`contact_model`. :meth:`set_contact_model` changes it between episodes
+    (:class:`hsddp_gym.envs.perturbations.RandomContactModel` draws one per episode).
+    """
+
+    def __init__(self, *, contact_model=None, cone: str | None = None, solref=None, solimp=None,
+                 foot_radius: float | None = None, impratio: float | None = None, sim_timestep: float | None = None,
+                 friction: float | None = None, frame_skip: int | None = None, **kwargs) -> None:
+        self.contact_model = _resolve(contact_model, None, cone=cone, solref=solref, solimp=solimp,
+                                      foot_radius=foot_radius, impratio=impratio, timestep=sim_timestep,
+                                      friction=friction)
+        self._frame_skip_argument = frame_skip
+        super().__init__(frame_skip=self.contact_model.frame_skip if frame_skip is None else frame_skip,
+                         sim_timestep=self.contact_model.timestep, friction=self.contact_model.friction, **kwargs)
 
     def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
-        return MuJoCoSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
-                               motor_speed_limits=motor_speed_limits, torque_limit=self.torque_limit,
-                               solref=self._solref)
+        self._sim_arguments = (gravity, motor_speed_limits)
+        return MuJoCoSimulator(self.robot, gravity=gravity, motor_speed_limits=motor_speed_limits,
+                               torque_limit=self.torque_limit, contact_model=self.contact_model)
+
+    def set_contact_model(self, contact_model) -> None:
+        """Simulate ``contact_model`` (a :class:`ContactModel`, a dict of its fields or a corner name) from the next
+        :meth:`reset` on: the MuJoCo model is rebuilt, ``sim_timestep`` becomes the model's and, unless
+        ``frame_skip`` was given, ``frame_skip`` becomes ``5 ms / sim_timestep`` (the control period stays 5 ms).
+        Call :meth:`reset` before stepping again."""
+        model = ContactModel.parse(contact_model, "contact_model")
+        if model == self.contact_model:
+            return
+        self.contact_model = model
+        self.sim_timestep = model.timestep
+        if self._frame_skip_argument is None:
+            self.frame_skip = model.frame_skip
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+        gravity, motor_speed_limits = self._sim_arguments
+        self.sim = self._make_simulator(model.friction, gravity, None, motor_speed_limits, None)
+        self.sim.set_state(self.init_state)
+        self._update_feet(at_reset=True)

@@ -12,7 +12,11 @@ conditions of the robustness benchmark (:data:`SUITE`, ``experiments/robustness.
   ``[dvx, dvz, dpitch_rate]`` (a :class:`PushDistribution`) applied through the env's documented ``push`` reset
   option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
 * model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
-  simulated trunk is heavier or lighter than the model every policy uses).
+  simulated trunk is heavier or lighter than the model every policy uses);
+* contact models the policies were not built on (:class:`ContactCondition`, always in the MuJoCo twin): a corner
+  of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS` (``contact_<corner>``), or :class:`RandomContactModel`, a
+  :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` drawn per episode from the episode seed (``contact_family``).
+  They are extra conditions, not in :data:`SUITE`.
 
 **Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
 (a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
@@ -33,6 +37,7 @@ import copy
 import dataclasses
 import math
 import numbers
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -255,6 +260,47 @@ class RandomPush(gym.Wrapper):
         return obs, dict(info, push=copy.deepcopy(self.last_push))
 
 
+CONTACT_SALT = 0xC0A7
+"""The salt of :class:`RandomContactModel`'s generator: an episode reset with seed ``s`` draws its contact model from
+``SeedSequence([s, CONTACT_SALT])``."""
+
+
+class RandomContactModel(gym.Wrapper):
+    """A contact model of the MuJoCo twin drawn per episode: at every reset a
+    :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` is drawn with
+    :meth:`ContactModel.sample <hsddp_gym.envs.mujoco_twin.ContactModel.sample>` from the episode's generator
+    (seeded from ``(seed, CONTACT_SALT)``: the same seed gives the same model, whatever the policy) and set on the
+    env (:meth:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv.set_contact_model`) before the env's own reset. The
+    control period stays 5 ms (the env's ``frame_skip`` follows the model's time step). The episode's model is
+    ``info["contact_model"]`` at reset (a dict of its fields) and :attr:`last_contact_model`.
+
+    Args:
+        env: a (wrapped) ``hsddp_gym/BoundingMuJoCo-v0`` (``TypeError`` otherwise).
+    """
+
+    SALT = CONTACT_SALT
+    INFO_KEYS = ("contact_model",)
+    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        if not callable(getattr(env.unwrapped, "set_contact_model", None)):
+            raise TypeError("RandomContactModel needs the MuJoCo twin (hsddp_gym/BoundingMuJoCo-v0), got "
+                            f"{type(env.unwrapped).__name__}")
+        self._rng: np.random.Generator | None = None
+        self.last_contact_model = None
+
+    def reset(self, *, seed=None, options=None):
+        from hsddp_gym.envs.mujoco_twin import ContactModel
+
+        if seed is not None or self._rng is None:
+            self._rng = _episode_rng(self, seed, self.SALT)
+        self.last_contact_model = ContactModel.sample(self._rng)
+        self.env.unwrapped.set_contact_model(self.last_contact_model)
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, dict(info, contact_model=self.last_contact_model.as_dict())
+
+
 # ------------------------------------------------------------------------------------------------ registry
 @dataclasses.dataclass(frozen=True)
 class Condition:
@@ -276,14 +322,28 @@ class Condition:
     action_delay: int = 0
     push: dict | None = None
 
-    def make(self, simulator: str = "bounding", **make_kwargs) -> gym.Env:
-        """``gym.make`` the env of ``simulator`` (a key of :data:`SIMULATORS`) with :attr:`env_kwargs`
-        (``make_kwargs`` may add others, e.g. ``render_mode``, ``max_episode_steps``; a key of both raises
-        ``ValueError``) and wrap it."""
+    SIMULATOR: ClassVar[str | None] = None
+    """The simulator the condition always runs in (None: any, the one asked for)."""
+
+    def simulator_for(self, requested: str = "bounding") -> str:
+        """The simulator the condition runs in when ``requested`` is asked for: ``requested``, or the condition's
+        own (:attr:`SIMULATOR`) if it has one (``experiments/robustness.py --simulator`` asks for one)."""
+        return self.SIMULATOR or requested
+
+    def make(self, simulator: str | None = None, **make_kwargs) -> gym.Env:
+        """``gym.make`` the env of ``simulator`` (a key of :data:`SIMULATORS`; None: the condition's own,
+        :attr:`SIMULATOR`, or ``"bounding"``) with :attr:`env_kwargs` (``make_kwargs`` may add others, e.g.
+        ``render_mode``, ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it. A condition with
+        its own simulator raises ``ValueError`` for another one."""
         import hsddp_gym  # noqa: F401  (registers the env)
 
+        if simulator is None:
+            simulator = self.simulator_for("bounding")
         if simulator not in SIMULATORS:
             raise ValueError(f"simulator must be one of {sorted(SIMULATORS)}, got {simulator!r}")
+        if self.SIMULATOR is not None and simulator != self.SIMULATOR:
+            raise ValueError(f"condition {self.name!r} runs in the {self.SIMULATOR!r} simulator only, got "
+                             f"simulator={simulator!r}")
         both = sorted(set(make_kwargs) & set(self.env_kwargs))
         if both:
             raise ValueError(f"condition {self.name!r} sets {both} itself; do not pass them to make()")
@@ -294,6 +354,9 @@ class Condition:
             env = ActionDelay(env, self.action_delay)
         if self.observation_noise is not None:
             env = ObservationNoise(env, *self.observation_noise)
+        return self._wrap(env)
+
+    def _wrap(self, env: gym.Env) -> gym.Env:
         return env
 
     @property
@@ -307,8 +370,42 @@ class Condition:
         return dataclasses.asdict(self)
 
 
+@dataclasses.dataclass(frozen=True)
+class ContactCondition(Condition):
+    """A condition of the contact model, run in the MuJoCo twin whatever simulator is asked for
+    (:attr:`SIMULATOR` ``"mujoco"``): a fixed model through :attr:`env_kwargs` (``{"contact_model":
+    ContactModel(...)}``, e.g. a corner of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`), or with
+    :attr:`family` a model drawn per episode from the episode seed (:class:`RandomContactModel`).
+
+    Attributes:
+        family: draw the contact model per episode (:class:`RandomContactModel`, the outermost wrapper).
+    """
+
+    family: bool = False
+    SIMULATOR: ClassVar[str | None] = "mujoco"
+
+    def _wrap(self, env: gym.Env) -> gym.Env:
+        return RandomContactModel(env) if self.family else env
+
+    @property
+    def acts_through_env_arguments(self) -> bool:
+        """False: the compiled vector env (exact LCP) has no MuJoCo contact model."""
+        return False
+
+
 def _conditions(*conds: Condition) -> dict:
     return {c.name: c for c in conds}
+
+
+def _corner_conditions() -> tuple:
+    from hsddp_gym.envs.mujoco_twin import CONTACT_CORNERS
+
+    what = {"softest": "solref (20 ms, 0.5): the softest, least damped contact",
+            "stiffest": "solref (2 ms, 1): the stiffest contact",
+            "pyramidal": "pyramidal friction cone", "large_feet": "20 mm foot spheres (they roll)",
+            "low_friction": "friction mu = 0.4 (model: 0.6)", "coarse_step": "5/3 ms MuJoCo step (3 per action)"}
+    return tuple(ContactCondition(f"contact_{name}", f"MuJoCo twin, contact corner {name}: {what[name]}",
+                                  {"contact_model": model}) for name, model in CONTACT_CORNERS.items())
 
 
 CONDITIONS: dict[str, Condition] = _conditions(
@@ -328,12 +425,20 @@ CONDITIONS: dict[str, Condition] = _conditions(
     Condition("speed_1.25", "target speed 1.25 m/s", {"target_speed": 1.25}),
     Condition("speed_1.5", "target speed 1.5 m/s", {"target_speed": 1.5}),
     Condition("speed_2.0", "target speed 2.0 m/s", {"target_speed": 2.0}),
+    ContactCondition("contact_family", "MuJoCo twin, a contact model drawn per episode from the family "
+                     "(ContactModel.sample, seeded by the episode seed)", family=True),
+    *_corner_conditions(),
 )
-"""Every named condition: the robustness benchmark's (:data:`SUITE`) and ``push_x3`` (three pushes an episode: a
-harder test, and a training condition that gives a learner's rollouts three push recoveries each)."""
-SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3")
-"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, target speeds 0.5
-and 1.5 m/s included): the default of ``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
+"""Every named condition: the robustness benchmark's (:data:`SUITE`), ``push_x3`` (three pushes an episode: a
+harder test, and a training condition that gives a learner's rollouts three push recoveries each) and the contact
+conditions (:data:`CONTACT_CONDITIONS`, in the MuJoCo twin)."""
+CONTACT_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, ContactCondition))
+"""The contact-model conditions: ``contact_family`` and one ``contact_<corner>`` per corner of
+:data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`; not in :data:`SUITE`."""
+SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS)
+"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3`` and the contact
+conditions, target speeds 0.5 and 1.5 m/s included): the default of ``experiments/robustness.py`` and
+``experiments/imitation_robustness.py``."""
 
 
 def get_condition(name: str) -> Condition:

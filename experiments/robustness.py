@@ -17,6 +17,13 @@ time limit (5 s) or a fall. Policies:
   (:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`: the state filter under observation
   noise, the model's prediction over an action delay), labelled ``LABEL+est``.
 
+**Contact models.** Beside the suite, ``--conditions`` takes the contact-model conditions, which always run in the
+MuJoCo twin whatever ``--simulator`` says: ``contact_family`` draws a contact model per episode from the episode seed
+(``ContactModel.sample``: friction cone, solref, solimp, foot radius, impratio, time step, friction) and
+``contact_<corner>`` runs one named corner of ``hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`` (softest, stiffest,
+pyramidal, large_feet, low_friction, coarse_step). Their rows also give the mean time to fall, and the episodes of
+``contact_family`` record their model (``contact_model``), so falls can be read against the drawn parameters.
+
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: the scuff rule of the MPC's gait clock (a contact counts as a landing
 only after a swing of at least ``min_flight`` of the flight) was found on seed 7012 of the ``obs_noise`` condition.
@@ -34,6 +41,9 @@ Usage::
 
     python experiments/robustness.py --out runs/robustness --policies mpc heuristic --seeds 20 --workers 2
         [--conditions default obs_noise ...] [--learned bc=runs/train/bc]
+    python experiments/robustness.py --out runs/contact --policies mpc heuristic --seeds 5 --first-seed 9000
+        --conditions contact_family contact_softest contact_stiffest contact_pyramidal contact_large_feet
+        contact_low_friction contact_coarse_step
     python experiments/robustness.py --out runs/robustness_table --combine runs/a/robustness.json runs/b/robustness.json
 """
 
@@ -108,22 +118,27 @@ def _make_bare_policy(kind: str, spec: dict, env, interface):
 
 def run_one(task: tuple) -> dict:
     """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None, simulator)``."""
-    from hsddp_gym.envs.perturbations import make_env
+    from hsddp_gym.envs.perturbations import get_condition
     from hsddp_gym.planners.policies.evaluation import run_episode
 
     label, spec, condition, seed, max_steps, simulator = task
-    env = make_env(condition, simulator=simulator)
+    cond = get_condition(condition)
+    env = cond.make(simulator=cond.simulator_for(simulator))
     try:
         policy = make_policy(spec, env)
         res = run_episode(env, policy, seed, max_steps=max_steps)
         stats = res.policy_stats or {}
         solve_ms = stats.get("solve_ms") or []
-        return {"seed": int(seed), "return": res.episode_return, "fell": bool(res.fell), "length": res.length,
-                "fall_time_s": res.simulated_time if res.fell else None, "speed": res.forward_speed,
-                "wall_time_s": res.wall_time, "simulated_time_s": res.simulated_time,
-                "replans": int(stats.get("replans", 0)), "planner_failures": int(stats.get("planner_failures", 0)),
-                "mean_replan_ms": float(np.mean(solve_ms)) if solve_ms else None,
-                "target_speed": float(env.unwrapped.target_speed)}
+        run = {"seed": int(seed), "return": res.episode_return, "fell": bool(res.fell), "length": res.length,
+               "fall_time_s": res.simulated_time if res.fell else None, "speed": res.forward_speed,
+               "wall_time_s": res.wall_time, "simulated_time_s": res.simulated_time,
+               "replans": int(stats.get("replans", 0)), "planner_failures": int(stats.get("planner_failures", 0)),
+               "mean_replan_ms": float(np.mean(solve_ms)) if solve_ms else None,
+               "target_speed": float(env.unwrapped.target_speed)}
+        if cond.SIMULATOR is not None:  # a contact condition: the simulator and the model of this episode
+            run["simulator"] = cond.SIMULATOR
+            run["contact_model"] = env.unwrapped.contact_model.as_dict()
+        return run
     finally:
         env.close()
 
@@ -142,7 +157,9 @@ def summarize_cell(runs: list[dict]) -> dict:
             "real_time_factor": sum(r["simulated_time_s"] for r in runs) / max(sum(r["wall_time_s"] for r in runs),
                                                                               1e-12),
             "planner_failures": sum(r["planner_failures"] for r in runs),
-            "mean_replan_ms": float(np.mean(ms)) if ms else None}
+            "mean_replan_ms": float(np.mean(ms)) if ms else None,
+            "mean_fall_time_s": float(np.mean([r["fall_time_s"] for r in runs if r["fell"]]))
+            if len(alive) < len(runs) else None}
 
 
 def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True,
@@ -181,6 +198,20 @@ def markdown(results: dict, conditions) -> str:
     totals = [f"{sum(results[lb][c]['falls'] for c in conditions)}/"
               f"{sum(results[lb][c]['episodes'] for c in conditions)}" for lb in labels]
     lines.append("| total falls | " + " | ".join(totals) + " |")
+    contact = [c for c in conditions if get_condition(c).SIMULATOR is not None]
+    if contact:
+        lines += ["", "Contact models (MuJoCo twin): falls / episodes, mean time to fall of the episodes that fell [s]",
+                  "", "| condition | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+        for c in contact:
+            cells = []
+            for label in labels:
+                s = results[label][c]
+                t = s.get("mean_fall_time_s")
+                cells.append(f"**{s['falls']}/{s['episodes']}**" + ("" if t is None else f", {t:.2f} s"))
+            lines.append(f"| {c} | " + " | ".join(cells) + " |")
+        c_totals = [f"{sum(results[lb][c]['falls'] for c in contact)}/"
+                    f"{sum(results[lb][c]['episodes'] for c in contact)}" for lb in labels]
+        lines.append("| contact falls | " + " | ".join(c_totals) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -229,7 +260,12 @@ def main(argv: list[str] | None = None) -> int:
                         "MPC's state filter and latency compensation (EstimatedStatePolicy), labelled LABEL+est")
     p.add_argument("--conditions", nargs="+", default=list(SUITE), choices=list(CONDITIONS),
                    help="conditions (default: the benchmark suite, hsddp_gym.envs.perturbations.SUITE: every condition "
-                        "but push_x3)")
+                        "but push_x3 and the contact ones). The contact-model conditions always run in the MuJoCo twin "
+                        "(whatever --simulator says): contact_family draws a contact model per episode from the "
+                        "episode seed (friction cone, solref, solimp, foot radius, impratio, time step, friction; "
+                        "hsddp_gym.envs.mujoco_twin.ContactModel.sample), contact_<corner> runs one corner of "
+                        "CONTACT_CORNERS (softest, stiffest, pyramidal, large_feet, low_friction, coarse_step); "
+                        "the table then adds falls and mean time to fall per contact condition")
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
                    help="first seed (default: %(default)s, the evaluation seeds; develop on others)")
@@ -241,7 +277,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="parallel worker processes; results do not depend on it (default: %(default)s)")
     add_backend_arguments(p)
     p.add_argument("--simulator", default="bounding", choices=sorted(SIMULATORS),
-                   help="the simulator every condition runs in: bounding (hsddp_gym/Bounding-v0, exact LCP), mujoco "
+                   help="the simulator every condition runs in (the contact ones: always mujoco): bounding "
+                        "(hsddp_gym/Bounding-v0, exact LCP), mujoco "
                         "(its MuJoCo twin, soft contacts; needs the extra 'mujoco') or kkt (the planner's own model) "
                         "(default: %(default)s)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
