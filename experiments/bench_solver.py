@@ -1,7 +1,9 @@
 """Benchmark HS-DDP Algorithm 1 on the paper's 1480-knot problem: where the time of a solve goes.
 
 The problem is paper task 1 (``HybridProblem.bounding(5)``: 5 bounding cycles of 80/72/72/72 ms at
-h = 1 ms, 1480 knots, 19 resets), warm-started by the heuristic controller and solved with al-reb.
+h = 1 ms, 1480 knots, 19 resets; ``--cycles N`` for N cycles, 296 knots each), warm-started by
+``bounding_warm_start`` (the heuristic controller up to 5 cycles; beyond, the solved 5-cycle plan with its
+4th cycle repeated, not timed) and solved with al-reb.
 Before timing, one small solve (one cycle) warms numba's JIT (compile or cache load of the backward
 pass), so compile time is excluded. The solve is then repeated ``--repeats`` times with fresh solvers;
 the best and the median are reported, with a breakdown per DDP iteration of the best run:
@@ -19,9 +21,15 @@ Goals: <= 50 ms per DDP iteration and the whole al-reb solve <= 5 s; ratios meas
 Optionally an MPC-like warm re-solve (from the previous solution, few DDP iterations) and a cProfile
 of one solve (``--profile``, top 10 functions by cumulative time).
 
+``--horizons 1 5 10 20`` instead times the solve against the horizon: for each number of cycles, the warm start
+(timed apart) and ``--repeats`` solves; it prints the time per DDP iteration, per knot, the iterations, the
+constraints' worst values and the solve time, and fits the time per DDP iteration to the knots (the solver's
+work per iteration is linear in the knots).
+
 Usage::
 
     python experiments/bench_solver.py [--repeats 3] [--cycles 5] [--profile] [--mpc-iterations 3]
+    python experiments/bench_solver.py --horizons 1 5 10 20 [--repeats 3] [--record FILE.json]
 """
 
 from __future__ import annotations
@@ -41,9 +49,10 @@ import pinocchio as pin
 
 import hsddp_gym.planners.optimizer.hsddp as hsddp_module
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
+from hsddp_gym.planners.optimizer.metrics import trajectory_summary
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
-from hsddp_gym.planners.tasks import heuristic_warm_start
+from hsddp_gym.planners.tasks import bounding_warm_start, heuristic_warm_start
 from hsddp_gym.reports.store import machine_info, write_record
 
 GOAL_MS_PER_DDP_ITERATION = 50.0
@@ -160,9 +169,9 @@ def calibrate(problem: HybridProblem, sol, cs, repeat: int = 5) -> dict:
     }
 
 
-def breakdown(run: Run, n_knots: int, cal: dict) -> list[dict]:
-    """Print the per-DDP-iteration table of one run (``cal``: :func:`calibrate`); returns its rows
-    (``name``, ``total_ms``, ``ms_per_iteration``)."""
+def breakdown(run: Run, n_knots: int, cal: dict, n_resets: int = 19) -> list[dict]:
+    """Print the per-DDP-iteration table of one run (``cal``: :func:`calibrate`; ``n_resets`` switches of the
+    problem); returns its rows (``name``, ``total_ms``, ``ms_per_iteration``)."""
     table = []
     tm = run.timings
     it = max(run.ddp_iterations, 1)
@@ -193,7 +202,7 @@ def breakdown(run: Run, n_knots: int, cal: dict) -> list[dict]:
 
     print(f"  {'per solve / per DDP iteration':<46}{'total':>11} {'per DDP it':>12}  calls x per call = per knot")
     row("dynamics derivatives, separate passes", lin_sep, run.n_dyn_linearize, "timings['linearize']")
-    row("reset-map Jacobians (19 per linearization)", resets, run.n_linearize, "timings['reset_jacobians']",
+    row(f"reset-map Jacobians ({n_resets} per linearization)", resets, run.n_linearize, "timings['reset_jacobians']",
         knots=False)
     row("  = linearize + reset_jacobians", lin_sep + resets)
     row("cost derivatives", cost, run.n_linearize, "(per linearization)")
@@ -217,6 +226,52 @@ def breakdown(run: Run, n_knots: int, cal: dict) -> list[dict]:
     return table
 
 
+def horizon_study(cycles_list: list[int], options: SolverOptions, repeats: int) -> dict:
+    """Time the solve for each number of cycles of ``cycles_list`` (best of ``repeats`` fresh solvers; the warm
+    start timed apart); print one row each and a least-squares fit of the time per DDP iteration to the knots.
+
+    Returns the record's data: ``rows`` (one dict per horizon) and ``fit`` (``us_per_knot``, ``intercept_ms``)."""
+    rows = []
+    print(f"{'cycles':>6} {'knots':>6} {'warm start':>11} {'DDP it':>6} {'AL it':>5} {'solve s':>8} {'ms/it':>7} "
+          f"{'us/knot':>7} {'max|u|':>7} {'min fz':>7} {'max fric':>8} {'max|g| m':>9}  status")
+    for cycles in cycles_list:
+        problem = HybridProblem.bounding(cycles)
+        t = time.perf_counter()
+        guess = bounding_warm_start(problem, options)
+        warm_s = time.perf_counter() - t
+        runs = []
+        for _ in range(repeats):
+            solver = HSDDP(options)
+            t = time.perf_counter()
+            sol = solver.solve(problem, **guess.solve_arguments())
+            runs.append((time.perf_counter() - t, sol))
+        per_it = [1e3 * el / max(so.ddp_iterations, 1) for el, so in runs]
+        best_s, sol = min(runs, key=lambda r: r[0])
+        summ = trajectory_summary(problem, sol.X, sol.X_pre, sol.U, sol.GRF)
+        row = {"cycles": cycles, "knots": problem.n_knots, "warm_start": guess.source, "warm_start_s": warm_s,
+               "ddp_iterations": sol.ddp_iterations, "al_iterations": sol.al_iterations, "status": sol.status,
+               "solve_s": {"best": best_s, "median": statistics.median(el for el, _ in runs)},
+               "ms_per_ddp_iteration": {"best": min(per_it), "median": statistics.median(per_it)},
+               "us_per_knot": 1e3 * min(per_it) / problem.n_knots,
+               "max_abs_torque": summ["max_abs_torque"], "torque_limit": problem.constraints.torque_limit,
+               "min_normal_grf": summ["min_normal_grf"], "max_friction_violation": summ["max_friction_violation"],
+               "max_touchdown_error": summ["max_touchdown_error"], "avg_forward_speed": summ["avg_forward_speed"]}
+        rows.append(row)
+        print(f"{cycles:>6} {problem.n_knots:>6} {warm_s:>9.2f} s {sol.ddp_iterations:>6} {sol.al_iterations:>5} "
+              f"{best_s:>8.3f} {row['ms_per_ddp_iteration']['best']:>7.2f} {row['us_per_knot']:>7.2f} "
+              f"{row['max_abs_torque']:>7.2f} {row['min_normal_grf']:>7.1f} {row['max_friction_violation']:>8.3f} "
+              f"{row['max_touchdown_error']:>9.2e}  {sol.status} ({guess.source} warm start)")
+    knots = np.array([r["knots"] for r in rows], dtype=float)
+    ms = np.array([r["ms_per_ddp_iteration"]["best"] for r in rows])
+    fit = None
+    if len(rows) >= 2 and np.ptp(knots) > 0:
+        slope, intercept = np.polyfit(knots, ms, 1)
+        fit = {"us_per_knot": 1e3 * float(slope), "intercept_ms": float(intercept)}
+        print(f"least-squares fit: time per DDP iteration = {fit['intercept_ms']:.2f} ms + "
+              f"{fit['us_per_knot']:.2f} us x knots")
+    return {"method": options.method, "repeats": repeats, "rows": rows, "fit": fit}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      epilog=__doc__.split("\n\n", 1)[1],
@@ -231,12 +286,18 @@ def main(argv: list[str] | None = None) -> int:
                         help="max_total_ddp_iterations of the MPC-like warm re-solve; 0 skips it (default %(default)s)")
     parser.add_argument("--profile", action="store_true", help="cProfile one extra solve; print the top 10 "
                                                                 "functions by cumulative time")
+    parser.add_argument("--horizons", type=int, nargs="+", default=None, metavar="CYCLES",
+                        help="time the solve for each of these numbers of cycles instead (e.g. 1 5 10 20): time per "
+                             "DDP iteration and per knot, iterations, constraints, solve time")
     parser.add_argument("--record", default=None, metavar="FILE.json",
-                        help="also write the measurements as a record of the results store (results/speed/solver.json)")
+                        help="also write the measurements as a record of the results store (results/speed/solver.json;"
+                             " with --horizons results/speed/solver_horizons.json)")
     args = parser.parse_args(argv)
     machine = machine_info()
     if args.repeats < 1 or args.cycles < 1 or args.mpc_iterations < 0:
         parser.error("--repeats and --cycles must be >= 1, --mpc-iterations >= 0")
+    if args.horizons is not None and min(args.horizons) < 1:
+        parser.error(f"--horizons: every number of cycles must be >= 1, got {args.horizons}")
 
     options = SolverOptions(method=args.method)
     print(f"HS-DDP solver benchmark -- Python {platform.python_version()}, numpy {np.__version__}, "
@@ -250,19 +311,29 @@ def main(argv: list[str] | None = None) -> int:
     print(f"JIT warm-up: one {small.n_knots}-knot solve took {time.perf_counter() - t:.2f} s "
           "(numba compile / cache load; excluded from everything below)")
 
+    if args.horizons is not None:
+        print(f"time per DDP iteration against the horizon, method {args.method}, best of {args.repeats} solves:")
+        data = horizon_study(args.horizons, options, args.repeats)
+        if args.record:
+            write_record(args.record, data, "HS-DDP's time per DDP iteration, iterations and constraints against "
+                         f"the horizon ({min(args.horizons)} to {max(args.horizons)} bounding cycles)", machine=machine)
+            print(f"wrote {args.record}")
+        return 0
+
     problem = HybridProblem.bounding(args.cycles)
     t = time.perf_counter()
-    warm = heuristic_warm_start(problem)
+    warm = bounding_warm_start(problem, options)
     t_warm = time.perf_counter() - t
+    warm_kwargs = {k: v for k, v in warm.solve_arguments().items() if k != "U_init"}
     n = problem.n_knots
     print(f"problem: {args.cycles} bounding cycles, {n} knots, {problem.n_phases} phases "
-          f"({problem.n_phases - 1} resets), method {args.method}; heuristic warm start {1e3 * t_warm:.0f} ms "
+          f"({problem.n_phases - 1} resets), method {args.method}; {warm.source} warm start {1e3 * t_warm:.0f} ms "
           "(not timed below)\n")
 
     runs = []
     with RolloutMeter() as meter:
         for r in range(args.repeats):
-            run, solver, sol = timed_solve(problem, warm.U, options, meter)
+            run, solver, sol = timed_solve(problem, warm.U, options, meter, **warm_kwargs)
             runs.append(run)
             print(f"repeat {r + 1}: {run.solve_s:.3f} s, {run.ddp_iterations} DDP iterations, "
                   f"{run.al_iterations} AL iterations, {1e3 * run.solve_s / max(run.ddp_iterations, 1):.1f} ms per "
@@ -274,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
         print("WARNING: repeats differ in iterations or objective (the solver should be deterministic)")
 
     print(f"\nbreakdown of the best run ({best.solve_s:.3f} s, {best.ddp_iterations} DDP iterations):")
-    table = breakdown(best, n, calibrate(problem, sol, solver.last_constraint_state))
+    table = breakdown(best, n, calibrate(problem, sol, solver.last_constraint_state), problem.n_phases - 1)
 
     best_s, med_s = min(times), statistics.median(times)
     best_it, med_it = min(per_it), statistics.median(per_it)
@@ -313,14 +384,15 @@ def main(argv: list[str] | None = None) -> int:
                 record["mpc_resolves"].append({"case": name, "ms": 1e3 * rb.solve_s,
                                                "ddp_iterations": rb.ddp_iterations})
     if args.record:
+        horizon = "five-cycle" if args.cycles == 5 else f"{args.cycles}-cycle"
         write_record(args.record, record, "HS-DDP's time per DDP iteration and its breakdown on the paper's "
-                     "five-cycle bounding problem", machine=machine)
+                     f"{horizon} bounding problem", machine=machine)
         print(f"wrote {args.record}")
 
     if args.profile:
         prof = cProfile.Profile()
         prof.enable()
-        psol = HSDDP(options).solve(problem, warm.U)
+        psol = HSDDP(options).solve(problem, **warm.solve_arguments())
         prof.disable()
         s = io.StringIO()
         pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(10)

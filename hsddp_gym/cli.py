@@ -80,14 +80,18 @@ def _version() -> str:
 
 def cmd_plan(args) -> int:
     from hsddp_gym.planners.optimizer.solution import SolverOptions
-    from hsddp_gym.planners.tasks import plan_bounding
+    from hsddp_gym.planners.tasks import WarmStartDivergedError, plan_bounding
 
     out = check_output_dir(args.out, "--out")
     if not args.no_plots:
         require(["matplotlib"], "hsddp-gym plan (its figures; or pass --no-plots)")
     options = SolverOptions(max_al_iterations=args.max_al_iterations, max_ddp_iterations=args.max_ddp_iterations)
-    result = plan_bounding(args.method, cycles=args.cycles, speed=args.speed, options=options,
-                           verbose=not args.quiet)
+    try:
+        result = plan_bounding(args.method, cycles=args.cycles, speed=args.speed, options=options,
+                               verbose=not args.quiet)
+    except WarmStartDivergedError as exc:  # e.g. --method heuristic on a long horizon: the rollout tumbles
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
     summary = dict(result.summary)
     summary["files"] = write_plan_outputs(result, out, not args.no_plots)
     summary["command"] = args.command_line
@@ -214,8 +218,15 @@ def cmd_demo(args) -> int:
     check_output_dir(args.out, "--out")
     require(["matplotlib"] + ([] if args.no_video else ["PIL"]),
             "hsddp-gym demo (its figures" + (")" if args.no_video else " and GIF; or pass --no-video)"))
-    summary = run_demo(Path(args.out), cycles=args.cycles, episodes=args.episodes, video=not args.no_video,
-                       quiet=args.quiet, max_episode_steps=args.max_episode_steps)
+    from hsddp_gym.planners.tasks import WarmStartDivergedError
+
+    try:
+        summary = run_demo(Path(args.out), cycles=args.cycles, episodes=args.episodes, video=not args.no_video,
+                           quiet=args.quiet, max_episode_steps=args.max_episode_steps)
+    except WarmStartDivergedError as exc:  # the demo also draws the heuristic's own rollout
+        print(f"error: {exc} (the demo draws the heuristic controller's rollout; `hsddp-gym plan --cycles "
+              f"{args.cycles}` plans the long horizon)", file=sys.stderr)
+        return 1
     for name in ("heuristic_plan", "hsddp_plan"):
         print(f"{name}:")
         _print_summary(summary[name])
@@ -688,11 +699,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("plan", help="paper task 1: plan a bounding gait with a given method",
                        description="Plan --cycles bounding cycles (80/72/72/72 ms, h = 1 ms, the paper's initial "
-                                   "state, heuristic warm start) and write summary.json, the solution and figures.")
+                                   "state; warm start: the heuristic controller up to 5 cycles, beyond them the "
+                                   "solved 5-cycle plan with its 4th cycle repeated) and write summary.json, the "
+                                   "solution and figures.")
     p.add_argument("--method", choices=("heuristic", "ddp", "al", "al-reb"), default="al-reb",
-                   help="heuristic: the warm start alone; ddp: impact-aware DDP ignoring switching constraints; "
-                        "al: + augmented Lagrangian on them; al-reb: + relaxed barriers on torque, normal force and "
-                        "friction (default: %(default)s)")
+                   help="heuristic: the heuristic controller's rollout alone (it diverges in cycle 10); ddp: "
+                        "impact-aware DDP ignoring switching constraints; al: + augmented Lagrangian on them; "
+                        "al-reb: + relaxed barriers on torque, normal force and friction (default: %(default)s)")
     p.add_argument("--cycles", type=_positive_int, default=5, help="gait cycles (default: %(default)s)")
     p.add_argument("--speed", type=_positive_float, default=1.0,
                    help="desired forward speed [m/s] (default: %(default)s)")

@@ -272,6 +272,35 @@ def speed_solver(store: Store) -> str:
                       source_line(store, "speed/solver")])
 
 
+def speed_solver_horizons(store: Store) -> str:
+    """The time per DDP iteration, the iterations and the constraints against the horizon (1 to 20 cycles)."""
+    rec = store["speed/solver_horizons"]
+    d = rec.data
+    rows = []
+    for r in d["rows"]:
+        rows.append([r["cycles"], r["knots"], r["warm_start"], f"{r['ddp_iterations']} ({r['al_iterations']})",
+                     f"{r['ms_per_ddp_iteration']['best']:.1f}", f"**{r['us_per_knot']:.2f}**",
+                     f"{r['max_abs_torque']:.1f}", f"{r['min_normal_grf']:.1f}", f"{r['max_friction_violation']:.2f}",
+                     f"{1e3 * r['max_touchdown_error']:.2f}", f"{r['solve_s']['best']:.2f}",
+                     f"{r['warm_start_s']:.2f}"])
+    table = markdown_table(["cycles", "knots", "warm start", "DDP it. (AL it.)", "ms per DDP it.", "µs per knot",
+                            "max \\|u\\| [N m]", "min f_z [N]", "max (\\|f_x\\| − μ f_z) [N]", "max \\|g\\| [mm]",
+                            "solve [s]", "warm start [s]"], rows, ["r", "r", "l"] + ["r"] * 9)
+    limit = d["rows"][0]["torque_limit"] if d["rows"] else None
+    fit = d.get("fit")
+    fit_text = (f" A least-squares line through the rows: {fit['intercept_ms']:.2f} ms + {fit['us_per_knot']:.2f} µs "
+                "per knot per DDP iteration." if fit else "")
+    m = rec.machine
+    load = max((m.get("load_average_before") or [0.0])[0], (m.get("load_average_after") or [0.0])[0])
+    loaded = (" — a loaded machine: other jobs shared the cores, so the times are upper bounds"
+              if m.get("cpus") and load >= 0.5 * m["cpus"] else "")
+    note = (f"`{d['method']}` on `HybridProblem.bounding(cycles)` (296 knots of 1 ms per cycle), the best of "
+            f"{d['repeats']} solves with fresh solvers; the warm start is timed apart (*repeated plan*: it includes "
+            f"the 5-cycle solve). Limits: \\|u\\| ≤ {fmt(limit, 'g')} N m, f_z ≥ 0, friction violation ≤ 0.{fit_text} "
+            f"Machine: {_machine_note(store, 'speed/solver_horizons')}{loaded}.")
+    return "\n".join([table, "", note, source_line(store, "speed/solver_horizons")])
+
+
 def speed_mpc(store: Store) -> str:
     """The MPC's re-plan time and real-time factor, beside the Pinocchio reference of the same knots."""
     d = store.data("speed/mpc")
@@ -517,6 +546,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "speed/vector_env": speed_vector_env,
     "speed/dynamics": speed_dynamics,
     "speed/solver": speed_solver,
+    "speed/solver_horizons": speed_solver_horizons,
     "speed/mpc": speed_mpc,
     "speed/summary": speed_summary,
     "robustness/suite": robustness_suite,

@@ -27,7 +27,7 @@ from hsddp_gym.core.dynamics import Linearization, grf_from_lambda
 from hsddp_gym.core.planar_dynamics import rollout_phase
 from hsddp_gym.planners.optimizer.callbacks import Callback, InMemoryLogger, VerbosePrinter
 from hsddp_gym.planners.optimizer.objective import ConstraintState, CostBreakdown, Objective
-from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.problem import HybridProblem, first_non_finite_knot
 from hsddp_gym.planners.optimizer.riccati import backward_pass, warm_up
 from hsddp_gym.planners.optimizer.solution import IterationRecord, Solution, SolverOptions
 from hsddp_gym.util.validation import check_array
@@ -104,6 +104,21 @@ class Workspace:
 _NO_GAINS = np.zeros((1, NU, NX))
 _SCRATCH = (np.zeros((1, NV, NV)), np.zeros((1, NV, NV)), np.zeros((1, NV, NV)), np.zeros((1, 6, NV)),
             np.zeros((1, 6, NV)), np.zeros((1, 6, NV)), np.zeros((1, NV)))
+
+
+def _check_guess_finite(problem: HybridProblem, value, shape: tuple, name: str) -> None:
+    """Raise a ValueError naming the first non-finite row of an initial guess ``value`` of ``shape`` (a diverged
+    warm start), with its time, cycle and phase; anything else is left to ``check_array``."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        return
+    if arr.shape != shape or np.all(np.isfinite(arr)):
+        return
+    k = int(np.flatnonzero(~np.all(np.isfinite(arr.reshape(shape[0], -1)), axis=1))[0])
+    raise ValueError(f"{name} must be finite, but {name}[{k}] is not ({problem.describe_knot(k)}): the initial guess "
+                     "diverged there (a rollout that blew up?); see hsddp_gym.planners.tasks.bounding_warm_start for "
+                     "a warm start that stays finite on long horizons")
 
 
 def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref: np.ndarray | None = None,
@@ -227,11 +242,14 @@ class HSDDP:
             raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
         opt = self.options
         N, n = problem.n_knots, problem.n_phases
+        _check_guess_finite(problem, U_init, (N, NU), "U_init")
         U_init = check_array(U_init, (N, NU), "U_init")
         if (X_init is None) != (K_init is None):
             raise ValueError("X_init and K_init go together (a feedback warm start); pass both or neither")
         if X_init is not None:
+            _check_guess_finite(problem, X_init, (N + 1, NX), "X_init")
             X_init = check_array(X_init, (N + 1, NX), "X_init")
+            _check_guess_finite(problem, K_init, (N, NU, NX), "K_init")
             K_init = check_array(K_init, (N, NU, NX), "K_init")
         lam = np.full(n, opt.lambda0) if multipliers is None else check_array(multipliers, (n,), "multipliers").copy()
         if sigma is None:
@@ -264,7 +282,10 @@ class HSDDP:
             ok = rollout_policy(problem, ws.nominal, U_init, X_init, K_init, lin=ws.lin)
         ws.lin_valid = ok
         if not ok:
-            raise ValueError("the warm start (U_init, X_init, K_init) produces a non-finite rollout")
+            k = first_non_finite_knot(ws.nominal.X[:N + 1])
+            where = f": X[{k}] is not finite ({problem.describe_knot(k)})" if k is not None else ""
+            raise ValueError("the warm start (U_init" + (", X_init, K_init" if K_init is not None else "")
+                             + f") produces a diverging rollout{where}")
         # step_gains: ws.K / ws.k_ff are the backward pass that made the last accepted step (refresh_gains False)
         state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running", "step_gains": False}
 

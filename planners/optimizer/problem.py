@@ -24,8 +24,8 @@ from hsddp_gym.core.conventions import NGRF, NU, NX, Mode, grf_slice
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.params import RobotParams
 from hsddp_gym.core.references import end_of_mode_reference
-from hsddp_gym.core.schedule import ModeSchedule
-from hsddp_gym.util.validation import check_array, check_positive
+from hsddp_gym.core.schedule import BOUNDING_CYCLE, ModeSchedule
+from hsddp_gym.util.validation import check_array, check_int, check_positive
 
 # Weights of the authors' code closest to the paper (original_code_facts §3.5, MH@0b6ca76), state order
 # [x, z, pitch, hf, kf, hb, kb, dx, dz, dpitch, dhf, dkf, dhb, dkb].
@@ -290,8 +290,6 @@ class HybridProblem:
             cost_options: ``speed``, ``running_reference``, ``grf_tracking``, ``z_velocity``, ``weights``,
                 ``terminal_half`` of :meth:`bounding`.
         """
-        from hsddp_gym.core.schedule import BOUNDING_CYCLE
-
         check_positive(periodic_weight, "periodic_weight")
         durations = np.asarray(durations, dtype=np.float64)
         if durations.shape != (5,):
@@ -316,3 +314,84 @@ class HybridProblem:
         """The same problem from another initial state (14,)."""
         return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution,
                              knots=self.knots)
+
+    def sub_problem(self, start: int, stop: int, x0: np.ndarray | None = None) -> HybridProblem:
+        """Phases ``start`` to ``stop - 1`` as a problem of their own: the same dynamics, costs, constraints and
+        knots; the mode entered after phase ``stop - 1`` is its final mode, so a touchdown there keeps its switching
+        constraint.
+
+        Args:
+            start: its first phase, ``0 <= start < stop``.
+            stop: one past its last phase, ``stop <= n``.
+            x0: its initial state (14,); default this problem's ``x0`` (only when ``start == 0``).
+        """
+        start = check_int(start, "start", minimum=0)
+        stop = check_int(stop, "stop", minimum=1)
+        if not start < stop <= self.n_phases:
+            raise ValueError(f"start and stop must satisfy 0 <= start < stop <= {self.n_phases} (the phases), "
+                             f"got start={start}, stop={stop}")
+        if x0 is None:
+            if start != 0:
+                raise ValueError(f"x0 is required for a sub-problem that starts after phase 0 (start={start})")
+            x0 = self.x0
+        s = self.schedule
+        schedule = ModeSchedule(s.modes[start:stop], s.durations[start:stop], final_mode=s.next_mode(stop - 1))
+        return HybridProblem(self.dynamics, schedule, self.costs[start:stop], x0, self.constraints, self.restitution,
+                             knots=self.knots[start:stop])
+
+    @property
+    def cycle_length(self) -> int | None:
+        """Phases per gait cycle: 4 when the schedule repeats the bounding cycle (back stance, flight, front stance,
+        flight, starting anywhere in it; a last cycle may be cut short), else None."""
+        modes = self.schedule.modes
+        first = tuple(modes[:len(BOUNDING_CYCLE)])
+        n = len(BOUNDING_CYCLE)
+        rotations = [tuple(BOUNDING_CYCLE[i:] + BOUNDING_CYCLE[:i])[:len(first)] for i in range(n)]
+        if first not in rotations or any(m != first[i % n] for i, m in enumerate(modes)):
+            return None
+        return n
+
+    def knot_time(self, k: int) -> float:
+        """Time [s] of knot ``k`` (``0 <= k <= N``; ``k = N`` is the end of the horizon)."""
+        k = check_int(k, "k", minimum=0)
+        if k > self.n_knots:
+            raise ValueError(f"k must be at most N = {self.n_knots}, got {k}")
+        i = min(int(np.searchsorted(self.phase_start, k, side="right")) - 1, self.n_phases - 1)
+        return float(np.sum(self.schedule.durations[:i]) + (k - self.phase_start[i]) * self.phase_dt[i])
+
+    def describe_knot(self, k: int) -> str:
+        """Where knot ``k`` (``0 <= k <= N``) lies, in words for an error message, counting phases and cycles
+        from 1: ``"t = 2.722 s, cycle 10 of 10, phase 37 of 40 (back stance)"`` (no cycle when the schedule does
+        not repeat the bounding cycle, see :attr:`cycle_length`)."""
+        t = self.knot_time(k)
+        i = min(int(np.searchsorted(self.phase_start, k, side="right")) - 1, self.n_phases - 1)
+        mode = self.schedule.modes[i].name.lower().replace("_", " ")
+        parts = [f"t = {t:.3f} s"]
+        n = self.cycle_length
+        if n is not None:
+            parts.append(f"cycle {i // n + 1} of {-(-self.n_phases // n)}")
+        parts.append(f"phase {i + 1} of {self.n_phases} ({mode})")
+        return ", ".join(parts)
+
+    def cycle_of_knot(self, k: int) -> int | None:
+        """The gait cycle (counted from 1) of knot ``k`` (``0 <= k <= N``), or None (see :attr:`cycle_length`)."""
+        n = self.cycle_length
+        if n is None:
+            return None
+        k = check_int(k, "k", minimum=0)
+        i = min(int(np.searchsorted(self.phase_start, k, side="right")) - 1, self.n_phases - 1)
+        return i // n + 1
+
+
+def first_non_finite_knot(X: np.ndarray, U: np.ndarray | None = None) -> int | None:
+    """The first knot ``k`` whose state ``X[k]`` (or control ``U[k]``) holds a NaN or an infinity, or None.
+
+    Args:
+        X: ``(N+1, 14)`` states. U: optional ``(N, 4)`` controls.
+    """
+    bad = ~np.all(np.isfinite(np.asarray(X, dtype=np.float64)), axis=1)
+    if U is not None:
+        bad_u = ~np.all(np.isfinite(np.asarray(U, dtype=np.float64)), axis=1)
+        bad[:bad_u.shape[0]] |= bad_u
+    hits = np.flatnonzero(bad)
+    return int(hits[0]) if hits.size else None
