@@ -218,10 +218,13 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
 
 def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, quiet: bool = False,
              max_episode_steps: int | None = None) -> dict:
-    """The main job (``hsddp-gym demo``): the heuristic warm start and the HS-DDP plan of ``cycles`` bounding
-    cycles (figures and ``solution.npz`` in ``out``), then ``episodes`` seeded HS-DDP MPC episodes in
-    ``hsddp_gym/Bounding-v0`` (``out/mpc``, a GIF of the first with ``video``). Returns the summary written to
-    ``out/summary.json``."""
+    """The main job (``hsddp-gym demo``): the HS-DDP plan of ``cycles`` bounding cycles beside its warm start (the
+    heuristic controller's rollout up to five cycles, a repeated cycle of the solved five-cycle plan beyond;
+    :func:`~hsddp_gym.planners.tasks.bounding_warm_start`), figures and ``solution.npz`` in ``out``, then
+    ``episodes`` seeded HS-DDP MPC episodes in ``hsddp_gym/Bounding-v0`` (``out/mpc``, a GIF of the first with
+    ``video``). Returns the summary written to ``out/summary.json`` (``warm_start``, ``hsddp_plan``,
+    ``mpc_in_env``, ``files``)."""
+    from hsddp_gym.planners.optimizer.metrics import trajectory_summary
     from hsddp_gym.planners.tasks import plan_bounding
     from hsddp_gym.util.extras import require
     from hsddp_gym.util.validation import check_output_dir
@@ -230,21 +233,24 @@ def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, 
     require(["matplotlib"] + (["PIL"] if video else []), "the demo (figures" + (" and the GIF)" if video else ")"))
     from hsddp_gym.viz import plotting
 
-    print(f"[1/3] heuristic bounding controller (the warm start), {cycles} cycles of 80/72/72/72 ms ...")
-    heur = plan_bounding("heuristic", cycles=cycles)
-    print("[2/3] HS-DDP plan (impact-aware DDP + AL switching constraints + relaxed barriers) ...")
+    print(f"[1/2] HS-DDP plan of {cycles} bounding cycles of 80/72/72/72 ms (impact-aware DDP + AL switching "
+          "constraints + relaxed barriers) from its warm start ...")
     plan = plan_bounding("al-reb", cycles=cycles, verbose=not quiet)
+    warm = plan.warm_start
+    source = plan.summary["warm_start"]
+    warm_summary = trajectory_summary(plan.problem, warm.X, warm.X_pre, warm.U, warm.GRF)
+    warm_summary.update(source=source)
     robot = plan.problem.dynamics.robot
-    plotting.plot_motion_strips(robot, {"heuristic warm start": heur.X, "HS-DDP (al-reb)": plan.X},
+    plotting.plot_motion_strips(robot, {f"warm start ({source})": warm.X, "HS-DDP (al-reb)": plan.X},
                                 out / "motion.png", dt=plan.problem.dt)
-    plotting.plot_states({"heuristic": heur.X, "HS-DDP": plan.X}, plan.problem.dt, out / "states.png",
+    plotting.plot_states({f"warm start ({source})": warm.X, "HS-DDP": plan.X}, plan.problem.dt, out / "states.png",
                          target_speed=1.0)
     plotting.plot_convergence({"al-reb": plan.solution}, out / "convergence.png")
     plan.solution.save(out / "solution.npz")
-    print(f"[3/3] HS-DDP MPC in hsddp_gym/Bounding-v0: {episodes} seeded episode(s) ...")
+    print(f"[2/2] HS-DDP MPC in hsddp_gym/Bounding-v0: {episodes} seeded episode(s) ...")
     mpc = run_rollouts("mpc", episodes, 0, out / "mpc", video=video, quiet=quiet,
                        max_episode_steps=max_episode_steps)
-    summary = {"heuristic_plan": heur.summary, "hsddp_plan": plan.summary, "mpc_in_env": mpc,
+    summary = {"warm_start": warm_summary, "hsddp_plan": plan.summary, "mpc_in_env": mpc,
                "files": ["motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"]
                + (["mpc/episode0.gif"] if video else [])}
     write_json(out / "summary.json", summary)

@@ -203,3 +203,17 @@ def test_bounding_warm_start_refuses_bad_arguments():
         bounding_warm_start("bounding")
     with pytest.raises(TypeError, match="options must be a SolverOptions"):
         bounding_warm_start(HybridProblem.bounding(1), {"method": "al"})
+
+
+def test_the_demo_plans_a_long_horizon_beside_its_warm_start(tmp_path):
+    """``hsddp-gym demo --cycles 10``: the demo draws the plan's own warm start (the repeated plan beyond five
+    cycles), so it runs at any horizon the planner plans."""
+    pytest.importorskip("matplotlib")
+    from hsddp_gym.workflows import run_demo
+
+    summary = run_demo(tmp_path / "demo", cycles=10, episodes=1, video=False, quiet=True, max_episode_steps=10)
+    assert summary["warm_start"]["source"] == "repeated plan"
+    assert summary["hsddp_plan"]["status"] == "converged" and summary["hsddp_plan"]["max_abs_torque"] <= 33.0
+    assert summary["mpc_in_env"]["falls"] == 0
+    assert all((tmp_path / "demo" / f).is_file() for f in summary["files"])
+    assert json.loads((tmp_path / "demo" / "summary.json").read_text())["warm_start"]["source"] == "repeated plan"
