@@ -195,8 +195,10 @@ class BoundingEnv(gym.Env):
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
     (3) :mod:`hsddp_gym.core.contact`: a mass-metric position projection (sticking feet do not creep, contact
-    feet end each step on the ground) and an energy projection, so that per simulation step
-    ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); numerically dissipative at high joint rates. The env
+    feet and any foot that crossed the ground end each step on it: no tunnelling at any joint rate) and an
+    energy projection, so that per simulation step ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); in free
+    flight the centroidal momentum changes by gravity's impulse only and, with zero torque, the energy is kept
+    (both to round-off, at any joint rate). The env
     steps it through the vector env's compiled kernel
     (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, equal to the reference
     ``ContactSimulator`` to round-off), so ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
