@@ -1,22 +1,29 @@
 """Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
 
-Three Gymnasium wrappers and two env arguments, and one registry, :data:`CONDITIONS`, that names the
-conditions of the robustness benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few more:
+Gymnasium wrappers and env arguments, and one registry, :data:`CONDITIONS`, that names the conditions of the
+robustness benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few more:
 
 * :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
   flags and the gait clock stay clean);
+* :class:`ObservationBias`: a constant offset on named observed positions and velocities (a sensor bias), fixed
+  or drawn per episode;
 * :class:`ActionDelay`: every action is executed ``steps`` control steps after the policy returned it (the
   first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
-  policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it);
+  policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it), which may differ from the
+  executed one (``announced``), and the executed delay may be drawn per episode (``jitter``);
 * :class:`RandomPush`: one push (or ``count``) per episode at a random time, a random trunk-velocity change
   ``[dvx, dvz, dpitch_rate]`` (a :class:`PushDistribution`) applied through the env's documented ``push`` reset
   option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
+* :class:`PhasePush`: one such push at the first control step in flight (or in stance) after a random time,
+  through the env's ``apply_push``;
 * model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
   simulated trunk is heavier or lighter than the model every policy uses);
 * contact models the policies were not built on (:class:`ContactCondition`, always in the MuJoCo twin): a corner
   of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS` (``contact_<corner>``), or :class:`RandomContactModel`, a
   :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` drawn per episode from the episode seed (``contact_family``).
-  They are extra conditions, not in :data:`SUITE`.
+  They are extra conditions, not in :data:`SUITE`;
+* conditions a real robot has (:class:`HardwareCondition`, :data:`HARDWARE_CONDITIONS`): a latency other than the
+  announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
 
 **Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
 (a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
@@ -42,7 +49,7 @@ from typing import ClassVar
 import gymnasium as gym
 import numpy as np
 
-from hsddp_gym.core.conventions import NU
+from hsddp_gym.core.conventions import NQ, NU, Q_NAMES, X_NAMES
 from hsddp_gym.util.validation import check_int, check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
@@ -111,30 +118,145 @@ class ObservationNoise(gym.Wrapper):
         return self._noisy(obs), reward, terminated, truncated, info
 
 
+def observation_entries(layout) -> dict[str, int]:
+    """The observed positions and velocities of ``layout`` (an
+    :class:`~hsddp_gym.core.observation.ObservationLayout`) by name: ``{name: index}`` with the state names of
+    :data:`hsddp_gym.core.conventions.X_NAMES` (``"z"``, ``"pitch"``, ``"hip_front"``, ..., ``"dx"`` the forward
+    velocity, ``"dz"``, ``"dpitch"`` the pitch rate, ``"dhip_front"``, ...; ``"x"`` only when the layout observes
+    it). The contact flags and the gait clock have no name: they are not sensor readings to bias."""
+    q_names = Q_NAMES[layout.skipped_qpos:]
+    v_names = X_NAMES[NQ:]
+    entries = {name: layout.qpos.start + i for i, name in enumerate(q_names)}
+    entries.update({name: layout.qvel.start + i for i, name in enumerate(v_names)})
+    return entries
+
+
+def _check_entry_values(value, name: str, entries: dict, nonneg: bool) -> dict:
+    """``value`` (a dict ``{entry name: number}`` or None) validated against ``entries``."""
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise TypeError(f"{name} must be a dict {{observation entry: value}} or None, got {type(value).__name__}")
+    unknown = [k for k in value if k not in entries]
+    if unknown:
+        raise ValueError(f"{name}: unknown observation entr(y/ies) {unknown}; allowed: {list(entries)}")
+    out = {}
+    for key, v in value.items():
+        if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(float(v)):
+            raise ValueError(f"{name}[{key!r}] must be a finite number, got {v!r}")
+        if nonneg and float(v) < 0.0:
+            raise ValueError(f"{name}[{key!r}] must be >= 0 (a half-width), got {v!r}")
+        out[key] = float(v)
+    return out
+
+
+class ObservationBias(gym.Wrapper):
+    """A constant offset on chosen observed positions and velocities (a sensor or state-estimator bias), the same
+    at every observation of an episode (reset included): ``obs[i] + offset[i]`` for the named entries, clipped to
+    the observation space; every other entry (the contact flags and the gait clock always) is returned unchanged.
+    ``info`` is untouched (it holds the true state).
+
+    The offset of an entry is ``bias[name] + U(-random_bias[name], random_bias[name])``: a fixed part and a part
+    drawn at every reset from the episode's generator (seeded from ``(seed, ObservationBias.SALT)``, see the
+    module's seeding rule; one uniform draw per observation entry, in observation order, whatever entries are
+    named). The episode's offsets are ``info["observation_bias"]`` at reset (``{name: offset}`` of the named
+    entries) and :attr:`offset` (``(layout.size,)``, zeros elsewhere).
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``.
+        bias: ``{entry: offset}`` in the entry's unit (m, rad, m/s, rad/s), or None. Entries are named as in
+            :func:`observation_entries` (``"z"``, ``"pitch"``, ``"dx"`` the forward velocity, ...).
+        random_bias: ``{entry: half-width}`` (>= 0) of a uniform per-episode offset, or None.
+    """
+
+    SALT = 0xB1A5
+    INFO_KEYS = ("observation_bias",)
+    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
+
+    def __init__(self, env: gym.Env, bias: dict | None = None, random_bias: dict | None = None) -> None:
+        super().__init__(env)
+        layout = env.unwrapped.observation_layout
+        self.entries = observation_entries(layout)
+        self.bias = _check_entry_values(bias, "bias", self.entries, nonneg=False)
+        self.random_bias = _check_entry_values(random_bias, "random_bias", self.entries, nonneg=True)
+        self._names = [n for n in self.entries if n in self.bias or n in self.random_bias]
+        self._index = np.array([self.entries[n] for n in self._names], dtype=np.intp)
+        self._fixed = np.zeros(layout.size)
+        self._half = np.zeros(layout.size)
+        for name, v in self.bias.items():
+            self._fixed[self.entries[name]] = v
+        for name, v in self.random_bias.items():
+            self._half[self.entries[name]] = v
+        self.offset = self._fixed.copy()
+        self._rng: np.random.Generator | None = None
+
+    def _biased(self, obs: np.ndarray) -> np.ndarray:
+        out = obs.copy()
+        i = self._index
+        space = self.observation_space
+        out[i] = np.clip(obs[i] + self.offset[i], space.low[i], space.high[i])
+        return out
+
+    def reset(self, *, seed=None, options=None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        if self.random_bias:
+            if seed is not None or self._rng is None:
+                self._rng = _episode_rng(self, seed, self.SALT)
+            self.offset = self._fixed + self._half * self._rng.uniform(-1.0, 1.0, size=self._half.shape)
+        bias = {n: float(self.offset[self.entries[n]]) for n in self._names}
+        return self._biased(obs), dict(info, observation_bias=bias)
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._biased(obs), reward, terminated, truncated, info
+
+
 class ActionDelay(gym.Wrapper):
     """Actions executed ``steps`` control steps late: ``step(a_t)`` executes ``a_{t - steps}`` (zero torques for
     the first ``steps`` steps after a reset). ``info["executed_action"]`` is the action the env executed.
 
+    The delay a policy is told (:attr:`action_delay_steps`) is ``steps`` unless ``announced`` says otherwise: a
+    latency that is not known exactly (announced 1 step, executed 2, ...). With ``jitter`` the executed delay of
+    each episode is drawn at reset, uniform in ``{steps - jitter, ..., steps + jitter}``, from a generator seeded
+    from ``(seed, ActionDelay.SALT)`` (see the module's seeding rule); it is constant within the episode
+    (:attr:`executed_delay_steps`). Without ``announced`` and ``jitter`` nothing is drawn and the wrapper is the
+    plain delay.
+
     A bad action (wrong shape, non-finite) raises ``ValueError`` when it is given, not when it is executed.
 
     Args:
-        env: a (wrapped) ``Bounding-v0``. steps: the delay in control steps (>= 0; 0 is the identity).
+        env: a (wrapped) ``Bounding-v0``. steps: the executed delay in control steps (>= 0; 0 is the identity).
+        announced: the delay announced to policies in control steps (>= 0; None: ``steps``).
+        jitter: half-width of the per-episode executed delay in control steps (0 <= jitter <= steps; 0: fixed).
 
     Attributes:
-        action_delay_steps: ``steps`` (policies that know their latency read it through
-            ``env.get_wrapper_attr("action_delay_steps")``).
+        action_delay_steps: the announced delay (policies that know their latency read it through
+            ``env.get_wrapper_attr("action_delay_steps")``; :class:`~hsddp_gym.planners.policies.base.EnvInterface`
+            does).
+        executed_delay_steps: the delay the current episode executes (``steps`` without ``jitter``).
     """
 
+    SALT = 0xDE1A
     INFO_KEYS = ("executed_action",)
     """The ``info`` keys this wrapper adds (:func:`wrapper_info_keys`)."""
 
-    def __init__(self, env: gym.Env, steps: int = 1) -> None:
+    def __init__(self, env: gym.Env, steps: int = 1, announced: int | None = None, jitter: int = 0) -> None:
         super().__init__(env)
-        self.action_delay_steps = check_int(steps, "steps", minimum=0)
+        self.steps = check_int(steps, "steps", minimum=0)
+        self.jitter = check_int(jitter, "jitter", minimum=0)
+        if self.jitter > self.steps:
+            raise ValueError(f"jitter must be <= steps ({self.steps}: a delay is never negative), got {jitter}")
+        self.action_delay_steps = self.steps if announced is None else check_int(announced, "announced", minimum=0)
+        self.executed_delay_steps = self.steps
+        self._rng: np.random.Generator | None = None
         self._queue: collections.deque = collections.deque()
 
     def reset(self, *, seed=None, options=None):
-        self._queue = collections.deque(np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay_steps))
+        if self.jitter:
+            if seed is not None or self._rng is None:
+                self._rng = _episode_rng(self, seed, self.SALT)
+            self.executed_delay_steps = self.steps + int(self._rng.integers(-self.jitter, self.jitter + 1))
+        self._queue = collections.deque(np.zeros(NU, dtype=np.float32) for _ in range(self.executed_delay_steps))
         return self.env.reset(seed=seed, options=options)
 
     def step(self, action):
@@ -260,6 +382,84 @@ class RandomPush(gym.Wrapper):
         return obs, dict(info, push=copy.deepcopy(self.last_push))
 
 
+PUSH_PHASES = ("flight", "stance")
+"""The contact phases a :class:`PhasePush` can wait for: ``"flight"`` (no foot in contact), ``"stance"`` (one or two
+feet in contact)."""
+
+
+class PhasePush(gym.Wrapper):
+    """One push per episode timed by the contact phase: a time ``t ~ U(time_range)`` and a change of the trunk
+    velocities ``delta_v ~ U(-max_delta_v, max_delta_v)`` (``[dvx, dvz, dpitch_rate]``) are drawn at reset, and
+    the push is applied at the end of the first control step that ends at or after ``t`` in the phase ``phase``:
+    ``"flight"`` when the step's contact flags (``info["contact"]``, the last 1 ms simulation step) are all False,
+    ``"stance"`` when at least one is True. It goes through the env's documented
+    :meth:`~hsddp_gym.envs.bounding.BoundingEnv.apply_push`; the step returns the observation after the push (the
+    policy sees the pushed velocities at once) and its ``info`` gains ``"push_applied"``: ``{"delta_v": [3
+    floats], "time": t [s], "contact": [front, back]}`` (``info["qvel"]`` is updated to the pushed velocities).
+    No push comes after a fall or the time limit, nor if the phase never comes. The draws are those of
+    :class:`RandomPush` with the same distribution (one push, seeded from ``(seed, PUSH_SALT)``): at a given seed
+    only the moment differs. The episode's push is ``info["phase_push"]`` at reset (``{"delta_v": [...],
+    "earliest_time": t, "phase": phase}``) and :attr:`last_push`; :attr:`applied` is the applied one or None.
+
+    It must wrap the env below any observation wrapper (:class:`ObservationNoise`, :class:`ObservationBias`, a
+    ``gym.ObservationWrapper``): ``TypeError`` otherwise.
+
+    Args:
+        env: a (wrapped) ``Bounding-v0``. phase: one of :data:`PUSH_PHASES`.
+        time_range: ``(low, high)`` [s] of the earliest push time. max_delta_v: (3,) [m/s, m/s, rad/s].
+    """
+
+    SALT = PUSH_SALT
+    INFO_KEYS = ("phase_push", "push_applied")
+    """The ``info`` keys this wrapper adds (``phase_push`` at reset, ``push_applied`` at the push's step;
+    :func:`wrapper_info_keys`)."""
+
+    def __init__(self, env: gym.Env, phase: str = "flight", time_range=(1.0, 4.0),
+                 max_delta_v=(1.0, 1.0, 7.0)) -> None:
+        super().__init__(env)
+        if not isinstance(phase, str) or phase not in PUSH_PHASES:
+            raise ValueError(f"phase must be one of {list(PUSH_PHASES)}, got {phase!r}")
+        e = env
+        while isinstance(e, gym.Wrapper):
+            if isinstance(e, (ObservationNoise, ObservationBias, gym.ObservationWrapper)):
+                raise TypeError(f"env: PhasePush must wrap the env below any observation wrapper, found "
+                                f"{type(e).__name__} under it")
+            e = e.env
+        if not callable(getattr(env.unwrapped, "apply_push", None)):
+            raise TypeError(f"env must be a Bounding-v0 env with apply_push, got {type(env.unwrapped).__name__}")
+        self.phase = phase
+        self.distribution = PushDistribution(time_range, max_delta_v, 1)
+        self.time_range = self.distribution.time_range
+        self.max_delta_v = self.distribution.max_delta_v
+        self._rng: np.random.Generator | None = None
+        self.last_push: dict | None = None
+        self.applied: dict | None = None
+
+    def _in_phase(self, contact) -> bool:
+        touching = bool(np.any(contact))
+        return touching if self.phase == "stance" else not touching
+
+    def reset(self, *, seed=None, options=None):
+        if seed is not None or self._rng is None:
+            self._rng = _episode_rng(self, seed, self.SALT)
+        push = self.distribution.draw(self._rng)[0]
+        self.last_push = {"delta_v": push["delta_v"], "earliest_time": push["time"], "phase": self.phase}
+        self.applied = None
+        obs, info = self.env.reset(seed=seed, options=options)
+        return obs, dict(info, phase_push=copy.deepcopy(self.last_push))
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        u = self.env.unwrapped
+        if (self.applied is None and self.last_push is not None and not (terminated or truncated)
+                and u.time >= self.last_push["earliest_time"] - 1e-9 and self._in_phase(info["contact"])):
+            obs = u.apply_push(self.last_push["delta_v"])
+            self.applied = {"delta_v": list(self.last_push["delta_v"]), "time": float(u.time),
+                            "contact": [bool(c) for c in info["contact"]]}
+            info = dict(info, qvel=u.state[NQ:].copy(), push_applied=copy.deepcopy(self.applied))
+        return obs, reward, terminated, truncated, info
+
+
 CONTACT_SALT = 0xC0A7
 """The salt of :class:`RandomContactModel`'s generator: an episode reset with seed ``s`` draws its contact model from
 ``SeedSequence([s, CONTACT_SALT])``."""
@@ -350,14 +550,28 @@ class Condition:
         env = gym.make(SIMULATORS[simulator], **self.env_kwargs, **make_kwargs)
         if self.push is not None:
             env = RandomPush(env, **self.push)
-        if self.action_delay:
-            env = ActionDelay(env, self.action_delay)
+        env = self._wrap_inner(env)
+        env = self._wrap_delay(env)
         if self.observation_noise is not None:
             env = ObservationNoise(env, *self.observation_noise)
         return self._wrap(env)
 
-    def _wrap(self, env: gym.Env) -> gym.Env:
+    def _wrap_inner(self, env: gym.Env) -> gym.Env:
+        """Wrappers right above the pushes (a subclass's own)."""
         return env
+
+    def _wrap_delay(self, env: gym.Env) -> gym.Env:
+        return ActionDelay(env, self.action_delay) if self.action_delay else env
+
+    def _wrap(self, env: gym.Env) -> gym.Env:
+        """The outermost wrappers (a subclass's own)."""
+        return env
+
+    @property
+    def announced_delay(self) -> int:
+        """The action delay [control steps] a policy is told (``EnvInterface.from_env(env).action_delay_steps``):
+        :attr:`action_delay` here; a :class:`HardwareCondition` may announce another one."""
+        return self.action_delay
 
     @property
     def acts_through_env_arguments(self) -> bool:
@@ -391,6 +605,87 @@ class ContactCondition(Condition):
     def acts_through_env_arguments(self) -> bool:
         """False: the compiled vector env (exact LCP) has no MuJoCo contact model."""
         return False
+
+
+@dataclasses.dataclass(frozen=True)
+class HardwareCondition(Condition):
+    """A condition a real robot has and the policies are not told about exactly: a latency other than the announced
+    one, a constant sensor bias, or a push timed by the contact phase. Extra conditions, not in :data:`SUITE`; the
+    compiled vector env cannot run them (:attr:`acts_through_env_arguments` is False).
+
+    Attributes:
+        announced_action_delay: the delay [control steps] :class:`ActionDelay` announces (None: the executed one,
+            :attr:`action_delay`).
+        delay_jitter: per-episode executed delay uniform in ``action_delay +- delay_jitter`` (:class:`ActionDelay`'s
+            ``jitter``).
+        observation_bias: the keyword arguments of :class:`ObservationBias` (``bias``, ``random_bias``), or None.
+        phase_push: the keyword arguments of :class:`PhasePush` (``phase``, ``time_range``, ``max_delta_v``), or
+            None.
+    """
+
+    announced_action_delay: int | None = None
+    delay_jitter: int = 0
+    observation_bias: dict | None = None
+    phase_push: dict | None = None
+
+    @property
+    def announced_delay(self) -> int:
+        return self.action_delay if self.announced_action_delay is None else self.announced_action_delay
+
+    def _wrap_inner(self, env: gym.Env) -> gym.Env:
+        return env if self.phase_push is None else PhasePush(env, **self.phase_push)
+
+    def _wrap_delay(self, env: gym.Env) -> gym.Env:
+        if not (self.action_delay or self.announced_action_delay or self.delay_jitter):
+            return env
+        return ActionDelay(env, self.action_delay, announced=self.announced_action_delay, jitter=self.delay_jitter)
+
+    def _wrap(self, env: gym.Env) -> gym.Env:
+        return env if self.observation_bias is None else ObservationBias(env, **self.observation_bias)
+
+    @property
+    def acts_through_env_arguments(self) -> bool:
+        """False: the compiled vector env has no latency, observation or phase-timed-push wrappers."""
+        return False
+
+
+SENSOR_BIAS = {"pitch": 0.03, "dx": 0.05, "z": -0.02}
+"""The fixed bias of ``sensor_bias`` (:class:`ObservationBias`'s ``bias``): +0.03 rad pitch (nose-down), +0.05 m/s
+forward velocity, -0.02 m trunk height."""
+SENSOR_BIAS_RANGE = {"z": 0.02, "pitch": 0.03, "hip_front": 0.02, "knee_front": 0.02, "hip_back": 0.02,
+                     "knee_back": 0.02, "dx": 0.05, "dz": 0.05}
+"""The half-widths of ``sensor_bias_random`` (:class:`ObservationBias`'s ``random_bias``): each episode a bias
+uniform in +-0.02 m height, +-0.03 rad pitch, +-0.02 rad on each joint angle, +-0.05 m/s on the trunk's forward and
+vertical velocities (the rates are unbiased)."""
+PHASE_PUSH_DELTA_V = (1.0, 1.0, 7.0)
+"""``max_delta_v`` of ``push_flight`` and ``push_stance``: ``U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)``, larger than
+``push``'s (0.8, 0.8, 5.0)."""
+
+
+def _hardware_conditions() -> tuple:
+    h = HardwareCondition
+    return (
+        h("delay_5ms_announced_0ms", "actions executed 1 control step (5 ms) late, no delay announced",
+          action_delay=1, announced_action_delay=0),
+        h("delay_10ms_announced_5ms", "actions executed 2 control steps (10 ms) late, 1 step (5 ms) announced",
+          action_delay=2, announced_action_delay=1),
+        h("delay_5ms_announced_10ms", "actions executed 1 control step (5 ms) late, 2 steps (10 ms) announced",
+          action_delay=1, announced_action_delay=2),
+        h("delay_15ms_announced_10ms", "actions executed 3 control steps (15 ms) late, 2 steps (10 ms) announced",
+          action_delay=3, announced_action_delay=2),
+        h("delay_jitter", "10 ms announced; each episode executes 5, 10 or 15 ms (uniform, from the episode seed)",
+          action_delay=2, delay_jitter=1),
+        h("sensor_bias", "constant observation bias: +0.03 rad pitch, +0.05 m/s forward velocity, -0.02 m height",
+          observation_bias={"bias": dict(SENSOR_BIAS)}),
+        h("sensor_bias_random", "observation bias drawn per episode: U(+-0.02 m) height, U(+-0.03 rad) pitch, "
+          "U(+-0.02 rad) joints, U(+-0.05 m/s) vx and vz", observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}),
+        h("push_flight", "one push at the first flight step (no foot in contact) after t ~ U(1, 4) s, "
+          "dv ~ U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)",
+          phase_push={"phase": "flight", "max_delta_v": PHASE_PUSH_DELTA_V}),
+        h("push_stance", "one push at the first stance step (a foot in contact) after t ~ U(1, 4) s, "
+          "dv ~ U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)",
+          phase_push={"phase": "stance", "max_delta_v": PHASE_PUSH_DELTA_V}),
+    )
 
 
 def _conditions(*conds: Condition) -> dict:
@@ -428,17 +723,23 @@ CONDITIONS: dict[str, Condition] = _conditions(
     ContactCondition("contact_family", "MuJoCo twin, a contact model drawn per episode from the family "
                      "(ContactModel.sample, seeded by the episode seed)", family=True),
     *_corner_conditions(),
+    *_hardware_conditions(),
 )
 """Every named condition: the robustness benchmark's (:data:`SUITE`), ``push_x3`` (three pushes an episode: a
-harder test, and a training condition that gives a learner's rollouts three push recoveries each) and the contact
-conditions (:data:`CONTACT_CONDITIONS`, in the MuJoCo twin)."""
+harder test, and a training condition that gives a learner's rollouts three push recoveries each), the contact
+conditions (:data:`CONTACT_CONDITIONS`, in the MuJoCo twin) and the hardware ones (:data:`HARDWARE_CONDITIONS`)."""
 CONTACT_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, ContactCondition))
 """The contact-model conditions: ``contact_family`` and one ``contact_<corner>`` per corner of
 :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`; not in :data:`SUITE`."""
-SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS)
-"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3`` and the contact
-conditions, target speeds 0.5 and 1.5 m/s included): the default of ``experiments/robustness.py`` and
-``experiments/imitation_robustness.py``."""
+HARDWARE_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, HardwareCondition))
+"""The conditions of a real robot (:class:`HardwareCondition`): latencies other than the announced one
+(``delay_<executed>_announced_<announced>``, ``delay_jitter``), sensor biases (``sensor_bias``,
+``sensor_bias_random``) and phase-timed pushes (``push_flight``, ``push_stance``); not in :data:`SUITE`."""
+SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS
+                               and name not in HARDWARE_CONDITIONS)
+"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, the contact
+conditions and the hardware ones, target speeds 0.5 and 1.5 m/s included): the default of
+``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
 
 
 def get_condition(name: str) -> Condition:
@@ -468,6 +769,24 @@ def wrapper_info_keys(env: gym.Env) -> frozenset:
         keys.update(getattr(e, "INFO_KEYS", ()))
         e = e.env
     return frozenset(keys)
+
+
+def episode_perturbation(env: gym.Env) -> dict:
+    """What the hardware wrappers of ``env`` did in the current episode, for the record of a run:
+    ``{"announced_delay_steps", "executed_delay_steps"}`` of an :class:`ActionDelay`, ``"observation_bias"``
+    (``{name: offset}``) of an :class:`ObservationBias`, ``"push_applied"`` (the applied push, or None) of a
+    :class:`PhasePush`; ``{}`` without such wrappers."""
+    out: dict = {}
+    e = env
+    while isinstance(e, gym.Wrapper):
+        if isinstance(e, ActionDelay):
+            out.update(announced_delay_steps=e.action_delay_steps, executed_delay_steps=e.executed_delay_steps)
+        elif isinstance(e, ObservationBias):
+            out["observation_bias"] = {n: float(e.offset[e.entries[n]]) for n in e._names}
+        elif isinstance(e, PhasePush):
+            out["push_applied"] = copy.deepcopy(e.applied)
+        e = e.env
+    return out
 
 
 def true_observation(env: gym.Env) -> np.ndarray:

@@ -24,6 +24,16 @@ MuJoCo twin whatever ``--simulator`` says: ``contact_family`` draws a contact mo
 pyramidal, large_feet, low_friction, coarse_step). Their rows also give the mean time to fall, and the episodes of
 ``contact_family`` record their model (``contact_model``), so falls can be read against the drawn parameters.
 
+**Conditions of a real robot.** ``--conditions`` also takes the hardware conditions
+(``hsddp_gym.envs.perturbations.HARDWARE_CONDITIONS``, not in the suite): a latency other than the one the policies are
+told (``delay_5ms_announced_0ms``, ``delay_10ms_announced_5ms``, ``delay_5ms_announced_10ms``,
+``delay_15ms_announced_10ms``: executed, then announced; ``delay_jitter``: 10 ms announced, 5, 10 or 15 ms executed,
+drawn per episode), a constant sensor bias (``sensor_bias``: +0.03 rad pitch, +0.05 m/s forward velocity, -0.02 m
+height; ``sensor_bias_random``: a bias drawn per episode) and a push timed by the contact phase (``push_flight``,
+``push_stance``: at the first control step in flight, resp. in stance, after t ~ U(1, 4) s, dv up to 1.0 m/s, 1.0 m/s,
+7 rad/s). Each of their episodes records what was drawn (``perturbation``: the executed and announced delay, the bias,
+the applied push).
+
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: the scuff rule of the MPC's gait clock (a contact counts as a landing
 only after a swing of at least ``min_flight`` of the flight) was found on seed 7012 of the ``obs_noise`` condition.
@@ -44,6 +54,9 @@ Usage::
     python experiments/robustness.py --out runs/contact --policies mpc heuristic --seeds 5 --first-seed 9000
         --conditions contact_family contact_softest contact_stiffest contact_pyramidal contact_large_feet
         contact_low_friction contact_coarse_step
+    python experiments/robustness.py --out runs/extra --policies mpc heuristic --seeds 20 --first-seed 9300
+        --conditions delay_10ms_announced_5ms delay_jitter sensor_bias sensor_bias_random push_flight push_stance
+        push_x3
     python experiments/robustness.py --out runs/robustness_table --combine runs/a/robustness.json runs/b/robustness.json
 """
 
@@ -118,7 +131,7 @@ def _make_bare_policy(kind: str, spec: dict, env, interface):
 
 def run_one(task: tuple) -> dict:
     """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None, simulator)``."""
-    from hsddp_gym.envs.perturbations import get_condition
+    from hsddp_gym.envs.perturbations import HardwareCondition, episode_perturbation, get_condition
     from hsddp_gym.planners.policies.evaluation import run_episode
 
     label, spec, condition, seed, max_steps, simulator = task
@@ -135,6 +148,8 @@ def run_one(task: tuple) -> dict:
                "replans": int(stats.get("replans", 0)), "planner_failures": int(stats.get("planner_failures", 0)),
                "mean_replan_ms": float(np.mean(solve_ms)) if solve_ms else None,
                "target_speed": float(env.unwrapped.target_speed)}
+        if isinstance(cond, HardwareCondition):  # the delay, bias or phase-timed push of this episode
+            run["perturbation"] = episode_perturbation(env)
         if cond.SIMULATOR is not None:  # a contact condition: the simulator and the model of this episode
             run["simulator"] = cond.SIMULATOR
             run["contact_model"] = env.unwrapped.contact_model.as_dict()
@@ -265,7 +280,14 @@ def main(argv: list[str] | None = None) -> int:
                         "episode seed (friction cone, solref, solimp, foot radius, impratio, time step, friction; "
                         "hsddp_gym.envs.mujoco_twin.ContactModel.sample), contact_<corner> runs one corner of "
                         "CONTACT_CORNERS (softest, stiffest, pyramidal, large_feet, low_friction, coarse_step); "
-                        "the table then adds falls and mean time to fall per contact condition")
+                        "the table then adds falls and mean time to fall per contact condition. The hardware "
+                        "conditions (HARDWARE_CONDITIONS) test what a real robot has: a latency other than the one "
+                        "announced to the policy (delay_<executed>_announced_<announced>, e.g. "
+                        "delay_10ms_announced_5ms; delay_jitter: 10 ms announced, 5, 10 or 15 ms executed, drawn per "
+                        "episode), a constant sensor bias (sensor_bias: +0.03 rad pitch, +0.05 m/s forward velocity, "
+                        "-0.02 m height; sensor_bias_random: drawn per episode) and pushes timed by the contact phase "
+                        "(push_flight, push_stance: dv up to 1.0 m/s, 1.0 m/s, 7 rad/s at the first flight or stance "
+                        "step after t ~ U(1, 4) s); push_x3: three pushes")
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
                    help="first seed (default: %(default)s, the evaluation seeds; develop on others)")

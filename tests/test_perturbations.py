@@ -9,6 +9,7 @@ import pytest
 import hsddp_gym  # noqa: F401
 from hsddp_gym.envs.perturbations import (
     CONDITIONS,
+    HARDWARE_CONDITIONS,
     SUITE,
     ActionDelay,
     Condition,
@@ -186,7 +187,10 @@ def test_random_push_count_draws_one_push_per_slot():
 
 
 def test_suite_is_every_condition_but_the_training_ones():
-    assert SUITE == tuple(n for n in CONDITIONS if n != "push_x3" and not n.startswith("contact_")) and len(SUITE) == 13
+    assert SUITE == ("default", "reset_noise_x4", "obs_noise", "delay_5ms", "delay_10ms", "push", "friction_0.4",
+                     "mass_+15", "mass_-15", "speed_0.5", "speed_1.25", "speed_1.5", "speed_2.0")
+    assert set(CONDITIONS) - set(SUITE) == ({"push_x3"} | {n for n in CONDITIONS if n.startswith("contact_")}
+                                            | set(HARDWARE_CONDITIONS))
     assert get_condition("push_x3").push == {"count": 3}
 
 
@@ -234,7 +238,7 @@ def test_registry_builds_every_condition_and_rejects_unknown_ones():
                 assert env.unwrapped.sim.mu == value
             else:
                 assert getattr(env.unwrapped, key) == value
-        assert EnvInterface.from_env(env).action_delay_steps == cond.action_delay
+        assert EnvInterface.from_env(env).action_delay_steps == cond.announced_delay
         assert ("push" in info) == (cond.push is not None)
         env.close()
     with pytest.raises(ValueError, match="condition"):
