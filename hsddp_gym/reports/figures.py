@@ -89,6 +89,69 @@ def robustness(store, out_dir) -> list[Path]:
     return [path]
 
 
+MOTION_SNAPSHOTS = 10
+"""Snapshots per motion in ``motions_strips.png`` (a ``motions/*`` record keeps exactly these states)."""
+MOTION_STATE_STRIDE = 5
+"""Knots between the states a ``motions/*`` record keeps for ``motions_states.png``."""
+
+
+def motion_figure_data(X: np.ndarray, dt: float) -> dict:
+    """What :func:`motion_figures` draws of one planned motion ``X (N+1, 14)`` with knot spacing ``dt`` [s], small
+    enough for the results store: :data:`MOTION_SNAPSHOTS` evenly spaced configurations (7 columns) and the trunk
+    height, pitch and forward speed every :data:`MOTION_STATE_STRIDE` knots (4 significant digits)."""
+    from hsddp_gym.core.conventions import IPITCH, IVX, IZ
+    from hsddp_gym.reports.store import compact
+
+    X = np.asarray(X, dtype=float)
+    idx = np.linspace(0, X.shape[0] - 1, MOTION_SNAPSHOTS).astype(int)
+    states = X[::MOTION_STATE_STRIDE]
+    return {"dt": float(dt), "duration": float(dt * (X.shape[0] - 1)), "snapshots": compact(X[idx, :7]),
+            "state_dt": float(dt * MOTION_STATE_STRIDE), "z": compact(states[:, IZ]),
+            "pitch": compact(states[:, IPITCH]), "vx": compact(states[:, IVX])}
+
+
+def _motion_arrays(fig: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(snapshots (S, 14), states (M, 14))`` of :func:`motion_figure_data`'s dict (other columns zero)."""
+    from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NX
+
+    snaps = np.asarray(fig["snapshots"], dtype=float)
+    snap_x = np.zeros((snaps.shape[0], NX))
+    snap_x[:, :7] = snaps
+    z = np.asarray(fig["z"], dtype=float)
+    states = np.zeros((z.shape[0], NX))
+    states[:, IZ], states[:, IPITCH], states[:, IVX] = z, fig["pitch"], fig["vx"]
+    return snap_x, states
+
+
+def motion_figures(figs: dict, out_dir, prefix: str = "motions") -> list[Path]:
+    """``<prefix>_strips.png`` (one strip of snapshots per motion) and ``<prefix>_states.png`` (trunk height, pitch
+    and forward speed) from ``{label: motion_figure_data(...)}``."""
+    from hsddp_gym.core.model import CheetahModel
+
+    out_dir = Path(out_dir)
+    snaps, states = {}, {}
+    for label, fig in figs.items():
+        snaps[label], states[label] = _motion_arrays(fig)
+    durations = [fig["duration"] for fig in figs.values()]
+    strips = plotting.plot_motion_strips(CheetahModel(), snaps, out_dir / f"{prefix}_strips.png",
+                                         n_snapshots=MOTION_SNAPSHOTS, dt=max(durations) / (MOTION_SNAPSHOTS - 1))
+    step = next(iter(figs.values()))["state_dt"]
+    return [strips, plotting.plot_states(states, step, out_dir / f"{prefix}_states.png")]
+
+
+MOTION_ORDER = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+
+
+def motions(store, out_dir) -> list[Path]:
+    """``motions_strips.png`` and ``motions_states.png``: every planned motion of the ``motions/*`` records."""
+    figs = {}
+    for name in MOTION_ORDER:
+        rid = f"motions/{name}"
+        if rid in store.ids():
+            figs[name.replace("_", " ")] = store.data(rid)["figure"]
+    return motion_figures(figs, out_dir) if figs else []
+
+
 FIGURE_DIR = "docs/figures"
 """Where the published figures live (relative to the repository's top folder)."""
 
@@ -99,7 +162,7 @@ FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
 }
 """``{record id: drawing function of the record's data}``; each writes its figures into the folder it is given."""
 
-STORE_FIGURES: list[Callable] = [robustness]
+STORE_FIGURES: list[Callable] = [robustness, motions]
 """Figures drawn from several records: functions of the store and the folder."""
 
 

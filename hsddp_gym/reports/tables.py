@@ -537,6 +537,45 @@ def learning_imitation(store: Store) -> str:
                       f"version {store['robustness/learners'].version}.", source_line(store, "robustness/learners")])
 
 
+# -- motions beyond the bound ----------------------------------------------------------------------------------------
+
+MOTION_ORDER = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+
+
+def motions_summary(store: Store) -> str:
+    """Every planned motion of the ``motions/*`` records: schedule size, speed, iterations, solve time and every limit
+    measured on the plan (``experiments/motions.py``)."""
+    rids = [f"motions/{m}" for m in MOTION_ORDER if f"motions/{m}" in store.ids()]
+    header = ["motion", "phases", "T [s]", "v target / mean / end [m/s]", "AL / DDP it.", "solve [s]", "Σ g² [m²]",
+              "max \\|g\\| [m]", "max \\|u\\| [N m]", "min f_z [N]", "max (\\|f_x\\| − μ f_z) [N]", "hips [rad]",
+              "knees [rad]", "limits"]
+    rows = []
+    for rid in rids:
+        d = store.data(rid)
+        lim = d["limits"]
+        rows.append([d["motion"].replace("_", " "), f"{len(d['modes'])} → {d['final_mode']}",
+                     fmt(d["total_time"], ".3f"),
+                     f"{d['target_speed']:.2f} / {d['avg_forward_speed']:.2f} / {d['final_speed']:.2f}",
+                     f"{d['al_iterations']} / {d['ddp_iterations']}", fmt(d["solve_time_s"], ".2f"),
+                     fmt(lim["switching_violation"], ".1e"), fmt(lim["max_touchdown_error"], ".1e"),
+                     fmt(lim["max_abs_torque"], ".2f"), fmt(lim["min_normal_grf"], ".1f"),
+                     fmt(lim["max_friction_violation"], ".2f"),
+                     f"{lim['hip_range'][0]:.2f} … {lim['hip_range'][1]:.2f}",
+                     f"{lim['knee_range'][0]:.2f} … {lim['knee_range'][1]:.2f}",
+                     "met" if lim["ok"] else "violated: " + ", ".join(lim["violated"])])
+    if not rids:
+        return "No `motions/*` records yet: run `python experiments/motions.py --motion pronk --record ...`."
+    first = store.data(rids[0])["limits"]
+    (h_lo, h_hi), (k_lo, k_hi) = first["joint_limits"]
+    note = (f"Limits: \\|u\\| ≤ {first['torque_limit']:g} N m, f_z ≥ 0, \\|f_x\\| ≤ {first['friction']:g} f_z (stance "
+            f"feet), hips in [{h_lo:g}, {h_hi:g}] rad, knees in [{k_lo:g}, {k_hi:g}] rad, Σ g² ≤ 1e-4 m² (the paper's "
+            f"stop rule). h = 1 ms. Solve times are wall-clock on the recording machine "
+            f"({store[rids[0]].machine.get('cpus')} cores, load average {_load(store[rids[0]].machine)}), "
+            "after the warm start's rollout.")
+    return "\n".join([markdown_table(header, rows, ["l"] + ["r"] * (len(header) - 1)), "", note,
+                      source_line(store, *rids)])
+
+
 TABLES: dict[str, Callable[[Store], str]] = {
     "paper/task1": paper_task1,
     "paper/sto_variants": paper_sto_variants,
@@ -554,6 +593,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/simulators": robustness_simulators,
     "policies/protocol": policies_protocol,
     "learning/imitation": learning_imitation,
+    "motions/summary": motions_summary,
 }
 """``{table id: renderer}``."""
 

@@ -231,7 +231,8 @@ class HSDDP:
             X_init: optional ``(N+1, 14)`` states; with ``K_init`` the first rollout uses
                 ``u = U_init + K_init (x - X_init)`` (warm start from a previous solution).
             K_init: optional ``(N, 4, 14)`` gains (together with ``X_init``).
-            multipliers: ``(n,)`` initial AL multipliers (default ``lambda0``).
+            multipliers: ``(m,)`` initial AL multipliers, one per switching-constraint row (``m =
+                problem.n_switching``, the phases ``n`` unless feet land together; default ``lambda0``).
             sigma: initial penalty (default ``sigma0``).
             constraint_state: continue from a previous solve's outer-loop state (multipliers, penalty,
                 barrier relaxations and weights: ``HSDDP.last_constraint_state``); overrides the two above.
@@ -241,7 +242,7 @@ class HSDDP:
         if not isinstance(problem, HybridProblem):
             raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
         opt = self.options
-        N, n = problem.n_knots, problem.n_phases
+        N = problem.n_knots
         _check_guess_finite(problem, U_init, (N, NU), "U_init")
         U_init = check_array(U_init, (N, NU), "U_init")
         if (X_init is None) != (K_init is None):
@@ -251,7 +252,8 @@ class HSDDP:
             X_init = check_array(X_init, (N + 1, NX), "X_init")
             _check_guess_finite(problem, K_init, (N, NU, NX), "K_init")
             K_init = check_array(K_init, (N, NU, NX), "K_init")
-        lam = np.full(n, opt.lambda0) if multipliers is None else check_array(multipliers, (n,), "multipliers").copy()
+        m = problem.n_switching
+        lam = np.full(m, opt.lambda0) if multipliers is None else check_array(multipliers, (m,), "multipliers").copy()
         if sigma is None:
             sigma = opt.sigma0
         elif isinstance(sigma, bool) or not isinstance(sigma, (int, float, np.floating)) or not (
@@ -269,8 +271,8 @@ class HSDDP:
                              delta_torque=opt.delta_torque0, delta_grf=opt.delta_grf0,
                              eps_torque=opt.eps_torque, eps_grf=opt.eps_grf)
         if constraint_state is not None:
-            if constraint_state.lam.shape != (n,):
-                raise ValueError(f"constraint_state.lam must have shape ({n},), got {constraint_state.lam.shape}")
+            if constraint_state.lam.shape != (m,):
+                raise ValueError(f"constraint_state.lam must have shape ({m},), got {constraint_state.lam.shape}")
             cs = constraint_state.copy()
         logger = InMemoryLogger()
         callbacks = [logger, *self.callbacks]

@@ -27,7 +27,8 @@ def trajectory_summary(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray,
     ``max_friction_violation`` (max |f_x| - mu f_z over stance knots) [N], ``cost`` (eq. 18).
     """
     robot = problem.dynamics.robot
-    g = [float(robot.foot_heights(X_pre[i, :NQ])[foot]) for i, foot in enumerate(problem.touchdown) if foot >= 0]
+    g = [float(robot.foot_heights(X_pre[i, :NQ])[foot])
+         for i, foot in zip(problem.switch_phase, problem.switch_foot) if foot >= 0]
     mu = problem.constraints.friction
     st = problem.stance
     fz = GRF[:, 1::2][st]

@@ -45,7 +45,8 @@ class ConstraintState:
 
     Attributes:
         sigma: AL penalty (eq. 23 uses ``(sigma / 2)^2 g^2``).
-        lam: AL multipliers ``(n,)`` per phase (only touchdown phases are used).
+        lam: AL multipliers ``(m,)``, one per switching-constraint row (``HybridProblem.switch_phase``; ``m = n``
+            phases unless feet land together; only rows with a landing foot are used).
         use_al: add the AL term. use_reb: add the barriers.
         delta_torque, delta_grf: ReB relaxation of the torque and ground-force constraints.
         eps_torque, eps_grf: ReB weights per knot.
@@ -110,17 +111,20 @@ class Objective:
 
     # --------------------------------------------------------------- switching constraints
     def switching_values(self, X_pre: np.ndarray) -> np.ndarray:
-        """``g (n,)``: height of the landing foot at the end of each phase (0 where no touchdown), for the pre-switch
-        states ``X_pre (n, 14)``. The last ``X_pre`` and its ``g`` are remembered (compared bit for bit): the solver
-        asks again for the trajectory it has just evaluated."""
+        """``g (m,)``: height of the landing foot of each switching-constraint row (``problem.switch_phase``,
+        ``problem.switch_foot``; row ``i < n`` is phase ``i``'s first landing foot, 0 where no touchdown, then the
+        second feet of simultaneous touchdowns), for the pre-switch states ``X_pre (n, 14)`` [m]. The last ``X_pre``
+        and its ``g`` are remembered (compared bit for bit): the solver asks again for the trajectory it has just
+        evaluated."""
         bits = np.ascontiguousarray(X_pre, dtype=np.float64).view(np.uint64)
         last = self._switching
         if last is not None and last[0].shape == bits.shape and (last[0] == bits).all():
             return last[1].copy()
-        g = np.zeros(self.problem.n_phases)
-        for i, foot in enumerate(self.problem.touchdown):
+        pr = self.problem
+        g = np.zeros(pr.n_switching)
+        for r, (i, foot) in enumerate(zip(pr.switch_phase, pr.switch_foot)):
             if foot >= 0:
-                g[i] = self.robot.foot_height(X_pre[i, :7], foot)
+                g[r] = self.robot.foot_height(X_pre[i, :7], foot)
         self._switching = (bits.copy(), g.copy())
         return g
 
@@ -210,11 +214,11 @@ class Objective:
         # the augmented-Lagrangian term on the terminal costs
         if cs.use_al and pr.constraints.switching:
             w = (cs.sigma / 2.0) ** 2
-            for i, foot in enumerate(pr.touchdown):
+            for r, (i, foot) in enumerate(zip(pr.switch_phase, pr.switch_foot)):
                 if foot < 0:
                     continue
                 g, g_x, g_xx = self.robot.foot_height_derivatives(X_pre[i, :7], int(foot))
-                slope = 2.0 * w * g + cs.lam[i]
+                slope = 2.0 * w * g + cs.lam[r]
                 Phi_x[i] += slope * g_x
                 Phi_xx[i] += 2.0 * w * np.outer(g_x, g_x) + slope * g_xx
 

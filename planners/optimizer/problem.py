@@ -183,7 +183,9 @@ class HybridProblem:
 
     Per-knot arrays (N = total knots): ``modes (N,)``, ``phase_of_knot (N,)``, weights ``Qd (N, 14)``,
     ``Rd (N, 4)``, ``Sd (N, 4)``, references ``XR (N, 14)``, ``YR (N, 4)``; per phase ``QF (n, 14)``,
-    ``XF (n, 14)``, ``touchdown (n,)`` (the landing foot, or -1), ``next_modes (n,)``.
+    ``XF (n, 14)``, ``touchdown (n,)`` (the first landing foot, or -1), ``next_modes (n,)``; per switching-constraint
+    row ``switch_phase (m,)``, ``switch_foot (m,)``: one row per phase, plus one for the second foot of every
+    simultaneous touchdown (flight -> double stance, e.g. a pronk), so ``m = n`` for the bound.
     """
 
     def __init__(self, dynamics: HybridDynamics, schedule: ModeSchedule, costs, x0: np.ndarray,
@@ -228,14 +230,21 @@ class HybridProblem:
         self.QF = np.stack([c.qf for c in costs])
         self.XF = np.stack([c.x_final for c in costs])
         self.next_modes = np.array([int(schedule.next_mode(i)) for i in range(self.n_phases)])
-        td = []
+        # switching constraints, one row per landing foot: row i (< n) is phase i's first landing foot (-1: none);
+        # a simultaneous touchdown (flight -> double stance) adds a row for its second foot after the n rows
+        td, extra = [], []
         for i in range(self.n_phases):
             feet = schedule.touchdown_feet(i)
-            if len(feet) > 1:
-                raise ValueError(f"phase {i}: simultaneous touchdown of several feet is not supported by the "
-                                 "switching constraint (one landing foot per switch)")
             td.append(feet[0] if feet else -1)
+            extra += [(i, f) for f in feet[1:]]
         self.touchdown = np.array(td, dtype=np.int64)
+        """The first landing foot at the end of each phase (n,), -1 where no foot lands."""
+        self.switch_phase = np.concatenate([np.arange(self.n_phases), [i for i, _ in extra]]).astype(np.int64)
+        """Phase of each switching-constraint row (m,), ``m = n + `` the second feet of simultaneous touchdowns."""
+        self.switch_foot = np.concatenate([self.touchdown, [f for _, f in extra]]).astype(np.int64)
+        """Landing foot of each switching-constraint row (m,), -1 for a phase without a touchdown."""
+        self.n_switching = int(self.switch_phase.shape[0])
+        """Rows ``m`` of the switching constraint g and of the AL multipliers (``n`` unless feet land together)."""
         # stance feet per knot (for friction-cone constraints): (N, 2) bool
         self.stance = np.array([[m.in_contact(f) for f in (0, 1)] for m in schedule.modes],
                                dtype=bool)[self.phase_of_knot]

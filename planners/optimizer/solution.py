@@ -153,8 +153,9 @@ class Solution:
 
     Shapes (N knots, n phases): ``X (N+1, 14)``, ``X_pre (n, 14)``, ``U (N, 4)``, ``GRF (N, 4)``,
     ``K (N, 4, 14)`` feedback gains, ``k_ff (N, 4)`` feed-forward terms of the last backward pass,
-    ``modes (N,)``, ``phase_start (n+1,)``, ``durations (n,)``, ``switching (n,)`` g at every phase end
-    (0 where no foot lands), ``multipliers (n,)``.
+    ``modes (N,)``, ``phase_start (n+1,)``, ``durations (n,)``, ``switching (m,)`` g of every switching-constraint
+    row (one per phase end, 0 where no foot lands, then the second feet of simultaneous touchdowns; ``m = n`` unless
+    feet land together), ``multipliers (m,)``.
 
     The policy of eq. 8 with ``eps = 0`` is ``u = U[k] + K[k] (x - X[k])``.
     """

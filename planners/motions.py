@@ -1,0 +1,554 @@
+"""HS-DDP motions beyond the bound: a pronk and gait transitions, as planning tasks.
+
+HS-DDP plans any sequence of contact modes with impacts (Li & Wensing, RA-L 2020, Sec. IV); the paper's task is one
+gait. Here the same problem, weights and solver (AL on the switching constraints, ReB on torque, normal force and
+friction cone) plan four more motions:
+
+* ``"pronk"``: both legs together, double stance / flight repeated (:func:`plan_pronk`);
+* ``"stand_to_bound"``: from standing at rest in double stance into a few bounding cycles;
+* ``"bound_pronk_bound"``: bounding, a pronk, bounding again;
+* ``"bound_to_stop"``: bounding, then a landing on both feet and a double stance that ends at rest
+  (the three with :func:`plan_transition`).
+
+Every motion is a list of :class:`MotionPhase` (mode, duration, end-of-phase reference ``x_f (14,)``, ground-force
+reference ``(4,)``): :func:`motion_problem` turns it into a :class:`~hsddp_gym.planners.optimizer.problem.HybridProblem`
+with the bound's weights per mode (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`, paper eqs.
+32-33, the running reference equal to the phase's end reference). A flight that ends in double stance lands both
+feet together: the switching constraint then has one row per landing foot (``HybridProblem.switch_foot``), both
+heights ``g = 0`` at the end of the flight.
+
+References (derived as :func:`~hsddp_gym.core.references.end_of_mode_reference` derives the bound's: a posture that
+puts the relevant feet on the ground, at the desired speed):
+
+* a pronk stance ends at lift-off with both feet ``v T_s / 2`` behind their hips, a pronk flight at touchdown with
+  both feet ``v T_s / 2`` ahead (the neutral point of a stance of duration ``T_s`` at speed ``v``), trunk height
+  :data:`PRONK_HEIGHT`, pitch 0; the vertical velocity of a ballistic flight of duration ``T_f`` between equal
+  heights, ``+g T_f / 2`` at lift-off and ``-g T_f / 2`` at touchdown; pitch and joint rates 0;
+* the ground-force reference of a pronk stance carries the weight of the whole cycle on the two feet,
+  ``m g (T_s + T_f) / (2 T_s)`` per foot; of a double stance at rest ``m g / 2`` per foot;
+* bound phases use the bound's references (:func:`~hsddp_gym.core.references.end_of_mode_reference`) at the speed
+  of their cycle; the joint angles of every double-stance posture come from inverse kinematics (:func:`leg_posture`).
+
+The warm start (:func:`motion_warm_start`) rolls out a heuristic controller through the schedule: bound phases use
+the paper's heuristic bounding controller (:class:`~hsddp_gym.planners.policies.heuristic.HeuristicBoundingController`)
+at their cycle's speed; a double stance sets ground forces on both feet that carry the weight of its gait's cycle,
+hold the trunk height, track its reference speed and pitch (the vertical forces split to make the pitch moment),
+clipped to the friction cone (``u = -J^T f``); a flight that lands both feet tracks its touchdown posture with a joint
+PD and the heuristic's Raibert-style hip shift.
+
+The double stance that ends the stop weights every velocity in its terminal cost (:data:`STOP_TERMINAL_WEIGHTS`), so
+the motion ends at rest.
+
+Joint ranges: the model defines none (``RobotParams`` has no joint limits and the authors' code switches its own
+off, original_code_facts §2), so :data:`JOINT_LIMITS` states the ranges used here; they are checked on every plan
+(:func:`motion_limits`), not enforced by a barrier.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import numbers
+import time
+
+import numpy as np
+
+from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FRONT, IPITCH, IVX, IVZ, IZ, NGRF, NQ, NU, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.params import RobotParams
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.core.rollout import Trajectory, rollout
+from hsddp_gym.core.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.planners.optimizer.callbacks import Callback
+from hsddp_gym.planners.optimizer.hsddp import HSDDP
+from hsddp_gym.planners.optimizer.metrics import trajectory_summary
+from hsddp_gym.planners.optimizer.problem import ConstraintSpec, HybridProblem, bounding_phase_cost
+from hsddp_gym.planners.optimizer.solution import SolverOptions
+from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
+from hsddp_gym.planners.tasks import PlanResult, check_warm_start
+from hsddp_gym.util.validation import check_array, check_int
+
+MOTIONS = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+"""The motions of this module (``experiments/motions.py --motion``)."""
+TRANSITIONS = MOTIONS[1:]
+"""The motions of :func:`plan_transition`."""
+
+SPEED_RANGE = (0.5, 1.5)
+"""Target speeds [m/s] the motions are planned and tested for."""
+
+PRONK_DURATIONS = (0.10, 0.08)
+"""Double stance and flight of a pronk cycle [s]."""
+PRONK_HEIGHT = 0.26
+"""Trunk height of the pronk's lift-off and touchdown postures [m] (the bound's postures: 0.255-0.272 m)."""
+STAND_HEIGHT = 0.26
+"""Trunk height of the standing posture [m]."""
+STAND_DURATION = 0.25
+"""The double stance that starts from rest (stand to bound) [s]."""
+STOP_DURATION = 0.40
+"""The double stance that ends at rest (bound to stop) [s]."""
+
+STOP_TERMINAL_WEIGHTS = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 10, 10, 5, 5, 5, 5], dtype=float)
+"""``Q_f (14,)`` of the double stance that ends the stop: the bound's position and posture weights, and every velocity
+weighted as the bound weights the forward speed (trunk) and a swing leg's joint rates (joints), so it ends at rest."""
+
+JOINT_LIMITS = ((-0.6, 2.0), (-2.7, -0.3))
+"""``((hip_min, hip_max), (knee_min, knee_max))`` [rad], both legs, in the conventions' signs (positive hip swings
+the thigh backward, knees negative: they point backward). Chosen here, the model has none: the knee never straight or
+bent forward (<= -0.3 rad, 17 deg short of straight) nor folded onto the thigh (>= -2.7 rad, 25 deg from it); the
+thigh between 34 deg forward and 115 deg backward of the trunk's vertical. The bound's reference postures
+(0.63-1.10 rad hips, -2.36 to -1.51 rad knees) and the paper's initial state (knee -2.20 rad) lie inside."""
+
+SWITCHING_TOLERANCE = 1e-4
+"""The paper's stop rule on the switching constraints, ``sum g^2 <= 1e-4`` [m^2] (``SolverOptions.al_tolerance``)."""
+
+_FLIGHT_KP = np.array([40.0, 20.0, 60.0, 50.0])
+_FLIGHT_KD = np.ones(NU)
+_RAIBERT = 0.2
+_KZ, _DZ = 3000.0, 60.0  # the warm start's double stance: trunk height spring [N/m] and damper [N s/m]
+_KV = 5.0  # speed feedback [1/s]
+_KPITCH, _DPITCH = 400.0, 40.0  # pitch PD [1/s^2], [1/s]
+
+
+@dataclasses.dataclass(frozen=True)
+class MotionPhase:
+    """One phase of a motion.
+
+    Attributes:
+        mode: its contact mode.
+        duration: [s].
+        x_final: ``(14,)`` the reference state at its end (also its running reference).
+        grf_ref: ``(4,)`` the ground-force reference during it [N] (``[f_front_x, f_front_z, f_back_x, f_back_z]``).
+        support: the factor on the weight the stance legs carry on average, ``T_cycle / T_stance`` of its gait
+            (the warm start's feed-forward; 1 for a double stance at rest).
+        gait: ``"bound"``, ``"pronk"`` or ``"stand"`` (what the phase belongs to, for reports).
+        qf: ``(14,)`` terminal weights replacing the mode's (None: the bound's ``Q_f`` of the mode).
+    """
+
+    mode: Mode
+    duration: float
+    x_final: np.ndarray
+    grf_ref: np.ndarray
+    support: float
+    gait: str
+    qf: np.ndarray | None = None
+
+
+# --------------------------------------------------------------------------------------------------- postures
+def leg_posture(height: float, pitch: float, foot_dx, params: RobotParams | None = None) -> np.ndarray:
+    """The configuration ``q (7,)`` with the trunk at ``height`` [m] and ``pitch`` [rad], both feet on the ground
+    ``foot_dx = (front, back)`` [m] ahead of their hips (negative: behind), knees bent backward, ``x = 0``.
+
+    The joint angles by Newton's method on the feet's positions from a bound posture (hips 0.3 pi, knees -0.6 pi).
+
+    Raises:
+        ValueError: a foot out of the leg's reach.
+    """
+    params = params if params is not None else RobotParams()
+    robot = _robot(params)
+    dx = check_array(foot_dx, (2,), "foot_dx")
+    q = np.array([0.0, float(height), float(pitch), 0.3 * math.pi, -0.6 * math.pi, 0.3 * math.pi, -0.6 * math.pi])
+    hips = robot.hip_positions(q)
+    target = np.array([[hips[f][0] + dx[f], 0.0] for f in (FRONT, BACK)])
+    for _ in range(50):
+        err = target - robot.foot_positions(q)
+        if np.max(np.abs(err)) < 1e-12:
+            break
+        for foot, joints in enumerate(FOOT_JOINTS):
+            J = robot.foot_jacobian(q, foot)[:, list(joints)]
+            q[list(joints)] += np.linalg.solve(J, err[foot])
+    else:
+        raise ValueError(f"no posture with the trunk at height={height!r} m, pitch={pitch!r} rad and the feet "
+                         f"foot_dx={dx.tolist()} m from the hips: out of the legs' reach")
+    if not np.all(np.isfinite(q)) or np.max(np.abs(target - robot.foot_positions(q))) > 1e-9:
+        raise ValueError(f"no posture with the trunk at height={height!r} m and the feet foot_dx={dx.tolist()} m")
+    return q
+
+
+_ROBOTS: dict = {}
+
+
+def _robot(params: RobotParams):
+    from hsddp_gym.core.model import CheetahModel
+
+    if params not in _ROBOTS:
+        _ROBOTS[params] = CheetahModel(params)
+    return _ROBOTS[params]
+
+
+def double_stance_state(q: np.ndarray, speed: float = 0.0, params: RobotParams | None = None) -> np.ndarray:
+    """A consistent double-stance state ``x (14,)``: configuration ``q (7,)`` (both feet on the ground), the trunk
+    moving forward at ``speed`` [m/s] without vertical or pitch motion, and the joint rates that keep both feet at
+    rest (``J_c v = 0``)."""
+    robot = _robot(params if params is not None else RobotParams())
+    q = check_array(q, (NQ,), "q")
+    v = np.zeros(NQ)
+    v[0] = float(speed)
+    J = np.vstack([robot.foot_jacobian(q, f) for f in (FRONT, BACK)])  # (4, 7)
+    v[3:] = np.linalg.solve(J[:, 3:], -J[:, :3] @ v[:3])
+    return np.concatenate([q, v])
+
+
+def pronk_reference(event: str, speed: float, durations=PRONK_DURATIONS, height: float = PRONK_HEIGHT,
+                    params: RobotParams | None = None) -> np.ndarray:
+    """The pronk's reference state ``x (14,)`` at ``event`` ``"liftoff"`` (end of a double stance) or
+    ``"touchdown"`` (end of a flight), see the module docstring.
+
+    Args:
+        speed: forward speed [m/s]. durations: ``(T_s, T_f)`` stance and flight [s]. height: trunk height [m].
+    """
+    params = params if params is not None else RobotParams()
+    if event not in ("liftoff", "touchdown"):
+        raise ValueError(f"event must be 'liftoff' or 'touchdown', got {event!r}")
+    t_s, t_f = _durations(durations)
+    d = speed * t_s / 2.0
+    sign = -1.0 if event == "liftoff" else 1.0
+    x = np.zeros(NX)
+    x[:NQ] = leg_posture(height, 0.0, (sign * d, sign * d), params)
+    x[IVX] = speed
+    x[IVZ] = -sign * params.gravity * t_f / 2.0
+    return x
+
+
+def stand_reference(params: RobotParams | None = None, height: float = STAND_HEIGHT) -> np.ndarray:
+    """Standing at rest ``x (14,)``: feet under the hips, pitch 0, every velocity 0."""
+    x = np.zeros(NX)
+    x[:NQ] = leg_posture(height, 0.0, (0.0, 0.0), params)
+    return x
+
+
+def _durations(durations) -> tuple[float, float]:
+    try:
+        d = np.asarray(durations, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"durations must be two numbers (double stance, flight) [s], got {durations!r}") from None
+    if d.shape != (2,) or not np.all(np.isfinite(d)) or np.any(d < 0.02) or np.any(d > 0.5):
+        raise ValueError(f"durations must be two numbers (double stance, flight) in [0.02, 0.5] s, got {durations!r}")
+    return float(d[0]), float(d[1])
+
+
+def _check_speed(speed) -> float:
+    lo, hi = SPEED_RANGE
+    if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not lo <= float(speed) <= hi:
+        raise ValueError(f"speed must be a number in [{lo}, {hi}] m/s, got {speed!r}")
+    return float(speed)
+
+
+# --------------------------------------------------------------------------------------------------- phases
+def _weight(params: RobotParams) -> float:
+    return params.total_mass * params.gravity
+
+
+def _double_grf(params: RobotParams, support: float) -> np.ndarray:
+    y = np.zeros(NGRF)
+    y[[1, 3]] = _weight(params) * support / 2.0
+    return y
+
+
+def pronk_phases(cycles: int, speed: float, durations=PRONK_DURATIONS, params: RobotParams | None = None,
+                 first_stance: float | None = None) -> list[MotionPhase]:
+    """``cycles`` pronk cycles (double stance, flight); the first stance lasts ``first_stance`` [s] (default
+    ``T_s``)."""
+    params = params if params is not None else RobotParams()
+    t_s, t_f = _durations(durations)
+    support = (t_s + t_f) / t_s
+    lift = pronk_reference("liftoff", speed, (t_s, t_f), params=params)
+    land = pronk_reference("touchdown", speed, (t_s, t_f), params=params)
+    phases = []
+    for c in range(cycles):
+        ts = t_s if (c > 0 or first_stance is None) else first_stance
+        phases.append(MotionPhase(Mode.DOUBLE_STANCE, ts, lift, _double_grf(params, support), support, "pronk"))
+        phases.append(MotionPhase(Mode.FLIGHT, t_f, land, np.zeros(NGRF), support, "pronk"))
+    return phases
+
+
+def bound_phases(speeds, params: RobotParams | None = None, durations=PAPER_BOUNDING_DURATIONS,
+                 last_lands_both: bool = False) -> list[MotionPhase]:
+    """Bounding cycles (back stance, flight, front stance, flight), one per entry of ``speeds`` [m/s], with the
+    bound's references (:func:`~hsddp_gym.core.references.end_of_mode_reference`) and ground-force references; with
+    ``last_lands_both`` the last flight lands both feet (its reference: the pronk's touchdown posture)."""
+    params = params if params is not None else RobotParams()
+    d = tuple(float(t) for t in durations)
+    support = sum(d) / (d[0] + d[2])
+    phases = []
+    for c, v in enumerate(speeds):
+        for j, (mode, foot) in enumerate(zip(BOUNDING_CYCLE, (None, FRONT, None, BACK))):
+            cost = bounding_phase_cost(mode, foot, v, params)
+            x_f = cost.x_final
+            if last_lands_both and c == len(speeds) - 1 and j == 3:
+                x_f = pronk_reference("touchdown", v, (PRONK_DURATIONS[0], d[3]), params=params)
+            phases.append(MotionPhase(mode, d[j], x_f, cost.grf_ref, support, "bound"))
+    return phases
+
+
+def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
+                   dynamics: HybridDynamics | None = None) -> HybridProblem:
+    """The hybrid problem of a motion: one phase per :class:`MotionPhase`, the bound's weights per mode
+    (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`: ``Q``, ``R``, ``S``, ``Q_f``) with the phase's
+    references (running = end reference), the robot's torque limit and friction, ``x0 (14,)``, ``final_mode`` the
+    mode entered after the last phase (a touchdown there keeps its switching constraint)."""
+    dynamics = dynamics if dynamics is not None else HybridDynamics()
+    params = dynamics.robot.params
+    schedule = ModeSchedule([p.mode for p in phases], [p.duration for p in phases], final_mode=final_mode)
+    costs = []
+    for p in phases:
+        foot = FRONT if p.mode in (Mode.FLIGHT, Mode.DOUBLE_STANCE) else None  # weights only; references below
+        base = bounding_phase_cost(p.mode, foot, float(p.x_final[IVX]), params)
+        qf = base.qf if p.qf is None else check_array(p.qf, (NX,), "MotionPhase.qf").copy()
+        costs.append(dataclasses.replace(base, x_ref=p.x_final.copy(), x_final=p.x_final.copy(),
+                                         grf_ref=np.asarray(p.grf_ref, dtype=np.float64).copy(), qf=qf))
+    constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
+    return HybridProblem(dynamics, schedule, costs, x0, constraints)
+
+
+# --------------------------------------------------------------------------------------------------- problems
+def pronk_problem(cycles: int = 4, speed: float = 1.0, durations=PRONK_DURATIONS,
+                  dynamics: HybridDynamics | None = None) -> tuple[HybridProblem, list[MotionPhase]]:
+    """The pronk: ``cycles`` cycles of double stance and flight at ``speed`` [m/s], from mid stance (feet under the
+    hips, moving at ``speed``; the first stance lasts ``T_s / 2``), ending with the last flight's touchdown on both
+    feet. Returns the problem and its phases."""
+    cycles = check_int(cycles, "cycles", minimum=1)
+    speed = _check_speed(speed)
+    t_s, t_f = _durations(durations)
+    dynamics = dynamics if dynamics is not None else HybridDynamics()
+    params = dynamics.robot.params
+    phases = pronk_phases(cycles, speed, (t_s, t_f), params, first_stance=t_s / 2.0)
+    x0 = double_stance_state(leg_posture(PRONK_HEIGHT, 0.0, (0.0, 0.0), params), speed, params)
+    return motion_problem(phases, x0, Mode.DOUBLE_STANCE, dynamics), phases
+
+
+def _ramp(start: float, stop: float, n: int) -> list[float]:
+    return [float(v) for v in np.linspace(start, stop, n + 1)[1:]] if n > 0 else []
+
+
+def transition_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamics: HybridDynamics | None = None
+                       ) -> tuple[HybridProblem, list[MotionPhase]]:
+    """The problem of a gait transition (see :func:`plan_transition` for the schedules). Returns the problem and
+    its phases."""
+    if motion not in TRANSITIONS:
+        raise ValueError(f"motion must be one of {TRANSITIONS}, got {motion!r}")
+    speed = _check_speed(speed)
+    cycles = check_int(cycles, "cycles", minimum=1)
+    dynamics = dynamics if dynamics is not None else HybridDynamics()
+    params = dynamics.robot.params
+    if motion == "stand_to_bound":
+        # from rest: a double stance that accelerates and pitches nose-up, the front foot lifts off into back stance
+        v0 = 0.4 * speed
+        q_end = leg_posture(STAND_HEIGHT, -math.pi / 25, (-0.03, 0.03), params)
+        x_end = double_stance_state(q_end, v0, params)
+        phases = [MotionPhase(Mode.DOUBLE_STANCE, STAND_DURATION, x_end, _double_grf(params, 1.0), 1.0, "stand")]
+        phases += bound_phases(_ramp(v0, speed, min(cycles, 2)) + [speed] * max(cycles - 2, 0), params)
+        return motion_problem(phases, stand_reference(params), Mode.BACK_STANCE, dynamics), phases
+    if motion == "bound_pronk_bound":
+        t_s, t_f = PRONK_DURATIONS
+        phases = bound_phases([speed] * cycles, params, last_lands_both=True)
+        phases += pronk_phases(cycles, speed, params=params)
+        # the last pronk flight lands both feet; half a pronk stance, then the front foot lifts off into back stance
+        lift = pronk_reference("liftoff", speed, params=params)
+        q = leg_posture(PRONK_HEIGHT, -math.pi / 25, (-speed * t_s / 2.0, 0.0), params)
+        x_lift = lift.copy()
+        x_lift[:NQ] = q
+        x_lift[IVZ] = 0.0
+        phases.append(MotionPhase(Mode.DOUBLE_STANCE, t_s / 2.0, x_lift, _double_grf(params, (t_s + t_f) / t_s),
+                                  (t_s + t_f) / t_s, "pronk"))
+        phases += bound_phases([speed] * cycles, params)
+        return motion_problem(phases, paper_initial_state(params), Mode.BACK_STANCE, dynamics), phases
+    # bound_to_stop: slow down over the cycles, land both feet, come to rest in double stance
+    speeds = [speed] + _ramp(speed, 0.4 * speed, cycles - 1) if cycles > 1 else [0.7 * speed]
+    phases = bound_phases(speeds, params, last_lands_both=True)
+    rest = stand_reference(params)
+    phases.append(MotionPhase(Mode.DOUBLE_STANCE, STOP_DURATION, rest, _double_grf(params, 1.0), 1.0, "stand",
+                              qf=STOP_TERMINAL_WEIGHTS))
+    return motion_problem(phases, paper_initial_state(params), Mode.DOUBLE_STANCE, dynamics), phases
+
+
+# --------------------------------------------------------------------------------------------------- warm start
+def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Trajectory:
+    """Roll out the heuristic controller of the module docstring through ``problem``'s schedule.
+
+    Returns:
+        A :class:`~hsddp_gym.core.rollout.Trajectory` (``X (N+1, 14)``, ``U (N, 4)``, ...).
+    Raises:
+        WarmStartDivergedError: the rollout is not finite (naming the phase, knot and time).
+    """
+    robot = problem.dynamics.robot
+    cache: dict = {}
+
+    def heuristic(p: MotionPhase) -> HeuristicBoundingController:
+        speed = float(p.x_final[IVX])
+        if speed not in cache:  # the paper's warm start (heuristic_warm_start) at this cycle's speed
+            cache[speed] = HeuristicBoundingController(robot, HeuristicGains(speed=speed))
+        return cache[speed]
+
+    def controller(x, mode, phase, k):
+        p = phases[phase]
+        if mode == Mode.DOUBLE_STANCE:
+            return _double_stance_torque(robot, x, p)
+        if mode == Mode.FLIGHT and len(problem.schedule.touchdown_feet(phase)) == 1:
+            return heuristic(p).torque(x, mode, problem.schedule.touchdown_feet(phase)[0])
+        if mode == Mode.FLIGHT:
+            target = p.x_final[3:NQ].copy()
+            shift = _RAIBERT * (x[IVX] - p.x_final[IVX])
+            target[[0, 2]] -= shift
+            return _FLIGHT_KP * (target - x[3:NQ]) - _FLIGHT_KD * x[NQ + 3:]
+        return heuristic(p).torque(x, mode)
+
+    traj = rollout(problem.dynamics, problem.schedule, problem.x0, controller=controller,
+                   restitution=problem.restitution)
+    return check_warm_start(problem, traj, "the motion's heuristic warm start")
+
+
+def _double_stance_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
+    """The warm start's double stance: the ground forces ``(f_x, f_z)`` of both feet that give the trunk a desired
+    vertical force (weight support ``p.support`` and a height spring-damper), horizontal force (speed feedback to
+    ``p``'s reference speed) and pitch moment (PD to its reference pitch), the horizontal force shared equally and the
+    vertical forces splitting the moment; clipped to ``f_z >= 0`` and the friction cone; ``u = -J^T f`` per leg."""
+    params = robot.params
+    q = x[:NQ]
+    m = params.total_mass
+    inertia = params.trunk.inertia_yy + 2 * (params.thigh.mass + params.shank.mass) * params.hip_offset ** 2
+    fz_total = m * params.gravity * p.support + _KZ * (float(p.x_final[IZ]) - q[IZ]) - _DZ * x[IVZ]
+    fx_total = m * _KV * (float(p.x_final[IVX]) - x[IVX])
+    moment = inertia * (-_KPITCH * (q[IPITCH] - float(p.x_final[IPITCH])) - _DPITCH * x[NQ + IPITCH])
+    r = robot.foot_positions(q) - q[[0, IZ]]  # (2, 2) feet relative to the trunk origin
+    # sum fz = fz_total; sum (r_z f_x - r_x f_z) = moment (about +y, positive nose-down)
+    A = np.array([[1.0, 1.0], [-r[FRONT, 0], -r[BACK, 0]]])
+    b = np.array([fz_total, moment - (r[FRONT, 1] + r[BACK, 1]) * fx_total / 2.0])
+    fz = np.linalg.solve(A, b) if abs(np.linalg.det(A)) > 1e-6 else np.full(2, fz_total / 2.0)
+    u = np.zeros(NU)
+    for foot in (FRONT, BACK):
+        f_z = max(float(fz[foot]), 0.0)
+        f_x = float(np.clip(fx_total / 2.0, -params.friction * f_z, params.friction * f_z))
+        joints = list(FOOT_JOINTS[foot])
+        J = robot.foot_jacobian(q, foot)[:, joints]
+        u[[j - 3 for j in joints]] = -(J.T @ np.array([f_x, f_z]))
+    return u
+
+
+# --------------------------------------------------------------------------------------------------- limits
+def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: np.ndarray, GRF: np.ndarray
+                  ) -> dict:
+    """Every limit of a planned motion, measured (``X (N+1, 14)``, ``X_pre (n, 14)``, ``U (N, 4)``, ``GRF (N, 4)``).
+
+    Returns a dict: ``max_abs_torque`` [N m] against ``torque_limit``; ``min_normal_grf`` [N] over stance feet
+    (>= 0); ``max_friction_violation`` ``max(|f_x| - mu f_z)`` over stance feet [N] (<= 0); ``hip_range``,
+    ``knee_range`` ``[min, max]`` over both legs [rad] against :data:`JOINT_LIMITS`; ``switching_violation``
+    ``sum g^2`` [m^2] (<= :data:`SWITCHING_TOLERANCE`) and ``max_touchdown_error`` ``max |g|`` [m]; ``ok`` (all
+    met) and ``violated`` (the names of those not met).
+    """
+    s = trajectory_summary(problem, X, X_pre, U, GRF)
+    hips = X[:, [3, 5]]
+    knees = X[:, [4, 6]]
+    (h_lo, h_hi), (k_lo, k_hi) = JOINT_LIMITS
+    out = {
+        "torque_limit": problem.constraints.torque_limit,
+        "friction": problem.constraints.friction,
+        "max_abs_torque": s["max_abs_torque"],
+        "min_normal_grf": s["min_normal_grf"],
+        "max_friction_violation": s["max_friction_violation"],
+        "hip_range": [float(hips.min()), float(hips.max())],
+        "knee_range": [float(knees.min()), float(knees.max())],
+        "joint_limits": [list(JOINT_LIMITS[0]), list(JOINT_LIMITS[1])],
+        "switching_violation": s["switching_violation"],
+        "max_touchdown_error": s["max_touchdown_error"],
+        "touchdowns": len(s["touchdown_foot_heights"]),
+    }
+    checks = {
+        "torque": out["max_abs_torque"] <= out["torque_limit"],
+        "normal_force": out["min_normal_grf"] >= 0.0,
+        "friction": out["max_friction_violation"] <= 0.0,
+        "hip_range": h_lo <= out["hip_range"][0] and out["hip_range"][1] <= h_hi,
+        "knee_range": k_lo <= out["knee_range"][0] and out["knee_range"][1] <= k_hi,
+        "switching": out["switching_violation"] <= SWITCHING_TOLERANCE,
+    }
+    out["violated"] = [name for name, ok in checks.items() if not ok]
+    out["ok"] = not out["violated"]
+    return out
+
+
+# --------------------------------------------------------------------------------------------------- planning
+def _plan(motion: str, problem: HybridProblem, phases: list[MotionPhase], options: SolverOptions | None,
+          callbacks, verbose: bool, speed: float) -> PlanResult:
+    if options is not None and not isinstance(options, SolverOptions):
+        raise TypeError(f"options must be a SolverOptions or None, got {type(options).__name__}")
+    options = options if options is not None else SolverOptions()
+    t = time.perf_counter()
+    warm = motion_warm_start(problem, phases)
+    warm_time = time.perf_counter() - t
+    solver = HSDDP(options, callbacks, verbose)  # compiles / loads the numba kernels outside the timing
+    t = time.perf_counter()
+    sol = solver.solve(problem, warm.U)
+    elapsed = time.perf_counter() - t
+    summary = trajectory_summary(problem, sol.X, sol.X_pre, sol.U, sol.GRF)
+    summary.update(motion=motion, method=options.method, target_speed=speed,
+                   modes=[m.short for m in problem.schedule.modes], final_mode=problem.schedule.final_mode.short,
+                   durations=problem.schedule.durations.tolist(), gaits=[p.gait for p in phases],
+                   al_iterations=sol.al_iterations, ddp_iterations=sol.ddp_iterations, solve_time_s=elapsed,
+                   status=sol.status, converged=sol.converged, objective=sol.objective, warm_start="heuristic",
+                   warm_start_time_s=warm_time, final_speed=float(sol.X[-1, IVX]),
+                   final_max_abs_velocity=float(np.max(np.abs(sol.X[-1, NQ:]))),
+                   final_pitch=float(sol.X[-1, IPITCH]), limits=motion_limits(problem, sol.X, sol.X_pre, sol.U,
+                                                                               sol.GRF))
+    return PlanResult(options.method, problem, warm, sol, summary)
+
+
+def plan_pronk(cycles: int = 4, speed: float = 1.0, durations=PRONK_DURATIONS, options: SolverOptions | None = None,
+               callbacks: list[Callback] | None = None, verbose: bool = False) -> PlanResult:
+    """Plan a pronk with HS-DDP (AL on the double touchdowns, ReB on torque, normal force and friction cone).
+
+    Schedule: ``DS(T_s/2) FL (DS FL) x (cycles - 1) -> DS``, from mid stance at ``speed`` (:func:`pronk_problem`).
+
+    Args:
+        cycles: pronk cycles (>= 1).
+        speed: target forward speed in :data:`SPEED_RANGE` [m/s].
+        durations: ``(T_s, T_f)`` double stance and flight [s] (default :data:`PRONK_DURATIONS`).
+        options: solver options (default ``SolverOptions()``: AL + ReB).
+    Returns:
+        A :class:`~hsddp_gym.planners.tasks.PlanResult` (the type of ``plan_bounding``); its summary has
+        :func:`~hsddp_gym.planners.optimizer.metrics.trajectory_summary`'s fields, the schedule (``modes``,
+        ``durations``), iterations, ``solve_time_s`` [s] and ``limits`` (:func:`motion_limits`).
+    """
+    problem, phases = pronk_problem(cycles, speed, durations)
+    return _plan("pronk", problem, phases, options, callbacks, verbose, float(speed))
+
+
+def plan_transition(motion: str, speed: float = 1.0, cycles: int = 2, options: SolverOptions | None = None,
+                    callbacks: list[Callback] | None = None, verbose: bool = False) -> PlanResult:
+    """Plan a gait transition with HS-DDP (AL + ReB).
+
+    Schedules (``c = cycles``; BS back stance, FL flight, FS front stance, DS double stance):
+
+    * ``"stand_to_bound"``: from standing at rest, ``DS(250 ms) (BS FL FS FL) x c -> BS``; the reference speed
+      ramps from ``0.4 speed`` at the end of the double stance to ``speed`` over the first two cycles;
+    * ``"bound_pronk_bound"``: from the paper's initial state, ``(BS FL FS FL) x c`` whose last flight lands both
+      feet, ``(DS FL) x c``, ``DS(T_s/2)`` (the front foot lifts off), ``(BS FL FS FL) x c -> BS``, all at
+      ``speed``;
+    * ``"bound_to_stop"``: from the paper's initial state, ``(BS FL FS FL) x c`` slowing from ``speed`` to
+      ``0.4 speed`` whose last flight lands both feet, then ``DS(400 ms) -> DS`` ending at rest (standing
+      reference, every velocity 0).
+
+    Args:
+        motion: one of :data:`TRANSITIONS`.
+        speed: bounding speed in :data:`SPEED_RANGE` [m/s].
+        cycles: bounding (and pronk) cycles per gait segment (>= 1).
+        options: solver options (default ``SolverOptions()``: AL + ReB).
+    Returns:
+        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s.
+    """
+    problem, phases = transition_problem(motion, speed, cycles)
+    return _plan(motion, problem, phases, options, callbacks, verbose, float(speed))
+
+
+def plan_motion(motion: str, speed: float = 1.0, cycles: int | None = None, options: SolverOptions | None = None,
+                verbose: bool = False) -> PlanResult:
+    """:func:`plan_pronk` (``cycles`` default 4) or :func:`plan_transition` (default 2) by name (:data:`MOTIONS`)."""
+    if motion not in MOTIONS:
+        raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
+    if motion == "pronk":
+        return plan_pronk(4 if cycles is None else cycles, speed, options=options, verbose=verbose)
+    return plan_transition(motion, speed, 2 if cycles is None else cycles, options=options, verbose=verbose)
+
+
+__all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LIMITS", "MotionPhase", "leg_posture",
+           "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
+           "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
+           "plan_transition", "plan_motion"]
