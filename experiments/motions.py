@@ -25,14 +25,17 @@ def main(argv=None) -> int:
     parser.add_argument("--motion", required=True, choices=MOTIONS,
                         help="pronk (double stance / flight repeated), stand_to_bound (from rest into bounding), "
                              "bound_pronk_bound (bounding, pronking, bounding) or bound_to_stop (bounding, then a "
-                             "landing on both feet and a double stance that ends at rest)")
+                             "landing on both feet and a double stance that ends at rest), gap_jump (bounding, a jump "
+                             "over a 0.3 m gap, bounding on), box_jump (bounding, a jump onto a 0.1 m box, bounding on "
+                             "it) or backflip (from standing, a flight through -2 pi of pitch, a landing at rest)")
     parser.add_argument("--out", default="runs/motions", help="output directory (default: %(default)s)")
     parser.add_argument("--speed", type=float, default=1.0,
                         help=f"target forward speed [m/s], in [{SPEED_RANGE[0]}, {SPEED_RANGE[1]}] "
                              "(default: %(default)s)")
     parser.add_argument("--cycles", type=int, default=None,
                         help="pronk cycles for --motion pronk (default 4); bounding and pronk cycles per gait segment "
-                             "for a transition (default 2)")
+                             "for a transition (default 2); bounding cycles before and after a jump (default 2); "
+                             "none for the backflip")
     parser.add_argument("--record", default=None, metavar="FILE.json",
                         help="also write the results as a record of the results store (results/motions/NAME.json)")
     parser.add_argument("--no-gif", action="store_true", help="skip the GIF")
@@ -40,6 +43,8 @@ def main(argv=None) -> int:
                         help="write the GIF here instead of --out/<motion>.gif (e.g. docs/figures/pronk.gif)")
     parser.add_argument("--gif-stride", type=int, default=20,
                         help="knots (1 ms each) per GIF frame, played in real time (default: %(default)s)")
+    parser.add_argument("--gif-width", type=int, default=360, help="GIF width [px] (default: %(default)s)")
+    parser.add_argument("--gif-height", type=int, default=200, help="GIF height [px] (default: %(default)s)")
     parser.add_argument("--quiet", action="store_true", help="no solver table")
     args = parser.parse_args(argv)
     if args.cycles is not None and args.cycles < 1:
@@ -69,11 +74,14 @@ def main(argv=None) -> int:
     write_json(out / "summary.json", summary)
     dt = res.problem.dt
     fig = motion_figure_data(res.X, dt)
-    paths = motion_figures({args.motion.replace("_", " "): fig}, out, prefix=args.motion)
+    terrain = res.problem.terrain
+    paths = motion_figures({args.motion.replace("_", " "): fig}, out, prefix=args.motion,
+                           terrains={args.motion.replace("_", " "): terrain} if terrain is not None else None)
     if not args.no_gif:
         from hsddp_gym.viz.render import render_trajectory, save_gif
 
-        frames = render_trajectory(res.X, every=args.gif_stride, width=360, height=200, text=args.motion)
+        frames = render_trajectory(res.X, every=args.gif_stride, width=args.gif_width, height=args.gif_height,
+                                   text=args.motion)
         gif = Path(args.gif_out) if args.gif_out else out / f"{args.motion}.gif"
         gif.parent.mkdir(parents=True, exist_ok=True)
         save_gif(frames, gif, fps=1.0 / (dt * args.gif_stride))
@@ -86,7 +94,11 @@ def main(argv=None) -> int:
                 "final_speed", "final_pitch", "final_max_abs_velocity", "min_body_height", "max_abs_pitch", "cost",
                 "total_time", "limits")
         data = {k: s[k] for k in keep}
-        data["cycles"] = args.cycles if args.cycles is not None else (4 if args.motion == "pronk" else 2)
+        data["cycles"] = args.cycles if args.cycles is not None else (
+            4 if args.motion == "pronk" else 0 if args.motion == "backflip" else 2)
+        if res.problem.terrain is not None:
+            data["terrain"] = {"edges": list(res.problem.terrain.edges), "levels": list(res.problem.terrain.levels),
+                               "gaps": list(res.problem.terrain.gaps)}
         data["figure"] = fig
         write_record(args.record, data, f"HS-DDP (AL + ReB) plan of the {args.motion.replace('_', ' ')} motion: "
                      "schedule, iterations, solve time and every limit measured.", machine=machine)

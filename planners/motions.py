@@ -59,6 +59,7 @@ from hsddp_gym.core.params import RobotParams
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import Trajectory, rollout
 from hsddp_gym.core.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.core.terrain import Terrain, check_terrain
 from hsddp_gym.planners.optimizer.callbacks import Callback
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.metrics import trajectory_summary
@@ -68,9 +69,9 @@ from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, H
 from hsddp_gym.planners.tasks import PlanResult, check_warm_start
 from hsddp_gym.util.validation import check_array, check_int
 
-MOTIONS = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+MOTIONS = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop", "gap_jump", "box_jump", "backflip")
 """The motions of this module (``experiments/motions.py --motion``)."""
-TRANSITIONS = MOTIONS[1:]
+TRANSITIONS = MOTIONS[1:4]
 """The motions of :func:`plan_transition`."""
 
 SPEED_RANGE = (0.5, 1.5)
@@ -97,6 +98,35 @@ the thigh backward, knees negative: they point backward). Chosen here, the model
 bent forward (<= -0.3 rad, 17 deg short of straight) nor folded onto the thigh (>= -2.7 rad, 25 deg from it); the
 thigh between 34 deg forward and 115 deg backward of the trunk's vertical. The bound's reference postures
 (0.63-1.10 rad hips, -2.36 to -1.51 rad knees) and the paper's initial state (knee -2.20 rad) lie inside."""
+
+JUMPS = ("gap_jump", "box_jump")
+"""The jumps of :func:`plan_jump`: over a gap, onto a box, from a bound and bounding on."""
+GAP_WIDTH = 0.3
+"""Width of the gap of ``"gap_jump"`` [m]."""
+BOX_HEIGHT = 0.1
+"""Height of the box of ``"box_jump"`` [m]."""
+BOX_LENGTH = 3.0
+"""Length of the box of ``"box_jump"`` [m] (longer than the bounding on it)."""
+JUMP_FLIGHT = 0.25
+"""The jump: the flight after the take-off back stance [s] (the bound's: 0.072 s)."""
+JUMP_SPEED_FACTOR = 1.3
+"""The jump's cycle (take-off back stance, jump flight, front stance, flight) has the references of a bound this many
+times faster (a longer jump)."""
+JUMP_EDGE_LEAD = 0.05
+"""The terrain's near edge this far ahead of the trunk's expected x at the take-off back stance's start [m]."""
+LANDING_MARGIN = 0.05
+"""Foot placement references around a jump's edges [m]: the last landings before it ``margin`` (front foot) and
+``2 margin`` (back foot) short of the near edge, the first after it ``2 margin`` (front) and ``margin`` (back)
+beyond the far edge."""
+PLACEMENT_WEIGHT = 2.0e4
+"""``Q_f`` weight on the trunk's x of a foot placement reference [1/m^2] (the bound's weight on the height)."""
+
+BACKFLIP_DURATIONS = (0.25, 0.10, 0.40, 0.30)
+"""The backflip's push (double stance), take-off (back stance), flight and landing (double stance) [s]."""
+BACKFLIP_PITCH = (-0.7, -1.5)
+"""The backflip's pitch references at the end of the push and at take-off [rad] (negative: nose-up)."""
+BACKFLIP_PITCH_RATE = (-8.0, -12.0)
+"""The backflip's pitch-rate references at the end of the push and at take-off [rad/s]."""
 
 SWITCHING_TOLERANCE = 1e-4
 """The paper's stop rule on the switching constraints, ``sum g^2 <= 1e-4`` [m^2] (``SolverOptions.al_tolerance``)."""
@@ -281,11 +311,13 @@ def bound_phases(speeds, params: RobotParams | None = None, durations=PAPER_BOUN
 
 
 def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
-                   dynamics: HybridDynamics | None = None) -> HybridProblem:
+                   dynamics: HybridDynamics | None = None, terrain: Terrain | None = None) -> HybridProblem:
     """The hybrid problem of a motion: one phase per :class:`MotionPhase`, the bound's weights per mode
     (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`: ``Q``, ``R``, ``S``, ``Q_f``) with the phase's
     references (running = end reference), the robot's torque limit and friction, ``x0 (14,)``, ``final_mode`` the
-    mode entered after the last phase (a touchdown there keeps its switching constraint)."""
+    mode entered after the last phase (a touchdown there keeps its switching constraint); ``terrain`` the ground
+    under the feet (:class:`~hsddp_gym.core.terrain.Terrain`, None: flat), whose height under a landing foot its
+    switching constraint measures from (``g = foot_z - h(foot_x)``)."""
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
     schedule = ModeSchedule([p.mode for p in phases], [p.duration for p in phases], final_mode=final_mode)
@@ -297,7 +329,7 @@ def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
         costs.append(dataclasses.replace(base, x_ref=p.x_final.copy(), x_final=p.x_final.copy(),
                                          grf_ref=np.asarray(p.grf_ref, dtype=np.float64).copy(), qf=qf))
     constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
-    return HybridProblem(dynamics, schedule, costs, x0, constraints)
+    return HybridProblem(dynamics, schedule, costs, x0, constraints, terrain=check_terrain(terrain))
 
 
 # --------------------------------------------------------------------------------------------------- problems
@@ -361,6 +393,138 @@ def transition_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamic
     return motion_problem(phases, paper_initial_state(params), Mode.DOUBLE_STANCE, dynamics), phases
 
 
+# --------------------------------------------------------------------------------------------------- jumps
+def _foot_offset(x_ref: np.ndarray, foot: int, params: RobotParams) -> float:
+    """World x of ``foot`` relative to the trunk origin in the reference posture ``x_ref (14,)`` [m]."""
+    q = np.array(x_ref[:NQ], dtype=float)
+    q[0] = 0.0
+    return float(_robot(params).foot_positions(q)[foot, 0])
+
+
+def _placed(phase: MotionPhase, foot: int, foot_x: float, params: RobotParams, dz: float = 0.0) -> MotionPhase:
+    """``phase`` whose end reference puts ``foot`` (the one landing at its end) at world ``foot_x`` [m] (the trunk's
+    x reference, weighted :data:`PLACEMENT_WEIGHT` in ``Q_f``) and the trunk ``dz`` [m] higher."""
+    x_f = phase.x_final.copy()
+    x_f[0] = foot_x - _foot_offset(x_f, foot, params)
+    x_f[IZ] += dz
+    base = bounding_phase_cost(phase.mode, foot, 1.0, params).qf if phase.qf is None else phase.qf
+    qf = np.array(base, dtype=float)
+    qf[0] = PLACEMENT_WEIGHT
+    return dataclasses.replace(phase, x_final=x_f, qf=qf)
+
+
+def _raised(phase: MotionPhase, dz: float) -> MotionPhase:
+    x_f = phase.x_final.copy()
+    x_f[IZ] += dz
+    return dataclasses.replace(phase, x_final=x_f)
+
+
+def jump_terrain(motion: str, speed: float = 1.0, cycles: int = 2) -> Terrain:
+    """The terrain of a jump (:data:`JUMPS`) after ``cycles`` bounding cycles at ``speed`` [m/s] from the paper's
+    initial state (x = 0): its near edge :data:`JUMP_EDGE_LEAD` ahead of where the trunk is, at ``speed``, when the
+    take-off back stance starts (``t = 4 cycles`` bound phases); ``"gap_jump"``: a gap of :data:`GAP_WIDTH`;
+    ``"box_jump"``: a box of :data:`BOX_HEIGHT`, its near edge :data:`GAP_WIDTH` / 2 further (the middle of where
+    the gap would be), :data:`BOX_LENGTH` long."""
+    if motion not in JUMPS:
+        raise ValueError(f"motion must be one of {JUMPS}, got {motion!r}")
+    speed = _check_speed(speed)
+    cycles = check_int(cycles, "cycles", minimum=1)
+    near = speed * cycles * sum(PAPER_BOUNDING_DURATIONS) + JUMP_EDGE_LEAD
+    if motion == "gap_jump":
+        return Terrain.gap(near, near + GAP_WIDTH)
+    edge = near + GAP_WIDTH / 2.0
+    return Terrain.box(edge, edge + BOX_LENGTH, BOX_HEIGHT)
+
+
+def jump_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamics: HybridDynamics | None = None
+                 ) -> tuple[HybridProblem, list[MotionPhase]]:
+    """The problem of a jump (see :func:`plan_jump` for the schedules, references and terrain). Returns the problem
+    and its phases; the terrain is ``problem.terrain``."""
+    if motion not in JUMPS:
+        raise ValueError(f"motion must be one of {JUMPS}, got {motion!r}")
+    speed = _check_speed(speed)
+    cycles = check_int(cycles, "cycles", minimum=1)
+    dynamics = dynamics if dynamics is not None else HybridDynamics()
+    params = dynamics.robot.params
+    terrain = jump_terrain(motion, speed, cycles)
+    d = PAPER_BOUNDING_DURATIONS
+    before = bound_phases([speed] * cycles, params)
+    jump = bound_phases([JUMP_SPEED_FACTOR * speed], params, durations=(d[0], JUMP_FLIGHT, d[2], d[3]))
+    after = bound_phases([speed] * cycles, params)
+    if motion == "gap_jump":
+        near, far = terrain.edges
+        dz = 0.0
+    else:
+        near = far = terrain.edges[0]
+        dz = BOX_HEIGHT
+    m = LANDING_MARGIN
+    # the last landings before the jump short of the near edge, the first after it beyond the far edge
+    before[-3] = _placed(before[-3], FRONT, near - m, params)
+    before[-1] = _placed(before[-1], BACK, near - 2 * m, params)
+    jump[1] = _placed(jump[1], FRONT, far + 2 * m, params, dz)
+    jump[2] = _raised(jump[2], dz)
+    jump[3] = _placed(jump[3], BACK, far + m, params, dz)
+    after = [_raised(p, dz) for p in after]
+    phases = before + jump + after
+    return motion_problem(phases, paper_initial_state(params), Mode.BACK_STANCE, dynamics, terrain), phases
+
+
+def _back_stance_posture(height: float, pitch: float, params: RobotParams) -> np.ndarray:
+    """``q (7,)``: the trunk at ``height`` [m] and ``pitch`` [rad], the back foot on the ground under its hip (Newton
+    on the back leg), the front leg at the bound's angles relative to the world vertical (folded)."""
+    robot = _robot(params)
+    q = np.array([0.0, float(height), float(pitch), 0.3 * math.pi - pitch, -0.6 * math.pi, 0.3 * math.pi - pitch,
+                  -0.6 * math.pi])
+    joints = list(FOOT_JOINTS[BACK])
+    for _ in range(50):
+        err = np.array([robot.hip_positions(q)[BACK][0], 0.0]) - robot.foot_positions(q)[BACK]
+        if np.max(np.abs(err)) < 1e-12:
+            break
+        q[joints] += np.linalg.solve(robot.foot_jacobian(q, BACK)[:, joints], err)
+    return q
+
+
+def backflip_problem(dynamics: HybridDynamics | None = None) -> tuple[HybridProblem, list[MotionPhase]]:
+    """The backflip's problem (see :func:`plan_backflip`). Returns the problem and its phases."""
+    dynamics = dynamics if dynamics is not None else HybridDynamics()
+    params = dynamics.robot.params
+    t_ds, t_bs, t_fl, t_land = BACKFLIP_DURATIONS
+    x_push = double_stance_state(leg_posture(0.22, BACKFLIP_PITCH[0], (0.0, 0.0), params), 0.0, params)
+    x_push[IVZ], x_push[NQ + IPITCH] = 0.5, BACKFLIP_PITCH_RATE[0]
+    x_off = np.zeros(NX)
+    x_off[:NQ] = _back_stance_posture(0.33, BACKFLIP_PITCH[1], params)
+    x_off[IVZ], x_off[NQ + IPITCH] = params.gravity * t_fl / 2.0, BACKFLIP_PITCH_RATE[1]
+    x_land = double_stance_state(leg_posture(STAND_HEIGHT, 0.0, (0.0, 0.0), params), 0.0, params)
+    x_land[IPITCH] -= 2.0 * math.pi
+    x_land[IVZ] = -params.gravity * t_fl / 2.0
+    x_rest = stand_reference(params)
+    x_rest[IPITCH] -= 2.0 * math.pi
+    grf_off = np.zeros(NGRF)
+    grf_off[3] = _weight(params) * (t_bs + t_fl) / t_bs
+    phases = [MotionPhase(Mode.DOUBLE_STANCE, t_ds, x_push, _double_grf(params, 1.5), 1.5, "flip"),
+              MotionPhase(Mode.BACK_STANCE, t_bs, x_off, grf_off, (t_bs + t_fl) / t_bs, "flip"),
+              MotionPhase(Mode.FLIGHT, t_fl, x_land, np.zeros(NGRF), 1.0, "flip"),
+              MotionPhase(Mode.DOUBLE_STANCE, t_land, x_rest, _double_grf(params, 1.0), 1.0, "stand",
+                          qf=STOP_TERMINAL_WEIGHTS)]
+    return motion_problem(phases, stand_reference(params), Mode.DOUBLE_STANCE, dynamics), phases
+
+
+def plan_backflip(options: SolverOptions | None = None, callbacks: list[Callback] | None = None,
+                  verbose: bool = False) -> PlanResult:
+    """Plan a backflip from standing at rest with HS-DDP (AL + ReB).
+
+    Schedule: ``DS(250 ms) BS(100 ms) FL(400 ms) DS(300 ms) -> DS`` (:data:`BACKFLIP_DURATIONS`): both feet push and
+    pitch the trunk nose-up, the front feet lift off, the back feet push off, a flight through ``-2 pi`` of pitch
+    (nose-up is negative pitch, :mod:`hsddp_gym.core.conventions`), a landing on both feet and a double stance that
+    ends at rest. References: end of the push, both feet under the hips, pitch :data:`BACKFLIP_PITCH` ``[0]`` and
+    pitch rate :data:`BACKFLIP_PITCH_RATE` ``[0]``; take-off, the back foot under its hip, pitch ``[1]``, pitch rate
+    ``[1]``, vertical speed ``g T_f / 2``; touchdown, the standing posture at pitch ``-2 pi``, ``-g T_f / 2``; rest,
+    standing at ``-2 pi``, every velocity 0 (:data:`STOP_TERMINAL_WEIGHTS`).
+    """
+    problem, phases = backflip_problem()
+    return _plan("backflip", problem, phases, options, callbacks, verbose, 0.0)
+
+
 # --------------------------------------------------------------------------------------------------- warm start
 def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Trajectory:
     """Roll out the heuristic controller of the module docstring through ``problem``'s schedule.
@@ -383,6 +547,8 @@ def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Traj
         p = phases[phase]
         if mode == Mode.DOUBLE_STANCE:
             return _double_stance_torque(robot, x, p)
+        if p.gait == "flip" and mode == Mode.BACK_STANCE:
+            return _flip_push_torque(robot, x, p)
         if mode == Mode.FLIGHT and len(problem.schedule.touchdown_feet(phase)) == 1:
             return heuristic(p).torque(x, mode, problem.schedule.touchdown_feet(phase)[0])
         if mode == Mode.FLIGHT:
@@ -408,7 +574,12 @@ def _double_stance_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
     inertia = params.trunk.inertia_yy + 2 * (params.thigh.mass + params.shank.mass) * params.hip_offset ** 2
     fz_total = m * params.gravity * p.support + _KZ * (float(p.x_final[IZ]) - q[IZ]) - _DZ * x[IVZ]
     fx_total = m * _KV * (float(p.x_final[IVX]) - x[IVX])
-    moment = inertia * (-_KPITCH * (q[IPITCH] - float(p.x_final[IPITCH])) - _DPITCH * x[NQ + IPITCH])
+    pitch_ref = float(p.x_final[IPITCH])
+    turns = round((q[IPITCH] - pitch_ref) / (2.0 * math.pi))
+    if turns != 0:  # the reference posture a whole turn away (a flip's landing): the nearest one
+        pitch_ref += 2.0 * math.pi * turns
+    rate = x[NQ + IPITCH] - float(p.x_final[NQ + IPITCH]) if p.gait == "flip" else x[NQ + IPITCH]
+    moment = inertia * (-_KPITCH * (q[IPITCH] - pitch_ref) - _DPITCH * rate)
     r = robot.foot_positions(q) - q[[0, IZ]]  # (2, 2) feet relative to the trunk origin
     # sum fz = fz_total; sum (r_z f_x - r_x f_z) = moment (about +y, positive nose-down)
     A = np.array([[1.0, 1.0], [-r[FRONT, 0], -r[BACK, 0]]])
@@ -424,6 +595,27 @@ def _double_stance_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
     return u
 
 
+def _flip_push_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
+    """The warm start's take-off back stance of a flip: the back foot's ground force ``(f_x, f_z)`` that gives the
+    trunk the vertical force ``p.support m g`` and the pitch moment of a PD to ``p``'s reference pitch and pitch rate,
+    clipped to the friction cone (``u = -J^T f``); the front leg tracks its reference joint angles with a PD."""
+    params = robot.params
+    q = x[:NQ]
+    m = params.total_mass
+    inertia = params.trunk.inertia_yy + 2 * (params.thigh.mass + params.shank.mass) * params.hip_offset ** 2
+    moment = inertia * (-_KPITCH * (q[IPITCH] - float(p.x_final[IPITCH]))
+                        - _DPITCH * (x[NQ + IPITCH] - float(p.x_final[NQ + IPITCH])))
+    r = robot.foot_positions(q)[BACK] - q[[0, IZ]]
+    f_z = m * params.gravity * p.support
+    f_x = (moment + r[0] * f_z) / r[1] if abs(r[1]) > 1e-6 else 0.0  # r_z f_x - r_x f_z = moment
+    f_x = float(np.clip(f_x, -params.friction * f_z, params.friction * f_z))
+    u = np.zeros(NU)
+    joints = list(FOOT_JOINTS[BACK])
+    u[[j - 3 for j in joints]] = -(robot.foot_jacobian(q, BACK)[:, joints].T @ np.array([f_x, f_z]))
+    u[:2] = _FLIGHT_KP[:2] * (p.x_final[3:5] - q[3:5]) - _FLIGHT_KD[:2] * x[NQ + 3:NQ + 5]
+    return u
+
+
 # --------------------------------------------------------------------------------------------------- limits
 def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: np.ndarray, GRF: np.ndarray
                   ) -> dict:
@@ -433,7 +625,11 @@ def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: n
     (>= 0); ``max_friction_violation`` ``max(|f_x| - mu f_z)`` over stance feet [N] (<= 0); ``hip_range``,
     ``knee_range`` ``[min, max]`` over both legs [rad] against :data:`JOINT_LIMITS`; ``switching_violation``
     ``sum g^2`` [m^2] (<= :data:`SWITCHING_TOLERANCE`) and ``max_touchdown_error`` ``max |g|`` [m]; ``ok`` (all
-    met) and ``violated`` (the names of those not met).
+    met) and ``violated`` (the names of those not met). On a terrain that is not flat (``problem.terrain``), also
+    ``stance_knots_over_gap`` (knots at which a stance foot is over a gap, check ``gap``: 0), ``min_terrain_clearance``
+    [m] (the lowest foot above the solid terrain under it over every knot, check ``terrain_clearance``:
+    ``>= -sqrt(SWITCHING_TOLERANCE)``, no foot through a box), ``landing_feet_x`` [m] (x of every landing foot) and
+    ``terrain`` (its description).
     """
     s = trajectory_summary(problem, X, X_pre, U, GRF)
     hips = X[:, [3, 5]]
@@ -460,6 +656,23 @@ def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: n
         "knee_range": k_lo <= out["knee_range"][0] and out["knee_range"][1] <= k_hi,
         "switching": out["switching_violation"] <= SWITCHING_TOLERANCE,
     }
+    terrain = problem.terrain
+    if terrain is not None and not terrain.is_flat:
+        # every foot at every knot [m]: the stance feet off any gap, no foot below the terrain under it
+        robot = problem.dynamics.robot
+        feet = np.array([robot.foot_positions(X[k, :NQ]) for k in range(problem.n_knots)])  # (N, 2, 2)
+        stance = problem.stance
+        over = terrain.over_gap(feet[:, :, 0]) & stance
+        solid = ~terrain.over_gap(feet[:, :, 0])
+        clearance = (feet[:, :, 1] - terrain.heights(feet[:, :, 0]))[solid]
+        out["terrain"] = terrain.describe()
+        out["stance_knots_over_gap"] = int(over.sum())
+        out["min_terrain_clearance"] = float(clearance.min()) if clearance.size else float("nan")
+        landing = [float(robot.foot_positions(X_pre[i, :NQ])[f, 0])
+                   for i, f in zip(problem.switch_phase, problem.switch_foot) if f >= 0]
+        out["landing_feet_x"] = landing
+        checks["gap"] = out["stance_knots_over_gap"] == 0
+        checks["terrain_clearance"] = out["min_terrain_clearance"] >= -math.sqrt(SWITCHING_TOLERANCE)
     out["violated"] = [name for name, ok in checks.items() if not ok]
     out["ok"] = not out["violated"]
     return out
@@ -538,17 +751,49 @@ def plan_transition(motion: str, speed: float = 1.0, cycles: int = 2, options: S
     return _plan(motion, problem, phases, options, callbacks, verbose, float(speed))
 
 
+def plan_jump(motion: str, speed: float = 1.0, cycles: int = 2, options: SolverOptions | None = None,
+              callbacks: list[Callback] | None = None, verbose: bool = False) -> PlanResult:
+    """Plan a jump from a bound with HS-DDP (AL + ReB), on a terrain (:func:`jump_terrain`).
+
+    Schedule (``c = cycles``): from the paper's initial state, ``(BS FL FS FL) x c`` at ``speed``, the jump
+    ``BS(80 ms) FL(250 ms) FS(72 ms) FL(72 ms)`` (references of a bound :data:`JUMP_SPEED_FACTOR` times faster),
+    ``(BS FL FS FL) x c -> BS`` at ``speed``:
+
+    * ``"gap_jump"``: over a gap of :data:`GAP_WIDTH` (0.3 m); the last landings before it and the first after it
+      have foot placement references (:data:`LANDING_MARGIN`) short of its near edge and beyond its far edge;
+    * ``"box_jump"``: onto a box of :data:`BOX_HEIGHT` (0.1 m); the same placement references around its near edge,
+      and every reference after the take-off :data:`BOX_HEIGHT` higher (bounding on the box).
+
+    Args:
+        motion: one of :data:`JUMPS`.
+        speed: bounding speed in :data:`SPEED_RANGE` [m/s].
+        cycles: bounding cycles before and after the jump (>= 1).
+        options: solver options (default ``SolverOptions()``: AL + ReB).
+    Returns:
+        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s; ``limits`` adds the
+        terrain's checks (:func:`motion_limits`).
+    """
+    problem, phases = jump_problem(motion, speed, cycles)
+    return _plan(motion, problem, phases, options, callbacks, verbose, float(speed))
+
+
 def plan_motion(motion: str, speed: float = 1.0, cycles: int | None = None, options: SolverOptions | None = None,
                 verbose: bool = False) -> PlanResult:
-    """:func:`plan_pronk` (``cycles`` default 4) or :func:`plan_transition` (default 2) by name (:data:`MOTIONS`)."""
+    """:func:`plan_pronk` (``cycles`` default 4), :func:`plan_transition` (default 2), :func:`plan_jump` (default 2)
+    or :func:`plan_backflip` (no cycles, no speed) by name (:data:`MOTIONS`)."""
     if motion not in MOTIONS:
         raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
     if motion == "pronk":
         return plan_pronk(4 if cycles is None else cycles, speed, options=options, verbose=verbose)
+    if motion in JUMPS:
+        return plan_jump(motion, speed, 2 if cycles is None else cycles, options=options, verbose=verbose)
+    if motion == "backflip":
+        return plan_backflip(options=options, verbose=verbose)
     return plan_transition(motion, speed, 2 if cycles is None else cycles, options=options, verbose=verbose)
 
 
 __all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LIMITS", "MotionPhase", "leg_posture",
            "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
            "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
-           "plan_transition", "plan_motion"]
+           "plan_transition", "plan_motion", "JUMPS", "GAP_WIDTH", "BOX_HEIGHT", "JUMP_FLIGHT", "jump_terrain",
+           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip"]

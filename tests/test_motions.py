@@ -158,7 +158,7 @@ def test_the_transition_schedules_follow_the_cycles():
     (lambda: plan_transition("gallop"), "motion"),
     (lambda: plan_transition("stand_to_bound", speed=-1.0), "speed"),
     (lambda: plan_transition("bound_to_stop", cycles=0), "cycles"),
-    (lambda: plan_motion("backflip"), "motion"),
+    (lambda: plan_motion("triple_flip"), "motion"),
     (lambda: pronk_reference("apex", 1.0), "event"),
 ])
 def test_bad_arguments_are_refused_by_name(call, name):

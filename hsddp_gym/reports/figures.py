@@ -123,20 +123,25 @@ def _motion_arrays(fig: dict) -> tuple[np.ndarray, np.ndarray]:
     return snap_x, states
 
 
-def motion_figures(figs: dict, out_dir, prefix: str = "motions") -> list[Path]:
-    """``<prefix>_strips.png`` (one strip of snapshots per motion) and ``<prefix>_states.png`` (trunk height, pitch
-    and forward speed) from ``{label: motion_figure_data(...)}``."""
+def motion_figures(figs: dict, out_dir, prefix: str = "motions", terrains: dict | None = None,
+                   states: bool = True, dpi: int = 110) -> list[Path]:
+    """``<prefix>_strips.png`` (one strip of snapshots per motion) and, with ``states``, ``<prefix>_states.png``
+    (trunk height, pitch and forward speed) from ``{label: motion_figure_data(...)}``; ``terrains`` ``{label:
+    Terrain}`` the ground drawn under a strip (default flat); ``dpi`` of the strips."""
     from hsddp_gym.core.model import CheetahModel
 
     out_dir = Path(out_dir)
-    snaps, states = {}, {}
+    snaps, series = {}, {}
     for label, fig in figs.items():
-        snaps[label], states[label] = _motion_arrays(fig)
+        snaps[label], series[label] = _motion_arrays(fig)
     durations = [fig["duration"] for fig in figs.values()]
     strips = plotting.plot_motion_strips(CheetahModel(), snaps, out_dir / f"{prefix}_strips.png",
-                                         n_snapshots=MOTION_SNAPSHOTS, dt=max(durations) / (MOTION_SNAPSHOTS - 1))
+                                         n_snapshots=MOTION_SNAPSHOTS, dt=max(durations) / (MOTION_SNAPSHOTS - 1),
+                                         terrains=terrains, dpi=dpi)
+    if not states:
+        return [strips]
     step = next(iter(figs.values()))["state_dt"]
-    return [strips, plotting.plot_states(states, step, out_dir / f"{prefix}_states.png")]
+    return [strips, plotting.plot_states(series, step, out_dir / f"{prefix}_states.png")]
 
 
 MOTION_ORDER = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
@@ -152,6 +157,28 @@ def motions(store, out_dir) -> list[Path]:
     return motion_figures(figs, out_dir) if figs else []
 
 
+JUMP_ORDER = ("gap_jump", "box_jump", "backflip")
+"""The ``motions/*`` records of ``jumps_strips.png``."""
+
+
+def jumps(store, out_dir) -> list[Path]:
+    """``jumps_strips.png``: the jumps and the backflip of the ``motions/*`` records, each over its terrain (a small
+    PNG: strips only, 80 dpi)."""
+    from hsddp_gym.core.terrain import Terrain
+
+    figs, terrains = {}, {}
+    for name in JUMP_ORDER:
+        rid = f"motions/{name}"
+        if rid in store.ids():
+            d = store.data(rid)
+            label = name.replace("_", " ")
+            figs[label] = d["figure"]
+            if "terrain" in d:
+                t = d["terrain"]
+                terrains[label] = Terrain(tuple(t["edges"]), tuple(t["levels"]), tuple(t["gaps"]))
+    return motion_figures(figs, out_dir, prefix="jumps", terrains=terrains, states=False, dpi=80) if figs else []
+
+
 FIGURE_DIR = "docs/figures"
 """Where the published figures live (relative to the repository's top folder)."""
 
@@ -162,7 +189,7 @@ FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
 }
 """``{record id: drawing function of the record's data}``; each writes its figures into the folder it is given."""
 
-STORE_FIGURES: list[Callable] = [robustness, motions]
+STORE_FIGURES: list[Callable] = [robustness, motions, jumps]
 """Figures drawn from several records: functions of the store and the folder."""
 
 

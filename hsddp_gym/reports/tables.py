@@ -539,7 +539,7 @@ def learning_imitation(store: Store) -> str:
 
 # -- motions beyond the bound ----------------------------------------------------------------------------------------
 
-MOTION_ORDER = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+MOTION_ORDER = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop", "gap_jump", "box_jump", "backflip")
 
 
 def motions_summary(store: Store) -> str:

@@ -24,10 +24,10 @@ def _plt():
     return plt
 
 
-def _save(fig, path) -> Path:
+def _save(fig, path, dpi: int = 110) -> Path:
     plt = _plt()
     with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight", format="png")
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format="png")
     plt.close(fig)
     return Path(path)
 
@@ -43,12 +43,14 @@ def draw_robot(ax, robot, q, color="C0", alpha=1.0, lw=2.0) -> None:
 
 
 def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, touchdowns: dict | None = None,
-                       dt: float | None = None) -> Path:
+                       dt: float | None = None, terrains: dict | None = None, dpi: int = 110) -> Path:
     """Paper Fig. 5: one strip of snapshots per trajectory (``{label: X (N+1, 14)}``), coloured by time (the
     colour bar: time [s] with the knot spacing ``dt``, else the fraction of the motion).
 
     ``touchdowns``: ``{label: [(x, height), ...]}`` landing points; where a foot "lands" above or below
     z = 0 (the switching constraint violated), a red "virtual ground" segment is drawn at that height.
+    ``terrains``: ``{label: Terrain}`` ground profiles (:class:`~hsddp_gym.core.terrain.Terrain`) drawn instead of
+    the line z = 0 (a gap as a break in the ground). ``dpi``: of the PNG.
     """
     plt = _plt()
     from matplotlib.cm import ScalarMappable
@@ -62,7 +64,17 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
         for j, k in enumerate(idx):
             draw_robot(ax, robot, X[k], color=plt.cm.viridis(j / max(len(idx) - 1, 1)), alpha=0.9, lw=1.6)
         xmin, xmax = X[:, 0].min() - 0.4, X[:, 0].max() + 0.4
-        ax.axhline(0.0, color="k", lw=1.5)
+        terrain = (terrains or {}).get(label)
+        if terrain is None or terrain.is_flat:
+            ax.axhline(0.0, color="k", lw=1.5)
+        else:
+            bounds = [xmin] + [e for e in terrain.edges if xmin < e < xmax] + [xmax]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                mid = 0.5 * (a + b)
+                if not terrain.over_gap(mid):
+                    h = terrain.height(mid)
+                    ax.fill_between([a, b], [h, h], [-0.1, -0.1], color="0.8", lw=0)
+                    ax.plot([a, b], [h, h], "k-", lw=1.5)
         for x_td, z_td in (touchdowns or {}).get(label, []):
             if abs(z_td) > 2e-3:
                 ax.plot([x_td - 0.06, x_td + 0.06], [z_td, z_td], "r-", lw=2)
@@ -78,7 +90,7 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
     bar = fig.colorbar(ScalarMappable(norm=Normalize(0.0, span), cmap=plt.cm.viridis), ax=axes[:, 0].tolist(),
                        fraction=0.02, pad=0.01)
     bar.set_label("t [s] (snapshot colour)" if dt is not None else "fraction of the motion (snapshot colour)")
-    return _save(fig, path)
+    return _save(fig, path, dpi=dpi)
 
 
 def plot_states(trajectories: dict, dt: float, path, target_speed: float | None = None) -> Path:

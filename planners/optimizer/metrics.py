@@ -21,14 +21,21 @@ def trajectory_summary(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray,
     """Metrics of a trajectory on ``problem``'s schedule.
 
     Returns a dict with ``avg_forward_speed`` [m/s], ``min_body_height`` [m], ``max_abs_pitch`` [rad],
-    ``touchdown_foot_heights`` (list, one per touchdown: height of the landing foot at the switch,
-    the paper's g), ``switching_violation`` (sum g^2), ``max_touchdown_error`` (max |g|) [m],
+    ``touchdown_foot_heights`` (list, one per touchdown: height of the landing foot at the switch above the
+    terrain under it, ``problem.terrain``, the paper's g), ``switching_violation`` (sum g^2),
+    ``max_touchdown_error`` (max |g|) [m],
     ``max_abs_torque`` [N m], ``min_normal_grf`` [N],
     ``max_friction_violation`` (max |f_x| - mu f_z over stance knots) [N], ``cost`` (eq. 18).
     """
     robot = problem.dynamics.robot
-    g = [float(robot.foot_heights(X_pre[i, :NQ])[foot])
-         for i, foot in zip(problem.switch_phase, problem.switch_foot) if foot >= 0]
+    terrain = problem.terrain
+    if terrain is None or terrain.is_flat:
+        g = [float(robot.foot_heights(X_pre[i, :NQ])[foot])
+             for i, foot in zip(problem.switch_phase, problem.switch_foot) if foot >= 0]
+    else:  # height above the terrain under the foot
+        g = [float(p[1] - terrain.height(float(p[0])))
+             for p in (robot.foot_positions(X_pre[i, :NQ])[foot]
+                       for i, foot in zip(problem.switch_phase, problem.switch_foot) if foot >= 0)]
     mu = problem.constraints.friction
     st = problem.stance
     fz = GRF[:, 1::2][st]

@@ -108,12 +108,16 @@ class Objective:
         self._b_f = np.empty((n, 6))
         self._hxx = np.empty((n, NX, NX))  # grf_x^T W grf_x of the derivatives
         self._switching: tuple[np.ndarray, np.ndarray] | None = None  # (X_pre's bits, g) of the last call
+        # the terrain of the switching constraints; None for flat ground (g = foot_z, the flat problems' path)
+        terrain = pr.terrain
+        self._terrain = None if terrain is None or terrain.is_flat else terrain
 
     # --------------------------------------------------------------- switching constraints
     def switching_values(self, X_pre: np.ndarray) -> np.ndarray:
         """``g (m,)``: height of the landing foot of each switching-constraint row (``problem.switch_phase``,
         ``problem.switch_foot``; row ``i < n`` is phase ``i``'s first landing foot, 0 where no touchdown, then the
-        second feet of simultaneous touchdowns), for the pre-switch states ``X_pre (n, 14)`` [m]. The last ``X_pre``
+        second feet of simultaneous touchdowns) above the terrain under it, ``foot_z - h(foot_x)``
+        (``problem.terrain``; flat: ``foot_z``), for the pre-switch states ``X_pre (n, 14)`` [m]. The last ``X_pre``
         and its ``g`` are remembered (compared bit for bit): the solver asks again for the trajectory it has just
         evaluated."""
         bits = np.ascontiguousarray(X_pre, dtype=np.float64).view(np.uint64)
@@ -122,9 +126,14 @@ class Objective:
             return last[1].copy()
         pr = self.problem
         g = np.zeros(pr.n_switching)
+        terrain = self._terrain
         for r, (i, foot) in enumerate(zip(pr.switch_phase, pr.switch_foot)):
             if foot >= 0:
-                g[r] = self.robot.foot_height(X_pre[i, :7], foot)
+                if terrain is None:
+                    g[r] = self.robot.foot_height(X_pre[i, :7], foot)
+                else:
+                    p = self.robot.foot_positions(X_pre[i, :7])[foot]
+                    g[r] = p[1] - terrain.height(float(p[0]))
         self._switching = (bits.copy(), g.copy())
         return g
 
@@ -218,6 +227,8 @@ class Objective:
                 if foot < 0:
                     continue
                 g, g_x, g_xx = self.robot.foot_height_derivatives(X_pre[i, :7], int(foot))
+                if self._terrain is not None:  # piecewise-constant ground: dh/dx = 0 off its edges
+                    g -= self._terrain.height(float(self.robot.foot_positions(X_pre[i, :7])[foot, 0]))
                 slope = 2.0 * w * g + cs.lam[r]
                 Phi_x[i] += slope * g_x
                 Phi_xx[i] += 2.0 * w * np.outer(g_x, g_x) + slope * g_xx

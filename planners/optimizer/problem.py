@@ -25,6 +25,7 @@ from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.params import RobotParams
 from hsddp_gym.core.references import end_of_mode_reference
 from hsddp_gym.core.schedule import BOUNDING_CYCLE, ModeSchedule
+from hsddp_gym.core.terrain import Terrain, check_terrain
 from hsddp_gym.util.validation import check_array, check_int, check_positive
 
 # Weights of the authors' code closest to the paper (original_code_facts §3.5, MH@0b6ca76), state order
@@ -180,6 +181,13 @@ class HybridProblem:
         restitution: of the touchdown reset maps (paper: 0).
         knots: steps per phase ``(n,)``; default ``round(T_i / dt)``. Given explicitly (time-scaled problems
             of the switching-time optimization, eq. 28), phase ``i`` steps with ``h_i = T_i / knots[i]``.
+        terrain: the ground under the feet, a :class:`~hsddp_gym.core.terrain.Terrain` (None: flat, ``z = 0``).
+            The switching constraint of a landing foot is its height above the terrain under it,
+            ``g = foot_z - terrain.height(foot_x)`` (:meth:`Objective.switching_values
+            <hsddp_gym.planners.optimizer.objective.Objective.switching_values>`); the terrain is piecewise
+            constant, so ``dg/dq = d foot_z / dq`` wherever the foot is not exactly on an edge. None and a flat
+            terrain give the same problem, bit for bit. The contact dynamics do not depend on the ground height
+            (a stance foot is held where it landed).
 
     Per-knot arrays (N = total knots): ``modes (N,)``, ``phase_of_knot (N,)``, weights ``Qd (N, 14)``,
     ``Rd (N, 4)``, ``Sd (N, 4)``, references ``XR (N, 14)``, ``YR (N, 4)``; per phase ``QF (n, 14)``,
@@ -189,7 +197,8 @@ class HybridProblem:
     """
 
     def __init__(self, dynamics: HybridDynamics, schedule: ModeSchedule, costs, x0: np.ndarray,
-                 constraints: ConstraintSpec = ConstraintSpec(), restitution: float = 0.0, knots=None) -> None:
+                 constraints: ConstraintSpec = ConstraintSpec(), restitution: float = 0.0, knots=None,
+                 terrain: Terrain | None = None) -> None:
         if not isinstance(dynamics, HybridDynamics):
             raise TypeError(f"dynamics must be a HybridDynamics, got {type(dynamics).__name__}")
         if not isinstance(schedule, ModeSchedule):
@@ -205,6 +214,8 @@ class HybridProblem:
         self.x0 = check_array(x0, (NX,), "x0").copy()
         self.constraints = constraints
         self.restitution = float(restitution)
+        self.terrain = check_terrain(terrain)
+        """The ground under the feet (None: flat)."""
         self.dt = dynamics.dt
         if knots is None:
             knots = schedule.knots(dynamics.dt)
@@ -317,12 +328,12 @@ class HybridProblem:
     def with_durations(self, durations) -> HybridProblem:
         """The time-scaled problem (eq. 28): the same knots per phase, new durations ``(n,)`` [s]."""
         return HybridProblem(self.dynamics, self.schedule.with_durations(durations), self.costs, self.x0,
-                             self.constraints, self.restitution, knots=self.knots)
+                             self.constraints, self.restitution, knots=self.knots, terrain=self.terrain)
 
     def with_x0(self, x0: np.ndarray) -> HybridProblem:
         """The same problem from another initial state (14,)."""
         return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution,
-                             knots=self.knots)
+                             knots=self.knots, terrain=self.terrain)
 
     def sub_problem(self, start: int, stop: int, x0: np.ndarray | None = None) -> HybridProblem:
         """Phases ``start`` to ``stop - 1`` as a problem of their own: the same dynamics, costs, constraints and
@@ -346,7 +357,7 @@ class HybridProblem:
         s = self.schedule
         schedule = ModeSchedule(s.modes[start:stop], s.durations[start:stop], final_mode=s.next_mode(stop - 1))
         return HybridProblem(self.dynamics, schedule, self.costs[start:stop], x0, self.constraints, self.restitution,
-                             knots=self.knots[start:stop])
+                             knots=self.knots[start:stop], terrain=self.terrain)
 
     @property
     def cycle_length(self) -> int | None:

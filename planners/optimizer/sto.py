@@ -561,7 +561,7 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
     if np.any(z < lower) or np.any(z > upper):
         raise ValueError(f"initial durations {z} outside [min_duration, max_duration] = [{lower}, {upper}]")
     pr = HybridProblem(problem.dynamics, problem.schedule, problem.costs, problem.x0, problem.constraints,
-                       problem.restitution, knots=problem.knots)
+                       problem.restitution, knots=problem.knots, terrain=problem.terrain)
     solver = HSDDP(options.solver)
     sol = solver.solve(pr, U_init)
     history = [z.copy()]
