@@ -4,6 +4,8 @@
 * :mod:`hsddp_gym.envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
 * :mod:`hsddp_gym.envs.vector`: ``BoundingVectorEnv``, N robots in one compiled call, the ``vector_entry_point`` of
   ``hsddp_gym/Bounding-v0`` (``gym.make_vec``).
+* :mod:`hsddp_gym.envs.pronking`: ``PronkingEnv``, the pronking task on the same robot, registered as
+  ``hsddp_gym/Pronking-v0`` (``MuJoCoPronkingEnv``: ``hsddp_gym/PronkingMuJoCo-v0``).
 * :mod:`hsddp_gym.envs.mujoco_twin`: ``MuJoCoBoundingEnv``, the same task on MuJoCo, registered as
   ``hsddp_gym/BoundingMuJoCo-v0`` (optional extra ``mujoco``).
 
@@ -13,6 +15,8 @@ Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {"bounding": ("BoundingEnv",), "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",),
+            "pronking": ("MuJoCoPronkingEnv", "PronkingEnv"),
             "vector": ("BoundingVectorEnv",)}
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = ["BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBoundingEnv"]
+__all__ = ["BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBoundingEnv", "MuJoCoPronkingEnv",
+           "PronkingEnv"]

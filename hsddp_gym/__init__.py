@@ -7,7 +7,8 @@ and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work; ``gym.make_vec("hsddp_
 vectorization_mode="vector_entry_point")`` gives the compiled vector env (``hsddp_gym.envs.vector``).
 ``hsddp_gym/BoundingMuJoCo-v0`` is the same task simulated by MuJoCo (optional extra ``mujoco``);
 ``hsddp_gym/BoundingKKT-v0`` the same task simulated by the planner's own hybrid model (pinned feet, KKT contact
-dynamics, touchdown reset maps).
+dynamics, touchdown reset maps). ``hsddp_gym/Pronking-v0`` is the same robot rewarded for pronking
+(``hsddp_gym.envs.pronking``, no compiled vector entry point), ``hsddp_gym/PronkingMuJoCo-v0`` its MuJoCo twin.
 """
 
 __version__ = "0.2.0"
@@ -19,6 +20,12 @@ BOUNDING_KKT_ENV_ID = "hsddp_gym/BoundingKKT-v0"
 """The same task simulated by the planner's hybrid model (``hsddp_gym.envs.kkt_twin``)."""
 BOUNDING_MAX_EPISODE_STEPS = 1000
 """1000 control steps = 5 s at the default 200 Hz (about 17 bounding cycles)."""
+PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
+"""The pronking task on Bounding-v0's robot and physics (``hsddp_gym.envs.pronking``)."""
+PRONKING_MUJOCO_ENV_ID = "hsddp_gym/PronkingMuJoCo-v0"
+"""The pronking task simulated by MuJoCo (needs the extra ``mujoco``)."""
+PRONKING_MAX_EPISODE_STEPS = 1000
+"""1000 control steps = 5 s at the default 200 Hz (about 28 pronk cycles)."""
 
 
 def _register_envs() -> None:
@@ -34,6 +41,12 @@ def _register_envs() -> None:
     if BOUNDING_KKT_ENV_ID not in gym.registry:
         gym.register(id=BOUNDING_KKT_ENV_ID, entry_point="hsddp_gym.envs.kkt_twin:KKTBoundingEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
+    if PRONKING_ENV_ID not in gym.registry:  # no vector entry point: the compiled kernel computes the bound's reward
+        gym.register(id=PRONKING_ENV_ID, entry_point="hsddp_gym.envs.pronking:PronkingEnv",
+                     max_episode_steps=PRONKING_MAX_EPISODE_STEPS)
+    if PRONKING_MUJOCO_ENV_ID not in gym.registry:
+        gym.register(id=PRONKING_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.pronking:MuJoCoPronkingEnv",
+                     max_episode_steps=PRONKING_MAX_EPISODE_STEPS)
 
 
 _register_envs()

@@ -234,6 +234,7 @@ def cmd_demo(args) -> int:
 # ----------------------------------------------------------------------------------------------- dataset, train
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
+DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0")
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 
@@ -268,6 +269,9 @@ def cmd_dataset(args) -> int:
         check_dataset_id(args.dataset_id, "--dataset-id")
     require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
     _check_conditions(args)
+    if args.condition is not None and args.env != DATASET_ENVS[0]:
+        raise UsageError("--condition", f"given with --env {args.env}",
+                         f"--condition with --env {DATASET_ENVS[0]} only (the conditions perturb Bounding-v0)")
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.address is not None and args.backend != "ray":
         raise UsageError("--address", f"{args.address!r} without --backend ray", "only with --backend ray")
@@ -283,7 +287,7 @@ def cmd_dataset(args) -> int:
                                dataset_id=args.dataset_id, overwrite=args.overwrite, env_kwargs=env_kwargs,
                                max_episode_steps=args.max_episode_steps, include_gains=args.gains,
                                progress=not args.quiet, action_noise=args.action_noise, resume=not args.no_resume,
-                               conditions=args.condition)
+                               conditions=args.condition, env_id=args.env)
     except FileExistsError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -503,7 +507,11 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--policy", choices=DATASET_POLICIES, default="mpc",
                    help="mpc: HS-DDP MPC; expert: tracks the 5-cycle al-reb HS-DDP plan (episodes start at the "
                         "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
-                        "controller; random: uniform actions (default: %(default)s)")
+                        "controller; random: uniform actions; in Pronking-v0 expert tracks a 4-cycle HS-DDP pronk "
+                        "plan periodically from the env's (noisy) start (default: %(default)s)")
+    p.add_argument("--env", choices=DATASET_ENVS, default=DATASET_ENVS[0],
+                   help="the env the episodes are recorded in; the default dataset id follows it "
+                        "(hsddp_gym/bounding/POLICY-v0, hsddp_gym/pronking/POLICY-v0) (default: %(default)s)")
     p.add_argument("--episodes", type=_positive_int, default=10,
                    help="episodes; episode i is reset with seed --seed + i (default: %(default)s)")
     p.add_argument("--workers", type=_positive_int, default=1,
@@ -519,7 +527,9 @@ def _add_learning_parsers(sub) -> None:
                    help="discard the checkpoints of an interrupted run (OUT's hidden sibling .NAME.partial) and "
                         "start over; by default a rerun with the same settings resumes from them and a rerun "
                         "with other settings refuses")
-    p.add_argument("--dataset-id", default=None, help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0)")
+    p.add_argument("--dataset-id", default=None,
+                   help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0, with --env "
+                        "hsddp_gym/Pronking-v0 hsddp_gym/pronking/POLICY-v0)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override (default: the env's 1000)")
     p.add_argument("--target-speed", type=_finite_float, default=None,

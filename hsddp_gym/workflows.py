@@ -113,10 +113,42 @@ def load_policy(spec: str, env=None):
     return make_policy(spec, env)[0]
 
 
+def is_pronking_env(env) -> bool:
+    """Whether ``env`` (wrapped or not) is an env of the pronking task (``hsddp_gym/Pronking-v0`` or its MuJoCo
+    twin)."""
+    from hsddp_gym.envs.pronking import PronkingTask
+
+    return isinstance(getattr(env, "unwrapped", env), PronkingTask)
+
+
+def pronking_expert(env, cycles: int = 4):
+    """The pronking expert for ``env``: :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` tracking
+    ``plan_pronk(cycles, target_speed)`` (:mod:`hsddp_gym.planners.motions`, solved once per speed and process,
+    about 0.2 s) periodically; the env starts at the plan's start, so no reset options are needed."""
+    from hsddp_gym.planners.policies.pronking import PronkingExpert
+
+    speed = float(getattr(env, "unwrapped", env).target_speed)
+    return PronkingExpert.from_env(env, solution=pronk_plan(speed, cycles))
+
+
+_PRONK_PLANS: dict = {}
+
+
+def pronk_plan(speed: float = 1.0, cycles: int = 4):
+    """The HS-DDP pronk plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`) at ``speed`` [m/s],
+    cached per ``(speed, cycles)``."""
+    from hsddp_gym.planners.motions import plan_pronk
+
+    key = (float(speed), int(cycles))
+    if key not in _PRONK_PLANS:
+        _PRONK_PLANS[key] = plan_pronk(int(cycles), float(speed)).solution
+    return _PRONK_PLANS[key]
+
+
 def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
     ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
-    (the expert starts from its plan's initial state)."""
+    (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`)."""
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
@@ -139,6 +171,8 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
         from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
         return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
+    if name == "expert" and is_pronking_env(env):
+        return pronking_expert(env), None
     if name == "expert":
         from hsddp_gym.planners.tasks import plan_bounding
 

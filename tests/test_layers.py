@@ -26,6 +26,7 @@ ROOMS = {  # module-name prefix -> room (the longest matching prefix wins)
     "hsddp_gym.planners.optimizer": "optimizer",
     "hsddp_gym.planners.policies": "policies",
     "hsddp_gym.planners.tasks": "tasks",
+    "hsddp_gym.planners.motions": "tasks",  # planning tasks beside the paper's
     "hsddp_gym.envs": "envs",
     "hsddp_gym.datasets": "datasets",
     "hsddp_gym.learning": "learning",

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hsddp_gym.datasets.recording import ENV_ID, Episode, record_episode
+from hsddp_gym.datasets.recording import ENV_ID, Episode, check_env_id, record_episode
 from hsddp_gym.util.io import read_npz
 from hsddp_gym.util.parallel import check_backend, run_parallel
 
@@ -27,13 +27,17 @@ class EpisodeTask:
     condition: str | None = None
     """A name of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (None: the plain env); the policy then acts on
     the true state (``record_episode(privileged=True)``)."""
+    env_id: str | None = None
+    """The registered env (None: :data:`~hsddp_gym.datasets.recording.ENV_ID`, Bounding-v0)."""
 
 
-def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None, condition: str | None = None):
-    """``gym.make("hsddp_gym/Bounding-v0", **env_kwargs)`` with an optional time-limit override; with
+def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None, condition: str | None = None,
+             env_id: str | None = None):
+    """``gym.make(env_id, **env_kwargs)`` (``env_id`` None: ``"hsddp_gym/Bounding-v0"``, else one of
+    :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`) with an optional time-limit override; with
     ``condition`` (a name of :data:`hsddp_gym.envs.perturbations.CONDITIONS`) that condition's env (its env
     arguments and wrappers, :func:`hsddp_gym.envs.perturbations.make_env`) with ``env_kwargs`` added (a key
-    both set raises ``ValueError``)."""
+    both set raises ``ValueError``; conditions are Bounding-v0's)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
@@ -41,11 +45,15 @@ def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = Non
     kw = dict(env_kwargs or {})
     if max_episode_steps is not None:
         kw["max_episode_steps"] = int(max_episode_steps)
+    env_id = check_env_id(env_id)
     if condition is not None:
+        if env_id != ENV_ID:
+            raise ValueError(f"conditions are perturbations of {ENV_ID}; env_id {env_id!r} takes none, got "
+                             f"condition {condition!r}")
         from hsddp_gym.envs.perturbations import make_env as make_condition_env
 
         return make_condition_env(condition, **kw)
-    return gym.make(ENV_ID, **kw)
+    return gym.make(env_id, **kw)
 
 
 def episode_conditions(conditions, episodes: int) -> list:
@@ -69,7 +77,7 @@ def check_condition_kwargs(conditions, env_kwargs: dict | None) -> None:
 
 def run_episode_task(task: EpisodeTask) -> Episode:
     """Worker entry point (top level, spawn-safe): a fresh env and policy, one recorded episode."""
-    env = make_env(task.env_kwargs, task.max_episode_steps, task.condition)
+    env = make_env(task.env_kwargs, task.max_episode_steps, task.condition, task.env_id)
     try:
         policy, options = task.policy_factory(env, task.seed)
         return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains,
@@ -111,7 +119,8 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
                      env_kwargs: dict | None = None, max_episode_steps: int | None = None,
                      include_gains: bool = False, progress: bool = True, desc: str = "episodes",
                      action_noise: float = 0.0, checkpoint_dir=None, checkpoint_prefix: str = "episode",
-                     backend: str = "local", address: str | None = None, conditions=None) -> list[Episode]:
+                     backend: str = "local", address: str | None = None, conditions=None,
+                     env_id: str | None = None) -> list[Episode]:
     """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` workers.
 
     Args:
@@ -132,6 +141,7 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
             runs in ``conditions[i % len(conditions)]`` (:func:`episode_conditions`), every random draw of its
             perturbation seeded by its episode seed; the policy acts on the true state, the recorded
             observations are the perturbed ones (``record_episode(privileged=True)``).
+        env_id: the registered env (None: Bounding-v0; one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`).
     Returns:
         The episodes in index order (identical for any ``workers``, and whether loaded or recorded).
     """
@@ -149,7 +159,7 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
     from tqdm import tqdm
 
     tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
-                         float(action_noise), cond) for i, cond in enumerate(episode_conditions(conditions, episodes))]
+                         float(action_noise), cond, env_id) for i, cond in enumerate(episode_conditions(conditions, episodes))]
     results: list[Episode | None] = [None] * episodes
     if checkpoint_dir is not None:
         Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)

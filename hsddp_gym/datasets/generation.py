@@ -13,7 +13,13 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.datasets.collection import checkpoint_path, collect_episodes, make_env
-from hsddp_gym.datasets.recording import ENV_ID, NONDETERMINISTIC_INFOS, PolicySpec, solve_expert_plan
+from hsddp_gym.datasets.recording import (
+    ENV_ID,
+    NONDETERMINISTIC_INFOS,
+    PolicySpec,
+    check_env_id,
+    solve_expert_plan,
+)
 from hsddp_gym.datasets.storage import (
     check_dataset_id,
     check_target,
@@ -36,10 +42,11 @@ CHECKPOINT_FORMAT = 1
 
 
 def mean_random_return(env_kwargs: dict | None = None, max_episode_steps: int | None = None, seed: int = 0,
-                       episodes: int = REF_MIN_EPISODES) -> tuple[float, list[float]]:
+                       episodes: int = REF_MIN_EPISODES, env_id: str | None = None) -> tuple[float, list[float]]:
     """Mean return of :class:`~hsddp_gym.planners.policies.random_policy.RandomPolicy` over ``episodes`` episodes seeded
     ``seed, seed + 1, ...`` (the ``ref_min_score``) and the returns."""
-    eps = collect_episodes(PolicySpec("random"), episodes, seed, 1, env_kwargs, max_episode_steps, progress=False)
+    eps = collect_episodes(PolicySpec("random"), episodes, seed, 1, env_kwargs, max_episode_steps, progress=False,
+                           env_id=env_id)
     returns = [e.episode_return for e in eps]
     return float(np.mean(returns)), returns
 
@@ -169,7 +176,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                      include_gains: bool = False, progress: bool = True, policy_name: str | None = None,
                      policy_description: dict | None = None, action_noise: float = 0.0,
                      resume: bool = True, backend: str = "local", address: str | None = None,
-                     conditions=None) -> DatasetResult:
+                     conditions=None, env_id: str | None = None) -> DatasetResult:
     """Generate a demonstration dataset into ``out`` (see the module docstring).
 
     **Interrupted runs and reruns.** Every finished episode is checkpointed (atomically) into the hidden
@@ -193,7 +200,10 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             or the running cluster at ``address``); see :func:`hsddp_gym.util.parallel.run_parallel`. The data
             do not depend on it; an episode whose worker dies is run again.
         address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
-        dataset_id: Minari id (default ``hsddp_gym/bounding/<policy>-v0``).
+        dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding`` or ``pronking``).
+        env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
+            (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
+            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`).
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
         policy_options: ``MPCOptions`` fields for ``mpc``.
@@ -230,6 +240,9 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     out = Path(out)
     check_target(out, overwrite)
     env_kwargs = dict(env_kwargs or {})
+    env_id = check_env_id(env_id)
+    if conditions is not None and env_id != ENV_ID:
+        raise ValueError(f"conditions are perturbations of {ENV_ID}; env_id {env_id!r} takes none")
     if conditions is not None:
         from hsddp_gym.datasets.collection import check_condition_kwargs
         from hsddp_gym.envs.perturbations import check_conditions
@@ -240,20 +253,22 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     plan_file = partial / "expert_plan.npz"
     if isinstance(policy, str):
         if policy == "expert":
-            spec = PolicySpec("expert", plan_path=str(plan_file))
+            spec = PolicySpec("expert", plan_path=str(plan_file), env_id=None if env_id == ENV_ID else env_id)
         else:
             spec = PolicySpec(policy, options=dict(policy_options or {}))
     else:
         spec = policy
     name = policy_name or (spec.name if isinstance(spec, PolicySpec) else type(spec).__name__)
     describe = policy_description or (spec.describe() if isinstance(spec, PolicySpec) else {"name": name})
-    dataset_id = check_dataset_id(dataset_id or default_dataset_id(name), "dataset_id")
+    dataset_id = check_dataset_id(dataset_id or default_dataset_id(name, env_id), "dataset_id")
     settings = {"checkpoint_format": CHECKPOINT_FORMAT, "dataset_id": dataset_id, "policy": describe,
                 "policy_factory": _factory_id(spec), "seed": int(seed), "env_kwargs": env_kwargs,
                 "max_episode_steps": max_episode_steps, "include_gains": bool(include_gains),
                 "action_noise": action_noise, "code_sha256": _code_fingerprint()}
     if conditions is not None:
         settings["conditions"] = conditions
+    if env_id != ENV_ID:  # absent for Bounding-v0: the settings of runs recorded before env_id existed
+        settings["env_id"] = env_id
     parent_dir(out)
     t_start = time.perf_counter()
     with _exclusive(partial):
@@ -267,12 +282,12 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
                                                        max_episode_steps, include_gains, progress, action_noise,
                                                        dataset_id, partial, plan_file, resumed,
                                                        {"backend": backend, "address": address,
-                                                        "conditions": conditions})
-            env = make_env(env_kwargs, max_episode_steps)
+                                                        "conditions": conditions, "env_id": env_id})
+            env = make_env(env_kwargs, max_episode_steps, env_id=env_id)
             try:
                 write_dataset(eps, out, dataset_id, env, metadata, ref_min_score=metadata["ref_min_score"],
                               ref_max_score=metadata["ref_max_score"], overwrite=overwrite, extra_files=extra,
-                              description=f"{name} demonstrations on {ENV_ID} ({len(eps)} episodes, seeds "
+                              description=f"{name} demonstrations on {env_id} ({len(eps)} episodes, seeds "
                                           f"{seed}..{seed + len(eps) - 1}); see the 'hsddp_gym' metadata entry")
             finally:
                 env.close()
@@ -295,25 +310,28 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         if plan_file.exists() and summary_file.exists():  # resumed: the plan the checkpoints were recorded with
             plan_summary = json.loads(summary_file.read_text())
         else:
-            plan_summary = solve_expert_plan(plan_file)
+            plan_summary = solve_expert_plan(plan_file, where["env_id"],
+                                             float(env_kwargs.get("target_speed", 1.0)))
             write_json(summary_file, plan_summary)
         extra["expert_plan.npz"] = plan_file
     plan_time = time.perf_counter() - t0
     t1 = time.perf_counter()
     eps = collect_episodes(spec, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
                            progress, desc=f"{name} episodes", action_noise=action_noise, checkpoint_dir=partial,
-                           backend=where["backend"], address=where["address"], conditions=where["conditions"])
+                           backend=where["backend"], address=where["address"], conditions=where["conditions"],
+                           env_id=where["env_id"])
     gen_time = time.perf_counter() - t1
     t2 = time.perf_counter()
     where = dict(where)
     conditions = where.pop("conditions", None)
-    ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed)
+    env_id = where.pop("env_id", ENV_ID)
+    ref_min, random_returns = mean_random_return(env_kwargs, max_episode_steps, seed, env_id=env_id)
     returns = [e.episode_return for e in eps]
     if action_noise > 0:
         n_ref = min(int(episodes), REF_MAX_EPISODES)
         ref_eps = collect_episodes(spec, n_ref, seed, workers, env_kwargs, max_episode_steps, progress=progress,
                                    desc=f"{name} reference episodes (no noise)", checkpoint_dir=partial,
-                                   checkpoint_prefix="reference", conditions=conditions, **where)
+                                   checkpoint_prefix="reference", conditions=conditions, env_id=env_id, **where)
         ref_returns = [e.episode_return for e in ref_eps]
         ref_source = (f"mean return of the {name} policy without action noise over {n_ref} episodes, seeds "
                       f"{seed}..{seed + n_ref - 1} (not in the dataset)")
@@ -322,14 +340,14 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         ref_source = f"mean return of the {name} episodes of this dataset"
     ref_max = float(np.mean(ref_returns))
     reference_time = time.perf_counter() - t2
-    env = make_env(env_kwargs, max_episode_steps)
+    env = make_env(env_kwargs, max_episode_steps, env_id=env_id)
     spec_json, limit, control_dt = env.spec.to_json(), env.spec.max_episode_steps, float(env.unwrapped.dt)
     env.close()
     if plan_summary is not None:
         describe = {**describe, "plan_summary": plan_summary}
     metadata = {
         "dataset_id": dataset_id,
-        "env_id": ENV_ID,
+        "env_id": env_id,
         "env_spec": json.loads(spec_json),
         "env_kwargs": env_kwargs,
         "max_episode_steps": int(limit) if limit else None,

@@ -13,9 +13,15 @@ from hsddp_gym.core.conventions import NU, NX
 from hsddp_gym.util.validation import check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
+PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
+DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID)
+"""The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
 POLICIES = ("mpc", "expert", "heuristic", "random")
 EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
 """The expert's plan: ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
+EXPERT_PRONK_PLAN = {"motion": "pronk", "cycles": 4}
+"""The pronking expert's plan in Pronking-v0: ``hsddp_gym.planners.motions.plan_pronk(4, target_speed)``, tracked
+periodically (:class:`hsddp_gym.planners.policies.pronking.PronkingExpert`)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -36,6 +42,15 @@ DECISION_SCHEMA: dict[str, tuple[tuple, str]] = {
 GAIN_KEY = "expert_feedback_gain"
 
 
+def check_env_id(env_id) -> str:
+    """``env_id`` (None: :data:`ENV_ID`) if it is one of :data:`DATASET_ENVS`, else ``ValueError`` naming it."""
+    if env_id is None:
+        return ENV_ID
+    if env_id not in DATASET_ENVS:
+        raise ValueError(f"env_id must be one of {DATASET_ENVS}, got {env_id!r}")
+    return str(env_id)
+
+
 # ================================================================================================ policies
 @dataclasses.dataclass(frozen=True)
 class PolicySpec:
@@ -46,17 +61,21 @@ class PolicySpec:
         options: ``MPCOptions`` fields for ``mpc`` (JSON-serializable values); unused otherwise.
         plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
             ``expert`` only.
+        env_id: the env the expert's plan is for (None: Bounding-v0): in ``hsddp_gym/Pronking-v0`` the expert
+            is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan (no reset options).
     """
 
     name: str
     options: dict = dataclasses.field(default_factory=dict)
     plan_path: str | None = None
+    env_id: str | None = None
 
     def __post_init__(self) -> None:
         if self.name not in POLICIES:
             raise ValueError(f"policy name must be one of {POLICIES}, got {self.name!r}")
         if self.name == "expert" and self.plan_path is None:
             raise ValueError("the expert policy needs plan_path (its plan, saved with Solution.save)")
+        check_env_id(self.env_id)
 
     def __call__(self, env, episode_seed: int):
         """``(policy, reset_options)`` for an episode of ``env`` seeded ``episode_seed``."""
@@ -68,6 +87,10 @@ class PolicySpec:
             from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
             return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options))), None
+        if self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
+            from hsddp_gym.planners.policies.pronking import PronkingExpert
+
+            return PronkingExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
         if self.name == "expert":
             sol = _load_plan(str(self.plan_path))
             return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
@@ -86,6 +109,11 @@ class PolicySpec:
             from hsddp_gym.planners.policies.mpc import MPCOptions
 
             d["options"] = dataclasses.asdict(MPCOptions(**_mpc_options(self.options)))
+        elif self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
+            d["class"] = f"{policies}.pronking.PronkingExpert"
+            d["options"] = {"plan": dict(EXPERT_PRONK_PLAN), "plan_file": "expert_plan.npz",
+                            "tracking": "periodic: after the plan's last touchdown the cursor returns to phase 2",
+                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert":
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
                             "reset_options": "{'state': plan.X[0]} (no reset noise)",
@@ -111,11 +139,17 @@ def _load_plan(path: str):
     return Solution.load(path)
 
 
-def solve_expert_plan(path) -> dict:
-    """Solve the expert's plan (:data:`EXPERT_PLAN`), save it to ``path`` and return its summary."""
-    from hsddp_gym.planners.tasks import plan_bounding
+def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0) -> dict:
+    """Solve the expert's plan (:data:`EXPERT_PLAN`; in Pronking-v0 :data:`EXPERT_PRONK_PLAN` at ``target_speed``
+    [m/s]), save it to ``path`` and return its summary."""
+    if check_env_id(env_id) == PRONKING_ENV_ID:
+        from hsddp_gym.planners.motions import plan_pronk
 
-    result = plan_bounding(EXPERT_PLAN["method"], cycles=EXPERT_PLAN["cycles"])
+        result = plan_pronk(EXPERT_PRONK_PLAN["cycles"], float(target_speed))
+    else:
+        from hsddp_gym.planners.tasks import plan_bounding
+
+        result = plan_bounding(EXPERT_PLAN["method"], cycles=EXPERT_PLAN["cycles"])
     result.solution.save(path)
     keep = ("status", "converged", "al_iterations", "ddp_iterations", "switching_violation", "cost",
             "avg_forward_speed", "solve_time_s")

@@ -32,9 +32,11 @@ def minari_root(path):
             os.environ["MINARI_DATASETS_PATH"] = old
 
 
-def default_dataset_id(policy_name: str) -> str:
-    """``hsddp_gym/bounding/<policy>-v0``."""
-    return f"hsddp_gym/bounding/{policy_name}-v0"
+def default_dataset_id(policy_name: str, env_id: str | None = None) -> str:
+    """``hsddp_gym/bounding/<policy>-v0`` (``env_id`` None or Bounding-v0), ``hsddp_gym/pronking/<policy>-v0``
+    (``hsddp_gym/Pronking-v0``)."""
+    task = "pronking" if env_id == "hsddp_gym/Pronking-v0" else "bounding"
+    return f"hsddp_gym/{task}/{policy_name}-v0"
 
 
 def episodes_to_arrays(episodes: list[Episode]) -> dict:

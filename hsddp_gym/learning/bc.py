@@ -319,7 +319,8 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     the evaluation return of BC trained on the first n episodes.
 
     The evaluation uses the comparison protocol (``eval_episodes`` episodes, seeds 0, 1, ..., default reset
-    noise, the env's 1000-step limit unless ``max_episode_steps``).
+    noise, the env's 1000-step limit unless ``max_episode_steps``) in the env the (first) dataset was recorded in
+    (its metadata's ``env_id``).
     """
     from hsddp_gym.datasets.collection import make_env
     from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
@@ -347,7 +348,8 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
     config = dataclasses.replace(config or BCConfig(), seed=int(seed))
     dataset = str(sources[0]) if len(sources) == 1 else [str(d) for d in sources]
     env_kwargs = dict(meta.get("env_kwargs", {}) if env_kwargs is None else env_kwargs)
-    env = make_env(env_kwargs, max_episode_steps)
+    env_id = meta.get("env_id")
+    env = make_env(env_kwargs, max_episode_steps, env_id=env_id)
     interface = EnvInterface.from_env(env)
     env.close()
     data = load_demonstrations(sources if len(sources) > 1 else sources[0], episodes=demos, fmt=fmt)
@@ -378,17 +380,18 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
                "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
                "gain_labels": hist["gain_labels"],
                "config": config.to_dict(), "loss": hist["loss"], "final_loss": hist["loss"][-1],
-               "wall_time_s": hist["wall_time_s"], "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
+               "wall_time_s": hist["wall_time_s"], "env_id": env_id or "hsddp_gym/Bounding-v0", "env_kwargs": env_kwargs,
+               "max_episode_steps": max_episode_steps,
                "files": ["policy.npz", "loss.csv", "summary.json"]}
     if eval_episodes > 0:
         summary["eval"] = eval_brief(evaluate_policy_episodes(policy, eval_episodes, 0, env_kwargs,
-                                                               max_episode_steps))
+                                                               max_episode_steps, env_id=env_id))
     if curve:
         rows, points = [], []
         for n in sorted({int(c) for c in curve}):
             sub = data if n >= data.n_episodes else data.first_episodes(n)
             p, h = (policy, hist) if sub is data else train_bc(sub, config, interface, clock=clock)
-            ev = evaluate_policy_episodes(p, max(eval_episodes, 1), 0, env_kwargs, max_episode_steps)
+            ev = evaluate_policy_episodes(p, max(eval_episodes, 1), 0, env_kwargs, max_episode_steps, env_id=env_id)
             rows.append([n, len(sub), f"{ev['mean_return']:.6g}", f"{ev['std_return']:.6g}", ev["falls"],
                          f"{h['wall_time_s']:.3f}"])
             points.append({"demonstrations": n, "transitions": len(sub), "mean_return": ev["mean_return"],

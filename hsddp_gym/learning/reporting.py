@@ -7,14 +7,15 @@ import numpy as np
 
 # ================================================================================================ evaluation
 def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwargs: dict | None = None,
-                             max_episode_steps: int | None = None, reset_options: dict | None = None) -> dict:
+                             max_episode_steps: int | None = None, reset_options: dict | None = None,
+                             env_id: str | None = None) -> dict:
     """The comparison protocol: ``episodes`` episodes seeded ``seed, seed + 1, ...``, the policy's
     deterministic actions; returns :func:`hsddp_gym.planners.policies.evaluation.summarize` (mean/std return, falls,
-    forward speed, episode length, ...)."""
+    forward speed, episode length, ...); ``env_id``: the env (None: Bounding-v0)."""
     from hsddp_gym.datasets.collection import make_env
     from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 
-    env = make_env(env_kwargs, max_episode_steps)
+    env = make_env(env_kwargs, max_episode_steps, env_id=env_id)
     try:
         results = [run_episode(env, policy, seed + i, options=reset_options) for i in range(int(episodes))]
     finally:

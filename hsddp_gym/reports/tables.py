@@ -576,6 +576,39 @@ def motions_summary(store: Store) -> str:
                       source_line(store, *rids)])
 
 
+def tasks_pronking(store: Store) -> str:
+    """The pronking task: the expert (Pronking-v0 and its MuJoCo twin) and BC per training seed on unseen seeds
+    (``experiments/pronking.py``)."""
+    rid = "tasks/pronking"
+    if rid not in store.ids():
+        return ("No `tasks/pronking` record yet: run `python experiments/pronking.py --record "
+                "results/tasks/pronking.json`.")
+    d = store.data(rid)
+    header = ["policy", "env", "return", "success", "falls", "speed [m/s]", "matching contacts", "learned from"]
+    rows = []
+    for r in d["rows"]:
+        rows.append([r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
+                     f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_speed']:.3f}",
+                     f"{100 * r['mean_match_fraction']:.1f} % (min {100 * r['min_match_fraction']:.1f} %)", "–"])
+    for r in d["bc"]:
+        rows.append([r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
+                     f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_speed']:.3f}",
+                     f"{100 * r['mean_match_fraction']:.1f} % (min {100 * r['min_match_fraction']:.1f} %)",
+                     f"{r['transitions']:,} transitions ({r['demonstrations']} demos)"])
+    if d["bc"]:
+        ok = sum(r["successes"] for r in d["bc"])
+        n = sum(r["episodes"] for r in d["bc"])
+        mean = sum(r["mean_return"] for r in d["bc"]) / len(d["bc"])
+        rows.append([f"BC, {len(d['bc'])} training seeds", "`Pronking-v0`", f"{mean:.1f} (mean of the seeds)",
+                     f"{ok}/{n}", f"{sum(r['falls'] for r in d['bc'])}/{n}", "", "", ""])
+    seeds = d["seeds"]
+    note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset), target speed "
+            f"{d['target_speed']:g} m/s, 1000 steps (5 s); return: mean ± std over the episodes. Success: "
+            f"{d['success_rule']}.")
+    return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
+                      source_line(store, rid)])
+
+
 TABLES: dict[str, Callable[[Store], str]] = {
     "paper/task1": paper_task1,
     "paper/sto_variants": paper_sto_variants,
@@ -594,6 +627,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "policies/protocol": policies_protocol,
     "learning/imitation": learning_imitation,
     "motions/summary": motions_summary,
+    "tasks/pronking": tasks_pronking,
 }
 """``{table id: renderer}``."""
 

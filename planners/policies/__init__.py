@@ -29,6 +29,7 @@ _EXPORTS = {  # module: the public names it defines
         "DOUBLE_STANCE_PHASE", "FAST_BOUNDING_DURATIONS", "GaitClock", "MPCOptions", "MPCPolicy",
     ),
     "random_policy": ("RandomPolicy",),
+    "pronking": ("PeriodicPlanTracker", "PronkingExpert",),
     "tracking": ("PlanTracker", "tracking_error",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

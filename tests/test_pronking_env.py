@@ -1,0 +1,185 @@
+"""hsddp_gym/Pronking-v0: registration, both env checkers, seeding, the reward terms, the start state and constants
+against the pronk planner's, the pronking expert, and a small Minari dataset recorded in it."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+
+import hsddp_gym
+from hsddp_gym.envs.pronking import (
+    PRONK_DURATIONS,
+    PRONK_HEIGHT,
+    PRONK_PERIOD,
+    PRONK_SPEED_RANGE,
+    PronkingEnv,
+    contact_match_fraction,
+    pronk_start_state,
+    pronking_success,
+)
+
+ENV_ID = "hsddp_gym/Pronking-v0"
+HEADLESS_HUMAN_RENDER_WARNING = "render_mode='human' needs an interactive matplotlib backend"
+
+
+def test_registered_with_a_time_limit_and_no_vector_entry_point():
+    spec = gym.spec(ENV_ID)
+    assert spec.entry_point == "hsddp_gym.envs.pronking:PronkingEnv"
+    assert spec.max_episode_steps == hsddp_gym.PRONKING_MAX_EPISODE_STEPS == 1000
+    assert spec.vector_entry_point is None
+    env = gym.make(ENV_ID)
+    assert isinstance(env.unwrapped, PronkingEnv)
+    assert env.unwrapped.gait_period == pytest.approx(0.18)
+
+
+def test_gymnasium_env_checker_passes():
+    env = gym.make(ENV_ID)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gym_check_env(env.unwrapped)
+    unexpected = [str(w.message) for w in caught if HEADLESS_HUMAN_RENDER_WARNING not in str(w.message)]
+    assert not unexpected, unexpected
+
+
+def test_sb3_env_checker_passes():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(gym.make(ENV_ID).unwrapped, warn=True)
+
+
+def test_sync_vector_env_runs():
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync")
+    obs, info = envs.reset(seed=3)
+    assert obs.shape == (2, 17)
+    obs, reward, terminated, truncated, info = envs.step(np.zeros((2, 4), dtype=np.float32))
+    assert reward.shape == (2,) and "reward_contact_match" in info
+    envs.close()
+
+
+def rollout(seed: int, n: int = 60):
+    env = gym.make(ENV_ID)
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(0)
+    out = [obs]
+    for _ in range(n):
+        obs, reward, terminated, truncated, _ = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
+        out.append(np.append(obs, reward))
+        if terminated or truncated:
+            break
+    return out
+
+
+def test_same_seed_same_trajectory_and_different_seed_differs():
+    a, b, c = rollout(5), rollout(5), rollout(6)
+    assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_constants_and_start_state_match_the_pronk_planner():
+    from hsddp_gym.planners import motions
+
+    assert PRONK_DURATIONS == motions.PRONK_DURATIONS and PRONK_HEIGHT == motions.PRONK_HEIGHT
+    assert PRONK_SPEED_RANGE == motions.SPEED_RANGE and PRONK_PERIOD == pytest.approx(sum(motions.PRONK_DURATIONS))
+    robot = PronkingEnv().robot
+    for speed in (0.5, 1.0, 1.5):
+        x0 = motions.pronk_problem(1, speed)[0].x0
+        np.testing.assert_allclose(pronk_start_state(robot, speed), x0, atol=1e-12)
+    env = PronkingEnv(target_speed=1.25, reset_noise_scale=0.0)
+    env.reset(seed=0)
+    np.testing.assert_allclose(env.state, motions.pronk_problem(1, 1.25)[0].x0, atol=1e-12)
+    assert env.contact.all()  # both feet on the ground at the start
+
+
+def test_reward_terms_follow_the_documented_formula():
+    env = PronkingEnv()
+    obs, info = env.reset(seed=1)
+    assert info["reward_contact_match"] == 0.0 and "contact_match" in info
+    rng = np.random.default_rng(1)
+    seen = set()
+    for _ in range(80):
+        a = rng.uniform(-0.5, 0.5, 4).astype(np.float32)
+        obs, reward, terminated, truncated, info = env.step(a)
+        a64 = np.clip(a.astype(np.float64), -1, 1)
+        fwd = math.exp(-((info["x_velocity"] - 1.0) / 0.5) ** 2)
+        match = bool(info["contact"][0] == info["contact"][1])
+        healthy = info["reward_healthy"] > 0
+        assert info["contact_match"] == match
+        assert info["reward_contact_match"] == (0.5 if match and healthy else 0.0)
+        assert reward == pytest.approx(fwd - 0.1 * float(a64 @ a64) + 0.5 * healthy + 0.5 * (match and healthy))
+        seen.add(match)
+        if terminated:
+            break
+    assert seen == {True, False}  # both cases met
+    quiet = PronkingEnv(contact_match_reward=0.0)
+    quiet.reset(seed=1)
+    _, r, *_, info = quiet.step(np.zeros(4, dtype=np.float32))
+    assert info["reward_contact_match"] == 0.0
+    assert r == pytest.approx(info["reward_forward"] + info["reward_ctrl"] + info["reward_healthy"])
+
+
+@pytest.mark.parametrize("kwargs, message", [({"target_speed": 2.0}, "target_speed"),
+                                             ({"target_speed": True}, "target_speed"),
+                                             ({"contact_match_reward": -1.0}, "contact_match_reward"),
+                                             ({"start_at_pronk": 1}, "start_at_pronk")])
+def test_bad_arguments_raise_naming_them(kwargs, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        PronkingEnv(**kwargs)
+
+
+def test_success_criterion():
+    assert contact_match_fraction([[1, 1], [0, 0], [1, 0], [0, 0]]) == 0.75
+    assert pronking_success(False, 0.9, 0.85, 1.0)
+    assert not pronking_success(True, 1.0, 1.0, 1.0)
+    assert not pronking_success(False, 0.75, 1.0, 1.0)
+    assert not pronking_success(False, 1.0, 0.75, 1.0)
+
+
+def test_the_expert_pronks_for_a_second():
+    from hsddp_gym.workflows import make_policy
+
+    env = gym.make(ENV_ID, max_episode_steps=200)  # 1 s, about 5.5 pronk cycles
+    policy, options = make_policy("expert", env)
+    assert options is None
+    obs, _ = env.reset(seed=9999)
+    contacts, speeds, both_air = [], [], 0
+    for _ in range(200):
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        assert not terminated
+        contacts.append(info["contact"])
+        speeds.append(info["x_velocity"])
+        both_air += not info["contact"].any()
+    assert truncated
+    assert contact_match_fraction(contacts) >= 0.95
+    assert both_air >= 60  # flights: about 80 ms of each 180 ms cycle
+    assert abs(np.mean(speeds) - 1.0) <= 0.2
+    assert policy.tracker.loops >= 1  # the plan's cycles were repeated
+
+
+def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
+    pytest.importorskip("minari")
+    from hsddp_gym import cli
+    from hsddp_gym.datasets.storage import load_npz, minari_root, read_metadata
+
+    out = tmp_path / "pronk"
+    assert cli.main(["dataset", "--env", ENV_ID, "--policy", "expert", "--episodes", "2", "--max-episode-steps", "40",
+                     "--out", str(out), "--quiet"]) == 0
+    import minari
+
+    meta = read_metadata(out)
+    assert meta["dataset_id"] == "hsddp_gym/pronking/expert-v0" and meta["env_id"] == ENV_ID
+    assert meta["policy"]["class"].endswith("pronking.PronkingExpert")
+    with minari_root(out / "minari"):
+        ds = minari.load_dataset("hsddp_gym/pronking/expert-v0")
+        assert ds.total_episodes == 2 and ds.total_steps == 80
+        ep = next(ds.iterate_episodes())
+        assert ep.observations.shape == (41, 17) and "reward_contact_match" in ep.infos
+        assert ds.recover_environment().unwrapped.__class__.__name__ == "PronkingEnv"
+    assert load_npz(out).n_episodes == 2
