@@ -39,6 +39,11 @@ PD and the heuristic's Raibert-style hip shift.
 The double stance that ends the stop weights every velocity in its terminal cost (:data:`STOP_TERMINAL_WEIGHTS`), so
 the motion ends at rest.
 
+The backflip (:func:`plan_backflip`) has its own warm start (``_FlipWarmStart``: ground forces in the friction cone
+that build up the take-off's angular momentum, tucked legs in flight) and keeps, in its running cost, its joints in
+:data:`JOINT_LIMITS`, its knees and lifted feet off the ground (``ConstraintSpec.joint_limits``, ``knee_clearance``,
+``swing_foot_clearance``; the other motions have none of these terms).
+
 Joint ranges: the model defines none (``RobotParams`` has no joint limits and the authors' code switches its own
 off, original_code_facts §2), so :data:`JOINT_LIMITS` states the ranges used here; they are checked on every plan
 (:func:`motion_limits`), not enforced by a barrier.
@@ -127,6 +132,26 @@ BACKFLIP_PITCH = (-0.7, -1.5)
 """The backflip's pitch references at the end of the push and at take-off [rad] (negative: nose-up)."""
 BACKFLIP_PITCH_RATE = (-8.0, -12.0)
 """The backflip's pitch-rate references at the end of the push and at take-off [rad/s]."""
+BACKFLIP_MOMENTUM = (-1.2, -3.0)
+"""The backflip's warm start: the angular momentum about the centre of mass it builds up by the end of the push and
+at take-off [N m s] (negative: nose-up; 3 N m s turns the tucked robot, about 0.24 kg m^2, at about 12 rad/s)."""
+BACKFLIP_PUSH_VZ = 0.3
+"""The backflip's warm start: the vertical speed of the centre of mass it reaches by the end of the push [m/s] (at
+take-off: ``g T_f / 2``)."""
+BACKFLIP_TUCK = (0.3 * math.pi, -2.5)
+"""The backflip's warm start: the tucked leg ``(hip, knee)`` [rad] of the lifted front leg and of both legs over the
+first 60 % of the flight."""
+BACKFLIP_KNEE_CLEARANCE = 0.04
+"""The backflip keeps its knees this high above the ground [m] (``ConstraintSpec.knee_clearance``: the trunk pitched
+nose-up puts the back hip low, and a knee is no foot); its limits check the knees above the ground
+(:func:`motion_limits`)."""
+BACKFLIP_FOOT_CLEARANCE = 0.01
+"""The backflip keeps the feet of its lifted legs this high above the ground [m] (``swing_foot_clearance``: the back
+foot swings down as the trunk turns after take-off); its limits check them above ``-sqrt(SWITCHING_TOLERANCE)``
+(:func:`motion_limits`, the landings' tolerance)."""
+BACKFLIP_OPTIONS = SolverOptions(max_al_iterations=8, max_ddp_iterations=30)
+"""The backflip's solver options: AL + ReB, up to 30 DDP iterations per AL iteration (the default 10 stop short of
+the turn-over, the plan then ends at about -4 rad)."""
 
 SWITCHING_TOLERANCE = 1e-4
 """The paper's stop rule on the switching constraints, ``sum g^2 <= 1e-4`` [m^2] (``SolverOptions.al_tolerance``)."""
@@ -137,6 +162,10 @@ _RAIBERT = 0.2
 _KZ, _DZ = 3000.0, 60.0  # the warm start's double stance: trunk height spring [N/m] and damper [N s/m]
 _KV = 5.0  # speed feedback [1/s]
 _KPITCH, _DPITCH = 400.0, 40.0  # pitch PD [1/s^2], [1/s]
+_FLIP_KL, _FLIP_KV = 30.0, 15.0  # the flip's push: angular momentum [1/s] and vertical / forward speed [1/s] feedback
+_FLIP_KP, _FLIP_KD = 60.0, 2.0  # the flip's leg PD [N m/rad], [N m s/rad]
+_FLIP_WEIGHTS = (0.1, 1.0, 10.0)  # the flip's push: weights of the (f_x, f_z, moment) rows, single stance
+_FLIP_TUCK_FRACTION = 0.6  # the flip's flight: tucked legs over this fraction, then the touchdown posture
 
 
 @dataclasses.dataclass(frozen=True)
@@ -311,13 +340,18 @@ def bound_phases(speeds, params: RobotParams | None = None, durations=PAPER_BOUN
 
 
 def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
-                   dynamics: HybridDynamics | None = None, terrain: Terrain | None = None) -> HybridProblem:
+                   dynamics: HybridDynamics | None = None, terrain: Terrain | None = None,
+                   joint_limits=None, knee_clearance: float | None = None,
+                   swing_foot_clearance: float | None = None) -> HybridProblem:
     """The hybrid problem of a motion: one phase per :class:`MotionPhase`, the bound's weights per mode
     (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`: ``Q``, ``R``, ``S``, ``Q_f``) with the phase's
     references (running = end reference), the robot's torque limit and friction, ``x0 (14,)``, ``final_mode`` the
     mode entered after the last phase (a touchdown there keeps its switching constraint); ``terrain`` the ground
     under the feet (:class:`~hsddp_gym.core.terrain.Terrain`, None: flat), whose height under a landing foot its
-    switching constraint measures from (``g = foot_z - h(foot_x)``)."""
+    switching constraint measures from (``g = foot_z - h(foot_x)``); ``joint_limits`` None (no joint-range term, the
+    bound's problem) or the ranges of ``ConstraintSpec.joint_limits`` (e.g. :data:`JOINT_LIMITS`), penalized in the
+    running cost; ``knee_clearance`` and ``swing_foot_clearance`` None (unconstrained) or the heights [m] the knees
+    and the feet of the legs not in stance are kept above (``ConstraintSpec``, penalized in the running cost)."""
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
     schedule = ModeSchedule([p.mode for p in phases], [p.duration for p in phases], final_mode=final_mode)
@@ -328,7 +362,8 @@ def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
         qf = base.qf if p.qf is None else check_array(p.qf, (NX,), "MotionPhase.qf").copy()
         costs.append(dataclasses.replace(base, x_ref=p.x_final.copy(), x_final=p.x_final.copy(),
                                          grf_ref=np.asarray(p.grf_ref, dtype=np.float64).copy(), qf=qf))
-    constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
+    constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction, joint_limits=joint_limits,
+                                 knee_clearance=knee_clearance, swing_foot_clearance=swing_foot_clearance)
     return HybridProblem(dynamics, schedule, costs, x0, constraints, terrain=check_terrain(terrain))
 
 
@@ -506,7 +541,9 @@ def backflip_problem(dynamics: HybridDynamics | None = None) -> tuple[HybridProb
               MotionPhase(Mode.FLIGHT, t_fl, x_land, np.zeros(NGRF), 1.0, "flip"),
               MotionPhase(Mode.DOUBLE_STANCE, t_land, x_rest, _double_grf(params, 1.0), 1.0, "stand",
                           qf=STOP_TERMINAL_WEIGHTS)]
-    return motion_problem(phases, stand_reference(params), Mode.DOUBLE_STANCE, dynamics), phases
+    return motion_problem(phases, stand_reference(params), Mode.DOUBLE_STANCE, dynamics,
+                          joint_limits=JOINT_LIMITS, knee_clearance=BACKFLIP_KNEE_CLEARANCE,
+                          swing_foot_clearance=BACKFLIP_FOOT_CLEARANCE), phases
 
 
 def plan_backflip(options: SolverOptions | None = None, callbacks: list[Callback] | None = None,
@@ -519,15 +556,27 @@ def plan_backflip(options: SolverOptions | None = None, callbacks: list[Callback
     ends at rest. References: end of the push, both feet under the hips, pitch :data:`BACKFLIP_PITCH` ``[0]`` and
     pitch rate :data:`BACKFLIP_PITCH_RATE` ``[0]``; take-off, the back foot under its hip, pitch ``[1]``, pitch rate
     ``[1]``, vertical speed ``g T_f / 2``; touchdown, the standing posture at pitch ``-2 pi``, ``-g T_f / 2``; rest,
-    standing at ``-2 pi``, every velocity 0 (:data:`STOP_TERMINAL_WEIGHTS`).
+    standing at ``-2 pi``, every velocity 0 (:data:`STOP_TERMINAL_WEIGHTS`). The running cost also keeps the joints in
+    :data:`JOINT_LIMITS`, the knees :data:`BACKFLIP_KNEE_CLEARANCE` and the lifted feet :data:`BACKFLIP_FOOT_CLEARANCE`
+    above the ground (quadratic penalties, ``ConstraintSpec``). Warm start: ``_FlipWarmStart`` (see
+    :func:`motion_warm_start`).
+
+    Args:
+        options: solver options (default :data:`BACKFLIP_OPTIONS`: AL + ReB, up to 30 DDP iterations per AL
+            iteration).
+    Returns:
+        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s; ``limits`` adds
+        ``min_knee_height`` and ``min_swing_foot_height`` (:func:`motion_limits`).
     """
     problem, phases = backflip_problem()
-    return _plan("backflip", problem, phases, options, callbacks, verbose, 0.0)
+    return _plan("backflip", problem, phases, BACKFLIP_OPTIONS if options is None else options, callbacks, verbose,
+                 0.0)
 
 
 # --------------------------------------------------------------------------------------------------- warm start
 def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Trajectory:
-    """Roll out the heuristic controller of the module docstring through ``problem``'s schedule.
+    """Roll out the heuristic controller of the module docstring through ``problem``'s schedule (a flip's phases,
+    ``MotionPhase.gait == "flip"``, and the landing after them: the flip's controller, ``_FlipWarmStart``).
 
     Returns:
         A :class:`~hsddp_gym.core.rollout.Trajectory` (``X (N+1, 14)``, ``U (N, 4)``, ...).
@@ -536,6 +585,7 @@ def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Traj
     """
     robot = problem.dynamics.robot
     cache: dict = {}
+    flip = _FlipWarmStart(problem, phases) if any(p.gait == "flip" for p in phases) else None
 
     def heuristic(p: MotionPhase) -> HeuristicBoundingController:
         speed = float(p.x_final[IVX])
@@ -545,10 +595,10 @@ def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Traj
 
     def controller(x, mode, phase, k):
         p = phases[phase]
+        if flip is not None:
+            return flip(x, mode, phase, k)
         if mode == Mode.DOUBLE_STANCE:
             return _double_stance_torque(robot, x, p)
-        if p.gait == "flip" and mode == Mode.BACK_STANCE:
-            return _flip_push_torque(robot, x, p)
         if mode == Mode.FLIGHT and len(problem.schedule.touchdown_feet(phase)) == 1:
             return heuristic(p).torque(x, mode, problem.schedule.touchdown_feet(phase)[0])
         if mode == Mode.FLIGHT:
@@ -578,8 +628,7 @@ def _double_stance_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
     turns = round((q[IPITCH] - pitch_ref) / (2.0 * math.pi))
     if turns != 0:  # the reference posture a whole turn away (a flip's landing): the nearest one
         pitch_ref += 2.0 * math.pi * turns
-    rate = x[NQ + IPITCH] - float(p.x_final[NQ + IPITCH]) if p.gait == "flip" else x[NQ + IPITCH]
-    moment = inertia * (-_KPITCH * (q[IPITCH] - pitch_ref) - _DPITCH * rate)
+    moment = inertia * (-_KPITCH * (q[IPITCH] - pitch_ref) - _DPITCH * x[NQ + IPITCH])
     r = robot.foot_positions(q) - q[[0, IZ]]  # (2, 2) feet relative to the trunk origin
     # sum fz = fz_total; sum (r_z f_x - r_x f_z) = moment (about +y, positive nose-down)
     A = np.array([[1.0, 1.0], [-r[FRONT, 0], -r[BACK, 0]]])
@@ -595,25 +644,111 @@ def _double_stance_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
     return u
 
 
-def _flip_push_torque(robot, x: np.ndarray, p: MotionPhase) -> np.ndarray:
-    """The warm start's take-off back stance of a flip: the back foot's ground force ``(f_x, f_z)`` that gives the
-    trunk the vertical force ``p.support m g`` and the pitch moment of a PD to ``p``'s reference pitch and pitch rate,
-    clipped to the friction cone (``u = -J^T f``); the front leg tracks its reference joint angles with a PD."""
-    params = robot.params
-    q = x[:NQ]
-    m = params.total_mass
-    inertia = params.trunk.inertia_yy + 2 * (params.thigh.mass + params.shank.mass) * params.hip_offset ** 2
-    moment = inertia * (-_KPITCH * (q[IPITCH] - float(p.x_final[IPITCH]))
-                        - _DPITCH * (x[NQ + IPITCH] - float(p.x_final[NQ + IPITCH])))
-    r = robot.foot_positions(q)[BACK] - q[[0, IZ]]
-    f_z = m * params.gravity * p.support
-    f_x = (moment + r[0] * f_z) / r[1] if abs(r[1]) > 1e-6 else 0.0  # r_z f_x - r_x f_z = moment
-    f_x = float(np.clip(f_x, -params.friction * f_z, params.friction * f_z))
-    u = np.zeros(NU)
-    joints = list(FOOT_JOINTS[BACK])
-    u[[j - 3 for j in joints]] = -(robot.foot_jacobian(q, BACK)[:, joints].T @ np.array([f_x, f_z]))
-    u[:2] = _FLIGHT_KP[:2] * (p.x_final[3:5] - q[3:5]) - _FLIGHT_KD[:2] * x[NQ + 3:NQ + 5]
-    return u
+def _nonnegative_least_squares(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``argmin |A z - b|`` over ``z >= 0`` for a few columns (``A (m, n)``, n <= 4): the best of the least-squares
+    solutions on every subset of the columns that is nonnegative (exact for so few unknowns)."""
+    n = A.shape[1]
+    best, z_best = np.inf, np.zeros(n)
+    for mask in range(1, 2 ** n):
+        cols = [i for i in range(n) if mask >> i & 1]
+        sol = np.linalg.lstsq(A[:, cols], b, rcond=None)[0]
+        if np.any(sol < 0.0):
+            continue
+        z = np.zeros(n)
+        z[cols] = sol
+        r = float(np.sum((A @ z - b) ** 2))
+        if r < best:
+            best, z_best = r, z
+    return z_best
+
+
+class _FlipWarmStart:
+    """The warm start of a flip (``MotionPhase.gait == "flip"`` phases: a push in double stance, a take-off back
+    stance, a flight; then the landing's double stance).
+
+    * Push and take-off: the ground forces of the stance feet, nonnegative combinations of the friction cone's edges
+      (``f_z >= 0``, ``|f_x| <= mu f_z`` by construction), that best give the centre of mass the vertical force of a
+      vertical speed ramped from 0 to :data:`BACKFLIP_PUSH_VZ` over the push and on to ``g T_f / 2`` at take-off,
+      no forward speed, and the moment about it of an angular momentum ramped (quadratically) to
+      :data:`BACKFLIP_MOMENTUM` ``[0]`` over the push and (linearly) to ``[1]`` at take-off, each with feed-forward
+      and feedback; ``u = -J^T f`` per stance leg; the lifted front leg tucks (:data:`BACKFLIP_TUCK`, joint PD).
+    * Flight: both legs tucked, then (after ``_FLIP_TUCK_FRACTION`` of it) the touchdown posture (joint PD).
+    * Landing: the double stance's ground-force controller (:func:`_double_stance_torque`), pitch to the nearest
+      whole turn.
+
+    Every torque clipped to the torque limit.
+    """
+
+    def __init__(self, problem: HybridProblem, phases: list[MotionPhase]) -> None:
+        import pinocchio as pin
+
+        self._pin = pin
+        self.robot = problem.dynamics.robot
+        self.params = self.robot.params
+        self.data = self.robot.model.createData()
+        self.phases = phases
+        self.dt = problem.dt
+        d = problem.schedule.durations
+        self.start = np.concatenate([[0.0], np.cumsum(d)])
+        flips = [i for i, p in enumerate(phases) if p.gait == "flip"]
+        if len(flips) != 3 or [phases[i].mode for i in flips] != [Mode.DOUBLE_STANCE, Mode.BACK_STANCE, Mode.FLIGHT]:
+            raise ValueError("a flip's phases must be a double stance, a back stance and a flight")
+        self.push, self.takeoff, self.flight = flips
+        self.vz_off = self.params.gravity * float(d[self.flight]) / 2.0
+
+    def centroid(self, x: np.ndarray) -> tuple[np.ndarray, float, float, float]:
+        """Centre of mass ``(x, z)`` [m], its velocity ``vx, vz`` [m/s] and the angular momentum about it [N m s]."""
+        pin, model, data = self._pin, self.robot.model, self.data
+        q, v = x[:NQ], x[NQ:]
+        pin.ccrba(model, data, q, v)
+        h = data.Ag @ v
+        m = self.params.total_mass
+        return pin.centerOfMass(model, data, q)[[0, 2]], h[0] / m, h[2] / m, h[4]
+
+    def stance(self, x: np.ndarray, t: float, feet: tuple) -> np.ndarray:
+        c, vx, vz, momentum = self.centroid(x)
+        t0, t1, t2 = self.start[self.push], self.start[self.takeoff], self.start[self.takeoff + 1]
+        (l1, l2), v1 = BACKFLIP_MOMENTUM, BACKFLIP_PUSH_VZ
+        if t < t1:
+            s = (t - t0) / (t1 - t0)
+            vz_ref, az = v1 * s, v1 / (t1 - t0)
+            l_ref, dl = l1 * s * s, 2.0 * l1 * s / (t1 - t0)
+        else:
+            s = min((t - t1) / (t2 - t1), 1.0)
+            vz_ref, az = v1 + (self.vz_off - v1) * s, (self.vz_off - v1) / (t2 - t1)
+            l_ref, dl = l1 + (l2 - l1) * s, (l2 - l1) / (t2 - t1)
+        m, mu = self.params.total_mass, self.params.friction
+        target = np.array([-m * _FLIP_KV * vx, m * (self.params.gravity + az + _FLIP_KV * (vz_ref - vz)),
+                           dl + _FLIP_KL * (l_ref - momentum)])
+        q = x[:NQ]
+        feet_xz = self.robot.foot_positions(q)
+        cols = []  # per foot, the cone's edges (mu, 1) and (-mu, 1): force and moment about the centre of mass
+        for foot in feet:
+            r = feet_xz[foot] - c
+            cols += [[e, 1.0, r[1] * e - r[0]] for e in (mu, -mu)]
+        w = np.array(_FLIP_WEIGHTS if len(feet) == 1 else (1.0,) + _FLIP_WEIGHTS[1:])
+        z = _nonnegative_least_squares(w[:, None] * np.array(cols).T, w * target)
+        u = np.zeros(NU)
+        for i, foot in enumerate(feet):
+            f = np.array([mu * (z[2 * i] - z[2 * i + 1]), z[2 * i] + z[2 * i + 1]])
+            joints = list(FOOT_JOINTS[foot])
+            u[[j - 3 for j in joints]] = -(self.robot.foot_jacobian(q, foot)[:, joints].T @ f)
+        return u
+
+    def __call__(self, x: np.ndarray, mode: Mode, phase: int, k: int) -> np.ndarray:
+        t = k * self.dt
+        tuck = np.array(BACKFLIP_TUCK)
+        if phase in (self.push, self.takeoff):
+            u = self.stance(x, t, (FRONT, BACK) if mode == Mode.DOUBLE_STANCE else (BACK,))
+            if mode == Mode.BACK_STANCE:
+                u[:2] = _FLIP_KP * (tuck - x[3:5]) - _FLIP_KD * x[NQ + 3:NQ + 5]
+        elif phase == self.flight:
+            tf = (t - self.start[phase]) / (self.start[phase + 1] - self.start[phase])
+            target = np.tile(tuck, 2) if tf < _FLIP_TUCK_FRACTION else self.phases[phase].x_final[3:NQ]
+            u = _FLIP_KP * (target - x[3:NQ]) - _FLIP_KD * x[NQ + 3:]
+        else:
+            u = _double_stance_torque(self.robot, x, self.phases[phase])
+        return np.clip(u, -self.params.torque_limit, self.params.torque_limit)
 
 
 # --------------------------------------------------------------------------------------------------- limits
@@ -629,7 +764,9 @@ def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: n
     ``stance_knots_over_gap`` (knots at which a stance foot is over a gap, check ``gap``: 0), ``min_terrain_clearance``
     [m] (the lowest foot above the solid terrain under it over every knot, check ``terrain_clearance``:
     ``>= -sqrt(SWITCHING_TOLERANCE)``, no foot through a box), ``landing_feet_x`` [m] (x of every landing foot) and
-    ``terrain`` (its description).
+    ``terrain`` (its description). On a problem that keeps its knees off the ground
+    (``problem.constraints.knee_clearance``, the backflip), also ``min_knee_height`` [m] (the lowest knee over every
+    knot, check ``knee_clearance``: >= 0).
     """
     s = trajectory_summary(problem, X, X_pre, U, GRF)
     hips = X[:, [3, 5]]
@@ -656,6 +793,14 @@ def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: n
         "knee_range": k_lo <= out["knee_range"][0] and out["knee_range"][1] <= k_hi,
         "switching": out["switching_violation"] <= SWITCHING_TOLERANCE,
     }
+    if problem.constraints.knee_clearance is not None:  # a problem that keeps its knees and lifted feet off the ground
+        robot = problem.dynamics.robot
+        points = np.array([robot.link_points(X[k, :NQ]) for k in range(problem.n_knots)])  # (N, 2, 4, 2)
+        swing = np.where(problem.stance, np.inf, points[:, :, 2, 1])
+        out["min_knee_height"] = float(points[:, :, 1, 1].min())
+        out["min_swing_foot_height"] = float(swing.min())
+        checks["knee_clearance"] = out["min_knee_height"] >= 0.0
+        checks["swing_foot_clearance"] = out["min_swing_foot_height"] >= -math.sqrt(SWITCHING_TOLERANCE)
     terrain = problem.terrain
     if terrain is not None and not terrain.is_flat:
         # every foot at every knot [m]: the stance feet off any gap, no foot below the terrain under it
@@ -796,4 +941,4 @@ __all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LI
            "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
            "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
            "plan_transition", "plan_motion", "JUMPS", "GAP_WIDTH", "BOX_HEIGHT", "JUMP_FLIGHT", "jump_terrain",
-           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip"]
+           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip", "BACKFLIP_OPTIONS"]

@@ -1,7 +1,8 @@
 """Terrain for the planner (hsddp_gym.core.terrain) and the jumps of hsddp_gym.planners.motions: the terrain's heights
 and argument checks, flat terrain leaves a problem bit-identical, the switching constraint measures from the terrain,
-the gap jump and the box jump re-plan with AL + ReB and meet every limit, the gap landing is beyond the gap, and the
-backflip's problem asks for a turn of -2 pi."""
+the gap jump and the box jump re-plan with AL + ReB and meet every limit, the gap landing is beyond the gap, the
+backflip's problem asks for a turn of -2 pi, and its plan turns by -2 pi, lands and ends at rest within every limit
+(joint ranges, knees and lifted feet above the ground included)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from hsddp_gym.core.terrain import GAP_DEPTH, Terrain
 from hsddp_gym.planners.motions import (
     BOX_HEIGHT,
     GAP_WIDTH,
+    JOINT_LIMITS,
     JUMP_FLIGHT,
     JUMPS,
     MOTIONS,
@@ -22,11 +24,12 @@ from hsddp_gym.planners.motions import (
     jump_problem,
     jump_terrain,
     motion_limits,
+    plan_backflip,
     plan_jump,
 )
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import Objective
-from hsddp_gym.planners.optimizer.problem import HybridProblem
+from hsddp_gym.planners.optimizer.problem import ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 
 
@@ -214,3 +217,52 @@ def test_the_backflips_problem_asks_for_a_turn_of_minus_two_pi():
     assert pr.XF[1, NQ + IPITCH] < 0  # nose-up rotation at take-off (negative pitch is nose-up)
     # the landing reference is the standing posture a whole turn on: the feet on the ground
     assert np.allclose(pr.dynamics.robot.foot_heights(pr.XF[3, :NQ]), 0.0, atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def backflip():
+    return plan_backflip()
+
+
+def test_the_backflip_turns_over_and_meets_every_limit(backflip):
+    pr, X, U, GRF = backflip.problem, backflip.X, backflip.U, backflip.GRF
+    assert backflip.solution.converged, backflip.summary["status"]
+    lim = backflip.summary["limits"]
+    assert lim["ok"] and not lim["violated"], lim
+    # torque, normal force, friction cone on the returned plan
+    assert np.max(np.abs(U)) <= pr.constraints.torque_limit + 1e-9
+    st = pr.stance
+    fz, fx = GRF[:, 1::2], GRF[:, 0::2]
+    assert np.all(fz[st] >= 0.0) and np.all(np.abs(fx[st]) <= pr.constraints.friction * fz[st] + 1e-9)
+    # the stated joint ranges, both legs, every knot; knees above the ground, lifted feet not below it
+    (h_lo, h_hi), (k_lo, k_hi) = JOINT_LIMITS
+    assert h_lo <= X[:, [3, 5]].min() and X[:, [3, 5]].max() <= h_hi
+    assert k_lo <= X[:, [4, 6]].min() and X[:, [4, 6]].max() <= k_hi
+    assert lim["min_knee_height"] >= 0.0 and lim["min_swing_foot_height"] >= -0.01
+    # both feet land together (sum g^2 within the paper's stop rule)
+    assert lim["switching_violation"] <= 1e-4 and lim["touchdowns"] == 2
+    # the turn: through -2 pi in flight (monotonically nose-up from the push to the landing), at rest at the end
+    start = backflip.solution.phase_start
+    pitch = X[:, IPITCH]
+    assert pitch[start[2]] > -math.pi / 2 and pitch[start[3]] < -1.75 * math.pi  # take-off, touchdown
+    assert np.all(np.diff(pitch[start[1]:start[3] + 1]) < 0)
+    assert pitch[-1] == pytest.approx(-2 * math.pi, abs=0.05)
+    assert np.max(np.abs(X[-1, NQ:])) < 0.2
+    assert backflip.summary["final_mode"] == "DS"
+
+
+def test_joint_and_clearance_terms_are_off_by_default_and_penalize_only_outside():
+    assert ConstraintSpec().joint_limits is None and ConstraintSpec().knee_clearance is None
+    pr, _ = backflip_problem()
+    assert pr.constraints.joint_limits == JOINT_LIMITS and pr.constraints.knee_clearance > 0
+    obj = Objective(pr)
+    n = pr.n_knots
+    X = np.tile(pr.XF[3], (n + 1, 1))  # standing at -2 pi: inside every range, knees high, feet on the ground
+    d, _ = obj._clearance_deficit(X)
+    assert np.all(obj._joint_excess(X) == 0.0) and np.all(d[:, :2] == 0.0)
+    # a foot on the ground is short of the lifted feet's clearance only where its leg is not in stance
+    assert np.all(d[:, 2:][pr.stance] == 0.0) and np.all(d[:, 2:][~pr.stance] < 0.0)
+    X[:, 5] = JOINT_LIMITS[0][1] + 0.2  # a back hip beyond its range
+    assert np.all(obj._joint_excess(X)[:, 2] > 0.2)
+    with pytest.raises(ValueError, match="joint_limits"):
+        ConstraintSpec(joint_limits=((0.0, 0.1), (-1.0, 0.0)))

@@ -79,7 +79,8 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
             if abs(z_td) > 2e-3:
                 ax.plot([x_td - 0.06, x_td + 0.06], [z_td, z_td], "r-", lw=2)
         ax.set_xlim(xmin, xmax)
-        ax.set_ylim(-0.1, 0.55)
+        top = max(float(robot.link_points(X[k, :7])[:, :, 1].max()) for k in idx)  # a flip's apex: above 0.5 m
+        ax.set_ylim(-0.1, max(0.55, top + 0.05))
         ax.set_aspect("equal")
         ax.set_title(label, fontsize=10, loc="left")
         ax.set_ylabel("z [m]")

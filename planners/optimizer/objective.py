@@ -111,6 +111,11 @@ class Objective:
         # the terrain of the switching constraints; None for flat ground (g = foot_z, the flat problems' path)
         terrain = pr.terrain
         self._terrain = None if terrain is None or terrain.is_flat else terrain
+        # the joint-range and ground-clearance penalties of the running cost (ConstraintSpec.joint_limits,
+        # knee_clearance, swing_foot_clearance; None: none, the paper's problem). They are in evaluate() and
+        # derivatives(), not in running_rates() / task_running_gradients() (the STO's rates)
+        self._joint_bounds = pr.constraints.joint_bounds()
+        self._clearance = pr.constraints.knee_clearance is not None or pr.constraints.swing_foot_clearance is not None
 
     # --------------------------------------------------------------- switching constraints
     def switching_values(self, X_pre: np.ndarray) -> np.ndarray:
@@ -143,6 +148,12 @@ class Objective:
         """Objective of a trajectory (``X (N+1, 14)``, ``X_pre (n, 14)``, ``U (N, 4)``, ``GRF (N, 4)``)."""
         pr = self.problem
         running = float(self.h @ self.running_rates(X, U, GRF))
+        if self._joint_bounds is not None:
+            d = self._joint_excess(X)
+            running += float(self.problem.constraints.joint_limit_weight * (self.h @ np.sum(d * d, axis=1)))
+        if self._clearance:
+            d = self._clearance_deficit(X)[0]
+            running += float(self.problem.constraints.clearance_weight * (self.h @ np.sum(d * d, axis=1)))
         dxf = X_pre - pr.XF
         terminal = 0.5 * float(np.einsum("ij,ij->", dxf * pr.QF, dxf))
         al = 0.0
@@ -162,6 +173,44 @@ class Objective:
         dy = GRF - pr.YR
         return (np.einsum("ij,ij->i", dx * pr.Qd, dx) + np.einsum("ij,ij->i", U * pr.Rd, U)
                 + np.einsum("ij,ij->i", dy * pr.Sd, dy))
+
+    def _joint_excess(self, X: np.ndarray) -> np.ndarray:
+        """``d (N, 4)``: how far each joint ``q[3:7]`` is above its penalty bound (> 0) or below (< 0), 0 inside."""
+        lo, hi = self._joint_bounds
+        q = X[:self.problem.n_knots, 3:7]
+        return np.maximum(q - hi, 0.0) + np.minimum(q - lo, 0.0)
+
+    def _clearance_deficit(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``d (N, 4)``: how far the front knee, back knee, front foot, back foot are below their clearance
+        (``knee_clearance``; ``swing_foot_clearance`` for a foot not in stance) above the flat ground (< 0; 0 above
+        it, or without that clearance, or a stance foot), and ``J (N, 4, 4)`` the derivatives of their heights with
+        respect to ``(z, pitch, hip, knee)`` of their leg.
+
+        Heights: knee ``z - s l_h sin(pitch) - l_t cos(pitch + hip)``, foot that ``- l_s cos(pitch + hip + knee)``,
+        ``s = +1`` front, ``-1`` back (positive pitch nose-down, positive hip swings the thigh backward; ``l_h`` the hip
+        offset, ``l_t``, ``l_s`` the thigh and shank lengths)."""
+        params = self.robot.params
+        pr = self.problem
+        n = pr.n_knots
+        z, pitch = X[:n, 1], X[:n, 2]
+        d = np.zeros((n, 4))
+        J = np.zeros((n, 4, 4))
+        knee_c, foot_c = pr.constraints.knee_clearance, pr.constraints.swing_foot_clearance
+        for foot, (sign, hip) in enumerate(((1.0, 3), (-1.0, 5))):
+            a = pitch + X[:n, hip]
+            b = a + X[:n, hip + 1]
+            knee = z - sign * params.hip_offset * np.sin(pitch) - params.thigh.length * np.cos(a)
+            J[:, foot, 0] = J[:, 2 + foot, 0] = 1.0
+            J[:, foot, 2] = params.thigh.length * np.sin(a)
+            J[:, foot, 1] = -sign * params.hip_offset * np.cos(pitch) + J[:, foot, 2]
+            J[:, 2 + foot, 3] = params.shank.length * np.sin(b)
+            J[:, 2 + foot, 1:3] = J[:, foot, 1:3] + J[:, 2 + foot, 3:4]
+            if knee_c is not None:
+                d[:, foot] = np.minimum(knee - knee_c, 0.0)
+            if foot_c is not None:
+                height = knee - params.shank.length * np.cos(b)
+                d[:, 2 + foot] = np.where(pr.stance[:, foot], 0.0, np.minimum(height - foot_c, 0.0))
+        return d, J
 
     def _barrier_value(self, U, GRF, cs):
         """``eps_torque sum B(torque rows) + eps_grf sum mask B(force rows)`` for ``U``, ``GRF`` (N, 4)."""
@@ -220,6 +269,23 @@ class Objective:
         l_xx += np.matmul(gxT, WGx, out=self._hxx)  # a 0.3 MB temporary per call costs as much as the product
         np.matmul(grf_u.transpose(0, 2, 1), WGx, out=l_ux)
         l_uu += grf_u.transpose(0, 2, 1) @ (W @ grf_u)
+        if self._joint_bounds is not None:  # the joint-range penalty: w d^2 per joint beyond its bound
+            d = self._joint_excess(X)
+            w2h = 2.0 * self.problem.constraints.joint_limit_weight * self.h[:, None]
+            l_x[:, 3:7] += w2h * d
+            idx = np.arange(3, 7)
+            l_xx[:, idx, idx] += w2h * (d != 0.0)
+        if self._clearance:  # the clearance penalty: w d^2 per knee / swing foot below it (Gauss-Newton)
+            d, J = self._clearance_deficit(X)
+            w2h = 2.0 * self.problem.constraints.clearance_weight * self.h
+            for point in range(4):
+                idx = np.array([1, 2, 3, 4]) + np.array([0, 0, 2, 2]) * (point % 2)
+                active = d[:, point] != 0.0
+                if not active.any():
+                    continue
+                Jp = J[:, point, :]
+                l_x[:, idx] += Jp * (w2h * d[:, point])[:, None]
+                l_xx[:, idx[:, None], idx[None, :]] += (Jp * (w2h * active)[:, None])[:, :, None] * Jp[:, None, :]
         # the augmented-Lagrangian term on the terminal costs
         if cs.use_al and pr.constraints.switching:
             w = (cs.sigma / 2.0) ** 2

@@ -146,15 +146,59 @@ class ConstraintSpec:
         torque_limit: |u_j| <= torque_limit (eq. 17e) [N m].
         friction: mu of the friction cone |f_x| <= mu f_z (eq. 17g); f_z >= 0 (eq. 17f) for stance feet.
         switching: enforce g_c(x^-) = 0 at every touchdown (eq. 17d).
+        joint_limits: None (default: no joint ranges, the paper's problem) or ``((hip_min, hip_max), (knee_min,
+            knee_max))`` [rad], both legs: the running cost then adds ``joint_limit_weight * d^2`` per joint, ``d``
+            [rad] how far the joint is beyond its range shrunk by ``joint_limit_margin`` (a one-sided quadratic
+            penalty, zero inside).
+        joint_limit_weight: [1/(rad^2 s)]. joint_limit_margin: [rad].
+        knee_clearance: None (default: knees unconstrained, the paper's problem) or a height [m]: the running cost
+            then adds ``clearance_weight * d^2`` per knee, ``d`` [m] how far the knee is below that height above the
+            flat ground (a one-sided quadratic penalty; a knee is no foot, the ground does not hold it).
+        swing_foot_clearance: None (default) or a height [m]: the same penalty on the feet of the legs not in stance
+            (0 keeps them out of the ground and lets a landing foot reach it).
+        clearance_weight: [1/(m^2 s)].
+
+    The penalties are part of the objective's value and derivatives (``Objective.evaluate``, ``derivatives``), not
+    of the running-cost rates the switching-time optimization uses (``Objective.running_rates``).
     """
 
     torque_limit: float = 33.0
     friction: float = 0.6
     switching: bool = True
+    joint_limits: tuple | None = None
+    joint_limit_weight: float = 1.0e6
+    joint_limit_margin: float = 0.1
+    knee_clearance: float | None = None
+    swing_foot_clearance: float | None = None
+    clearance_weight: float = 1.0e6
 
     def __post_init__(self) -> None:
         check_positive(self.torque_limit, "torque_limit")
         check_positive(self.friction, "friction")
+        check_positive(self.joint_limit_weight, "joint_limit_weight")
+        check_positive(self.clearance_weight, "clearance_weight")
+        for name in ("knee_clearance", "swing_foot_clearance"):
+            value = getattr(self, name)
+            if value is not None and not np.isfinite(value):
+                raise ValueError(f"{name} must be None or finite, got {value!r}")
+        if not (np.isfinite(self.joint_limit_margin) and self.joint_limit_margin >= 0):
+            raise ValueError(f"joint_limit_margin must be finite and >= 0, got {self.joint_limit_margin!r}")
+        if self.joint_limits is not None:
+            lim = np.asarray(self.joint_limits, dtype=np.float64)
+            if lim.shape != (2, 2) or not np.all(np.isfinite(lim)) or np.any(
+                    lim[:, 1] - lim[:, 0] <= 2 * self.joint_limit_margin):
+                raise ValueError("joint_limits must be ((hip_min, hip_max), (knee_min, knee_max)) [rad], finite, each "
+                                 f"range wider than 2 joint_limit_margin, got {self.joint_limits!r}")
+            object.__setattr__(self, "joint_limits", tuple(tuple(float(v) for v in row) for row in lim))
+
+    def joint_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(lo (4,), hi (4,))`` the penalty's bounds of the joints ``q[3:7]`` (the ranges shrunk by the margin),
+        or None without ``joint_limits``."""
+        if self.joint_limits is None:
+            return None
+        (h_lo, h_hi), (k_lo, k_hi) = self.joint_limits
+        m = self.joint_limit_margin
+        return np.array([h_lo, k_lo, h_lo, k_lo]) + m, np.array([h_hi, k_hi, h_hi, k_hi]) - m
 
 
 def _reference_foot(schedule: ModeSchedule, phase: int) -> int | None:
