@@ -129,7 +129,16 @@ def test_state_filter_reduces_velocity_noise():
     est_err = est[:, 7:] - true[:, 7:]
     assert 0.08 < raw_err.std() < 0.12
     assert est_err[:, :3].std() < 0.7 * raw_err[:, :3].std()  # trunk velocities (measured: about 0.5)
-    assert est_err.std() < 0.9 * raw_err.std()  # all (the light legs' rates are filtered less)
+    assert np.median(np.abs(est_err)) < 0.9 * np.median(np.abs(raw_err))  # all (the light legs' rates: less)
+    # a leg impact the model mispredicts (a foot within a millimetre of the ground is in contact in one of robot and
+    # model but not the other) is one observation beyond the gate: with filter_restart_steps = 2 the estimate keeps
+    # the prior for that step and is off by rad/s on that leg for that step only
+    spikes = np.flatnonzero(np.abs(est_err).max(axis=1) > 1.0)
+    assert len(spikes) <= 3 and not np.any(np.diff(spikes) == 1)
+    # restarting at the first observation beyond the gate, the estimate has no such step
+    est1, true1, raw1 = _run(env, MPCPolicy.from_env(env, options=MPCOptions(filter_restart_steps=1)), 120, seed=503)
+    err1 = est1[:, 7:] - true1[:, 7:]
+    assert err1.std() < 0.9 * (raw1[:, layout.qvel] - true1[:, 7:]).std()
 
 
 def test_kalman_gain_is_the_riccati_fixed_point_and_follows_the_noise_model():

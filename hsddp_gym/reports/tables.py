@@ -445,6 +445,57 @@ def robustness_simulators(store: Store) -> str:
                       source_line(store, "robustness/simulators")])
 
 
+CONTACT_RECORDS = ("robustness/contact_models", "robustness/contact_models_late_landing_only",
+                   "robustness/contact_models_filter_only")
+"""The MPC, the MPC before both rules and the heuristic; then the MPC with one of the two rules each."""
+CONTACT_LABELS = {"mpc": "MPC", "mpc-before": "MPC before (neither rule)", "heuristic": "heuristic",
+                  "mpc-late-landing-only": "late landing only", "mpc-filter-only": "persistent restart only"}
+
+
+def robustness_contact_models(store: Store) -> str:
+    """Falls and mean time to fall per contact condition of the MuJoCo twin: the MPC, the MPC before its two rules
+    for contacts it was not built on (``touchdown_height=None, filter_restart_steps=1``), each rule alone, and the
+    heuristic (``robustness/contact_models`` and the records of the single rules)."""
+    main = store.data(CONTACT_RECORDS[0])
+    conds = list(main["conditions"])
+    columns = {}
+    for rid in CONTACT_RECORDS:
+        d = store.data(rid)
+        if d["seeds"] != main["seeds"] or list(d["conditions"]) != conds:
+            raise ValueError(f"{rid}: seeds or conditions differ from {CONTACT_RECORDS[0]}'s")
+        columns.update(d["results"])
+    order = [p for p in ("mpc", "mpc-before", "mpc-late-landing-only", "mpc-filter-only", "heuristic")
+             if p in columns]
+    order += [p for p in columns if p not in order]
+    header = ["condition"] + [CONTACT_LABELS.get(p, p) for p in order]
+    rows = []
+    for c in conds:
+        row = [f"`{c}`"]
+        for p in order:
+            cell = columns[p].get(c)
+            if cell is None:
+                row.append(NA)
+                continue
+            text = f"**{_falls(cell)}**"
+            if cell["falls"]:
+                text += f" ({cell['mean_fall_time_s']:.2f} s)"
+            row.append(text)
+        rows.append(row)
+    totals = ["**falls, total**"]
+    for p in order:
+        cells = [columns[p][c] for c in conds if c in columns[p]]
+        totals.append(f"**{sum(x['falls'] for x in cells)}/{sum(x['episodes'] for x in cells)}**")
+    rows.append(totals)
+    rtf = [main["results"]["mpc"][c]["real_time_factor"] for c in conds] if "mpc" in main["results"] else []
+    seeds = main["seeds"]
+    note = (f"Cells: falls / episodes (mean time to fall). Seeds {seeds[0]}-{seeds[-1]}, one 1000-step episode (5 s) "
+            "per seed and condition, in the MuJoCo twin.")
+    if rtf:
+        note += (f" The MPC's real-time factor per condition: {min(rtf):.1f}-{max(rtf):.1f} (two episodes at a time "
+                 f"on {_machine_note(store, CONTACT_RECORDS[0])}).")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, *CONTACT_RECORDS)])
+
+
 # -- policies and learning -----------------------------------------------------------------------------------------
 
 def _suite_total(cells: dict) -> int:
@@ -628,6 +679,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "learning/imitation": learning_imitation,
     "motions/summary": motions_summary,
     "tasks/pronking": tasks_pronking,
+    "robustness/contact_models": robustness_contact_models,
 }
 """``{table id: renderer}``."""
 

@@ -9,10 +9,10 @@
 * :class:`StateFilter`: a Kalman filter: the estimate is propagated one control step with the model and the
   executed torques, then corrected toward the measurement pair by pair (each coordinate's position and velocity)
   with the Kalman gain of a stated noise model, its covariance carried from step to step (the steady-state gain of
-  :func:`steady_state_kalman_gain` a few steps after a start); an innovation far beyond that noise (a push,
-  another model) restarts it from the measurement. The contact flags of the
-  observation (clean) set the prior's mode; at a measured mode change the correction is complete for the
-  velocities (the impact is where the model is least sure).
+  :func:`steady_state_kalman_gain` a few steps after a start); an innovation far beyond that noise for
+  ``restart_steps`` observations in a row (a push, another model) restarts it from the measurement. The contact
+  flags of the observation (clean) set the prior's mode; at a measured mode change the correction is complete for
+  the velocities (the impact is where the model is least sure).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 from hsddp_gym.core.batch_contact import CompiledContactSimulator
 from hsddp_gym.core.conventions import NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
-from hsddp_gym.util.validation import check_positive, check_vector
+from hsddp_gym.util.validation import check_int, check_positive, check_vector
 
 
 class ContactModelPredictor:
@@ -155,9 +155,13 @@ class StateFilter:
 
     * the **innovation test**: the normalized innovation squared ``sum_i e_i^T S^-1 e_i`` over the observed
       coordinates (13: the trunk ``x`` is not observed; ``S = P_prior + R``) exceeds ``innovation_gate`` -- far
-      more than the assumed noise explains (the default 35 is exceeded by chance once in ~1000 observations): the
-      model is wrong (a push, a slip, another friction, mass or contact model), and the estimate restarts from the
-      measurement (``P = R``);
+      more than the assumed noise explains (the default 35 is exceeded by chance once in ~1000 observations) --
+      on ``restart_steps`` observations in a row: the model is wrong (a push, a slip, another friction, mass or
+      contact model), and the estimate restarts from the measurement (``P = R``). A shorter run of exceedances
+      (:attr:`outliers`) is corrected as any observation: one step the model could not predict (an impact on a
+      soft or stiff contact, which the rigid model has no state for) leaves the estimate to the prior and the
+      gain, while a push keeps the innovation beyond the gate at the next observation too (the blended estimate
+      is still far from it) and restarts then;
     * an observed contact **mode change the model did not predict**: the velocities are taken whole (the impact is
       where the model is least sure).
 
@@ -173,19 +177,26 @@ class StateFilter:
         acceleration_noise: standard deviation of the accelerations the model misses [m/s^2 or rad/s^2] (> 0):
             larger trusts the model less (gains toward 1).
         innovation_gate: threshold of the innovation test (> 0).
+        restart_steps: consecutive observations beyond ``innovation_gate`` that restart the estimate (>= 1; 1: the
+            first restarts it).
 
     Attributes:
-        gain, innovation_covariance: the steady-state ``L (2, 2)`` and ``S (2, 2)``; covariance: the current ``P (2,
-        2)`` (None before the first observation); restarts: the observations taken whole by the innovation test
-        since :meth:`reset`.
+        gain: the steady-state Kalman gain ``L (2, 2)``.
+        innovation_covariance: the steady-state innovation covariance ``S (2, 2)``.
+        covariance: the current ``P (2, 2)`` (None before the first observation).
+        restarts: the observations taken whole by the innovation test since :meth:`reset`.
+        outliers: the observations beyond the gate that did not restart the estimate (a run shorter than
+            ``restart_steps``) since :meth:`reset`.
+        last_nis: the normalized innovation squared of the last corrected observation (None before one).
     """
 
     def __init__(self, predictor: ContactModelPredictor, position_noise: float = 0.01, velocity_noise: float = 0.1,
-                 acceleration_noise: float = 3.0, innovation_gate: float = 35.0) -> None:
+                 acceleration_noise: float = 3.0, innovation_gate: float = 35.0, restart_steps: int = 1) -> None:
         if not isinstance(predictor, ContactModelPredictor):
             raise TypeError(f"predictor must be a ContactModelPredictor, got {type(predictor).__name__}")
         self.predictor = predictor
         self.innovation_gate = check_positive(innovation_gate, "innovation_gate")
+        self.restart_steps = check_int(restart_steps, "restart_steps", minimum=1)
         self._A, self._Q, self._R = _noise_model(predictor.control_dt, position_noise, velocity_noise,
                                                  acceleration_noise)
         self.gain, self.innovation_covariance = steady_state_kalman_gain(
@@ -197,10 +208,14 @@ class StateFilter:
         self.x: np.ndarray | None = None
         self.covariance: np.ndarray | None = None
         self.restarts = 0
+        self.outliers = 0
+        self.last_nis: float | None = None
+        self._beyond = 0  # consecutive observations beyond the gate
 
     def _take(self, y: np.ndarray, mode: Mode) -> np.ndarray:
         self.x = project_onto_contacts(self.predictor.robot, y, mode)
         self.covariance = self._R.copy()
+        self._beyond = 0
         return self.x.copy()
 
     def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None) -> np.ndarray:
@@ -225,10 +240,13 @@ class StateFilter:
         # the trunk x: only its velocity is measured (its pair's position term is zero above, the cross term too,
         # and its velocity term uses S_vv alone)
         nis += float(ev[0] * ev[0] * (1.0 / S[1, 1] - si[1, 1]))
-        if nis > self.innovation_gate:
+        self.last_nis = nis
+        self._beyond = self._beyond + 1 if nis > self.innovation_gate else 0
+        if self._beyond >= self.restart_steps:
             self.restarts += 1
             x = self._take(y, mode)
         else:
+            self.outliers += int(self._beyond > 0)
             L = P_prior @ si
             x = prior.copy()
             x[:NQ] += L[0, 0] * eq + L[0, 1] * ev

@@ -11,8 +11,10 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    ``horizon`` seconds (default one gait cycle); the plan's speed reference is the target speed moved at
    most ``speed_ramp`` from the measured speed (a reference governor for pushes), a stance whose foot
    has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`), and
-   a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``), and a
-   flight whose other foot is back on the ground is planned as that foot's stance (``plan_retouch``);
+   a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``), a
+   flight whose other foot is back on the ground is planned as that foot's stance (``plan_retouch``), and a flight
+   past its nominal end whose landing foot the state puts at the ground ends, whatever that foot's contact flag
+   says (``touchdown_height``, :func:`late_landing`);
 3. the previous plan, aligned by phase with the contact events
    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
@@ -56,6 +58,7 @@ from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
+from hsddp_gym.planners.policies.latency import DelayEstimator
 from hsddp_gym.planners.policies.tracking import PlanTracker
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
@@ -102,6 +105,12 @@ class MPCOptions:
         min_flight: a fraction of the nominal flight: a touchdown before it is taken for a graze, and a foot must
             have been in the air at least that long for its contact to count as a landing (double stance,
             ``plan_retouch``).
+        touchdown_height: from a flight's nominal end on, its landing foot counts as touched down when the
+            (estimated) state puts it within this height [m] of the ground, whatever the contact flag says (None:
+            the flags alone; :func:`late_landing`). A flag samples the contact at the end of a control step; on a
+            stiff contact a landing foot can bounce at the control rate and be in the air at the end of every step,
+            and a clock that waits for the flag keeps the plan in the flight while the trunk sinks. Raise it for a
+            noisy state estimate of the feet; None for an env whose flags never miss a touchdown.
 
     Attributes: Solver
         method: HS-DDP constraint handling: ``"al-reb"`` (augmented Lagrangian on the switching constraints and
@@ -182,6 +191,13 @@ class MPCOptions:
             larger: the estimate follows the observations more closely.
         filter_innovation_gate: threshold of the filter's innovation test (the normalized innovation squared over
             the 13 observed coordinates; 35 is exceeded by chance about once in 1000 observations).
+        filter_restart_steps: consecutive observations beyond ``filter_innovation_gate`` that restart the estimate
+            from the observation (1: the first). A single step beyond the gate is corrected by the filter's gain as
+            any other: on a contact the filter's rigid model does not have (a soft contact whose feet sink and
+            spring back, a stiff one whose impacts bounce) nearly every impact is beyond the gate, and restarting on
+            each handed the measured velocities of the contact's vibration to the feedback law. A push keeps the
+            innovation beyond the gate for the next observation as well and restarts the estimate one control step
+            later. 1 for sensors with no single-step outliers and a model that matches the contact.
         action_delay: control steps between an action's return and its execution (None: the env's,
             ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
         latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
@@ -190,6 +206,15 @@ class MPCOptions:
             lift-offs, motor speed limits) from the estimated state under the ``d`` actions already sent; the gait
             clock is advanced over the prediction with the predicted contacts. False: act on the estimated state as
             if there were no delay.
+        delay_search: how far the executed delay may differ from the announced one [control steps] (0: the
+            announced delay is trusted). The delay ``d`` that the state filter and the latency compensation use is
+            then estimated online from the robot's response to the MPC's own actions
+            (:class:`~hsddp_gym.planners.policies.latency.DelayEstimator`: every control step the model predicts the
+            measured velocities once per candidate ``announced - delay_search .. announced + delay_search``, each
+            holding the torque that delay would have executed, and the estimate moves to the candidate that
+            predicts them best by a margin): a latency announced one step wrong is found within a few control
+            steps, and a rightly announced one is kept. Raise it when the latency is known only roughly; each
+            candidate costs one model step (about 25 us) per control step.
 
     Attributes: Recovery
         lost_stance_steps: control steps a stance foot that has touched must be off the ground before the gait
@@ -226,6 +251,7 @@ class MPCOptions:
     min_phase: float = 0.01
     debounce_steps: int = 2
     min_flight: float = 0.3
+    touchdown_height: float | None = 0.01
     # Solver
     method: str = "al-reb"
     max_iterations: int = 1
@@ -253,8 +279,10 @@ class MPCOptions:
     filter_velocity_noise: float = 0.1
     filter_acceleration_noise: float = 3.0
     filter_innovation_gate: float = 35.0
+    filter_restart_steps: int = 2
     action_delay: int | None = None
     latency_compensation: bool = True
+    delay_search: int = 1
     # Recovery
     lost_stance_steps: int = 1
     double_stance: float | None = 0.04
@@ -277,9 +305,12 @@ class MPCOptions:
         check_int(self.warmup_iterations, "warmup_iterations", minimum=1)
         check_int(self.latency_steps, "latency_steps", minimum=0)
         check_int(self.debounce_steps, "debounce_steps", minimum=1)
+        check_int(self.filter_restart_steps, "filter_restart_steps", minimum=1)
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
         if self.double_stance is not None:
             check_positive(self.double_stance, "double_stance")
+        if self.touchdown_height is not None:
+            check_positive(self.touchdown_height, "touchdown_height")
         if not isinstance(self.plan_retouch, (bool, np.bool_)):
             raise TypeError(f"plan_retouch must be a bool, got {self.plan_retouch!r}")
         if self.flight_reach is not None:
@@ -299,6 +330,7 @@ class MPCOptions:
             raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
         if self.action_delay is not None:
             check_int(self.action_delay, "action_delay", minimum=0)
+        check_int(self.delay_search, "delay_search", minimum=0)
         if self.speed_acceleration is not None:
             check_positive(self.speed_acceleration, "speed_acceleration")
         if self.plan_friction is not None:
@@ -557,13 +589,41 @@ def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed:
     return float(min(max(tau, 0.0), 0.9 * duration))
 
 
-def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None) -> Mode:
+def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_height: float | None) -> Mode:
+    """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
+    ``touchdown_height`` [m] of the ground (None: ``mode`` as it is).
+
+    A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
+    stiff contact a landing foot can touch and leave within every step (it bounces at the control rate), so no
+    flag ever reports the touchdown, the clock waits in the flight, and the plans keep the leg in its touchdown
+    posture while the trunk sinks. From the flight's nominal end on, a landing foot at the ground is taken for
+    the touchdown the flags missed. Before the nominal end the flags alone decide (a foot swung low is not a
+    landing)."""
+    if touchdown_height is None or clock.phase not in (1, 3):
+        return mode
+    if clock.tau < clock.durations[clock.phase] - 1e-9:
+        return mode
+    landing = FRONT if clock.phase == 1 else BACK
+    if mode.in_contact(landing):
+        return mode
+    if robot is None:
+        robot = _nominal_robot()
+    if robot.foot_height(x[:NQ], landing) < touchdown_height:
+        return Mode(int(mode) | (1 << landing))
+    return mode
+
+
+def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None,
+                      touchdown_height: float | None = None) -> Mode:
     """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
     observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
-    update rule of the MPC and of the learners that rebuild its clock from observations."""
+    update rule of the MPC and of the learners that rebuild its clock from observations. ``touchdown_height``: a
+    late flight's landing foot that ``x`` puts within this height [m] of the ground counts as in contact
+    (:func:`late_landing`; None: the flags alone, as the learners' features use it)."""
     x = check_vector(x, NX, "x")
     if clock.phase is None and robot is None:
         robot = _nominal_robot()
+    mode = late_landing(clock, Mode(mode), x, robot, touchdown_height)
     return clock.update(mode, float(x[NQ + IPITCH]),
                         elapsed=None if clock.phase is not None else
                         (lambda phase, duration: stance_elapsed(robot, x, phase, duration)))
@@ -606,8 +666,14 @@ class MPCPolicy(Policy):
         # times [s] at which _reach_time looks for the landing hip's reach: the plan's knots over its horizon
         self._reach_grid = np.arange(0.0, self.horizon + 0.5 * options.planner_dt, options.planner_dt)
         self.dynamics = HybridDynamics(dt=options.planner_dt, integrator=options.integrator)
-        self.action_delay = options.action_delay if options.action_delay is not None else interface.action_delay_steps
-        """Control steps between an action's return and its execution (the latency compensated for)."""
+        self.announced_delay = (options.action_delay if options.action_delay is not None
+                                else interface.action_delay_steps)
+        """The action delay the MPC is told [control steps] (``MPCOptions.action_delay`` or the env's)."""
+        self.action_delay = self.announced_delay
+        """Control steps between an action's return and its execution, the latency compensated for: the announced
+        delay, or its online estimate (``MPCOptions.delay_search``), updated every control step."""
+        self._delay_estimator = DelayEstimator(self._make_predictor(), self.announced_delay, options.delay_search) \
+            if options.delay_search > 0 else None
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
         params = self.dynamics.robot.params
@@ -633,7 +699,7 @@ class MPCPolicy(Policy):
                                                  motor_speed_limits=self.interface.motor_speed_limits,
                                                  torque_limit=self.interface.torque_limit),
                            o.filter_position_noise, o.filter_velocity_noise, o.filter_acceleration_noise,
-                           o.filter_innovation_gate)
+                           o.filter_innovation_gate, o.filter_restart_steps)
 
     def _reset_copy_state(self) -> None:
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
@@ -654,10 +720,15 @@ class MPCPolicy(Policy):
         self.clock = GaitClock(self.durations, self.interface.control_dt, o.debounce_steps, o.min_flight,
                                o.lost_stance_steps, o.double_stance or 0.0)
         self._plan_clock = self.clock
-        # the last action_delay + 1 actions returned (oldest first): the oldest was executed over the last control
-        # period, the others are still to be executed (zeros before the first ones, as the env's delay queue)
-        self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(self.action_delay + 1)),
-                                       maxlen=self.action_delay + 1)
+        # the last actions returned (oldest first), as many as the largest delay considered + 1: with a delay d,
+        # _sent[-1 - d] was executed over the last control period and the d after it are still to be executed
+        # (zeros before the first ones, as the env's delay queue)
+        self.action_delay = self.announced_delay
+        history = self._delay_estimator.history if self._delay_estimator is not None else self.announced_delay + 1
+        if self._delay_estimator is not None:
+            self._delay_estimator.reset()
+        self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(history)), maxlen=history)
+        self._last_observed: np.ndarray | None = None  # the previous observation's state, for the delay estimate
         self._filter.reset()
         self._first_obs = True
         self._start_speed: float | None = None
@@ -667,7 +738,7 @@ class MPCPolicy(Policy):
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
-                      "iterations": [], "time_budget_stops": 0}
+                      "iterations": [], "time_budget_stops": 0, "delay_changes": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -687,7 +758,7 @@ class MPCPolicy(Policy):
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
-        return update_gait_clock(self.clock, mode, x, self.dynamics.robot)
+        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, self.options.touchdown_height)
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -952,8 +1023,17 @@ class MPCPolicy(Policy):
         (:attr:`_startup_controller`)."""
         x_obs, mode, _ = self._parse(obs)
         o = self.options
+        if self._delay_estimator is not None:
+            if self._last_observed is not None:
+                torques = np.array(self._sent, dtype=np.float64) * self.interface.torque_limit
+                delay = self._delay_estimator.update(self._last_observed, x_obs, torques)
+                if delay != self.action_delay:
+                    self.stats["delay_changes"] += 1
+                    self.action_delay = delay
+            self._last_observed = x_obs.copy()
         if o.state_filter:
-            executed = None if self._first_obs else self._sent[0].astype(np.float64) * self.interface.torque_limit
+            executed = None if self._first_obs else \
+                self._sent[-1 - self.action_delay].astype(np.float64) * self.interface.torque_limit
             x_obs = self._filter.update(x_obs, mode, executed)
         if self._first_obs:
             self._start_speed = float(x_obs[NQ])
@@ -1012,7 +1092,7 @@ class MPCPolicy(Policy):
         clock = self.clock.copy()
         xp = x
         try:
-            for a in list(self._sent)[1:]:
+            for a in list(self._sent)[len(self._sent) - self.action_delay:]:  # the actions still to be executed
                 xp, mode = self._predictor.step(xp, a.astype(np.float64) * self.interface.torque_limit, mode)
                 clock.tick()
                 eff = clock.update(mode, float(xp[NQ + IPITCH]))
