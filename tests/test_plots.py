@@ -24,7 +24,7 @@ def figures(monkeypatch):
     import matplotlib.pyplot as plt
 
     kept = []
-    monkeypatch.setattr(plotting, "_save", lambda fig, path: kept.append(fig) or path)
+    monkeypatch.setattr(plotting, "_save", lambda fig, path, **_: kept.append(fig) or path)
     yield kept
     for fig in kept:
         plt.close(fig)

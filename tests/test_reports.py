@@ -98,7 +98,7 @@ def test_every_figure_is_drawn_from_the_store(tmp_path):
         written += draw(store.data(rid), tmp_path)
     for draw in figures.STORE_FIGURES:
         written += draw(store, tmp_path)
-    assert written and all(p.is_file() and p.stat().st_size > 10_000 for p in written)
+    assert written and all(p.is_file() and p.stat().st_size > 5_000 for p in written)  # palette PNGs: 8-45 kB
     published = {p.name for p in (ROOT / figures.FIGURE_DIR).glob("*.png")}
     assert {p.name for p in written} <= published, "a drawn figure is not published in docs/figures"
 
