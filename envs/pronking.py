@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FRONT, NQ
+from hsddp_gym.core.conventions import BACK, FRONT, NQ
 from hsddp_gym.envs.bounding import BoundingEnv, _check_bool
 from hsddp_gym.envs.mujoco_twin import MuJoCoBoundingEnv
 from hsddp_gym.util.validation import check_positive
@@ -48,14 +48,7 @@ def pronk_start_state(robot, speed: float, height: float = PRONK_HEIGHT) -> np.n
     ``hsddp_gym.planners.motions.leg_posture``)."""
     q = np.array([0.0, float(height), 0.0, 0.3 * math.pi, -0.6 * math.pi, 0.3 * math.pi, -0.6 * math.pi])
     hips = robot.hip_positions(q)
-    target = np.array([[hips[f][0], 0.0] for f in (FRONT, BACK)])
-    for _ in range(50):
-        err = target - robot.foot_positions(q)
-        if np.max(np.abs(err)) < 1e-12:
-            break
-        for foot, joints in enumerate(FOOT_JOINTS):
-            J = robot.foot_jacobian(q, foot)[:, list(joints)]
-            q[list(joints)] += np.linalg.solve(J, err[foot])
+    q = robot.place_feet(q, np.array([[hips[f][0], 0.0] for f in (FRONT, BACK)]))
     v = np.zeros(NQ)
     v[0] = float(speed)
     J = np.vstack([robot.foot_jacobian(q, f) for f in (FRONT, BACK)])  # (4, 7)

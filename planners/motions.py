@@ -208,16 +208,11 @@ def leg_posture(height: float, pitch: float, foot_dx, params: RobotParams | None
     q = np.array([0.0, float(height), float(pitch), 0.3 * math.pi, -0.6 * math.pi, 0.3 * math.pi, -0.6 * math.pi])
     hips = robot.hip_positions(q)
     target = np.array([[hips[f][0] + dx[f], 0.0] for f in (FRONT, BACK)])
-    for _ in range(50):
-        err = target - robot.foot_positions(q)
-        if np.max(np.abs(err)) < 1e-12:
-            break
-        for foot, joints in enumerate(FOOT_JOINTS):
-            J = robot.foot_jacobian(q, foot)[:, list(joints)]
-            q[list(joints)] += np.linalg.solve(J, err[foot])
-    else:
+    try:
+        q = robot.place_feet(q, target)
+    except (ValueError, np.linalg.LinAlgError):
         raise ValueError(f"no posture with the trunk at height={height!r} m, pitch={pitch!r} rad and the feet "
-                         f"foot_dx={dx.tolist()} m from the hips: out of the legs' reach")
+                         f"foot_dx={dx.tolist()} m from the hips: out of the legs' reach") from None
     if not np.all(np.isfinite(q)) or np.max(np.abs(target - robot.foot_positions(q))) > 1e-9:
         raise ValueError(f"no posture with the trunk at height={height!r} m and the feet foot_dx={dx.tolist()} m")
     return q

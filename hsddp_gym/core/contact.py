@@ -716,31 +716,23 @@ class ContactSimulator(SimulatorQueries):
             work = min(tau.dot(dq), 0.5 * self.dt * (self._power_start + tau.dot(v)))
         kinetic, potential = data.kinetic_energy, data.potential_energy
         allowed = self._energy + work
-        if constrained:
-            if kinetic + potential > allowed:
-                self.energy_projections += 1
-                target = allowed - potential
-                target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
-                if target <= 0.0:
-                    # the positions alone exceed the allowed energy (never seen; counted): stop the robot, the
-                    # least energy this step can leave
-                    self.energy_deficits += 1
-                    v[:] = 0.0
-                    kinetic = 0.0
-                else:
-                    # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
-                    v *= (target / kinetic) ** 0.5
-                    kinetic = target
-        else:
-            # free flight: the momentum gravity leaves and exactly the allowed energy (no numerical damping)
+        # with contacts a step that loses energy is left alone (contacts only dissipate); in free flight the step
+        # always takes the momentum gravity leaves and exactly the allowed energy (no numerical damping)
+        if not constrained or kinetic + potential > allowed:
             if kinetic + potential > allowed:
                 self.energy_projections += 1
             target = allowed - potential
             target -= 1e-13 * (abs(allowed) + abs(potential))  # round-off margin
             if target <= 0.0:
+                # the positions alone exceed the allowed energy (never seen; counted): stop the robot, the
+                # least energy this step can leave
                 self.energy_deficits += 1
                 v[:] = 0.0
                 kinetic = 0.0
+            elif constrained:
+                # contacts: scale v+, which keeps every contact velocity condition (J v+ = 0 when sticking)
+                v *= (target / kinetic) ** 0.5
+                kinetic = target
             else:
                 kinetic = self._project_flight(kinetic, target)
         self._energy = kinetic + potential

@@ -137,6 +137,29 @@ class CheetahModel:
         J = pin.computeFrameJacobian(self.model, self._data, q, self.foot_frame_ids[foot], LWA)
         return J[[0, 2], :].copy()
 
+    def place_feet(self, q: np.ndarray, feet: np.ndarray, iterations: int = 50, tolerance: float = 1e-12
+                   ) -> np.ndarray:
+        """The configuration ``q (7,)`` with the four joint angles moved so that the feet are at the world ``(x, z)``
+        of ``feet (2, 2)`` [m], the trunk (``x``, ``z``, pitch) where ``q`` has it: Newton's method on each foot's
+        position over its own (hip, knee), from ``q``'s joint angles (which pick the knee's bend). A copy.
+
+        Raises:
+            ValueError: no convergence to ``tolerance`` [m] within ``iterations`` (a foot out of its leg's reach).
+        """
+        q = np.array(check_vector(q, NQ, "q"), dtype=float)
+        feet = np.asarray(feet, dtype=float)
+        if feet.shape != (2, 2) or not np.all(np.isfinite(feet)):
+            raise ValueError(f"feet must be a finite (2, 2) array of (x, z) per foot, got {feet!r}")
+        for _ in range(iterations):
+            err = feet - self.foot_positions(q)
+            if np.max(np.abs(err)) < tolerance:
+                return q
+            for foot, joints in enumerate(FOOT_JOINTS):
+                J = self.foot_jacobian(q, foot)[:, list(joints)]
+                q[list(joints)] += np.linalg.solve(J, err[foot])
+        raise ValueError(f"feet {feet.tolist()} m are out of the legs' reach from the trunk at x = {q[IX]:.4g} m, "
+                         f"z = {q[IZ]:.4g} m, pitch = {q[IPITCH]:.4g} rad")
+
     def hip_positions(self, q: np.ndarray) -> np.ndarray:
         """World ``(x, z)`` of both hips: ``(2, 2)``."""
         q = check_vector(q, NQ, "q")

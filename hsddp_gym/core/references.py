@@ -67,15 +67,11 @@ def _raised_posture(key: str, height_offset: float, params: RobotParams) -> tupl
     q = np.array([0.0, z + params.leg_length, pitch, hf, kf, hb, kb])
     feet = model.foot_positions(q)
     q[1] += height_offset
-    for _ in range(50):
-        err = feet - model.foot_positions(q)
-        if np.max(np.abs(err)) < 1e-12:
-            break
-        for foot, joints in enumerate(((3, 4), (5, 6))):
-            J = model.foot_jacobian(q, foot)[:, joints]
-            q[list(joints)] += np.linalg.solve(J, err[foot])
-    else:
-        raise ValueError(f"height_offset {height_offset!r} m: the feet of the {key} posture are out of the legs' reach")
+    try:
+        q = model.place_feet(q, feet)
+    except ValueError:
+        raise ValueError(f"height_offset {height_offset!r} m: the feet of the {key} posture are out of the legs' "
+                         "reach") from None
     return (z + height_offset, pitch, *q[3:].tolist(), zdot)
 
 
