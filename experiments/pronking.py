@@ -1,4 +1,5 @@
-"""The pronking task (``hsddp_gym/Pronking-v0``): the expert and BC on unseen seeds, and the expert in the MuJoCo twin.
+"""The pronking task (``hsddp_gym/Pronking-v0``): the expert, BC, DAgger and SAC on unseen seeds, and the expert in the
+MuJoCo twin.
 
 Each policy plays ``--episodes`` episodes seeded ``--seed, --seed + 1, ...`` (default 9500-9519, seeds no dataset
 uses) of the default task (1 m/s, 1000 steps, reset noise 0.01); per episode the return, a fall, the mean forward
@@ -6,7 +7,12 @@ speed, the fraction of control steps with matching contact flags and the task's 
 (:func:`hsddp_gym.envs.pronking.pronking_success`).
 
     python experiments/pronking.py --mujoco --bc runs/pronk_bc_s0 runs/pronk_bc_s1 runs/pronk_bc_s2 \\
+        --dagger runs/pronk_dagger_s0 runs/pronk_dagger_s1 runs/pronk_dagger_s2 --sac runs/pronk_sac_s0 \\
         --record results/tasks/pronking.json --made-with "hsddp-gym dataset ..." "hsddp-gym train ..."
+
+``--bc`` / ``--dagger`` take ``hsddp-gym train --algo bc|dagger --out DIR`` runs, ``--sac`` takes ``hsddp-gym train
+--algo sac --env hsddp_gym/Pronking-v0 --out DIR`` runs, each evaluated with its final weights and its best
+checkpoint (the best training-time evaluation, on the run's own seeds), both with the mean action.
 """
 
 from __future__ import annotations
@@ -92,12 +98,29 @@ def main(argv=None) -> int:
     p.add_argument("--episodes", type=int, default=20, help="episodes per policy (default: %(default)s)")
     p.add_argument("--bc", nargs="*", default=[], help="BC runs (hsddp-gym train --algo bc --out DIR), one per "
                                                        "training seed")
+    p.add_argument("--dagger", nargs="*", default=[], help="DAgger runs (hsddp-gym train --algo dagger --env "
+                                                           "hsddp_gym/Pronking-v0 --out DIR), one per training seed")
+    p.add_argument("--sac", nargs="*", default=[], help="SAC runs (hsddp-gym train --algo sac --env "
+                                                        "hsddp_gym/Pronking-v0 --out DIR), one per training seed; "
+                                                        "final weights and best checkpoint")
     p.add_argument("--mujoco", action="store_true", help="also run the expert in hsddp_gym/PronkingMuJoCo-v0")
     p.add_argument("--record", default=None, help="write the results record (results/tasks/pronking.json)")
     p.add_argument("--made-with", nargs="*", default=[],
                    help="the commands that made the dataset and the BC runs (stored in the record)")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
+    import json
+    from pathlib import Path
+
+    for flag, runs, algo in (("--bc", args.bc, "bc"), ("--dagger", args.dagger, "dagger"), ("--sac", args.sac, "sac")):
+        for run in runs:
+            f = Path(run) / "summary.json"
+            if not f.exists():
+                p.error(f"{flag}: {run} has no summary.json (not a finished hsddp-gym train run)")
+            train = json.loads(f.read_text())
+            if train.get("algo") != algo or (algo != "bc" and train.get("env_id") != PRONKING):
+                p.error(f"{flag}: {run} is a {train.get('algo')} run in {train.get('env_id')}, not {algo} in "
+                        f"{PRONKING}")
 
     from hsddp_gym.workflows import load_policy, pronking_expert
 
@@ -106,9 +129,6 @@ def main(argv=None) -> int:
     if args.mujoco:
         rows.append(evaluate("expert", PRONKING_MUJOCO, pronking_expert, seeds, args.quiet))
     bc_rows = []
-    import json
-    from pathlib import Path
-
     for run in args.bc:
         train = json.loads((Path(run) / "summary.json").read_text())
         row = evaluate(f"BC (training seed {train['seed']})", PRONKING,
@@ -117,14 +137,48 @@ def main(argv=None) -> int:
                    demonstrations=int(train["demonstrations"]), train_wall_time_s=float(train["wall_time_s"]),
                    dataset_id=train.get("dataset_id"))
         bc_rows.append(row)
+    dagger_rows = []
+    for run in args.dagger:
+        train = json.loads((Path(run) / "summary.json").read_text())
+        cfg = train["config"]
+        rounds = f"{cfg['rounds']} round{'s' if cfg['rounds'] != 1 else ''}"
+        row = evaluate(f"DAgger, {rounds} (training seed {train['seed']})", PRONKING,
+                       lambda env, run=run: load_policy(f"dagger:{run}", env), seeds, args.quiet)
+        row.update(run=str(run), training_seed=int(train["seed"]), expert_labels=int(train["expert_labels"]),
+                   transitions=int(train["transitions"]), initial_demonstrations=train.get("initial_demonstrations"),
+                   rounds=int(cfg["rounds"]), episodes_per_round=int(cfg["episodes_per_round"]),
+                   beta_decay=float(cfg["beta_decay"]), train_wall_time_s=float(train["wall_time_s"]),
+                   initial_dataset=train.get("initial_dataset"))
+        dagger_rows.append(row)
+    sac_rows = []
+    for run in args.sac:
+        from hsddp_gym.learning.sb3 import load_trained_policy
+
+        train = json.loads((Path(run) / "summary.json").read_text())
+        for checkpoint in ("final", "best"):
+            if checkpoint == "best" and not train.get("best_checkpoint"):
+                continue
+            name = "final weights" if checkpoint == "final" else "best checkpoint"
+            row = evaluate(f"SAC (training seed {train['seed']}, {name})", PRONKING,
+                           lambda env, run=run, c=checkpoint: load_trained_policy(run, env, checkpoint=c), seeds,
+                           args.quiet)
+            best = train.get("best_checkpoint") or {}
+            row.update(run=str(run), training_seed=int(train["seed"]), checkpoint=checkpoint,
+                       env_steps=int(train["steps"]) if checkpoint == "final" else int(best["env_step"]),
+                       total_env_steps=int(train["steps"]), train_wall_time_s=float(train["wall_time_s"]),
+                       time_limit_s=train.get("time_limit_s"), preset=train.get("preset"),
+                       hyperparameters=train["hyperparameters"])
+            sac_rows.append(row)
     if args.record:
         from hsddp_gym.reports.store import invoked_command, write_record
 
         data = {"env_id": PRONKING, "seeds": seeds, "target_speed": 1.0, "rows": rows, "bc": bc_rows,
+                "dagger": dagger_rows, "sac": sac_rows,
                 "success_rule": "no fall, mean forward speed within 20 % of the target, >= 80 % of control steps "
                                 "with matching contact flags (hsddp_gym.envs.pronking.pronking_success)"}
         write_record(args.record, data, "The pronking task: the HS-DDP pronk expert (Pronking-v0 and its MuJoCo "
-                                        "twin) and BC from its demonstrations on unseen seeds.",
+                                        "twin), BC from its demonstrations, DAgger labelled by it and SAC on unseen "
+                                        "seeds.",
                      command=list(args.made_with) + [invoked_command(_without_made_with(argv))])
         print(f"wrote {args.record}")
     return 0

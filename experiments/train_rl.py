@@ -1,4 +1,4 @@
-"""RL baselines on hsddp_gym/Bounding-v0: PPO and SAC with RL-Zoo hyperparameters, several training seeds.
+"""RL baselines on hsddp_gym/Bounding-v0 (or --env): PPO and SAC with RL-Zoo hyperparameters, several training seeds.
 
 Hyperparameters (hsddp_gym.learning.sb3.PRESETS, from rl-baselines3-zoo hyperparams/*.yml), ``--preset``:
 
@@ -23,6 +23,12 @@ Usage:
     python experiments/train_rl.py --algos ppo sac --seeds 0 1 2 3 4 --steps 1000000 --out runs/rl  # the protocol
     python experiments/train_rl.py --algos ppo --preset parallel --vector-env --seeds 0 1 2 \\
         --steps 100000000 --time-limit 1200 --eval-freq 500000 --out runs/rl_parallel     # 64 robots, 20 min each
+    python experiments/train_rl.py --env hsddp_gym/Pronking-v0 --algos sac --seeds 0 --steps 1000000 \
+        --time-limit 1500 --eval-freq 10000 --out runs/rl_pronk                           # the pronking task
+
+``--env`` picks the env every run trains and is evaluated in (hsddp_gym.learning.sb3.ENV_IDS; default
+hsddp_gym/Bounding-v0); hsddp_gym/Pronking-v0 has no compiled vector env and no robustness conditions, so it takes
+neither ``--vector-env`` nor ``--train-condition``.
 
 The machine is shared: one torch thread per run, runs one after the other. Measured throughput on this
 2-core machine (shared) is printed at the end of every run (env steps / wall second).
@@ -37,7 +43,10 @@ from pathlib import Path
 from hsddp_gym.learning.reporting import mean_ci95
 from hsddp_gym.learning.sb3 import (
     ALGOS,
+    ENV_ID,
+    ENV_IDS,
     OPTION_HELP,
+    check_env_id,
     check_train_condition,
     hyperparameters,
     parse_learning_rate,
@@ -51,6 +60,8 @@ EVALS = ("eval", "eval_best", "eval_stochastic")
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--env", choices=ENV_IDS, default=ENV_ID,
+                   help="the env to train and evaluate in (default: %(default)s)")
     p.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS), help="algorithms (default: both)")
     p.add_argument("--seeds", nargs="+", type=int, default=[0], help="training seeds, one run each (default: 0)")
     p.add_argument("--steps", type=int, default=1_000_000, help="env steps per run (default: %(default)s)")
@@ -83,6 +94,11 @@ def main(argv: list[str] | None = None) -> int:
                         "the policy stay on the unperturbed task; with --vector-env only conditions of env "
                         "arguments and pushes (default: none)")
     args = p.parse_args(argv)
+    if args.env != ENV_ID:
+        for flag, given in (("--vector-env", args.vector_env), ("--train-condition", args.train_condition)):
+            if given:
+                p.error(f"{flag}: given with --env {args.env}, only with --env {ENV_ID}")
+    check_env_id(args.env, args.vector_env, args.train_condition)
     if args.train_condition is not None:
         try:
             check_train_condition(args.train_condition, vector_env=args.vector_env)
@@ -128,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,
                             time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
-                            train_condition=args.train_condition)
+                            train_condition=args.train_condition, env_id=args.env)
             s = res.summary
             evals = {k: s.get(k) or {} for k in EVALS}
             rows.append((algo, seed, s["steps"], s["wall_time_s"], evals))

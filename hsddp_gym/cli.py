@@ -350,6 +350,39 @@ def _bc_extra(args) -> dict:
     return extra
 
 
+def _check_train_env(args) -> None:
+    """``train --env``: the env of ppo/sac/dagger; Bounding-v0's extras (the compiled vector env, the robustness
+    conditions, the MPC expert, the state estimator) only there. dagger: the env defaults to its --dataset's (which
+    must match --env) and ``--expert`` to ``mpc`` in Bounding-v0, ``expert`` in Pronking-v0."""
+    if args.algo == "dagger":
+        env = args.env
+        if args.dataset:
+            from hsddp_gym.datasets.storage import read_metadata, resolve_dataset_dir
+
+            recorded = read_metadata(resolve_dataset_dir(args.dataset[0], "--dataset")).get("env_id") or DATASET_ENVS[0]
+            if env is not None and env != recorded:
+                raise UsageError("--env", f"{env}, but --dataset {args.dataset[0]} was recorded in {recorded}",
+                                 "the dataset's env")
+            env = recorded
+        if args.expert is None:
+            args.expert = "mpc" if env in (None, DATASET_ENVS[0]) else "expert"
+        args.env = env
+    if args.env is None:
+        return
+    if args.algo == "bc":
+        raise UsageError("--env", "given with --algo bc", "--algo dagger, ppo or sac (bc evaluates in the env of "
+                                                          "its dataset's metadata)")
+    if args.env == DATASET_ENVS[0]:
+        return
+    for flag, given in (("--vector-env", args.vector_env), ("--condition", bool(args.condition)),
+                        ("--estimator", args.estimator), ("--action-queue", bool(args.action_queue))):
+        if given:
+            raise UsageError(flag, f"given with --env {args.env}", f"only with --env {DATASET_ENVS[0]}")
+    if args.algo == "dagger" and args.expert != "expert":
+        raise UsageError("--expert", f"{args.expert} with --env {args.env}",
+                         f"expert (the HS-DDP pronk plan tracker) with --env {args.env}")
+
+
 def _check_train(args) -> None:
     """Everything about ``train``'s options that can be checked before training (UsageError / MissingExtraError)."""
     check_output_dir(args.out, "--out")
@@ -375,6 +408,7 @@ def _check_train(args) -> None:
         if args.vector_env and not condition.acts_through_env_arguments:
             raise UsageError("--condition", f"{condition.name} (observation noise or latency) with --vector-env",
                              "a condition of env arguments and pushes, or no --vector-env")
+    _check_train_env(args)
     if args.estimator and args.action_queue:
         raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
                          "queue)", "one of them")
@@ -457,7 +491,7 @@ def cmd_train(args) -> int:
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
                         time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
-                        train_condition=args.condition[0] if args.condition else None)
+                        train_condition=args.condition[0] if args.condition else None, env_id=args.env)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
@@ -484,7 +518,8 @@ def cmd_train(args) -> int:
                              dataset=None if args.dataset is None else
                              args.dataset[0] if len(args.dataset) == 1 else list(args.dataset),
                              demos=args.demos, fmt=args.format, eval_episodes=args.eval_episodes,
-                             env_kwargs=env_kwargs, progress=not args.quiet, workers=args.workers or 1)
+                             env_kwargs=env_kwargs, progress=not args.quiet, workers=args.workers or 1,
+                             env_id=args.env)
     ev = summary.get("eval") or {}
     used = {"ppo": "steps", "sac": "steps", "bc": "transitions", "dagger": "expert_labels"}[args.algo]
     print(f"{args.algo}: {used} {summary.get(used)}, training wall time {summary.get('wall_time_s', 0.0):.1f} s"
@@ -560,7 +595,12 @@ def _add_learning_parsers(sub) -> None:
                                    "deterministic evaluation, seeds 0..9) and curve.csv / curve.png into --out.")
     p.add_argument("--algo", choices=TRAIN_ALGOS, required=True,
                    help="bc: behaviour cloning on --dataset; dagger: DAgger relabelled by --expert; ppo / sac: "
-                        "Stable-Baselines3 RL on hsddp_gym/Bounding-v0")
+                        "Stable-Baselines3 RL on hsddp_gym/Bounding-v0 (or --env)")
+    p.add_argument("--env", choices=DATASET_ENVS, default=None,
+                   help="ppo/sac/dagger: the env to train and evaluate in (default: hsddp_gym/Bounding-v0; dagger: "
+                        "the env of --dataset's metadata if given); hsddp_gym/Pronking-v0 takes no --vector-env, "
+                        "--condition, --estimator or --action-queue, and dagger labels it with --expert expert (the "
+                        "pronk plan tracker); bc: refused, it evaluates in the env of its dataset")
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the network initialization and minibatch order (bc/dagger), of the DAgger "
                         "rollouts, or of the model and training env (ppo/sac); the final evaluation always uses "
@@ -626,8 +666,9 @@ def _add_learning_parsers(sub) -> None:
                         "and velocities [m/s, rad/s] (default: 0.01 0.1)")
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
-    p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default="mpc",
-                   help="dagger: the labelling expert (default: %(default)s)")
+    p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default=None,
+                   help="dagger: the labelling expert; in hsddp_gym/Pronking-v0 only expert, the pronk plan tracker "
+                        "(default: mpc; expert in hsddp_gym/Pronking-v0)")
     p.add_argument("--rounds", type=_nonnegative_int, default=4,
                    help="dagger: relabelling rounds after round 0 (round 0: BC on --dataset or on expert "
                         "episodes) (default: %(default)s)")

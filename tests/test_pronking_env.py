@@ -183,3 +183,46 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
         assert ep.observations.shape == (41, 17) and "reward_contact_match" in ep.infos
         assert ds.recover_environment().unwrapped.__class__.__name__ == "PronkingEnv"
     assert load_npz(out).n_episodes == 2
+
+
+def test_dagger_runs_a_tiny_iteration_labelled_by_the_pronking_expert(tmp_path):
+    pytest.importorskip("torch")
+    from hsddp_gym.learning.bc import BCConfig
+    from hsddp_gym.learning.dagger import DAggerConfig, load_dagger_data, run_dagger
+
+    config = DAggerConfig(rounds=1, episodes_per_round=1, max_episode_steps=30, bc=BCConfig(epochs=2))
+    summary = run_dagger("expert", tmp_path / "dagger", config=config, eval_episodes=1, progress=False,
+                         env_id=ENV_ID)
+    assert summary["env_id"] == ENV_ID and summary["config"]["env_id"] == ENV_ID
+    assert summary["expert"]["class"].endswith("pronking.PronkingExpert")
+    assert summary["expert_labels"] == len(load_dagger_data(tmp_path / "dagger")) <= 60
+    assert [h["round"] for h in summary["history"]] == [0, 1] and summary["eval"]["episodes"] == 1
+    with pytest.raises(ValueError, match="expert 'mpc'"):  # the MPC is a bounding controller
+        run_dagger("mpc", tmp_path / "mpc", config=config, eval_episodes=0, progress=False, env_id=ENV_ID)
+    with pytest.raises(ValueError, match="conditions"):
+        DAggerConfig(env_id=ENV_ID, conditions=("push",))
+
+
+def test_the_cli_trains_sac_in_the_pronking_env_and_refuses_bounding_only_options(tmp_path, capsys):
+    pytest.importorskip("stable_baselines3")
+    from hsddp_gym import cli
+    from hsddp_gym.workflows import load_policy
+
+    out = tmp_path / "sac"
+    assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "64", "--learning-starts", "32",
+                     "--eval-freq", "0", "--eval-episodes", "1", "--max-episode-steps", "32", "--hidden", "16,16",
+                     "--quiet", "--out", str(out)]) == 0
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["env_id"] == ENV_ID and summary["steps"] == 64 and summary["eval"]["episodes"] == 1
+    env = gym.make(ENV_ID, max_episode_steps=5)
+    obs, _ = env.reset(seed=0)
+    assert load_policy(f"sb3:{out}", env)(obs).shape == (4,)
+    for extra in (["--vector-env"], ["--condition", "push"]):
+        assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "10", "--out", str(tmp_path / "x"),
+                         *extra]) == 2
+        assert f"given with --env {ENV_ID}" in capsys.readouterr().err
+    for argv, option in ((["--algo", "dagger", "--expert", "mpc"], "--expert"), (["--algo", "bc"], "--env")):
+        assert cli.main(["train", "--env", ENV_ID, *argv, "--out", str(tmp_path / "x")]) == 2
+        assert capsys.readouterr().err.startswith(f"error: {option}")

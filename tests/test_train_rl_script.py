@@ -25,3 +25,22 @@ def test_select_episodes_sizes_the_evaluations_that_pick_the_best_checkpoint(tmp
     assert script.main(argv) == 0 and calls[-1]["eval_episodes"] == 5  # the default
     with pytest.raises(SystemExit):
         script.main(argv + ["--select-episodes", "0"])
+
+
+def test_env_reaches_train_sb3_and_bounding_only_options_are_refused(tmp_path, experiment, monkeypatch):
+    script = experiment("train_rl")
+    calls = []
+
+    def fake(algo, steps, seed, out, **kw):
+        calls.append(kw)
+        return SimpleNamespace(summary={"steps": steps, "wall_time_s": 1.0})
+
+    monkeypatch.setattr(script, "train_sb3", fake)
+    argv = ["--algos", "sac", "--steps", "100", "--out", str(tmp_path)]
+    assert script.main(argv) == 0 and calls[-1]["env_id"] == "hsddp_gym/Bounding-v0"  # the default
+    assert script.main(argv + ["--env", "hsddp_gym/Pronking-v0"]) == 0
+    assert calls[-1]["env_id"] == "hsddp_gym/Pronking-v0"
+    for extra in (["--vector-env"], ["--train-condition", "push_x3"], ["--env", "hsddp_gym/Nope-v0"]):
+        with pytest.raises(SystemExit):
+            script.main(argv + ["--env", "hsddp_gym/Pronking-v0", *extra] if extra[0] != "--env" else argv + extra)
+    assert len(calls) == 2

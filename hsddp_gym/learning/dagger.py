@@ -55,6 +55,11 @@ class DAggerConfig:
             the delay included: the action for that predicted state), and the trained learner is meant to act behind
             it. Round-0 demonstrations (``initial``) are used as they are: give ones of undisturbed envs, where the
             estimate is the observation. Excludes ``bc.action_queue`` (the prediction replaces the queue).
+        env_id: the env of the rollouts, the learner's interface and the evaluations, one of
+            :data:`hsddp_gym.datasets.recording.DATASET_ENVS` (None: Bounding-v0). ``hsddp_gym/Pronking-v0``
+            takes no ``conditions`` and no ``estimator`` (both are Bounding-v0's); its expert is the pronk plan
+            tracker (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`, ``PolicySpec("expert",
+            env_id=...)``).
     """
 
     rounds: int = 4
@@ -68,8 +73,16 @@ class DAggerConfig:
     rollout_steps: int | None = None
     conditions: tuple = ()
     estimator: bool = False
+    env_id: str | None = None
 
     def __post_init__(self) -> None:
+        from hsddp_gym.datasets.recording import ENV_ID, check_env_id
+
+        if self.env_id is not None:
+            object.__setattr__(self, "env_id", check_env_id(self.env_id))
+        if self.env_id not in (None, ENV_ID) and (self.conditions or self.estimator):
+            raise ValueError(f"env_id {self.env_id!r} takes no conditions and no estimator (they are {ENV_ID}'s), got "
+                             f"conditions={list(self.conditions)!r}, estimator={self.estimator!r}")
         if self.conditions:
             from hsddp_gym.envs.perturbations import check_conditions
 
@@ -190,7 +203,7 @@ def run_rollout_task(task: RolloutTask) -> tuple:
     from hsddp_gym.datasets.collection import make_env
 
     cfg, r = task.config, task.round_index
-    env = make_env(task.env_kwargs, cfg.max_episode_steps, task.condition)
+    env = make_env(task.env_kwargs, cfg.max_episode_steps, task.condition, env_id=cfg.env_id)
     try:
         interface = EnvInterface.from_env(env)
         perception = None
@@ -238,7 +251,7 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
         raise ValueError(f"workers must be >= 1, got {workers}")
     check_condition_kwargs(config.conditions, env_kwargs)
     t0 = time.perf_counter()
-    env = make_env(env_kwargs, config.max_episode_steps)
+    env = make_env(env_kwargs, config.max_episode_steps, env_id=config.env_id)
     interface = EnvInterface.from_env(env)
     history = []
     data = initial
@@ -308,7 +321,7 @@ def load_dagger_data(path) -> Demonstrations:
 def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = None, dataset=None,
                demos: int | None = None, fmt: str = "minari", eval_episodes: int = 10,
                env_kwargs: dict | None = None, mpc_options: dict | None = None, progress: bool = True,
-               workers: int = 1) -> dict:
+               workers: int = 1, env_id: str | None = None) -> dict:
     """DAgger with a built-in expert (``heuristic``, ``mpc`` or ``expert``) and write into ``out``:
     ``policy.npz``, ``dagger_data.npz`` (aggregate labels), ``summary.json``, ``curve.csv`` / ``curve.png``
     (evaluation return after each round vs expert labels).
@@ -316,22 +329,39 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     Args:
         dataset: optional dataset directory whose first ``demos`` episodes are the round-0 demonstrations.
         workers: processes for each round's rollouts (the result does not depend on it).
+        env_id: the env (None: ``config.env_id``, else the env of ``dataset``'s metadata, else Bounding-v0); in
+            ``hsddp_gym/Pronking-v0`` the expert must be ``"expert"``: the pronk plan tracker
+            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`, its plan solved at the env's target speed).
     """
-    from hsddp_gym.datasets.recording import PolicySpec, solve_expert_plan
+    from hsddp_gym.datasets.recording import ENV_ID, PolicySpec, check_env_id, solve_expert_plan
     from hsddp_gym.util.extras import require
     from hsddp_gym.util.io import write_json
 
     require(["torch"] + (["minari", "h5py"] if dataset is not None and fmt == "minari" else []), "run_dagger")
+    config = config or DAggerConfig()
+    given = [e for e in (env_id, config.env_id) if e is not None]
+    if dataset is not None:
+        from hsddp_gym.datasets.storage import read_metadata
+
+        first = dataset[0] if isinstance(dataset, (list, tuple)) else dataset
+        given.append(read_metadata(first).get("env_id") or ENV_ID)
+    env_id = check_env_id(given[0] if given else None)
+    if any(check_env_id(e) != env_id for e in given):
+        raise ValueError(f"env_id: the env given, config.env_id and the dataset's env differ: {given}")
+    if env_id != ENV_ID and expert != "expert":
+        raise ValueError(f"expert {expert!r} is a {ENV_ID} controller; in {env_id} the expert is 'expert' (the "
+                         "pronk plan tracker)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    config = dataclasses.replace(config or DAggerConfig(), seed=int(seed),
-                                 bc=dataclasses.replace((config or DAggerConfig()).bc, seed=int(seed)))
+    config = dataclasses.replace(config, seed=int(seed), env_id=env_id,
+                                 bc=dataclasses.replace(config.bc, seed=int(seed)))
     env_kwargs = dict(env_kwargs or {})
     files = ["policy.npz", "dagger_data.npz", "summary.json", "curve.csv"]
     plan = None
     if expert == "expert":
-        plan = solve_expert_plan(out / "expert_plan.npz")
-        spec = PolicySpec("expert", plan_path=str(out / "expert_plan.npz"))
+        plan = solve_expert_plan(out / "expert_plan.npz", env_id, float(env_kwargs.get("target_speed", 1.0)))
+        spec = PolicySpec("expert", plan_path=str(out / "expert_plan.npz"),
+                          env_id=None if env_id == ENV_ID else env_id)
         files.append("expert_plan.npz")
     else:
         spec = PolicySpec(expert, options=dict(mpc_options or {}))
@@ -340,13 +370,14 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     def evaluate(p):
         if eval_episodes <= 0:
             return None
-        return eval_brief(evaluate_policy_episodes(p, eval_episodes, 0, env_kwargs, config.max_episode_steps))
+        return eval_brief(evaluate_policy_episodes(p, eval_episodes, 0, env_kwargs, config.max_episode_steps,
+                                                   env_id=env_id))
 
     clock = None
     if config.bc.features == "gait_clock":
         from hsddp_gym.datasets.collection import make_env
 
-        env = make_env(env_kwargs, config.max_episode_steps)
+        env = make_env(env_kwargs, config.max_episode_steps, env_id=env_id)
         clock = make_gait_clock(EnvInterface.from_env(env), mpc_options if expert == "mpc" else None)
         env.close()
     res = train_dagger(spec, config, initial, env_kwargs, evaluate=evaluate, progress=progress, clock=clock,
@@ -370,7 +401,7 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         "initial_dataset": None if dataset is None else str(dataset), "initial_demonstrations":
         None if initial is None else initial.n_episodes, "expert_labels": res.expert_labels,
         "transitions": len(res.data), "history": res.history, "wall_time_s": res.wall_time_s,
-        "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files,
+        "env_id": env_id, "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files,
         "conditions": list(config.conditions), "workers": int(workers)}
     if plan is not None:
         summary["expert_plan"] = plan

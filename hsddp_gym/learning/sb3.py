@@ -1,4 +1,5 @@
-"""Stable-Baselines3 glue: any policy as an SB3 ``BasePolicy``, and the PPO / SAC baselines on ``Bounding-v0``.
+"""Stable-Baselines3 glue: any policy as an SB3 ``BasePolicy``, and the PPO / SAC baselines on ``Bounding-v0`` (and
+``Pronking-v0``, ``env_id``).
 
 **Adapter.** :func:`as_sb3_policy` wraps a :class:`~hsddp_gym.planners.policies.base.Policy` (or any callable
 ``obs (obs_dim,) -> action (act_dim,)``) into a ``stable_baselines3.common.policies.BasePolicy`` whose
@@ -40,6 +41,9 @@ from hsddp_gym.util.io import atomic_path, read_npz, write_json, write_npz
 from hsddp_gym.util.validation import check_int, check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
+ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0")
+"""The envs :func:`train_sb3` trains in (``env_id``): Bounding-v0 (the default) and the pronking task Pronking-v0,
+which offers no compiled vector env and no robustness conditions."""
 ALGOS = ("ppo", "sac")
 
 PPO_HYPERPARAMS: dict = {
@@ -344,6 +348,21 @@ def _model_kwargs(hp: dict) -> dict:
     return kw
 
 
+def check_env_id(env_id, vector_env: bool = False, train_condition=None) -> str:
+    """``env_id`` (None: :data:`ENV_ID`) if :func:`train_sb3` trains in it, else ``ValueError`` naming it; the
+    compiled vector env (``vector_env``) and the robustness conditions (``train_condition``) are Bounding-v0's."""
+    if env_id is None:
+        return ENV_ID
+    if not isinstance(env_id, str) or env_id not in ENV_IDS:
+        raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
+    if env_id != ENV_ID and vector_env:
+        raise ValueError(f"env_id {env_id!r} has no compiled vector env (vector_env is {ENV_ID}'s only)")
+    if env_id != ENV_ID and train_condition is not None:
+        raise ValueError(f"env_id {env_id!r} takes no train_condition (the conditions perturb {ENV_ID}), got "
+                         f"{train_condition!r}")
+    return env_id
+
+
 def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool = False):
     """The :class:`~hsddp_gym.envs.perturbations.Condition` called ``name`` for training robots (None: none), with
     ``ValueError`` naming ``train_condition`` for an unknown name, for env arguments it sets that ``env_kwargs``
@@ -365,9 +384,9 @@ def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool
 
 
 def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None,
-               vector_env: bool = False, condition=None):
-    """The training (or evaluation) envs; ``condition`` (a checked :class:`~hsddp_gym.envs.perturbations.Condition`
-    or None) perturbs every one of them."""
+               vector_env: bool = False, condition=None, env_id: str = ENV_ID):
+    """The training (or evaluation) envs of ``env_id``; ``condition`` (a checked
+    :class:`~hsddp_gym.envs.perturbations.Condition` or None) perturbs every one of them."""
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
@@ -390,7 +409,7 @@ def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int 
             kw = dict(env_kwargs)
             if max_episode_steps is not None:
                 kw["max_episode_steps"] = int(max_episode_steps)
-            env = gym.make(ENV_ID, **kw) if condition is None else condition.make(**kw)
+            env = gym.make(env_id, **kw) if condition is None else condition.make(**kw)
             filename = None
             if monitor_path is not None:
                 filename = str(monitor_path) if n_envs == 1 else str(monitor_path).replace(".monitor.csv",
@@ -416,8 +435,9 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
               max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
               eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
               verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET,
-              vector_env: bool = False, train_condition: str | None = None) -> TrainResult:
-    """Train PPO or SAC on ``Bounding-v0`` and write the files of the module docstring into ``out``.
+              vector_env: bool = False, train_condition: str | None = None,
+              env_id: str | None = None) -> TrainResult:
+    """Train PPO or SAC on ``Bounding-v0`` (or ``env_id``) and write the files of the module docstring into ``out``.
 
     Args:
         algo: ``"ppo"`` or ``"sac"``. steps: env steps. seed: seeds the model, the env and the evaluation env.
@@ -442,6 +462,9 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         time_limit: wall-clock budget of the training [s] (None: none). Training stops at the first env step
             after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
             Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
+        env_id: the env to train and evaluate in, one of :data:`ENV_IDS` (None: Bounding-v0); Pronking-v0 takes
+            neither ``vector_env`` nor ``train_condition``. Stored in ``summary.json``, so
+            :func:`load_trained_policy` rebuilds the run's env.
     """
     from hsddp_gym.util.extras import require
 
@@ -458,6 +481,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     if time_limit is not None and not float(time_limit) > 0:
         raise ValueError(f"time_limit must be > 0 seconds or None, got {time_limit!r}")
     env_kwargs = dict(env_kwargs or {})
+    env_id = check_env_id(env_id, bool(vector_env), train_condition)
     condition = check_train_condition(train_condition, env_kwargs, bool(vector_env))
     torch.set_num_threads(int(threads))
     out = Path(out)
@@ -466,9 +490,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     if not isinstance(vector_env, (bool, np.bool_)):
         raise TypeError(f"vector_env must be a bool, got {type(vector_env).__name__}")
     venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv",
-                      vector_env=bool(vector_env), condition=condition)
+                      vector_env=bool(vector_env), condition=condition, env_id=env_id)
     # the evaluation env is wrapped as the training env (SB3 copies VecNormalize's statistics wrapper by wrapper)
-    eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None, vector_env=bool(vector_env))
+    eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None, vector_env=bool(vector_env),
+                           env_id=env_id)
     if hp["normalize"]:
         gamma = hp.get("gamma", 0.99)
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=gamma)
@@ -503,9 +528,9 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         files.append("evaluations.npz")
     if best is not None and best.record is not None:
         files += [BEST_MODEL] + ([BEST_VECNORMALIZE] if hp["normalize"] else [])
-    files += write_curves(out, algo)
+    files += write_curves(out, algo, env_id=env_id)
     summary = {
-        "algo": algo, "env_id": ENV_ID, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
+        "algo": algo, "env_id": env_id, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
         "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
         "preset": preset, "hyperparameters": hp, "vector_env": bool(vector_env),
         "train_condition": None if condition is None else condition.as_dict(), "wall_time_s": wall,
@@ -522,15 +547,17 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes
 
         summary["eval"] = eval_brief(evaluate_policy_episodes(load_trained_policy(out), final_eval_episodes, 0,
-                                                               env_kwargs, max_episode_steps))
+                                                               env_kwargs, max_episode_steps, env_id=env_id))
         # the policy as it acted in training: draws of its own distribution (seeded; a Gaussian PPO policy's mean
         # can fall where its draws bound, README "RL baselines")
         summary["eval_stochastic"] = eval_brief(evaluate_policy_episodes(
-            load_trained_policy(out, deterministic=False), final_eval_episodes, 0, env_kwargs, max_episode_steps))
+            load_trained_policy(out, deterministic=False), final_eval_episodes, 0, env_kwargs, max_episode_steps,
+            env_id=env_id))
         if summary["best_checkpoint"] is not None:
             # the checkpoint chosen by the training-time evaluations (their own seeds), under the same protocol
             summary["eval_best"] = eval_brief(evaluate_policy_episodes(
-                load_trained_policy(out, checkpoint="best"), final_eval_episodes, 0, env_kwargs, max_episode_steps))
+                load_trained_policy(out, checkpoint="best"), final_eval_episodes, 0, env_kwargs, max_episode_steps,
+                env_id=env_id))
         write_json(out / "summary.json", summary)
     return TrainResult(out, summary)
 
@@ -599,9 +626,10 @@ def _count_monitor_episodes(path: Path) -> int:
     return int(len(_read_monitor(path)))
 
 
-def write_curves(out: Path, label: str) -> list[str]:
+def write_curves(out: Path, label: str, env_id: str = ENV_ID) -> list[str]:
     """``curve.csv`` (training episodes vs env steps), ``eval_curve.csv`` (from ``evaluations.npz``) and
-    ``curve.png`` from the files of a training run in ``out``; returns the names written."""
+    ``curve.png`` (titled with ``label`` and ``env_id``) from the files of a training run in ``out``; returns the
+    names written."""
     out = Path(out)
     mon = _read_monitor(out / "train.monitor.csv")
     written = []
@@ -640,7 +668,7 @@ def write_curves(out: Path, label: str) -> list[str]:
                     label="deterministic evaluation")
     ax.set_xlabel("env steps")
     ax.set_ylabel("episode return")
-    ax.set_title(f"{label} on {ENV_ID}")
+    ax.set_title(f"{label} on {env_id}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -743,7 +771,8 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
 
     Args:
-        env: the env to act in (None: ``gym.make`` with the run's env kwargs).
+        env: the env to act in (None: ``gym.make`` of the run's env, ``summary.json``'s ``env_id``, with its env
+            kwargs).
         deterministic: the mean action (True) or draws of the policy's distribution (:class:`SB3ModelPolicy`).
         noise_seed: the seed of those draws.
         noise_scale: the factor on the draws' noise (1: the policy's own distribution).
@@ -766,7 +795,7 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     summary = json.loads((run_dir / "summary.json").read_text())
     algo = summary["algo"]
     if env is None:
-        env = gym.make(ENV_ID, **summary.get("env_kwargs", {}))
+        env = gym.make(summary.get("env_id", ENV_ID), **summary.get("env_kwargs", {}))
     hp = dict(summary["hyperparameters"])
     kw = _model_kwargs(hp)
     for name in ("learning_starts", "buffer_size", "n_steps", "batch_size"):  # training only: the weights do not

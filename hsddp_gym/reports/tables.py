@@ -628,34 +628,66 @@ def motions_summary(store: Store) -> str:
 
 
 def tasks_pronking(store: Store) -> str:
-    """The pronking task: the expert (Pronking-v0 and its MuJoCo twin) and BC per training seed on unseen seeds
+    """The pronking task: the expert (Pronking-v0 and its MuJoCo twin), BC and DAgger per training seed and SAC per
+    training seed and checkpoint on unseen seeds, with the samples and training time each learner used
     (``experiments/pronking.py``)."""
     rid = "tasks/pronking"
     if rid not in store.ids():
         return ("No `tasks/pronking` record yet: run `python experiments/pronking.py --record "
                 "results/tasks/pronking.json`.")
     d = store.data(rid)
-    header = ["policy", "env", "return", "success", "falls", "speed [m/s]", "matching contacts", "learned from"]
-    rows = []
-    for r in d["rows"]:
-        rows.append([r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
-                     f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_speed']:.3f}",
-                     f"{100 * r['mean_match_fraction']:.1f} % (min {100 * r['min_match_fraction']:.1f} %)", "–"])
+    header = ["policy", "env", "return", "success", "falls", "speed [m/s]", "matching contacts", "samples",
+              "training time"]
+
+    def cells(r, samples, train_time):
+        return [r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
+                f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_speed']:.3f}",
+                f"{100 * r['mean_match_fraction']:.1f} % (min {100 * r['min_match_fraction']:.1f} %)", samples,
+                train_time]
+
+    def seeds_row(label, group):
+        ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
+        mean = sum(r["mean_return"] for r in group) / len(group)
+        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", "`Pronking-v0`",
+                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}", "", "", "",
+                ""]
+
+    rows = [cells(r, "–", "–") for r in d["rows"]]
     for r in d["bc"]:
-        rows.append([r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
-                     f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_speed']:.3f}",
-                     f"{100 * r['mean_match_fraction']:.1f} % (min {100 * r['min_match_fraction']:.1f} %)",
-                     f"{r['transitions']:,} transitions ({r['demonstrations']} demos)"])
+        rows.append(cells(r, f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
+                          f"{r['train_wall_time_s']:.0f} s"))
     if d["bc"]:
-        ok = sum(r["successes"] for r in d["bc"])
-        n = sum(r["episodes"] for r in d["bc"])
-        mean = sum(r["mean_return"] for r in d["bc"]) / len(d["bc"])
-        rows.append([f"BC, {len(d['bc'])} training seeds", "`Pronking-v0`", f"{mean:.1f} (mean of the seeds)",
-                     f"{ok}/{n}", f"{sum(r['falls'] for r in d['bc'])}/{n}", "", "", ""])
+        rows.append(seeds_row("BC", d["bc"]))
+    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
+        group = [r for r in d["dagger"] if r["rounds"] == rounds]
+        for r in group:
+            rollouts = r["rounds"] * r["episodes_per_round"]
+            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
+                     f"{r['episodes_per_round']} expert episodes")
+            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
+                                 f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
+        rows.append(seeds_row(f"DAgger, {rounds} round{'s' if rounds != 1 else ''}", group))
+    for r in d.get("sac", []):
+        steps = (f"{r['env_steps']:,} env steps" if r["checkpoint"] == "final" else
+                 f"{r['env_steps']:,} of {r['total_env_steps']:,} env steps")
+        rows.append(cells(r, steps, f"{r['train_wall_time_s']:.0f} s"))
+    for checkpoint, name in (("final", "final weights"), ("best", "best checkpoint")):
+        group = [r for r in d.get("sac", []) if r["checkpoint"] == checkpoint]
+        if len(group) > 1:
+            rows.append(seeds_row(f"SAC ({name})", group))
     seeds = d["seeds"]
-    note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset), target speed "
+    note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), target speed "
             f"{d['target_speed']:g} m/s, 1000 steps (5 s); return: mean ± std over the episodes. Success: "
-            f"{d['success_rule']}.")
+            f"{d['success_rule']}. Samples: the expert's labelled (observation, action) pairs BC and DAgger learned "
+            "from (DAgger's include BC's demonstrations, its round 0), or SAC's env steps (of its best checkpoint: "
+            "the steps when it was saved). Training time: wall-clock seconds on the shared 2-core machine.")
+    sac = d.get("sac", [])
+    if sac:
+        limits = sorted({r["time_limit_s"] for r in sac if r.get("time_limit_s")})
+        if limits:
+            note += (f" SAC trained for a wall-clock budget of {', '.join(f'{t:g}' for t in limits)} s (RL-Zoo "
+                     "settings, `hsddp-gym train --algo sac --time-limit`); both its final weights and its best "
+                     "checkpoint act with the mean action.")
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, rid)])
 
