@@ -182,10 +182,42 @@ def jumps(store, out_dir) -> list[Path]:
 FIGURE_DIR = "docs/figures"
 """Where the published figures live (relative to the repository's top folder)."""
 
+def generality(data: dict, out_dir) -> list[Path]:
+    """``generality.png``: falls of 20 per condition, the MPC beside the heuristic, over the suite and the
+    conditions the MPC was not built on (a ``robustness/generality`` record; the groups of its table)."""
+    from hsddp_gym.reports.tables import _generality_groups
+
+    conds = list(data["conditions"])
+    order = [c for _, members in _generality_groups() for c in members if c in conds]
+    order += [c for c in conds if c not in order]
+    res = data["results"]
+    policies = [p for p in ("mpc", "heuristic") if p in res]
+    labels = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
+    plt = plotting._plt()
+    fig, ax = plt.subplots(figsize=(7.5, 0.22 * len(order) + 1.2))
+    y = np.arange(len(order))
+    height = 0.8 / max(len(policies), 1)
+    for i, p in enumerate(policies):
+        falls = [res[p][c]["falls"] for c in order]
+        ax.barh(y + (i - (len(policies) - 1) / 2) * height, falls, height=height, color=f"C{i}", label=labels.get(p, p))
+    episodes = max(res[p][c]["episodes"] for p in policies for c in order)
+    ax.axvline(1, color="k", ls=":", lw=0.8, label="1 fall")
+    ax.set_yticks(y, order, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlim(0, episodes)
+    ax.set_xlabel(f"falls of {episodes} (seeds {data['seeds'][0]}-{data['seeds'][-1]})")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(axis="x", alpha=0.3)
+    path = Path(out_dir) / "generality.png"
+    plotting._save(fig, path, dpi=90)
+    return [path]
+
+
 FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
     "paper/task1": paper_task1,
     "paper/sto": paper_task2,
     "rl/curves": rl_curves,
+    "robustness/generality": generality,
 }
 """``{record id: drawing function of the record's data}``; each writes its figures into the folder it is given."""
 

@@ -692,6 +692,94 @@ def tasks_pronking(store: Store) -> str:
                       source_line(store, rid)])
 
 
+# -- generality of the MPC ---------------------------------------------------------------------------------------------
+
+def _generality_groups() -> tuple:
+    """The groups of the generality table: (title, condition names), in order."""
+    from hsddp_gym.envs.perturbations import CONTACT_CONDITIONS, HARDWARE_CONDITIONS, SUITE
+
+    pushes = ("push_flight", "push_stance", "push_x3")
+    return (("the suite", tuple(SUITE)), ("contact models (MuJoCo twin)", tuple(CONTACT_CONDITIONS)),
+            ("latency not known exactly", tuple(c for c in HARDWARE_CONDITIONS if c.startswith("delay_"))),
+            ("sensor bias", tuple(c for c in HARDWARE_CONDITIONS if c.startswith("sensor_"))),
+            ("pushes by phase, repeated pushes", pushes))
+
+
+def robustness_generality(store: Store) -> str:
+    """Falls per condition, the MPC beside the heuristic, over the suite and every condition the MPC was not built
+    on (``robustness/generality``): contact models, latencies announced wrongly, sensor biases, pushes by phase."""
+    d = store.data("robustness/generality")
+    conds = list(d["conditions"])
+    policies = [p for p in ("mpc", "heuristic") if p in d["results"]] + \
+        [p for p in d["results"] if p not in ("mpc", "heuristic")]
+    labels = {"mpc": "MPC", "heuristic": "heuristic"}
+    header = ["condition"] + [labels.get(p, p) for p in policies]
+    rows, seen = [], set()
+    for title, members in _generality_groups():
+        group = [c for c in conds if c not in seen and c in members]
+        if not group:
+            continue
+        seen.update(group)
+        rows.append([f"*{title}*"] + [""] * len(policies))
+        for c in group:
+            row = [f"`{c}`"]
+            for p in policies:
+                cell = d["results"][p].get(c)
+                text = f"**{_falls(cell)}**" if cell is not None else NA
+                if cell is not None and cell["falls"] and cell.get("mean_fall_time_s") is not None:
+                    text += f" ({cell['mean_fall_time_s']:.2f} s)"
+                row.append(text)
+            rows.append(row)
+    rest = [c for c in conds if c not in seen]
+    for c in rest:
+        rows.append([f"`{c}`"] + [f"**{_falls(d['results'][p].get(c))}**" for p in policies])
+    totals = ["**falls, total**"]
+    worst = ["**most falls in one condition**"]
+    for p in policies:
+        cells = [d["results"][p][c] for c in conds if c in d["results"][p]]
+        totals.append(f"**{sum(x['falls'] for x in cells)}/{sum(x['episodes'] for x in cells)}**")
+        worst.append(str(max((x["falls"] for x in cells), default=0)))
+    rows += [totals, worst]
+    seeds = d["seeds"]
+    rtf = [d["results"]["mpc"][c]["real_time_factor"] for c in conds] if "mpc" in d["results"] else []
+    note = (f"Cells: falls / episodes (mean time to fall). Seeds {seeds[0]}-{seeds[-1]} (never used to develop or "
+            "tune anything), one 1000-step episode (5 s) per seed and condition; the contact conditions run in the "
+            "MuJoCo twin, the others in Bounding-v0.")
+    if rtf:
+        note += (f" The MPC's real-time factor per condition: {min(rtf):.1f}-{max(rtf):.1f} (two episodes at a time "
+                 f"on {_machine_note(store, 'robustness/generality')}).")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, "robustness/generality")])
+
+
+def robustness_generality_summary(store: Store) -> str:
+    """The generality table in one row per group of conditions: falls of the MPC and of the heuristic, and each
+    one's most falls in a single condition (``robustness/generality``)."""
+    d = store.data("robustness/generality")
+    conds = list(d["conditions"])
+    res = d["results"]
+    rows = []
+    for title, members in _generality_groups():
+        group = [c for c in conds if c in members]
+        if not group:
+            continue
+        row = [title, str(len(group))]
+        for p in ("mpc", "heuristic"):
+            cells = [res[p][c] for c in group] if p in res else []
+            if not cells:
+                row += [NA, NA]
+                continue
+            worst = max(cells, key=lambda x: x["falls"])
+            name = group[cells.index(worst)]
+            row += [f"{sum(x['falls'] for x in cells)}/{sum(x['episodes'] for x in cells)}",
+                    f"{worst['falls']}/{worst['episodes']}" + (f" (`{name}`)" if worst["falls"] else "")]
+        rows.append(row)
+    header = ["conditions", "count", "MPC falls", "MPC worst cell", "heuristic falls", "heuristic worst cell"]
+    seeds = d["seeds"]
+    note = (f"Seeds {seeds[0]}-{seeds[-1]}, never used in development, one 5 s episode per seed and condition; "
+            "per condition on the [robustness page](docs/results/robustness.md#conditions-the-mpc-was-not-built-on).")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, "robustness/generality")])
+
+
 TABLES: dict[str, Callable[[Store], str]] = {
     "paper/task1": paper_task1,
     "paper/sto_variants": paper_sto_variants,
@@ -707,11 +795,13 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/suite": robustness_suite,
     "robustness/summary": robustness_summary,
     "robustness/simulators": robustness_simulators,
+    "robustness/contact_models": robustness_contact_models,
     "policies/protocol": policies_protocol,
     "learning/imitation": learning_imitation,
     "motions/summary": motions_summary,
     "tasks/pronking": tasks_pronking,
-    "robustness/contact_models": robustness_contact_models,
+    "robustness/generality": robustness_generality,
+    "robustness/generality_summary": robustness_generality_summary,
 }
 """``{table id: renderer}``."""
 
