@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from hsddp_gym.core.batch_contact import CompiledContactSimulator
-from hsddp_gym.core.conventions import NQ, NU, NX, Mode, mode_from_contacts
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_int, check_positive, check_vector
 
@@ -103,6 +103,101 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.
     x[1] += dz
     x[2] += dpitch
     return x
+
+
+class MeasurementBias:
+    """A constant offset of the measured trunk height and pitch, estimated from the feet on the ground.
+
+    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, is at
+    the ground, whatever the sensors say. The height of such a foot computed from the measurement ``y`` is then the
+    measurement's error seen at the foot: to first order ``h_f(y) = J_f b`` with ``J_f = (dh_f/dz, dh_f/dpitch)``
+    and ``b = (b_z, b_pitch)`` the biases. One foot sees a combination of them; the two feet of a gait over a cycle
+    see both. They are estimated by least squares over the observations, the older ones forgotten with the time
+    constant ``memory`` (an exponential weight), from a prior of zero bias worth ``prior_steps`` observations of one
+    foot (a pitch's observation scaled by the hip's lever arm), and subtracted from every measurement
+    (:meth:`correct`).
+
+    Whatever else holds a stance foot off the flat ground is read as a bias too and corrected the same way: a foot
+    that sinks into a soft contact or stands on a step (the measurement is then expressed relative to the ground
+    under the stance feet, the frame a flat-ground planner needs). A sample whose residual exceeds ``gate`` [m]
+    (a foot flagged on the ground far from it) is not used; the estimates are bounded by ``limit`` (``(height [m],
+    pitch [rad])``). Velocities are not estimated: on a compliant contact a stance foot is not at rest (it sinks
+    and rebounds), and a velocity bias of the size of the measurement noise is the feedback's business (the MPC's
+    speed integral).
+
+    Args:
+        robot: the model (its kinematics).
+        control_dt: period of the observations [s].
+        memory: time constant of the forgetting [s] (> 0).
+        settle_steps: observations a foot must have been in contact before it is used (>= 1).
+        prior_steps: weight of the zero-bias prior, in observations of one foot (> 0).
+        gate: residual [m] beyond which a sample is not used (> 0).
+        limit: ``(height [m], pitch [rad])`` bounds of the estimates (> 0).
+
+    Attributes:
+        bias: the estimate (14,) in state order (zeros but the trunk height and pitch).
+        samples: foot observations used since :meth:`reset`.
+    """
+
+    CALIBRATION_STEPS = 5.0
+    """The weight of observations of the height (in one foot's observations) after which :attr:`calibrated`."""
+    INDEX = np.array([IZ, IPITCH])
+
+    def __init__(self, robot: CheetahModel, control_dt: float, memory: float = 1.0, settle_steps: int = 2,
+                 prior_steps: float = 1.0, gate: float = 0.05, limit: tuple = (0.05, 0.1)) -> None:
+        if not isinstance(robot, CheetahModel):
+            raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
+        self.robot = robot
+        self.forget = math.exp(-check_positive(control_dt, "control_dt") / check_positive(memory, "memory"))
+        self.settle_steps = check_int(settle_steps, "settle_steps", minimum=1)
+        prior = check_positive(prior_steps, "prior_steps")
+        self.gate = check_positive(gate, "gate")
+        self.limit = check_vector(limit, 2, "limit")
+        if np.any(self.limit <= 0):
+            raise ValueError(f"limit must be positive, got {limit!r}")
+        self._prior = prior * np.diag([1.0, float(robot.params.hip_offset) ** 2])
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the estimate (zero bias)."""
+        self.bias = np.zeros(NX)
+        self.samples = 0
+        self._in_contact = [0, 0]
+        self._info, self._vec = np.zeros((2, 2)), np.zeros(2)
+
+    @property
+    def calibrated(self) -> bool:
+        """True once the feet on the ground have given the height the weight of :attr:`CALIBRATION_STEPS`
+        observations: before, where the measurement puts the ground is not known."""
+        return bool(self._info[0, 0] >= self.CALIBRATION_STEPS)
+
+    def update(self, y: np.ndarray, mode: Mode) -> np.ndarray:
+        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return :attr:`bias` (14,)."""
+        mode = Mode(mode)
+        self._info *= self.forget
+        self._vec *= self.forget
+        used = False
+        for f in (FRONT, BACK):
+            self._in_contact[f] = self._in_contact[f] + 1 if mode.in_contact(f) else 0
+            if self._in_contact[f] <= self.settle_steps:
+                continue
+            j = self.robot.foot_jacobian(y[:NQ], f)[1, self.INDEX]
+            h = self.robot.foot_height(y[:NQ], f)
+            if abs(h - j @ self.bias[self.INDEX]) > self.gate:
+                continue
+            self._info += np.outer(j, j)
+            self._vec += j * h
+            self.samples += 1
+            used = True
+        if used:
+            b = np.linalg.solve(self._info + self._prior, self._vec)
+            self.bias[self.INDEX] = np.clip(b, -self.limit, self.limit)
+        return self.bias
+
+    def correct(self, y: np.ndarray, mode: Mode) -> np.ndarray:
+        """The measurement ``y`` (14,) less the bias estimated with it (:meth:`update`): a new array."""
+        y = check_vector(y, NX, "y")
+        return y - self.update(y, mode)
 
 
 def _noise_model(dt: float, position_noise: float, velocity_noise: float, acceleration_noise: float):

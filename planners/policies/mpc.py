@@ -14,7 +14,7 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``), a
    flight whose other foot is back on the ground is planned as that foot's stance (``plan_retouch``), and a flight
    past its nominal end whose landing foot the state puts at the ground ends, whatever that foot's contact flag
-   says (``touchdown_height``, :func:`late_landing`);
+   says (``touchdown_height``, :func:`late_landing`; the ground where the feet on it put it, ``bias_memory``);
 3. the previous plan, aligned by phase with the contact events
    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
@@ -26,7 +26,8 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
-Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
+Before step 1 the observation is corrected by the bias of its trunk height and pitch that the feet on the ground
+reveal (``bias_memory``), goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
 actions already sent (``latency_compensation``): the plan and its feedback law are for the state at which the
 action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
@@ -56,7 +57,7 @@ from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, StateFilter
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.latency import DelayEstimator
 from hsddp_gym.planners.policies.tracking import PlanTracker
@@ -198,6 +199,15 @@ class MPCOptions:
             each handed the measured velocities of the contact's vibration to the feedback law. A push keeps the
             innovation beyond the gate for the next observation as well and restarts the estimate one control step
             later. 1 for sensors with no single-step outliers and a model that matches the contact.
+        bias_memory: time constant [s] of the estimate of a constant bias of the measured trunk height and pitch
+            (None: the measurements are taken as they are). A foot the contact flags put on the ground is at the
+            ground, so the height at which the measurement puts it is the measurement's error seen at the foot; the
+            two feet of a gait cycle give the height and the pitch bias, estimated by least squares over the
+            observations with this forgetting and subtracted from every measurement before the filter
+            (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`). The late-landing rule
+            (``touchdown_height``) then measures a foot from the ground the feet have found, and waits for the
+            first stance's calibration before it acts. A foot that sinks into a soft contact is read the same way.
+            Velocity biases are not estimated (the speed integral absorbs a forward-speed bias).
         action_delay: control steps between an action's return and its execution (None: the env's,
             ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
         latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
@@ -280,6 +290,7 @@ class MPCOptions:
     filter_acceleration_noise: float = 3.0
     filter_innovation_gate: float = 35.0
     filter_restart_steps: int = 2
+    bias_memory: float | None = 1.0
     action_delay: int | None = None
     latency_compensation: bool = True
     delay_search: int = 1
@@ -306,6 +317,8 @@ class MPCOptions:
         check_int(self.latency_steps, "latency_steps", minimum=0)
         check_int(self.debounce_steps, "debounce_steps", minimum=1)
         check_int(self.filter_restart_steps, "filter_restart_steps", minimum=1)
+        if self.bias_memory is not None:
+            check_positive(self.bias_memory, "bias_memory")
         check_int(self.lost_stance_steps, "lost_stance_steps", minimum=0)
         if self.double_stance is not None:
             check_positive(self.double_stance, "double_stance")
@@ -676,6 +689,8 @@ class MPCPolicy(Policy):
             if options.delay_search > 0 else None
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
+        self._bias = None if options.bias_memory is None else \
+            MeasurementBias(self.dynamics.robot, interface.control_dt, options.bias_memory)
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
@@ -705,6 +720,8 @@ class MPCPolicy(Policy):
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
+        if self._bias is not None:
+            self._bias = MeasurementBias(self.dynamics.robot, self.interface.control_dt, self.options.bias_memory)
 
     def reset(self) -> None:
         self._solver = HSDDP(SolverOptions(method=self.options.method))
@@ -730,6 +747,8 @@ class MPCPolicy(Policy):
         self._sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(history)), maxlen=history)
         self._last_observed: np.ndarray | None = None  # the previous observation's state, for the delay estimate
         self._filter.reset()
+        if self._bias is not None:
+            self._bias.reset()
         self._first_obs = True
         self._start_speed: float | None = None
         self.last_estimate: np.ndarray | None = None
@@ -758,7 +777,10 @@ class MPCPolicy(Policy):
 
     def _update_clock(self, mode: Mode, x: np.ndarray) -> Mode:
         """Advance the gait clock (:class:`GaitClock`) by the observed contacts; return the current phase's mode."""
-        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, self.options.touchdown_height)
+        # the state says where a foot is relative to the ground once the feet on it have calibrated the measured
+        # height (MeasurementBias; before the first stance of an episode, the flags alone)
+        height = self.options.touchdown_height if self._bias is None or self._bias.calibrated else None
+        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height)
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -1023,6 +1045,8 @@ class MPCPolicy(Policy):
         (:attr:`_startup_controller`)."""
         x_obs, mode, _ = self._parse(obs)
         o = self.options
+        if self._bias is not None:
+            x_obs = self._bias.correct(x_obs, mode)
         if self._delay_estimator is not None:
             if self._last_observed is not None:
                 torques = np.array(self._sent, dtype=np.float64) * self.interface.torque_limit

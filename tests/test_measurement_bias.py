@@ -1,0 +1,115 @@
+"""The MPC's estimate of a constant bias of the measured trunk height and pitch from the feet on the ground
+(``MeasurementBias``, ``MPCOptions.bias_memory``)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401  (registers the envs)
+from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NQ, NX, Mode, mode_from_contacts
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.planners.policies import MPCOptions, MPCPolicy
+from hsddp_gym.planners.policies.estimation import MeasurementBias
+from hsddp_gym.planners.policies.evaluation import run_episode
+from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+
+BIASED_SEED = 9707
+"""A seed on which the MPC that takes the biased measurement as it is falls within 1 s under ``sensor_bias`` (its
+late-landing rule sees the landing foot at the ground 1-2 cm early)."""
+
+
+@pytest.fixture(scope="module")
+def bounding_trajectory():
+    """Exact states (n, 14) and contact modes of 2 s of the heuristic bounding in Bounding-v0."""
+    env = gym.make("hsddp_gym/Bounding-v0")
+    policy = HeuristicPolicy.from_env(env)
+    obs, info = env.reset(seed=3)
+    policy.reset()
+    states, modes = [], []
+    for _ in range(400):
+        obs, _, terminated, truncated, info = env.step(policy.act(obs))
+        states.append(np.concatenate([info["qpos"], info["qvel"]]))
+        modes.append(mode_from_contacts(*info["contact"]))
+        assert not (terminated or truncated)
+    env.close()
+    return np.array(states), modes
+
+
+def _estimate(states, modes, bias, noise=0.0, seed=0, **kwargs):
+    rng = np.random.default_rng(seed)
+    est = MeasurementBias(CheetahModel(), 0.005, **kwargs)
+    for x, m in zip(states, modes):
+        y = x + bias + noise * rng.standard_normal(NX) * np.r_[np.full(NQ, 0.1), np.ones(NX - NQ)]
+        est.update(y, m)
+    return est
+
+
+def test_a_constant_bias_of_height_and_pitch_is_recovered_whatever_the_velocity_bias(bounding_trajectory):
+    states, modes = bounding_trajectory
+    bias = np.zeros(NX)
+    bias[[IZ, IPITCH, IVX, NQ + IZ, NQ + IPITCH]] = [-0.02, 0.03, 0.05, -0.04, 0.2]
+    est = _estimate(states, modes, bias)
+    assert est.samples > 200 and est.calibrated
+    err = np.abs(est.bias - bias)
+    assert err[IZ] < 1e-3 and err[IPITCH] < 2e-3
+    assert not np.any(est.bias[NQ:])  # velocities are left alone
+    corrected = est.correct(states[-1] + bias, modes[-1])
+    assert abs(corrected[IZ] - states[-1][IZ]) < 1e-3
+
+
+def test_exact_measurements_give_no_bias_and_noise_averages_out(bounding_trajectory):
+    states, modes = bounding_trajectory
+    exact = _estimate(states, modes, np.zeros(NX))
+    assert np.max(np.abs(exact.bias)) < 1e-4
+    noisy = _estimate(states, modes, np.zeros(NX), noise=0.1, seed=1)  # 1 cm on positions
+    assert abs(noisy.bias[IZ]) < 3e-3 and abs(noisy.bias[IPITCH]) < 1e-2
+
+
+def test_no_foot_on_the_ground_no_estimate(bounding_trajectory):
+    states, _ = bounding_trajectory
+    est = _estimate(states, [Mode.FLIGHT] * len(states), np.full(NX, 0.01))
+    assert est.samples == 0 and not np.any(est.bias) and not est.calibrated
+
+
+def test_outliers_are_not_used_and_estimates_are_bounded(bounding_trajectory):
+    states, modes = bounding_trajectory
+    bias = np.zeros(NX)
+    bias[IZ] = -0.2  # beyond the gate of every sample: nothing is learnt
+    est = _estimate(states, modes, bias)
+    assert est.samples == 0 and not np.any(est.bias)
+    est = _estimate(states, modes, bias, gate=1.0)
+    assert est.bias[IZ] == pytest.approx(-0.05)  # the bound
+
+
+def test_measurement_bias_validation_names_the_argument():
+    robot = CheetahModel()
+    with pytest.raises(ValueError, match="memory"):
+        MeasurementBias(robot, 0.005, memory=0.0)
+    with pytest.raises(ValueError, match="settle_steps"):
+        MeasurementBias(robot, 0.005, settle_steps=0)
+    with pytest.raises(ValueError, match="gate"):
+        MeasurementBias(robot, 0.005, gate=0.0)
+    with pytest.raises(ValueError, match="limit"):
+        MeasurementBias(robot, 0.005, limit=(0.05, -1.0))
+    with pytest.raises(TypeError, match="robot"):
+        MeasurementBias(None, 0.005)
+    with pytest.raises(ValueError, match="bias_memory"):
+        MPCOptions(bias_memory=-1.0)
+
+
+def test_the_mpc_bounds_under_a_biased_sensor_and_falls_without_the_estimate():
+    from hsddp_gym.envs.perturbations import make_env
+
+    env = make_env("sensor_bias")
+    try:
+        bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(bias_memory=None)), BIASED_SEED,
+                           max_steps=400)
+        assert bare.fell and bare.simulated_time < 1.0
+        policy = MPCPolicy.from_env(env)
+        result = run_episode(env, policy, BIASED_SEED, max_steps=400)
+    finally:
+        env.close()
+    assert not result.fell and result.length == 400 and result.forward_speed > 0.5
+    assert policy._bias.bias[IZ] == pytest.approx(-0.02, abs=3e-3)  # the bias of sensor_bias, height
