@@ -16,6 +16,7 @@ from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout, fill_observation
 from hsddp_gym.core.params import DEFAULT_PARAMS
 from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.core.terrain import SAMPLE_KINDS, Terrain
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector, real_array
 
 DEFAULT_FRAME_SKIP = 5
@@ -35,6 +36,9 @@ RESET_MAX_JOINT_RATE = 100.0
 RESET_VELOCITY_BOUNDS = (RESET_MAX_LINEAR_SPEED, RESET_MAX_LINEAR_SPEED, RESET_MAX_PITCH_RATE) \
     + (RESET_MAX_JOINT_RATE,) * NU
 """Bounds (7,) on ``|v|`` of a reset state, in state order ``[vx, vz, pitch rate, 4 joint rates]``."""
+TERRAIN_KINDS = tuple("random_" + kind for kind in SAMPLE_KINDS)
+"""The ``terrain=`` strings of seeded random profiles: ``"random_steps"``, ``"random_slopes"``, ``"random_mixed"``
+(:meth:`hsddp_gym.core.terrain.Terrain.sample` with its defaults, one profile per episode)."""
 _STATE_NAMES = ("x", "z", "pitch", "hip_front", "knee_front", "hip_back", "knee_back",
                 "vx", "vz", "pitch_rate", "hip_front_rate", "knee_front_rate", "hip_back_rate", "knee_back_rate")
 
@@ -56,6 +60,21 @@ def _check_bool(value, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
     return bool(value)
+
+
+def check_terrain_option(terrain, name: str = "terrain"):
+    """The env's ``terrain=`` argument checked: None (flat), a :class:`~hsddp_gym.core.terrain.Terrain`, a dict of
+    :meth:`Terrain.to_dict` (JSON: becomes a Terrain) or one of :data:`TERRAIN_KINDS`; errors name ``name``."""
+    if terrain is None or isinstance(terrain, Terrain):
+        return terrain
+    if isinstance(terrain, dict):
+        return Terrain.from_dict(terrain, name)
+    if isinstance(terrain, str):
+        if terrain not in TERRAIN_KINDS:
+            raise ValueError(f"{name} must be None, a Terrain, a dict of Terrain.to_dict() or one of "
+                             f"{list(TERRAIN_KINDS)}, got {terrain!r}")
+        return terrain
+    raise TypeError(f"{name} must be None, a Terrain, a dict or a str, got {type(terrain).__name__}")
 
 
 def pop_due_pushes(pushes: list, frame_start: float, n: int, h: float) -> list:
@@ -189,6 +208,7 @@ class BoundingEnv(gym.Env):
     | ``render_mode`` | None | ``"rgb_array"`` or ``"human"`` |
     | ``width``, ``height`` | 480, 320 | image size of ``render`` [px] |
     | ``render_grf`` | True | draw ground-force arrows |
+    | ``terrain`` | None | the ground's profile (5): None (flat), a ``Terrain``, its ``to_dict()`` or a random kind |
 
     (1) The legacy scheme's position correction; the default scheme projects contact feet exactly onto the
     ground (and sticking feet onto their positions) every step.
@@ -207,7 +227,20 @@ class BoundingEnv(gym.Env):
     (4) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
     than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
 
-    Every argument is JSON-serializable, so Minari can rebuild the env from its spec.
+    (5) :mod:`hsddp_gym.core.terrain`: steps, slopes and gaps (deep drops). The feet contact its continuous
+    simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`: a jump is a 1 mm wide riser) along the
+    local normal, with the friction cone in the local frame; the after-step projection puts contact feet, and any foot
+    that ended below it, onto it. ``info["foot_heights"]``, the reset contact flags and the reset's lift of a foot
+    below the ground measure from the surface under each foot; the healthy trunk height is ``z - g(x)`` with ``g`` the
+    ground under the trunk (:meth:`~hsddp_gym.core.terrain.Terrain.support_heights`: a gap is bridged at its near
+    edge's level, so falling into it ends the episode); ``info`` then also holds ``ground_height`` (that ``g``). The
+    observation keeps the absolute trunk height and the reward the horizontal speed. A string of
+    :data:`TERRAIN_KINDS` draws a new profile at every reset from ``self.np_random`` (before the reset noise), so the
+    reset seed fixes it (flat until the first reset). Only the energy-consistent scheme simulates a terrain; the
+    compiled vector env does not (``terrain`` must be None there). ``hsddp_gym/Terrain-v0`` is ``"random_mixed"``.
+
+    Every argument is JSON-serializable (a ``terrain`` as its ``to_dict()`` or a string), so Minari can rebuild the
+    env from its spec.
 
     Why the defaults: the legs are light (no rotor inertia is modelled: about 1e-3 kg m^2 seen by a swinging
     knee), so a joint damping gain ``kd`` held for a control period ``dt`` is unstable once
@@ -236,7 +269,7 @@ class BoundingEnv(gym.Env):
                  gravity: float = DEFAULT_PARAMS.gravity, contact_erp: float = 1.0, trunk_mass_scale: float = 1.0,
                  motor_speed_limits=DEFAULT_MOTOR_SPEED_LIMITS, energy_consistent: bool = True,
                  render_mode: str | None = None,
-                 width: int = 480, height: int = 320, render_grf: bool = True) -> None:
+                 width: int = 480, height: int = 320, render_grf: bool = True, terrain=None) -> None:
         self.frame_skip = check_int(frame_skip, "frame_skip", minimum=1)
         self.sim_timestep = check_positive(sim_timestep, "sim_timestep")
         if self.sim_timestep > 0.01:
@@ -269,6 +302,16 @@ class BoundingEnv(gym.Env):
         self.width = check_int(width, "width", minimum=16)
         self.height = check_int(height, "height", minimum=16)
         self.render_grf = _check_bool(render_grf, "render_grf")
+
+        self.terrain_option = check_terrain_option(terrain)
+        """The ``terrain`` argument (a Terrain, a random kind of :data:`TERRAIN_KINDS` or None)."""
+        if self.terrain_option is not None and not energy_consistent:
+            raise ValueError("terrain needs energy_consistent=True (only the energy-consistent scheme simulates a "
+                             "terrain)")
+        if isinstance(self.terrain_option, Terrain) and self.terrain_option.is_flat:
+            self.terrain_option = None  # a flat profile is the flat ground: the same code, bit for bit
+        self.terrain: Terrain | None = self.terrain_option if isinstance(self.terrain_option, Terrain) else None
+        """The profile simulated now (None: flat ground; a random kind draws one at every reset)."""
 
         params = DEFAULT_PARAMS
         if self.trunk_mass_scale != 1.0:
@@ -312,7 +355,7 @@ class BoundingEnv(gym.Env):
 
             return CompiledContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction,
                                             gravity=gravity, motor_speed_limits=motor_speed_limits,
-                                            torque_limit=self.torque_limit)
+                                            torque_limit=self.torque_limit, terrain=self.terrain)
         return ContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction, gravity=gravity,
                                 erp=contact_erp, motor_speed_limits=motor_speed_limits,
                                 torque_limit=self.torque_limit, energy_consistent=energy_consistent)
@@ -353,9 +396,26 @@ class BoundingEnv(gym.Env):
             return False
         x = self.sim.x
         z, pitch = float(x[IZ]), float(x[IPITCH])
+        if self.terrain is not None:
+            z -= self.ground_height(float(x[IX]))
         zlo, zhi = self.healthy_z_range
         plo, phi = self.healthy_pitch_range
         return zlo < z < zhi and plo < pitch < phi
+
+    def ground_height(self, x: float) -> float:
+        """The ground [m] the trunk height is measured from at trunk ``x`` [m]: 0 on flat ground, else the terrain's
+        :meth:`~hsddp_gym.core.terrain.Terrain.support_heights` (a gap bridged at its near edge's level)."""
+        if self.terrain is None:
+            return 0.0
+        return float(self.terrain.support_heights(x))
+
+    def foot_clearances(self, q) -> np.ndarray:
+        """Heights (2,) [m] of the feet of configuration ``q`` (7,) above the ground under each (the simulated
+        surface of the terrain, if any)."""
+        if self.terrain is None:
+            return self.robot.foot_heights(q)
+        feet = self.robot.foot_positions(q)
+        return feet[:, 1] - self.terrain.surface_heights(feet[:, 0])
 
     def valid_state(self) -> bool:
         """The state is finite and its speeds are inside the observation bounds (100 m/s, 1000 rad/s);
@@ -391,7 +451,7 @@ class BoundingEnv(gym.Env):
         x = self.sim.x
         heights = self._heights.copy()
         fwd, ctrl, healthy = self._last_rewards
-        return {
+        info = {
             "x_position": float(x[IX]),
             "x_velocity": float(self._x_velocity),
             "reward_forward": fwd,
@@ -405,6 +465,9 @@ class BoundingEnv(gym.Env):
             "time": float(self.time),
             "invalid_state": self._invalid,
         }
+        if self.terrain is not None:
+            info["ground_height"] = self.ground_height(float(x[IX])) if np.isfinite(x[IX]) else float("nan")
+        return info
 
     def _check_reset_state(self, state) -> np.ndarray:
         """``options["state"]`` as a float array (14,): finite, positions inside the observation bounds and
@@ -437,9 +500,12 @@ class BoundingEnv(gym.Env):
         t0 = 0.0 if options.get("time") is None else check_positive(options["time"], "options['time']",
                                                                      allow_zero=True)
         push_now, self._pushes = self._parse_push(options.get("push"))
+        if isinstance(self.terrain_option, str):  # a new random profile, drawn before the reset noise
+            self.terrain = Terrain.sample(self.np_random, self.terrain_option[len("random_"):])
+            self.sim.set_terrain(self.terrain)
         if options.get("state") is not None:
             x = self._check_reset_state(options["state"])
-            heights = self.robot.foot_heights(x[:NQ])
+            heights = self.foot_clearances(x[:NQ])
             if heights.min() < -_MAX_PENETRATION_AT_RESET:
                 raise ValueError(f"options['state'] puts a foot {-heights.min():.4g} m below the ground "
                                  f"(at most {_MAX_PENETRATION_AT_RESET} m allowed)")
@@ -448,7 +514,7 @@ class BoundingEnv(gym.Env):
             s = self.reset_noise_scale
             x[:NQ] += self.np_random.uniform(low=-s, high=s, size=NQ)
             x[NQ:] += s * self.np_random.standard_normal(NQ)
-            lowest = float(self.robot.foot_heights(x[:NQ]).min())
+            lowest = float(self.foot_clearances(x[:NQ]).min())
             if lowest < 0.0:
                 x[IZ] -= lowest
         self.sim.set_state(x)
@@ -579,7 +645,7 @@ class BoundingEnv(gym.Env):
         if not np.all(np.isfinite(x)):
             x = np.nan_to_num(x)
         frame = render_state(x, robot=self.robot, width=self.width, height=self.height,
-                             grf=self._grf if self.render_grf else None, contact=self._contact,
+                             grf=self._grf if self.render_grf else None, contact=self._contact, terrain=self.terrain,
                              text=f"t = {self.time:5.2f} s   vx = {self._x_velocity:+.2f} m/s")
         if self.render_mode == "rgb_array":
             return frame

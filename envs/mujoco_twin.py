@@ -15,6 +15,11 @@ lies ``foot_radius`` below ``z = 0``, so a foot touches exactly when the foot po
 ground). Only the feet collide, with the floor. Joint torques enter as ``qfrc_applied`` (the motors' torque-speed
 limit of the env is applied first, the same code).
 
+Terrain (``terrain=``, as Bounding-v0's): the floor plane is replaced by one box per piece of the terrain's
+simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`, :func:`terrain_geoms`), each tilted to its
+piece's slope with its top face ``foot_radius`` below the piece along its normal, so a foot sphere touches a piece when
+the foot point reaches it (at a corner between pieces, to within the foot radius times the angle between them).
+
 Simulation (the default :data:`ContactModel`): ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator,
 elliptic friction cone with ``mu`` = 0.6, and a stiff soft contact ``solref = (0.005, 1)`` (5 ms time constant,
 critically damped; MuJoCo's default is 0.02 s) with MuJoCo's default ``solimp`` and ``impratio``. Unlike the
@@ -52,6 +57,7 @@ from hsddp_gym.core.contact import SimulatorQueries
 from hsddp_gym.core.conventions import FEET, FOOT_NAMES, FOOT_SIGN, NQ, NX
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS, RobotParams
+from hsddp_gym.core.terrain import check_terrain
 from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.util.validation import check_positive, check_vector
 
@@ -287,9 +293,35 @@ def _import_mujoco():
     return mujoco
 
 
+TERRAIN_BOX_THICKNESS = 0.1
+"""Thickness [m] of the boxes that make a terrain's surface in the MJCF (:func:`terrain_geoms`)."""
+
+
+def terrain_geoms(terrain, foot_radius: float, friction: float, solref, imp: str = "") -> str:
+    """The MJCF ``<geom>`` boxes of ``terrain``'s simulated surface (one per piece between consecutive vertices of
+    :meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`), named ``terrain_0``, ``terrain_1``, ...: a box as long as
+    its piece, tilted about +y to its slope, :data:`TERRAIN_BOX_THICKNESS` thick, its top face ``foot_radius`` below the
+    piece along the piece's normal."""
+    xs, zs = terrain.surface_vertices()
+    out = []
+    half_t = 0.5 * TERRAIN_BOX_THICKNESS
+    for i in range(len(xs) - 1):
+        dx, dz = float(xs[i + 1] - xs[i]), float(zs[i + 1] - zs[i])
+        length = math.hypot(dx, dz)
+        nx, nz = -dz / length, dx / length  # the piece's outward normal
+        cx = 0.5 * float(xs[i] + xs[i + 1]) - (foot_radius + half_t) * nx
+        cz = 0.5 * float(zs[i] + zs[i + 1]) - (foot_radius + half_t) * nz
+        angle = math.atan2(dz, dx)  # a rotation by -angle about +y lifts the box's x axis to the piece's direction
+        out.append(f'\n    <geom name="terrain_{i}" type="box" size="{0.5 * length!r} 1 {half_t!r}" '
+                   f'pos="{cx!r} 0 {cz!r}"\n          axisangle="0 1 0 {-angle!r}" contype="0" conaffinity="1" '
+                   f'condim="3" friction="{friction!r} 0 0" solref="{solref[0]!r} {solref[1]!r}"{imp}/>')
+    return "".join(out)
+
+
 def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = None, friction: float | None = None,
                gravity: float | None = None, solref=None, *, cone: str | None = None, solimp=None,
-               foot_radius: float | None = None, impratio: float | None = None, contact_model=None) -> str:
+               foot_radius: float | None = None, impratio: float | None = None, contact_model=None,
+               terrain=None) -> str:
     """The MJCF (XML string) of the planar Mini Cheetah; see the module docstring.
 
     Args:
@@ -304,6 +336,8 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
         impratio: frictional / normal impedance ratio.
         contact_model: a :class:`ContactModel` (or a dict of its fields, or a corner name); None: the default
             model with ``params.friction``.
+        terrain: a :class:`~hsddp_gym.core.terrain.Terrain` (its surface as boxes, :func:`terrain_geoms`) or None
+            (the floor plane).
 
     The ``solimp`` and ``impratio`` attributes are written only when they differ from MuJoCo's defaults, so the
     default model's XML is the twin's original one, byte for byte.
@@ -316,6 +350,12 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
     mu, ref, radius = cm.friction, cm.solref, cm.foot_radius
     imp = "" if cm.solimp == MUJOCO_SOLIMP else ' solimp="' + " ".join(repr(v) for v in cm.solimp) + '"'
     impratio_attr = "" if cm.impratio == MUJOCO_IMPRATIO else f' impratio="{cm.impratio!r}"'
+
+    if terrain is None:
+        floor = (f'\n    <geom name="floor" type="plane" size="0 0 1" pos="0 0 {-radius!r}" contype="0" conaffinity="1"'
+                 f'\n          condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"{imp}/>')
+    else:
+        floor = terrain_geoms(check_terrain(terrain), radius, mu, ref, imp)
 
     def inertial(link) -> str:
         i = link.inertia_yy
@@ -342,9 +382,7 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
     return f'''<mujoco model="planar_mini_cheetah">
   <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>
   <option timestep="{cm.timestep!r}" gravity="0 0 {-g!r}" integrator="Euler" cone="{cm.cone}"{impratio_attr}/>
-  <worldbody>
-    <geom name="floor" type="plane" size="0 0 1" pos="0 0 {-radius!r}" contype="0" conaffinity="1"
-          condim="3" friction="{mu!r} 0 0" solref="{ref[0]!r} {ref[1]!r}"{imp}/>
+  <worldbody>{floor}
     <body name="trunk">
       <joint name="x" type="slide" axis="1 0 0"/>
       <joint name="z" type="slide" axis="0 0 1"/>
@@ -384,7 +422,7 @@ class MuJoCoSimulator(SimulatorQueries):
     def __init__(self, robot: CheetahModel | None = None, timestep: float | None = None, friction: float | None = None,
                  gravity: float | None = None, motor_speed_limits=None, torque_limit: float | None = None,
                  solref=None, *, cone: str | None = None, solimp=None, foot_radius: float | None = None,
-                 impratio: float | None = None, contact_model=None) -> None:
+                 impratio: float | None = None, contact_model=None, terrain=None) -> None:
         mujoco = _import_mujoco()
         self._mj = mujoco
         params = (robot.params if isinstance(robot, CheetahModel) else DEFAULT_PARAMS)
@@ -393,14 +431,8 @@ class MuJoCoSimulator(SimulatorQueries):
                                       impratio=impratio)
         cm = self.contact_model
         self.robot = self._set_common(robot, cm.timestep, cm.friction, gravity, torque_limit, motor_speed_limits)
-        params = self.robot.params
-        self.xml = build_mjcf(params, gravity=self.gravity, contact_model=cm)
-        self.model = mujoco.MjModel.from_xml_string(self.xml)
-        self.data = mujoco.MjData(self.model)
-        self._foot_geoms = tuple(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, f"foot_{FOOT_NAMES[f]}")
-                                 for f in FEET)
-        self._foot_sites = tuple(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, f"foot_{FOOT_NAMES[f]}")
-                                 for f in FEET)
+        self.terrain = check_terrain(terrain)
+        self._build()
         # pinocchio-side helpers for energy / diagnostics
         import pinocchio as pin
 
@@ -421,6 +453,28 @@ class MuJoCoSimulator(SimulatorQueries):
         w = mujoco.mjtWarning
         self._unstable = (int(w.mjWARN_BADQPOS), int(w.mjWARN_BADQVEL), int(w.mjWARN_BADQACC))
         self._seen_instabilities = 0
+
+    def _build(self) -> None:
+        """The MuJoCo model and data of the robot, the contact model and the terrain."""
+        mujoco = self._mj
+        self.xml = build_mjcf(self.robot.params, gravity=self.gravity, contact_model=self.contact_model,
+                              terrain=self.terrain)
+        self.model = mujoco.MjModel.from_xml_string(self.xml)
+        self.data = mujoco.MjData(self.model)
+        self._foot_geoms = tuple(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, f"foot_{FOOT_NAMES[f]}")
+                                 for f in FEET)
+        self._foot_sites = tuple(mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, f"foot_{FOOT_NAMES[f]}")
+                                 for f in FEET)
+
+    def set_terrain(self, terrain) -> None:
+        """Simulate on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain` or None: the floor plane): the MuJoCo
+        model is rebuilt when it changes (set a state before stepping again)."""
+        terrain = check_terrain(terrain)
+        if terrain == self.terrain:
+            return
+        self.terrain = terrain
+        self._build()
+        self.set_state(self.x)
 
     def _instabilities(self) -> int:
         """How many times MuJoCo has warned of a non-finite / huge qpos, qvel or qacc (it then resets the state)."""
@@ -541,7 +595,7 @@ class MuJoCoBoundingEnv(BoundingEnv):
     def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
         self._sim_arguments = (gravity, motor_speed_limits)
         return MuJoCoSimulator(self.robot, gravity=gravity, motor_speed_limits=motor_speed_limits,
-                               torque_limit=self.torque_limit, contact_model=self.contact_model)
+                               torque_limit=self.torque_limit, contact_model=self.contact_model, terrain=self.terrain)
 
     def set_contact_model(self, contact_model) -> None:
         """Simulate ``contact_model`` (a :class:`ContactModel`, a dict of its fields or a corner name) from the next

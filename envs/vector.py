@@ -237,6 +237,9 @@ class BoundingVectorEnv(VectorEnv):
         unsupported = sorted(set(kwargs) & set(UNSUPPORTED_KWARGS))
         if unsupported:
             raise TypeError(f"BoundingVectorEnv does not render; unsupported argument(s) {unsupported}")
+        if kwargs.get("terrain") is not None:
+            raise ValueError("BoundingVectorEnv simulates the flat ground only: terrain must be None, got "
+                             f"{kwargs['terrain']!r} (use vectorization_mode='sync' on a terrain)")
         if "energy_consistent" in kwargs and kwargs["energy_consistent"] is not True:
             raise ValueError("BoundingVectorEnv compiles only the energy-consistent scheme: energy_consistent must "
                              f"be True, got {kwargs['energy_consistent']!r}")

@@ -39,6 +39,10 @@ its chain's revolute joints. ``M = sum m J_p^T J_p + I J_w^T J_w``; the bias is
 ``b = sum m J_p^T (a_p + [0, g])`` with ``a_p = -sum_k w_k^2 s_k`` (``s_k`` the chain segments, ``w_k``
 their absolute rates: the planar Coriolis/centrifugal acceleration at zero joint accelerations).
 
+Terrain: :func:`step_batch_terrain` is the same step on a terrain's piecewise-linear surface (contacts at the
+closest point of the surface, along its normal, the friction cone in the local frame); :func:`step_batch` is the
+flat ground's, unchanged. :class:`CompiledContactSimulator` calls the one its terrain needs; the vector env is flat.
+
 Arrays: ``x (N, 14)`` states, ``u (N, 4)`` joint torques, ``states (N, 2)`` int64 foot states
 (``SEPARATE`` ... ``SLIDE_NEG``), ``contact (N, 2)`` bool, ``impulse (N, 4)`` summed ground impulses (grf
 layout), ``time (N,)`` simulated time, ``heights (N, 2)`` foot heights after the step, ``counters (N, 4)``
@@ -65,6 +69,7 @@ from hsddp_gym.core.contact import (
     ContactSimulator,
 )
 from hsddp_gym.core.conventions import FOOT_SIGN, NQ, NX
+from hsddp_gym.core.terrain import check_terrain
 
 _jit = numba.njit(cache=True, error_model="numpy")
 """numba's compile options for every kernel function: cached on disk; numpy's error model (no Python exception
@@ -86,7 +91,10 @@ P_W_FULL = 17
 P_W_ZERO = 18
 P_MOTOR = 19  # 1.0: motor torque-speed law on, 0.0: ideal torque sources
 P_FAR = 20  # a foot higher than this [m] cannot reach the ground within one step (ContactSimulator._far)
-N_PARAMS = 21
+P_TERRAIN_N = 21  # number K of vertices of the terrain's surface; 0: the flat ground z = 0
+N_PARAMS = 22
+"""Length of the parameter vector on flat ground; a terrain appends its surface's vertices: ``xs`` (K,) at
+``p[N_PARAMS:N_PARAMS + K]``, ``zs`` (K,) after them (:func:`kernel_params`, :func:`terrain_piece`)."""
 
 # points (rows of the (12, 2) point array): 0 trunk origin, 1 trunk CoM, then per leg hip, thigh CoM, knee,
 # shank CoM, foot (front: 2..6, back: 7..11)
@@ -118,7 +126,9 @@ def model_cache(n: int) -> np.ndarray:
 
 def kernel_params(sim: ContactSimulator) -> np.ndarray:
     """The parameter vector (N_PARAMS,) of a simulator: its robot's :class:`RobotParams`, friction, gravity,
-    step, torque limit and motor law. Only the energy-consistent scheme is compiled (ValueError otherwise)."""
+    step, torque limit and motor law; with a terrain (``sim.terrain``, a :class:`~hsddp_gym.core.terrain.Terrain`
+    that is not None), followed by its surface's vertices (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`).
+    Only the energy-consistent scheme is compiled (ValueError otherwise)."""
     if not isinstance(sim, ContactSimulator):
         raise TypeError(f"sim must be a ContactSimulator, got {type(sim).__name__}")
     if not sim.energy_consistent:
@@ -141,6 +151,11 @@ def kernel_params(sim: ContactSimulator) -> np.ndarray:
         p[P_W_FULL], p[P_W_ZERO] = sim.motor_speed_limits
         p[P_MOTOR] = 1.0
     p[P_FAR] = sim._far
+    terrain = getattr(sim, "terrain", None)
+    if terrain is not None:
+        xs, zs = terrain.surface_vertices()
+        p[P_TERRAIN_N] = len(xs)
+        p = np.concatenate([p, xs, zs])
     return p
 
 
@@ -175,6 +190,211 @@ def sincos(a):
     if quadrant == 2:
         return -sr, -cr
     return -cr, sr
+
+
+# ------------------------------------------------------------------------------ terrain
+@_jit
+def terrain_piece(p, px):
+    """The piece of the terrain's surface (the vertices in ``p``, :func:`kernel_params`) under ``px`` [m]:
+    ``(h, s, x_j, z_j)`` its height at ``px``, its slope and its left vertex (a point on its line); level beyond
+    the outermost vertices (slope 0, the end vertex). Binary search: a vertex belongs to the piece on its right."""
+    k = int(p[P_TERRAIN_N])
+    b = N_PARAMS
+    if px < p[b]:
+        return p[b + k], 0.0, p[b], p[b + k]
+    if px >= p[b + k - 1]:
+        return p[b + 2 * k - 1], 0.0, p[b + k - 1], p[b + 2 * k - 1]
+    lo = 0
+    hi = k - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if p[b + mid] <= px:
+            lo = mid
+        else:
+            hi = mid
+    x0, z0 = p[b + lo], p[b + k + lo]
+    s = (p[b + k + lo + 1] - z0) / (p[b + lo + 1] - x0)
+    return z0 + s * (px - x0), s, x0, z0
+
+
+@_jit
+def _piece_index(p, px):
+    """The index j (0..K-2) of the piece ``[x_j, x_j+1)`` of the surface under ``px``, clamped to the first / last."""
+    k = int(p[P_TERRAIN_N])
+    b = N_PARAMS
+    lo = 0
+    hi = k - 1
+    if px < p[b]:
+        return 0
+    if px >= p[b + k - 1]:
+        return k - 2
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if p[b + mid] <= px:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@_jit
+def terrain_contact(p, fx, fz, reach):
+    """The point of the terrain's surface closest to the foot ``(fx, fz)`` [m], searched over the pieces within
+    ``min(reach, vertical distance)`` of ``fx`` (the vertical distance bounds the closest one's): returns ``(phi, n_x,
+    n_z, c_x, c_z)``, ``phi`` the signed distance (< 0 below the surface), ``n`` the unit outward normal there (the
+    piece's, or from a corner vertex toward the outside) and ``c`` the closest point. So a foot beside a riser sees
+    the riser, and one above a step's edge sees the edge (a corner: the normal points from it to the foot), not
+    the riser's infinite line."""
+    k = int(p[P_TERRAIN_N])
+    b = N_PARAMS
+    h, _, _, _ = terrain_piece(p, fx)
+    above = fz >= h
+    r = min(reach, abs(fz - h))
+    jlo = _piece_index(p, fx - r)
+    jhi = _piece_index(p, fx + r)
+    best = np.inf
+    bcx, bcz, bex, bez, inner = fx, h, 1.0, 0.0, True
+    for j in range(jlo, jhi + 1):
+        ax, az = p[b + j], p[b + k + j]
+        ex, ez = p[b + j + 1] - ax, p[b + k + j + 1] - az
+        u = ((fx - ax) * ex + (fz - az) * ez) / (ex * ex + ez * ez)
+        inside = True
+        if u <= 0.0:
+            u = 0.0
+            inside = False
+        elif u >= 1.0:
+            u = 1.0
+            inside = False
+        cx, cz = ax + u * ex, az + u * ez
+        d2 = (fx - cx) * (fx - cx) + (fz - cz) * (fz - cz)
+        if d2 < best:
+            best = d2
+            bcx, bcz, bex, bez, inner = cx, cz, ex, ez, inside
+    dist = math.sqrt(best)
+    if inner or dist < 1e-12:
+        length = math.sqrt(bex * bex + bez * bez)
+        nx, nz = -bez / length, bex / length
+    elif above:
+        nx, nz = (fx - bcx) / dist, (fz - bcz) / dist
+    else:
+        nx, nz = (bcx - fx) / dist, (bcz - fz) / dist
+    return (dist if above else -dist), nx, nz, bcx, bcz
+
+
+@_jit
+def _terrain_candidate(p, pts, foot, fjx_all, fjz_all, fn, fpos, fa):
+    """A foot's contact with the terrain at the step's start (step_batch's candidate test): ``phi`` its distance to the
+    closest point ``c`` of the surface (:func:`terrain_contact`; returned), ``fn[foot]`` the outward normal ``n`` there,
+    ``fa[foot] = n . c``, ``fpos[foot]`` the foot's position; ``fjz_all[foot]``, ``fjx_all[foot]`` the rows of the LCP,
+    the foot's velocity along ``n`` and along the tangent ``t = (n_z, -n_x)``. Nothing is written when ``phi`` is
+    beyond the reach ``p[P_FAR]``."""
+    fx, fz = pts[_FOOT_POINT[foot], 0], pts[_FOOT_POINT[foot], 1]
+    phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, p[P_FAR])
+    if phi > p[P_FAR]:
+        return phi
+    fn[foot, 0] = nx
+    fn[foot, 1] = nz
+    fa[foot] = nx * cx + nz * cz
+    fpos[foot, 0] = fx
+    fpos[foot, 1] = fz
+    fjz = fjz_all[foot]
+    fjx = fjx_all[foot]
+    point_jacobian(pts, 5 + foot, fjx, fjz)
+    for j in range(7):
+        jxj, jzj = fjx[j], fjz[j]
+        fjz[j] = nx * jxj + nz * jzj
+        fjx[j] = nz * jxj - nx * jzj
+    return phi
+
+
+@_jit
+def _terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir, tval):
+    """The position projection's rows on a terrain (``pts`` the kinematics after ``q += h v``); returns their number.
+    Each row is ``d . foot = target`` with a unit direction ``d`` (``taxis`` 2): a sticking foot keeps its position
+    along the tangent of the step's start and a contact foot ends on the tangent line of its contact point (both the
+    LCP's frame); a foot that ends below the surface (a sliding one too, when that is not the same line: a concave
+    corner) is put back onto it at its closest point."""
+    nt = 0
+    held0 = False
+    held1 = False
+    stick0 = False
+    stick1 = False
+    for i in range(ncand):
+        foot = cfoot[i]
+        st = states[foot]
+        nx, nz = fn[foot, 0], fn[foot, 1]
+        if st == STICK:
+            tfoot[nt] = foot
+            taxis[nt] = 2
+            tdir[nt, 0] = nz
+            tdir[nt, 1] = -nx
+            tval[nt] = nz * fpos[foot, 0] - nx * fpos[foot, 1]
+            nt += 1
+            if foot == 0:
+                stick0 = True
+            else:
+                stick1 = True
+        if st != SEPARATE:
+            tfoot[nt] = foot
+            taxis[nt] = 2
+            tdir[nt, 0] = nx
+            tdir[nt, 1] = nz
+            tval[nt] = fa[foot]
+            nt += 1
+            if foot == 0:
+                held0 = True
+            else:
+                held1 = True
+    for foot in range(2):
+        if (stick0 if foot == 0 else stick1):
+            continue  # pinned to its start, on the surface
+        fx, fz = pts[_FOOT_POINT[foot], 0], pts[_FOOT_POINT[foot], 1]
+        th, _, _, _ = terrain_piece(p, fx)
+        if fz < th:
+            phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, np.inf)
+            if (held0 if foot == 0 else held1) and nx * fn[foot, 0] + nz * fn[foot, 1] > 1.0 - 1e-6:
+                continue  # the same line as its contact row
+            tfoot[nt] = foot
+            taxis[nt] = 2
+            tdir[nt, 0] = nx
+            tdir[nt, 1] = nz
+            tval[nt] = nx * cx + nz * cz
+            nt += 1
+    return nt
+
+
+@_jit
+def _terrain_corner_rows(p, pts, nt, tfoot, taxis, tdir, tval, res, residual):
+    """During the projection on a terrain: a foot that the projection moved below another piece (a concave corner:
+    a gap's floor and its wall) gets that piece's row too (its residual in ``res``), at most two rows a foot and four
+    in all. Returns the number of rows and the largest residual."""
+    for foot in range(2):
+        if nt >= 4:
+            break
+        fp = _FOOT_POINT[foot]
+        fx, fz = pts[fp, 0], pts[fp, 1]
+        th, _, _, _ = terrain_piece(p, fx)
+        if not fz < th - POSITION_TOLERANCE:
+            continue
+        phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, np.inf)
+        rows_f = 0
+        same = False
+        for a in range(nt):
+            if tfoot[a] == foot:
+                rows_f += 1
+                if tdir[a, 0] * nx + tdir[a, 1] * nz > 1.0 - 1e-6:
+                    same = True
+        if rows_f >= 2 or same:
+            continue
+        tfoot[nt] = foot
+        taxis[nt] = 2
+        tdir[nt, 0] = nx
+        tdir[nt, 1] = nz
+        tval[nt] = nx * cx + nz * cz
+        res[nt] = -phi
+        residual = max(residual, -phi)
+        nt += 1
+    return nt, residual
 
 
 # ------------------------------------------------------------------------------ kinematics and dynamics
@@ -708,6 +928,7 @@ _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
     "jc": (4, 7), "Ac": (4, 7), "G": (4, 4), "c": (4,), "lam": (4,), "best_lam": (4,), "w": (4,), "A": (4, 4),
     "rhs": (4,), "zz": (4,), "L": (4, 4), "cols_j": (4, 2), "cols_c": (4, 2), "cols_n": (4,), "rows": (4,),
     "sol": (2,), "cfoot": (2,), "cphi": (2,), "tfoot": (4,), "taxis": (4,), "tval": (4,),
+    "fn": (2, 2), "fpos": (2, 2), "fa": (2,), "tdir": (4, 2),
     "B": (7, 4), "BT": (4, 7), "S": (4, 4), "Jr": (4, 7), "P": (3, 7), "dinv": (7,), "pt": (3,), "yt": (4,),
 }
 _INT_FIELDS = ("cols_j", "cols_n", "rows", "sol", "cfoot", "tfoot", "taxis")
@@ -1137,6 +1358,325 @@ def step_batch(p, x_batch, u_batch, n, active, states_batch, contact_batch, impu
         heights[ir, 0] = s_pts[6, 1]
         heights[ir, 1] = s_pts[11, 1]
 
+@_jit
+def step_batch_terrain(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,
+               counters_batch, cache_batch, sc):
+    """:func:`step_batch` on a terrain: the same arguments, with ``p`` holding the terrain's surface
+    (:func:`kernel_params`; ``p[P_TERRAIN_N]`` vertices) and ``heights`` the feet's heights above the surface under
+    each. A foot's contact is with the closest point of the surface (:func:`terrain_contact`): its gap is the distance
+    to it, the LCP's rows are its velocity along the outward normal there and along the tangent (the friction cone in
+    the local frame), and the impulses are turned back into the world frame; the position projection puts a contact
+    foot on the tangent line of its contact point, a sticking foot at its start, and a foot below the surface onto its
+    closest point (two rows at a concave corner; :func:`_terrain_rows`, :func:`_terrain_corner_rows`). A separate
+    compiled function, so that the flat ground's :func:`step_batch` keeps its code (bit for bit) and its speed; with
+    ``p[P_TERRAIN_N] = 0`` it steps the flat ground too."""
+    s_A = sc.A
+    s_Ac = sc.Ac
+    s_B = sc.B
+    s_BT = sc.BT
+    s_G = sc.G
+    s_Jr = sc.Jr
+    s_L = sc.L
+    s_Lm = sc.Lm
+    s_M = sc.M
+    s_S = sc.S
+    s_acc = sc.acc
+    s_best_lam = sc.best_lam
+    s_bvec = sc.bvec
+    s_dinv = sc.dinv
+    s_c = sc.c
+    s_cfoot = sc.cfoot
+    s_cols_c = sc.cols_c
+    s_cols_j = sc.cols_j
+    s_cols_n = sc.cols_n
+    s_cphi = sc.cphi
+    s_fjx = sc.fjx
+    s_fjz = sc.fjz
+    s_jc = sc.jc
+    s_jx = sc.jx
+    s_jz = sc.jz
+    s_lam = sc.lam
+    s_pts = sc.pts
+    s_q_old = sc.q_old
+    s_rhs = sc.rhs
+    s_rhs7 = sc.rhs7
+    s_rows = sc.rows
+    s_sol = sc.sol
+    s_tau = sc.tau
+    s_taxis = sc.taxis
+    s_tfoot = sc.tfoot
+    s_tval = sc.tval
+    s_vf = sc.vf
+    s_w = sc.w
+    s_zz = sc.zz
+    s_fn = sc.fn
+    s_fpos = sc.fpos
+    s_fa = sc.fa
+    s_tdir = sc.tdir
+    h = p[P_DT]
+    nter = int(p[P_TERRAIN_N])  # 0: flat ground (the code paths below are the flat ground's, unchanged)
+    motor = p[P_MOTOR] != 0.0
+    w_full, w_zero = p[P_W_FULL], p[P_W_ZERO]
+    slope = p[P_TORQUE_LIMIT] / (w_zero - w_full) if motor else 0.0
+    for i in range(3):
+        s_tau[i] = 0.0
+    for ir in range(x_batch.shape[0]):
+        if not active[ir]:
+            continue
+        x = x_batch[ir]
+        u = u_batch[ir]
+        states = states_batch[ir]
+        contact = contact_batch[ir]
+        total = impulse_batch[ir]
+        counters = counters_batch[ir]
+        finite = True
+        for i in range(NX):
+            if not math.isfinite(x[i]):
+                finite = False
+        for i in range(4):
+            total[i] = 0.0
+        if finite and n > 0:
+            q = x[:NQ]
+            v = x[NQ:]
+            pts = s_pts
+            _load_model(p, q, cache_batch[ir], s_pts, s_M)  # the energy at the start (mechanical_energy)
+            energy = kinetic_energy(s_M, v) + potential_energy(p, s_pts)
+            for _ in range(n):
+                for j in range(4):
+                    uj = u[j]
+                    if motor:
+                        wj = x[NQ + 3 + j]
+                        if uj * wj > 0.0 and abs(wj) > w_full:
+                            cap = max(0.0, (w_zero - abs(wj)) * slope)
+                            if abs(uj) > cap:
+                                uj = cap if uj > 0.0 else -cap
+                    s_tau[3 + j] = uj
+                # ---- one step of h (ContactSimulator._step and _finish_consistent)
+                # s_pts, s_M hold the kinematics and inertia of q (computed at the end of the last
+                # step or for the energy at the start)
+                bias(p, pts, v, s_bvec)
+                for i in range(7):
+                    s_rhs7[i] = s_tau[i] - s_bvec[i]
+                tree_factor7(s_M, s_Lm, s_dinv)
+                tree_solve7(s_Lm, s_dinv, s_rhs7, s_acc)
+                vf = s_vf
+                for i in range(7):
+                    vf[i] = s_acc[i] * h + v[i]
+                # candidate contacts
+                cfoot, cphi = s_cfoot, s_cphi
+                ncand = 0
+                for foot in range(2):
+                    if nter == 0:
+                        phi = pts[_FOOT_POINT[foot], 1]
+                        if phi > p[P_FAR]:
+                            continue
+                        fjz = s_fjz[foot]
+                        point_jacobian(pts, 5 + foot, s_fjx[foot], fjz)  # the foot's rows, kept for the LCP
+                    else:  # terrain (_terrain_candidate: the closest point, the LCP's rows along n and t)
+                        phi = _terrain_candidate(p, pts, foot, s_fjx, s_fjz, s_fn, s_fpos, s_fa)
+                        if phi > p[P_FAR]:
+                            continue
+                        fjz = s_fjz[foot]
+                    wn = 0.0
+                    for j in range(7):
+                        wn += fjz[j] * vf[j]
+                    if phi <= CONTACT_MARGIN or phi + h * wn <= 0.0:
+                        cfoot[ncand] = foot
+                        cphi[ncand] = phi
+                        ncand += 1
+                power_start = 0.0
+                if ncand == 0:
+                    _momentum_target(p, v, sc)  # s_M holds the inertia of the step's start
+                    for i in range(7):
+                        power_start += s_tau[i] * v[i]
+                    for i in range(7):
+                        v[i] = vf[i]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                else:
+                    m = 2 * ncand
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        for j in range(7):
+                            s_jc[2 * i, j] = s_fjz[foot, j]
+                            s_jc[2 * i + 1, j] = s_fjx[foot, j]
+                    tree_solve_rows(s_Lm, s_dinv, s_jc, m, s_Ac)  # A = J_c M^-1 (M symmetric: rows M^-1 J_c[r])
+                    for r in range(m):
+                        for s in range(m):
+                            acc = 0.0
+                            for k in range(7):
+                                acc += s_Ac[r, k] * s_jc[s, k]
+                            s_G[r, s] = acc
+                        acc = 0.0
+                        for k in range(7):
+                            acc += s_jc[r, k] * vf[k]
+                        s_c[r] = acc
+                    for i in range(ncand):
+                        if cphi[i] > 0.0:
+                            s_c[2 * i] += cphi[i] / h
+                    g0 = states[cfoot[0]]
+                    g1 = states[cfoot[1]] if ncand == 2 else SEPARATE
+                    exact = solve_lcp(s_G, s_c, p[P_MU], ncand, g0, g1, s_lam, s_sol, s_best_lam, s_w, s_A, s_rhs, s_zz,
+                                      s_L, s_cols_j, s_cols_c, s_cols_n, s_rows)
+                    if not exact:
+                        counters[0] += 1
+                    for j in range(7):
+                        acc = 0.0
+                        for r in range(m):
+                            acc += s_lam[r] * s_Ac[r, j]
+                        v[j] = acc + vf[j]
+                    states[0] = SEPARATE
+                    states[1] = SEPARATE
+                    contact[0] = False
+                    contact[1] = False
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        ln, lt = s_lam[2 * i], s_lam[2 * i + 1]
+                        states[foot] = s_sol[i]
+                        if nter == 0:
+                            total[2 * foot] += lt
+                            total[2 * foot + 1] += ln
+                        else:  # the impulse along (n, t) in the world frame
+                            nx, nz = s_fn[foot, 0], s_fn[foot, 1]
+                            total[2 * foot] += nz * lt + nx * ln
+                            total[2 * foot + 1] += nz * ln - nx * lt
+                        contact[foot] = ln > 1e-9
+                # energy-consistent end of the step (ContactSimulator._finish_consistent)
+                for i in range(7):
+                    s_q_old[i] = q[i]
+                for i in range(7):
+                    q[i] += v[i] * h
+                tfoot, taxis, tval, tdir = s_tfoot, s_taxis, s_tval, s_tdir
+                nt = 0
+                held0 = False
+                held1 = False
+                if nter == 0:
+                    for i in range(ncand):
+                        foot = cfoot[i]
+                        st = states[foot]
+                        if st == STICK:
+                            jz_pitch = s_fjz[foot, 2]  # LWA z row, pitch column, at the step's start
+                            tfoot[nt] = foot
+                            taxis[nt] = 0
+                            tval[nt] = s_q_old[0] - jz_pitch
+                            nt += 1
+                        if st != SEPARATE:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                            if foot == 0:
+                                held0 = True
+                            else:
+                                held1 = True
+                    kinematics(p, q, s_pts)
+                    for foot in range(2):  # any other foot that ends below the ground is lifted onto it
+                        held = held0 if foot == 0 else held1
+                        if not held and s_pts[_FOOT_POINT[foot], 1] < 0.0:
+                            tfoot[nt] = foot
+                            taxis[nt] = 1
+                            tval[nt] = 0.0
+                            nt += 1
+                else:  # terrain: rows along directions (taxis 2), _terrain_rows
+                    kinematics(p, q, s_pts)
+                    nt = _terrain_rows(p, s_pts, ncand, cfoot, states, s_fn, s_fpos, s_fa, tfoot, taxis, tdir, tval)
+                constrained = ncand > 0 or nt > 0
+                if nt > 0:
+                    res = s_rhs
+                    for _ in range(_MAX_PROJECTION_ITERATIONS):
+                        residual = 0.0
+                        for a in range(nt):
+                            fp = _FOOT_POINT[tfoot[a]]
+                            if taxis[a] == 2:
+                                res[a] = tval[a] - (tdir[a, 0] * s_pts[fp, 0] + tdir[a, 1] * s_pts[fp, 1])
+                            else:
+                                res[a] = tval[a] - s_pts[fp, taxis[a]]
+                            residual = max(residual, abs(res[a]))
+                        if nter > 0 and nt < 4:  # a foot moved below another piece: _terrain_corner_rows
+                            nt, residual = _terrain_corner_rows(p, s_pts, nt, tfoot, taxis, tdir, tval, res, residual)
+                        if residual <= POSITION_TOLERANCE:
+                            break
+                        for a in range(nt):
+                            point_jacobian(s_pts, 5 + tfoot[a], s_jx, s_jz)
+                            if taxis[a] == 2:
+                                for j in range(7):
+                                    s_Jr[a, j] = tdir[a, 0] * s_jx[j] + tdir[a, 1] * s_jz[j]
+                            else:
+                                row = s_jx if taxis[a] == 0 else s_jz
+                                for j in range(7):
+                                    s_Jr[a, j] = row[j]
+                        tree_solve_rows(s_Lm, s_dinv, s_Jr, nt, s_BT)  # B = M^-1 Jr^T, the step's M (factor s_Lm)
+                        for a in range(nt):
+                            for j in range(7):
+                                s_B[j, a] = s_BT[a, j]
+                        for a in range(nt):
+                            for b in range(nt):
+                                acc = 0.0
+                                for j in range(7):
+                                    acc += s_Jr[a, j] * s_B[j, b]
+                                s_S[a, b] = acc
+                        if not _solve_spd(s_S, res, nt, s_zz, s_L):
+                            break
+                        for i in range(7):
+                            acc = 0.0
+                            for a in range(nt):
+                                acc += s_B[i, a] * s_zz[a]
+                            q[i] += acc
+                        kinematics(p, q, s_pts)
+                mass_matrix(p, s_pts, s_M)
+                kinetic = kinetic_energy(s_M, v)
+                potential = potential_energy(p, s_pts)
+                tq = 0.0
+                tq_old = 0.0
+                for i in range(7):
+                    tq += s_tau[i] * q[i]
+                    tq_old += s_tau[i] * s_q_old[i]
+                work = tq - tq_old
+                if not constrained:  # flight: the second-order work, capped (ContactSimulator._finish_consistent)
+                    power_end = 0.0
+                    work = 0.0
+                    for i in range(7):
+                        power_end += s_tau[i] * v[i]
+                        work += s_tau[i] * (v[i] * h)
+                    work = min(work, 0.5 * h * (power_start + power_end))
+                allowed = energy + work
+                if kinetic + potential > allowed or not constrained:
+                    # contacts: only an energy gain is removed; free flight: the allowed energy exactly
+                    if kinetic + potential > allowed:
+                        counters[1] += 1
+                    target = allowed - potential
+                    target -= 1e-13 * (abs(allowed) + abs(potential))
+                    if target <= 0.0:
+                        counters[3] += 1
+                        for i in range(7):
+                            v[i] = 0.0
+                        kinetic = 0.0
+                    elif constrained:
+                        s = math.sqrt(target / kinetic)
+                        for i in range(7):
+                            v[i] *= s
+                        kinetic = target
+                    else:
+                        kinetic = _project_flight(p, q, v, kinetic, target, sc, counters)
+                energy = kinetic + potential
+
+        for _ in range(n):
+            sim_time[ir] += h
+        if finite and n > 0:  # s_pts, s_M hold the kinematics and inertia of the last step's q
+            _store_model(x[:NQ], s_pts, s_M, cache_batch[ir])
+        else:
+            kinematics(p, x[:NQ], s_pts)
+        if nter == 0:
+            heights[ir, 0] = s_pts[6, 1]
+            heights[ir, 1] = s_pts[11, 1]
+        else:  # terrain: the feet's heights above the surface under them
+            for foot in range(2):
+                fx, fz = s_pts[_FOOT_POINT[foot], 0], s_pts[_FOOT_POINT[foot], 1]
+                th, _, _, _ = terrain_piece(p, fx)
+                heights[ir, foot] = fz - th
+
 
 def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
     """``n`` steps of one robot (ContactSimulator.run): :func:`step_batch` on a batch of one. ``x`` (14,) in
@@ -1234,6 +1774,8 @@ class CompiledContactSimulator(ContactSimulator):
     kernel's foot heights of the state the last :meth:`run` left (Pinocchio's after :meth:`set_state`; pushes
     change only ``v``). ``_tau`` holds the torques the motors applied in the last step, as in
     :class:`ContactSimulator`. :meth:`energy` and the other queries are Pinocchio's, as in :class:`ContactSimulator`.
+    ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain` or None, :meth:`set_terrain`): stepped by
+    :func:`step_batch_terrain` (its own compiled function, compiled on first use), the feet's heights above its surface.
     The kernel is compiled once per machine (:func:`warm_up`, announced on stderr) when the first one is built.
     """
 
@@ -1243,7 +1785,8 @@ class CompiledContactSimulator(ContactSimulator):
     energy_deficits = _counter_property(3, "energy_deficits")
 
     def __init__(self, robot=None, timestep: float = 1e-3, friction: float | None = None,
-                 gravity: float | None = None, motor_speed_limits=None, torque_limit: float | None = None) -> None:
+                 gravity: float | None = None, motor_speed_limits=None, torque_limit: float | None = None,
+                 terrain=None) -> None:
         # batch-of-one arrays the kernel works in (created before ContactSimulator.__init__ assigns through
         # the properties below)
         self._xb = np.zeros((1, NX))
@@ -1259,6 +1802,7 @@ class CompiledContactSimulator(ContactSimulator):
         self._heights_valid = False
         super().__init__(robot, timestep=timestep, friction=friction, gravity=gravity,
                          motor_speed_limits=motor_speed_limits, torque_limit=torque_limit, energy_consistent=True)
+        self.terrain = check_terrain(terrain)
         self._p = kernel_params(self)
         self._sc = kernel_scratch()
         self._link_views()
@@ -1312,10 +1856,21 @@ class CompiledContactSimulator(ContactSimulator):
         super().set_state(x)
         self._heights_valid = False
 
+    def set_terrain(self, terrain) -> None:
+        """Simulate on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, or None: the flat ground) from now
+        on: the kernel's parameters get its surface (:func:`kernel_params`)."""
+        self.terrain = check_terrain(terrain)
+        self._p = kernel_params(self)
+        self._heights_valid = False
+
     def foot_heights_fast(self) -> tuple[float, float]:
-        """Foot heights ``(front, back)``: the kernel's after a :meth:`run`, Pinocchio's after :meth:`set_state`."""
+        """Foot heights ``(front, back)`` above the ground (with a terrain: above its surface under each foot): the
+        kernel's after a :meth:`run`, Pinocchio's after :meth:`set_state`."""
         if self._heights_valid:
             h = self._heights_b[0]
+            return float(h[0]), float(h[1])
+        if self.terrain is not None:
+            h = self.foot_heights()
             return float(h[0]), float(h[1])
         return super().foot_heights_fast()
 
@@ -1328,7 +1883,8 @@ class CompiledContactSimulator(ContactSimulator):
             call).
         """
         self._u[:] = u
-        step_batch(self._p, self._xb, self._ub, n, self._active, self._states_b, self._contact_b, self._total_b,
-                   self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
+        kernel = step_batch if self.terrain is None else step_batch_terrain
+        kernel(self._p, self._xb, self._ub, n, self._active, self._states_b, self._contact_b, self._total_b,
+               self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
         self._heights_valid = True
         return self._total

@@ -447,13 +447,22 @@ class SimulatorQueries:
         """World ``(x, z)`` of both feet at the current state (2, 2) [m]."""
         return self.robot.foot_positions(self.q)
 
+    terrain = None
+    """The ground's profile (a :class:`~hsddp_gym.core.terrain.Terrain`; None: the flat ground ``z = 0``). Only the
+    compiled kernel (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`) and the MuJoCo twin simulate
+    one; the foot heights below measure from its simulated surface."""
+
     def foot_heights(self) -> np.ndarray:
-        """Heights of both feet above the ground at the current state (2,) [m]."""
-        return self.robot.foot_heights(self.q)
+        """Heights of both feet above the ground at the current state (2,) [m] (with a :attr:`terrain`: above its
+        simulated surface under each foot, :meth:`~hsddp_gym.core.terrain.Terrain.surface_heights`)."""
+        if self.terrain is None:
+            return self.robot.foot_heights(self.q)
+        feet = self.robot.foot_positions(self.q)
+        return feet[:, 1] - self.terrain.surface_heights(feet[:, 0])
 
     def foot_heights_fast(self) -> tuple[float, float]:
         """:meth:`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
-        h = self.robot.foot_heights(self.q)
+        h = self.foot_heights()
         return float(h[0]), float(h[1])
 
     def foot_velocities(self) -> np.ndarray:

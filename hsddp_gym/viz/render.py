@@ -52,7 +52,7 @@ def _robot(robot: CheetahModel | None) -> CheetahModel:
 def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int = 480, height: int = 320,
                  pixels_per_meter: float | None = None, grf: np.ndarray | None = None, contact=None,
                  grf_scale: float = 0.002, camera_x: float | None = None, ground_row: float = 0.8,
-                 text: str | None = None) -> np.ndarray:
+                 text: str | None = None, terrain=None) -> np.ndarray:
     """Draw the robot in state ``x``.
 
     Args:
@@ -67,6 +67,9 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
         camera_x: world x at the image centre (default: the trunk x).
         ground_row: the ground line at this fraction of the height, in (0, 1].
         text: optional caption drawn in the top-left corner.
+        terrain: the ground's profile (a :class:`~hsddp_gym.core.terrain.Terrain`, None: flat ``z = 0``): its
+            simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`) is drawn filled below, with
+            the distance ticks on it; a foot's default contact flag measures from it.
     Returns:
         ``(height, width, 3)`` uint8 RGB image.
     """
@@ -77,6 +80,10 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
     ppm = min(width / 1.3, height / 0.6) if pixels_per_meter is None else check_positive(pixels_per_meter,
                                                                                            "pixels_per_meter")
     rob = _robot(robot)
+    if terrain is not None:
+        from hsddp_gym.core.terrain import check_terrain
+
+        terrain = check_terrain(terrain)
     pts = rob.link_points(q)  # (2, 4, 2): per foot [hip, knee, foot, trunk origin]
     cx = float(q[0]) if camera_x is None else float(camera_x)
     gz = float(np.clip(ground_row, 0.05, 1.0)) * height
@@ -88,12 +95,22 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
     img = Image.new("RGB", (width, height), BACKGROUND)
     draw = ImageDraw.Draw(img)
     # ground and distance ticks (every 0.1 m, longer every 1 m)
-    draw.rectangle([0, gz, width, height], fill=(225, 220, 205))
-    draw.line([(0, gz), (width, gz)], fill=GROUND, width=2)
     half = width / (2.0 * ppm)
+    if terrain is None:
+        draw.rectangle([0, gz, width, height], fill=(225, 220, 205))
+        draw.line([(0, gz), (width, gz)], fill=GROUND, width=2)
+    else:  # the surface's polyline over the view, filled down to the image's bottom
+        vx, vz = terrain.surface_vertices()
+        lo, hi = cx - half - 0.1, cx + half + 0.1
+        inside = vx[(vx > lo) & (vx < hi)]
+        xs = np.concatenate([[lo], inside, [hi]])
+        line = [px((xv, zv)) for xv, zv in zip(xs, terrain.surface_heights(xs))]
+        draw.polygon(line + [(line[-1][0], height + 1), (line[0][0], height + 1)], fill=(225, 220, 205))
+        draw.line(line, fill=GROUND, width=2)
     for i in range(int(np.floor((cx - half) * 10)), int(np.ceil((cx + half) * 10)) + 1):
         u = width / 2.0 + (i / 10.0 - cx) * ppm
-        draw.line([(u, gz), (u, gz + (10 if i % 10 == 0 else 5))], fill=GROUND, width=1)
+        g = gz if terrain is None else px((i / 10.0, float(terrain.surface_heights(i / 10.0))))[1]
+        draw.line([(u, g), (u, g + (10 if i % 10 == 0 else 5))], fill=GROUND, width=1)
     lw = max(2, int(round(0.02 * ppm)))
     # trunk between the hips, and the trunk origin
     hips = [px(pts[f, 0]) for f in FEET]
@@ -102,7 +119,8 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
     r0 = max(2, lw // 2)
     draw.ellipse([o[0] - r0, o[1] - r0, o[0] + r0, o[1] + r0], fill=(250, 250, 250))
     if contact is None:
-        on_ground = [pts[f, 2, 1] <= 1e-3 for f in FEET]
+        ground = (0.0, 0.0) if terrain is None else terrain.surface_heights(pts[:, 2, 0])
+        on_ground = [pts[f, 2, 1] - ground[f] <= 1e-3 for f in FEET]
     else:
         on_ground = [bool(contact[f]) for f in FEET]
     rf = max(3, int(round(0.015 * ppm)))
