@@ -6,6 +6,8 @@
   ``hsddp_gym/Bounding-v0`` (``gym.make_vec``).
 * :mod:`hsddp_gym.envs.pronking`: ``PronkingEnv``, the pronking task on the same robot, registered as
   ``hsddp_gym/Pronking-v0`` (``MuJoCoPronkingEnv``: ``hsddp_gym/PronkingMuJoCo-v0``).
+* :mod:`hsddp_gym.envs.backflip`: ``BackflipEnv``, the backflip task on the same robot, registered as
+  ``hsddp_gym/Backflip-v0`` (``MuJoCoBackflipEnv``: ``hsddp_gym/BackflipMuJoCo-v0``).
 * :mod:`hsddp_gym.envs.mujoco_twin`: ``MuJoCoBoundingEnv``, the same task on MuJoCo, registered as
   ``hsddp_gym/BoundingMuJoCo-v0`` (optional extra ``mujoco``).
 
@@ -14,9 +16,10 @@ Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 
 from hsddp_gym.util.lazy import lazy_exports
 
-_EXPORTS = {"bounding": ("BoundingEnv",), "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",),
+_EXPORTS = {"backflip": ("BackflipEnv", "MuJoCoBackflipEnv"), "bounding": ("BoundingEnv",),
+            "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",),
             "pronking": ("MuJoCoPronkingEnv", "PronkingEnv"),
             "vector": ("BoundingVectorEnv",)}
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = ["BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBoundingEnv", "MuJoCoPronkingEnv",
-           "PronkingEnv"]
+__all__ = ["BackflipEnv", "BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBackflipEnv",
+           "MuJoCoBoundingEnv", "MuJoCoPronkingEnv", "PronkingEnv"]

@@ -5,10 +5,13 @@ Importing the package registers the Gymnasium environment ``hsddp_gym/Bounding-v
 gym.make("hsddp_gym/Bounding-v0")``
 and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work; ``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N,
 vectorization_mode="vector_entry_point")`` gives the compiled vector env (``hsddp_gym.envs.vector``).
+``hsddp_gym/Terrain-v0`` is Bounding-v0 on a seeded random terrain of steps and slopes (one per episode).
 ``hsddp_gym/BoundingMuJoCo-v0`` is the same task simulated by MuJoCo (optional extra ``mujoco``);
 ``hsddp_gym/BoundingKKT-v0`` the same task simulated by the planner's own hybrid model (pinned feet, KKT contact
 dynamics, touchdown reset maps). ``hsddp_gym/Pronking-v0`` is the same robot rewarded for pronking
-(``hsddp_gym.envs.pronking``, no compiled vector entry point), ``hsddp_gym/PronkingMuJoCo-v0`` its MuJoCo twin.
+(``hsddp_gym.envs.pronking``, no compiled vector entry point), ``hsddp_gym/PronkingMuJoCo-v0`` its MuJoCo twin;
+``hsddp_gym/Backflip-v0`` rewards a backflip from standing (``hsddp_gym.envs.backflip``),
+``hsddp_gym/BackflipMuJoCo-v0`` its MuJoCo twin.
 """
 
 __version__ = "0.2.0"
@@ -20,12 +23,21 @@ BOUNDING_KKT_ENV_ID = "hsddp_gym/BoundingKKT-v0"
 """The same task simulated by the planner's hybrid model (``hsddp_gym.envs.kkt_twin``)."""
 BOUNDING_MAX_EPISODE_STEPS = 1000
 """1000 control steps = 5 s at the default 200 Hz (about 17 bounding cycles)."""
+TERRAIN_ENV_ID = "hsddp_gym/Terrain-v0"
+"""Bounding-v0 on a seeded random terrain per episode (``terrain="random_mixed"``: steps up to 3 cm, slopes up to 0.1;
+:meth:`hsddp_gym.core.terrain.Terrain.sample`)."""
 PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
 """The pronking task on Bounding-v0's robot and physics (``hsddp_gym.envs.pronking``)."""
 PRONKING_MUJOCO_ENV_ID = "hsddp_gym/PronkingMuJoCo-v0"
 """The pronking task simulated by MuJoCo (needs the extra ``mujoco``)."""
 PRONKING_MAX_EPISODE_STEPS = 1000
 """1000 control steps = 5 s at the default 200 Hz (about 28 pronk cycles)."""
+BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
+"""The backflip task on Bounding-v0's robot and physics (``hsddp_gym.envs.backflip``)."""
+BACKFLIP_MUJOCO_ENV_ID = "hsddp_gym/BackflipMuJoCo-v0"
+"""The backflip task simulated by MuJoCo (needs the extra ``mujoco``)."""
+BACKFLIP_MAX_EPISODE_STEPS = 400
+"""400 control steps = 2 s at the default 200 Hz (the flip and its landing take 1.05 s, then a hold)."""
 
 
 def _register_envs() -> None:
@@ -35,6 +47,9 @@ def _register_envs() -> None:
         gym.register(id=BOUNDING_ENV_ID, entry_point="hsddp_gym.envs.bounding:BoundingEnv",
                      vector_entry_point="hsddp_gym.envs.vector:BoundingVectorEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
+    if TERRAIN_ENV_ID not in gym.registry:  # no vector entry point: the compiled vector env is flat-ground only
+        gym.register(id=TERRAIN_ENV_ID, entry_point="hsddp_gym.envs.bounding:BoundingEnv",
+                     kwargs={"terrain": "random_mixed"}, max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
     if BOUNDING_MUJOCO_ENV_ID not in gym.registry:
         gym.register(id=BOUNDING_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.mujoco_twin:MuJoCoBoundingEnv",
                      max_episode_steps=BOUNDING_MAX_EPISODE_STEPS)
@@ -47,6 +62,12 @@ def _register_envs() -> None:
     if PRONKING_MUJOCO_ENV_ID not in gym.registry:
         gym.register(id=PRONKING_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.pronking:MuJoCoPronkingEnv",
                      max_episode_steps=PRONKING_MAX_EPISODE_STEPS)
+    if BACKFLIP_ENV_ID not in gym.registry:
+        gym.register(id=BACKFLIP_ENV_ID, entry_point="hsddp_gym.envs.backflip:BackflipEnv",
+                     max_episode_steps=BACKFLIP_MAX_EPISODE_STEPS)
+    if BACKFLIP_MUJOCO_ENV_ID not in gym.registry:
+        gym.register(id=BACKFLIP_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.backflip:MuJoCoBackflipEnv",
+                     max_episode_steps=BACKFLIP_MAX_EPISODE_STEPS)
 
 
 _register_envs()

@@ -234,7 +234,7 @@ def cmd_demo(args) -> int:
 # ----------------------------------------------------------------------------------------------- dataset, train
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
-DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0")
+DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0")
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 
@@ -380,7 +380,7 @@ def _check_train_env(args) -> None:
             raise UsageError(flag, f"given with --env {args.env}", f"only with --env {DATASET_ENVS[0]}")
     if args.algo == "dagger" and args.expert != "expert":
         raise UsageError("--expert", f"{args.expert} with --env {args.env}",
-                         f"expert (the HS-DDP pronk plan tracker) with --env {args.env}")
+                         f"expert (the task's HS-DDP plan tracker) with --env {args.env}")
 
 
 def _check_train(args) -> None:
@@ -543,10 +543,12 @@ def _add_learning_parsers(sub) -> None:
                    help="mpc: HS-DDP MPC; expert: tracks the 5-cycle al-reb HS-DDP plan (episodes start at the "
                         "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
                         "controller; random: uniform actions; in Pronking-v0 expert tracks a 4-cycle HS-DDP pronk "
-                        "plan periodically from the env's (noisy) start (default: %(default)s)")
+                        "plan periodically from the env's (noisy) start, in Backflip-v0 the HS-DDP backflip plan "
+                        "then holds its landing posture (default: %(default)s)")
     p.add_argument("--env", choices=DATASET_ENVS, default=DATASET_ENVS[0],
                    help="the env the episodes are recorded in; the default dataset id follows it "
-                        "(hsddp_gym/bounding/POLICY-v0, hsddp_gym/pronking/POLICY-v0) (default: %(default)s)")
+                        "(hsddp_gym/bounding/POLICY-v0, hsddp_gym/pronking/POLICY-v0, hsddp_gym/backflip/POLICY-v0) "
+                        "(default: %(default)s)")
     p.add_argument("--episodes", type=_positive_int, default=10,
                    help="episodes; episode i is reset with seed --seed + i (default: %(default)s)")
     p.add_argument("--workers", type=_positive_int, default=1,
@@ -564,7 +566,8 @@ def _add_learning_parsers(sub) -> None:
                         "with other settings refuses")
     p.add_argument("--dataset-id", default=None,
                    help="Minari dataset id (default: hsddp_gym/bounding/POLICY-v0, with --env "
-                        "hsddp_gym/Pronking-v0 hsddp_gym/pronking/POLICY-v0)")
+                        "hsddp_gym/Pronking-v0 hsddp_gym/pronking/POLICY-v0, with hsddp_gym/Backflip-v0 "
+                        "hsddp_gym/backflip/POLICY-v0)")
     p.add_argument("--max-episode-steps", type=_positive_int, default=None,
                    help="time limit override (default: the env's 1000)")
     p.add_argument("--target-speed", type=_finite_float, default=None,
@@ -598,9 +601,10 @@ def _add_learning_parsers(sub) -> None:
                         "Stable-Baselines3 RL on hsddp_gym/Bounding-v0 (or --env)")
     p.add_argument("--env", choices=DATASET_ENVS, default=None,
                    help="ppo/sac/dagger: the env to train and evaluate in (default: hsddp_gym/Bounding-v0; dagger: "
-                        "the env of --dataset's metadata if given); hsddp_gym/Pronking-v0 takes no --vector-env, "
-                        "--condition, --estimator or --action-queue, and dagger labels it with --expert expert (the "
-                        "pronk plan tracker); bc: refused, it evaluates in the env of its dataset")
+                        "the env of --dataset's metadata if given); hsddp_gym/Pronking-v0 and hsddp_gym/Backflip-v0 "
+                        "take no --vector-env, --condition, --estimator or --action-queue, and dagger labels them "
+                        "with --expert expert (the task's plan tracker); bc: refused, it evaluates in the env of its "
+                        "dataset")
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the network initialization and minibatch order (bc/dagger), of the DAgger "
                         "rollouts, or of the model and training env (ppo/sac); the final evaluation always uses "
@@ -667,8 +671,8 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default=None,
-                   help="dagger: the labelling expert; in hsddp_gym/Pronking-v0 only expert, the pronk plan tracker "
-                        "(default: mpc; expert in hsddp_gym/Pronking-v0)")
+                   help="dagger: the labelling expert; in hsddp_gym/Pronking-v0 and hsddp_gym/Backflip-v0 only "
+                        "expert, the task's plan tracker (default: mpc; expert in those two)")
     p.add_argument("--rounds", type=_nonnegative_int, default=4,
                    help="dagger: relabelling rounds after round 0 (round 0: BC on --dataset or on expert "
                         "episodes) (default: %(default)s)")

@@ -145,10 +145,47 @@ def pronk_plan(speed: float = 1.0, cycles: int = 4):
     return _PRONK_PLANS[key]
 
 
+def is_backflip_env(env) -> bool:
+    """Whether ``env`` (wrapped or not) is an env of the backflip task (``hsddp_gym/Backflip-v0`` or its MuJoCo
+    twin)."""
+    from hsddp_gym.envs.backflip import BackflipTask
+
+    return isinstance(getattr(env, "unwrapped", env), BackflipTask)
+
+
+def backflip_expert(env):
+    """The backflip expert for ``env``: :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` tracking
+    :func:`backflip_plan` for the env's control period (solved once per process, about 3 s); the env starts at the
+    plan's start, so no reset options are needed."""
+    from hsddp_gym.planners.policies.backflip import BackflipExpert
+
+    return BackflipExpert.from_env(env, solution=backflip_plan(backflip_hold(env)))
+
+
+def backflip_hold(env) -> int:
+    """Plan knots (1 ms) per control period of ``env``: the ``hold`` of :func:`backflip_plan`."""
+    return max(1, int(float(getattr(env, "unwrapped", env).dt) / 1e-3 + 0.5))
+
+
+_BACKFLIP_PLANS: dict = {}
+
+
+def backflip_plan(hold: int = 5):
+    """The HS-DDP backflip plan for a control held ``hold`` plan knots
+    (:func:`hsddp_gym.planners.motions.plan_backflip_held`), cached per ``hold``."""
+    from hsddp_gym.planners.motions import plan_backflip_held
+
+    key = int(hold)
+    if key not in _BACKFLIP_PLANS:
+        _BACKFLIP_PLANS[key] = plan_backflip_held(key)
+    return _BACKFLIP_PLANS[key]
+
+
 def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
     ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
-    (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`)."""
+    (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`, in the
+    backflip task :func:`backflip_expert`)."""
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
@@ -173,6 +210,8 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
         return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
     if name == "expert" and is_pronking_env(env):
         return pronking_expert(env), None
+    if name == "expert" and is_backflip_env(env):
+        return backflip_expert(env), None
     if name == "expert":
         from hsddp_gym.planners.tasks import plan_bounding
 

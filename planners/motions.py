@@ -932,8 +932,30 @@ def plan_motion(motion: str, speed: float = 1.0, cycles: int | None = None, opti
     return plan_transition(motion, speed, 2 if cycles is None else cycles, options=options, verbose=verbose)
 
 
+def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
+    """The backflip plan for a controller that holds each control for ``hold`` knots (the envs' 5 ms control period
+    over the plan's 1 ms knots: ``hold = 5``): :func:`plan_backflip`'s problem, warm start and options, solved
+    once; the :class:`~hsddp_gym.planners.optimizer.solution.Solution` with its gains ``K`` replaced by the
+    held-input gains of the same backward pass (:func:`~hsddp_gym.planners.optimizer.hold.held_input_gains`) and
+    its controls ``U`` by their means over the held knots
+    (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`); ``hold = 1`` leaves the plan as solved. Its
+    ``X`` is the solved trajectory. Used by the backflip expert
+    (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
+    from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
+
+    m = check_int(hold, "hold", minimum=1)
+    if options is not None and not isinstance(options, SolverOptions):
+        raise TypeError(f"options must be a SolverOptions or None, got {type(options).__name__}")
+    problem, phases = backflip_problem()
+    warm = motion_warm_start(problem, phases)
+    solver = HSDDP(BACKFLIP_OPTIONS if options is None else options)
+    sol = solver.solve(problem, warm.U)
+    return dataclasses.replace(sol, K=held_input_gains(solver, problem, m),
+                               U=held_feedforward(sol.U, problem.phase_start, m))
+
+
 __all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LIMITS", "MotionPhase", "leg_posture",
            "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
            "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
            "plan_transition", "plan_motion", "JUMPS", "GAP_WIDTH", "BOX_HEIGHT", "JUMP_FLIGHT", "jump_terrain",
-           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip", "BACKFLIP_OPTIONS"]
+           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip", "plan_backflip_held", "BACKFLIP_OPTIONS"]

@@ -200,10 +200,12 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             or the running cluster at ``address``); see :func:`hsddp_gym.util.parallel.run_parallel`. The data
             do not depend on it; an episode whose worker dies is run again.
         address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
-        dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding`` or ``pronking``).
+        dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding``, ``pronking`` or
+            ``backflip``).
         env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
             (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
-            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`).
+            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`), in ``hsddp_gym/Backflip-v0`` a
+            backflip plan (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`).
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
         policy_options: ``MPCOptions`` fields for ``mpc``.
@@ -310,8 +312,10 @@ def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_epi
         if plan_file.exists() and summary_file.exists():  # resumed: the plan the checkpoints were recorded with
             plan_summary = json.loads(summary_file.read_text())
         else:
+            control_dt = float(env_kwargs.get("frame_skip", 5)) * float(env_kwargs.get("sim_timestep", 1e-3))
             plan_summary = solve_expert_plan(plan_file, where["env_id"],
-                                             float(env_kwargs.get("target_speed", 1.0)))
+                                             float(env_kwargs.get("target_speed", 1.0)),
+                                             hold=max(1, int(control_dt / 1e-3 + 0.5)))
             write_json(summary_file, plan_summary)
         extra["expert_plan.npz"] = plan_file
     plan_time = time.perf_counter() - t0

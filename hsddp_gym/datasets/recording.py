@@ -14,7 +14,8 @@ from hsddp_gym.util.validation import check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
-DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID)
+BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
+DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID)
 """The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
 POLICIES = ("mpc", "expert", "heuristic", "random")
 EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
@@ -22,6 +23,9 @@ EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
 EXPERT_PRONK_PLAN = {"motion": "pronk", "cycles": 4}
 """The pronking expert's plan in Pronking-v0: ``hsddp_gym.planners.motions.plan_pronk(4, target_speed)``, tracked
 periodically (:class:`hsddp_gym.planners.policies.pronking.PronkingExpert`)."""
+EXPERT_BACKFLIP_PLAN = {"motion": "backflip", "hold": "control period / 1 ms (5 by default)"}
+"""The backflip expert's plan in Backflip-v0: ``hsddp_gym.planners.motions.plan_backflip_held(hold)``, tracked then
+held (:class:`hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -62,7 +66,9 @@ class PolicySpec:
         plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
             ``expert`` only.
         env_id: the env the expert's plan is for (None: Bounding-v0): in ``hsddp_gym/Pronking-v0`` the expert
-            is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan (no reset options).
+            is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan, in
+            ``hsddp_gym/Backflip-v0`` :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` of a backflip
+            plan (no reset options).
     """
 
     name: str
@@ -91,6 +97,10 @@ class PolicySpec:
             from hsddp_gym.planners.policies.pronking import PronkingExpert
 
             return PronkingExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
+        if self.name == "expert" and check_env_id(self.env_id) == BACKFLIP_ENV_ID:
+            from hsddp_gym.planners.policies.backflip import BackflipExpert
+
+            return BackflipExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
         if self.name == "expert":
             sol = _load_plan(str(self.plan_path))
             return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
@@ -113,6 +123,12 @@ class PolicySpec:
             d["class"] = f"{policies}.pronking.PronkingExpert"
             d["options"] = {"plan": dict(EXPERT_PRONK_PLAN), "plan_file": "expert_plan.npz",
                             "tracking": "periodic: after the plan's last touchdown the cursor returns to phase 2",
+                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
+        elif self.name == "expert" and check_env_id(self.env_id) == BACKFLIP_ENV_ID:
+            d["class"] = f"{policies}.backflip.BackflipExpert"
+            d["options"] = {"plan": dict(EXPERT_BACKFLIP_PLAN), "plan_file": "expert_plan.npz",
+                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
+                                        "clear; after the plan a joint PD on its last posture",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert":
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
@@ -139,9 +155,18 @@ def _load_plan(path: str):
     return Solution.load(path)
 
 
-def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0) -> dict:
+def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0, hold: int = 5) -> dict:
     """Solve the expert's plan (:data:`EXPERT_PLAN`; in Pronking-v0 :data:`EXPERT_PRONK_PLAN` at ``target_speed``
-    [m/s]), save it to ``path`` and return its summary."""
+    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN` for a control held ``hold`` plan knots), save it to ``path``
+    and return its summary."""
+    if check_env_id(env_id) == BACKFLIP_ENV_ID:
+        from hsddp_gym.planners.motions import plan_backflip_held
+
+        sol = plan_backflip_held(hold)
+        sol.save(path)
+        return {"status": sol.status, "converged": bool(sol.converged), "al_iterations": int(sol.al_iterations),
+                "ddp_iterations": int(sol.ddp_iterations), "switching_violation": float(sol.switching_violation),
+                "cost": float(sol.cost), "solve_time_s": float(sol.solve_time), "hold": int(hold)}
     if check_env_id(env_id) == PRONKING_ENV_ID:
         from hsddp_gym.planners.motions import plan_pronk
 

@@ -350,7 +350,7 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         raise ValueError(f"env_id: the env given, config.env_id and the dataset's env differ: {given}")
     if env_id != ENV_ID and expert != "expert":
         raise ValueError(f"expert {expert!r} is a {ENV_ID} controller; in {env_id} the expert is 'expert' (the "
-                         "pronk plan tracker)")
+                         "task's plan tracker)")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config, seed=int(seed), env_id=env_id,

@@ -692,6 +692,55 @@ def tasks_pronking(store: Store) -> str:
                       source_line(store, rid)])
 
 
+def tasks_backflip(store: Store) -> str:
+    """The backflip task: the HS-DDP backflip expert (Backflip-v0 and its MuJoCo twin), BC and DAgger per training
+    seed on unseen seeds, with the samples and training time each learner used (``experiments/backflip.py``)."""
+    rid = "tasks/backflip"
+    if rid not in store.ids():
+        return ("No `tasks/backflip` record yet: run `python experiments/backflip.py --record "
+                "results/tasks/backflip.json`.")
+    d = store.data(rid)
+    header = ["policy", "env", "return", "success", "falls", "lowest pitch [rad]", "final pitch [rad]",
+              "lowest trunk clearance [m]", "samples", "training time"]
+
+    def cells(r, samples, train_time):
+        return [r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
+                f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_min_pitch']:.2f}",
+                f"{r['mean_final_pitch']:.2f}", f"{r['min_trunk_clearance']:.3f}", samples, train_time]
+
+    def seeds_row(label, group):
+        ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
+        mean = sum(r["mean_return"] for r in group) / len(group)
+        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", "`Backflip-v0`",
+                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}", "", "", "",
+                "", ""]
+
+    rows = [cells(r, "–", "–") for r in d["rows"]]
+    for r in d["bc"]:
+        rows.append(cells(r, f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
+                          f"{r['train_wall_time_s']:.0f} s"))
+    if d["bc"]:
+        rows.append(seeds_row("BC", d["bc"]))
+    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
+        group = [r for r in d["dagger"] if r["rounds"] == rounds]
+        for r in group:
+            rollouts = r["rounds"] * r["episodes_per_round"]
+            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
+                     f"{r['episodes_per_round']} expert episodes")
+            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
+                                 f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
+        rows.append(seeds_row(f"DAgger, {rounds} round{'s' if rounds != 1 else ''}", group))
+    seeds = d["seeds"]
+    note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), "
+            f"{d['max_episode_steps']} steps (2 s) from standing, reset noise 0.01; return: mean ± std over the "
+            f"episodes; lowest and final pitch: means over the episodes (a full turn is -6.28 rad); lowest trunk "
+            f"clearance: over every step of every episode (a fall below 0.05 m). Success: {d['success_rule']}. "
+            "Samples: the expert's labelled (observation, action) pairs BC and DAgger learned from (DAgger's include "
+            "BC's demonstrations). Training time: wall-clock seconds on the shared 2-core machine.")
+    return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
+                      source_line(store, rid)])
+
+
 # -- generality of the MPC ---------------------------------------------------------------------------------------------
 
 def _generality_groups() -> tuple:
@@ -800,6 +849,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "learning/imitation": learning_imitation,
     "motions/summary": motions_summary,
     "tasks/pronking": tasks_pronking,
+    "tasks/backflip": tasks_backflip,
     "robustness/generality": robustness_generality,
     "robustness/generality_summary": robustness_generality_summary,
 }

@@ -17,6 +17,7 @@ period, torque limit, observation layout) given at construction (``Policy.from_e
 from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {  # module: the public names it defines
+    "backflip": ("BackflipExpert", "FlipPlanTracker",),
     "base": ("EnvInterface", "Policy",),
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
     "evaluation": ("EpisodeResult", "run_episode", "summarize",),
