@@ -19,7 +19,8 @@ height, ``dg/dq = d foot_z / dq``; at an edge ``h`` jumps and the planner uses t
 
 Slopes: a segment may also rise linearly, ``h(x) = levels[i] + slopes[i] (x - a_i)`` with ``a_i`` its left edge
 (``edges[0]`` for the first segment, 0 when there is no edge); :meth:`Terrain.ramp` builds one. The planner's
-problems still treat ``dh/dx`` as 0 (its jumps use level ground).
+switching constraints differentiate a slope's ``h`` (``dg/dq = d foot_z / dq - dh/dx d foot_x / dq``; the jumps use
+level ground).
 
 The simulated surface (``hsddp_gym/Bounding-v0``'s ``terrain=``, :mod:`hsddp_gym.core.batch_contact`)
 --------------------------------------------------------------------------------------------------------

@@ -293,8 +293,14 @@ class Objective:
                 if foot < 0:
                     continue
                 g, g_x, g_xx = self.robot.foot_height_derivatives(X_pre[i, :7], int(foot))
-                if self._terrain is not None:  # piecewise-constant ground: dh/dx = 0 off its edges
-                    g -= self._terrain.height(float(self.robot.foot_positions(X_pre[i, :7])[foot, 0]))
+                if self._terrain is not None:  # dh/dx = 0 off the edges of a level segment
+                    terrain = self._terrain
+                    fx = float(self.robot.foot_positions(X_pre[i, :7])[foot, 0])
+                    g -= terrain.height(fx)
+                    dhdx = terrain.slopes[int(np.searchsorted(terrain.edges, fx, side="right"))]
+                    if dhdx != 0.0:  # a slope: g_x = d foot_z - dh/dx d foot_x (its Hessian: foot_z's)
+                        g_x = g_x.copy()
+                        g_x[:7] -= dhdx * self.robot.foot_jacobian(X_pre[i, :7], int(foot))[0]
                 slope = 2.0 * w * g + cs.lam[r]
                 Phi_x[i] += slope * g_x
                 Phi_xx[i] += 2.0 * w * np.outer(g_x, g_x) + slope * g_xx

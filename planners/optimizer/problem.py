@@ -228,8 +228,9 @@ class HybridProblem:
         terrain: the ground under the feet, a :class:`~hsddp_gym.core.terrain.Terrain` (None: flat, ``z = 0``).
             The switching constraint of a landing foot is its height above the terrain under it,
             ``g = foot_z - terrain.height(foot_x)`` (:meth:`Objective.switching_values
-            <hsddp_gym.planners.optimizer.objective.Objective.switching_values>`); the terrain is piecewise
-            constant, so ``dg/dq = d foot_z / dq`` wherever the foot is not exactly on an edge. None and a flat
+            <hsddp_gym.planners.optimizer.objective.Objective.switching_values>`); on a level segment
+            ``dg/dq = d foot_z / dq`` wherever the foot is not exactly on an edge, on a slope
+            ``dg/dq = d foot_z / dq - dh/dx d foot_x / dq`` (the Hessian is foot_z's). None and a flat
             terrain give the same problem, bit for bit. The contact dynamics do not depend on the ground height
             (a stance foot is held where it landed).
 

@@ -55,6 +55,16 @@ class ContactModelPredictor:
                                             motor_speed_limits=motor_speed_limits, torque_limit=torque_limit)
         self.robot = self.sim.robot
 
+    @property
+    def terrain(self):
+        """The ground the model's feet contact (a :class:`~hsddp_gym.core.terrain.Terrain`; None: flat)."""
+        return self.sim.terrain
+
+    def set_terrain(self, terrain) -> None:
+        """Predict on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, or None: the flat ground), the env's
+        contact on its simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`)."""
+        self.sim.set_terrain(terrain)
+
     def step(self, x: np.ndarray, u: np.ndarray, mode: Mode | None = None) -> tuple[np.ndarray, Mode]:
         """One control period from ``x`` (14,) under torques ``u`` (4,) [N m]: ``(x_next (14,), contact mode at
         the end)``. The contacts follow from the state (``mode`` is accepted for symmetry and not needed)."""
@@ -80,21 +90,45 @@ CONTACT_TOLERANCE = 1e-4
 resolution leaves micrometres)."""
 
 
-def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode) -> np.ndarray:
+def terrain_clearance(robot: CheetahModel, q: np.ndarray, foot: int, terrain=None) -> float:
+    """Height [m] of ``foot`` of configuration ``q`` (7,) above the ground under it: the simulated surface of
+    ``terrain`` (:meth:`~hsddp_gym.core.terrain.Terrain.surface_heights`, the env's ``info["foot_heights"]``), or
+    the plane ``z = 0`` for None."""
+    if terrain is None:
+        return robot.foot_height(q, foot)
+    p = robot.foot_positions(q)[foot]
+    return float(p[1] - terrain.surface_heights(float(p[0])))
+
+
+def clearance_jacobian(robot: CheetahModel, q: np.ndarray, foot: int, index, terrain=None) -> np.ndarray:
+    """Derivatives of :func:`terrain_clearance` with respect to the coordinates ``q[index]``: the foot's vertical
+    Jacobian less the surface's slope under the foot times its horizontal one."""
+    J = robot.foot_jacobian(q, foot)
+    if terrain is None:
+        return J[1, index]
+    n = terrain.surface_normals(float(robot.foot_positions(q)[foot, 0]))
+    return J[1, index] + (float(n[0]) / float(n[1])) * J[0, index]
+
+
+def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode, terrain=None) -> np.ndarray:
     """``x`` (14,) with its trunk height (and, for two feet, pitch) moved so that the feet in contact in ``mode`` are
     on the ground (one Gauss-Newton step on the feet's heights; a copy), unless they all are within
-    :data:`CONTACT_TOLERANCE` of it."""
+    :data:`CONTACT_TOLERANCE` of it. ``terrain``: the ground (:func:`terrain_clearance`; None: ``z = 0``)."""
     x = np.array(x, dtype=np.float64)
     feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
     if not feet:
         return x
-    heights = [robot.foot_height(x[:NQ], f) for f in feet]  # the common case needs no derivatives
+    # the common case needs no derivatives
+    heights = [terrain_clearance(robot, x[:NQ], f, terrain) for f in feet]
     if max(abs(g) for g in heights) <= CONTACT_TOLERANCE:
         return x
     if len(feet) == 1:
         x[1] -= heights[0]
         return x
-    A = np.array([[g[1], g[2]] for _, g, _ in (robot.foot_height_derivatives(x[:NQ], f) for f in feet)])
+    if terrain is None:
+        A = np.array([[g[1], g[2]] for _, g, _ in (robot.foot_height_derivatives(x[:NQ], f) for f in feet)])
+    else:
+        A = np.array([clearance_jacobian(robot, x[:NQ], f, [IZ, IPITCH], terrain) for f in feet])
     h = np.array(heights)
     try:
         dz, dpitch = np.linalg.solve(A, -h)
@@ -137,6 +171,10 @@ class MeasurementBias:
     Attributes:
         bias: the estimate (14,) in state order (zeros but the trunk height and pitch).
         samples: foot observations used since :meth:`reset`.
+        terrain: the ground the feet stand on when it is known (a :class:`~hsddp_gym.core.terrain.Terrain`; None,
+            the default: the plane ``z = 0``). A foot's residual is then its height above the terrain's surface under
+            it (:func:`terrain_clearance`), so only the sensors' bias is estimated and the measurement stays in the
+            world frame instead of the frame of the ground under the stance feet.
     """
 
     CALIBRATION_STEPS = 5.0
@@ -156,6 +194,7 @@ class MeasurementBias:
         if np.any(self.limit <= 0):
             raise ValueError(f"limit must be positive, got {limit!r}")
         self._prior = prior * np.diag([1.0, float(robot.params.hip_offset) ** 2])
+        self.terrain = None
         self.reset()
 
     def reset(self) -> None:
@@ -181,8 +220,12 @@ class MeasurementBias:
             self._in_contact[f] = self._in_contact[f] + 1 if mode.in_contact(f) else 0
             if self._in_contact[f] <= self.settle_steps:
                 continue
-            j = self.robot.foot_jacobian(y[:NQ], f)[1, self.INDEX]
-            h = self.robot.foot_height(y[:NQ], f)
+            if self.terrain is None:
+                j = self.robot.foot_jacobian(y[:NQ], f)[1, self.INDEX]
+                h = self.robot.foot_height(y[:NQ], f)
+            else:
+                j = clearance_jacobian(self.robot, y[:NQ], f, self.INDEX, self.terrain)
+                h = terrain_clearance(self.robot, y[:NQ], f, self.terrain)
             if abs(h - j @ self.bias[self.INDEX]) > self.gate:
                 continue
             self._info += np.outer(j, j)
@@ -261,9 +304,9 @@ class StateFilter:
       where the model is least sure).
 
     The feet the (clean) contact flags report on the ground are put on it (:func:`project_onto_contacts`: trunk
-    height, and pitch for two feet), so that the prior's contact model neither lifts nor sinks them through noise
-    in the measured heights and angles. With exact observations and the exact model the estimate is the
-    observation (to round-off).
+    height, and pitch for two feet; on the predictor's terrain, :meth:`ContactModelPredictor.set_terrain`), so that the
+    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. With exact
+    observations and the exact model the estimate is the observation (to round-off).
 
     Args:
         predictor: the model used for the prior (its ``control_dt`` is the filter's period).
@@ -308,7 +351,7 @@ class StateFilter:
         self._beyond = 0  # consecutive observations beyond the gate
 
     def _take(self, y: np.ndarray, mode: Mode) -> np.ndarray:
-        self.x = project_onto_contacts(self.predictor.robot, y, mode)
+        self.x = project_onto_contacts(self.predictor.robot, y, mode, self.predictor.terrain)
         self.covariance = self._R.copy()
         self._beyond = 0
         return self.x.copy()
@@ -353,7 +396,7 @@ class StateFilter:
             else:
                 x[NQ:] += L[1, 0] * eq + L[1, 1] * ev
             self.covariance = P
-            x = project_onto_contacts(self.predictor.robot, x, mode)
+            x = project_onto_contacts(self.predictor.robot, x, mode, self.predictor.terrain)
         x[0] = y[0]
         self.x = x
         return x.copy()

@@ -33,6 +33,10 @@ actions already sent (``latency_compensation``): the plan and its feedback law a
 action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
 start speed toward the target at a bounded rate (``speed_acceleration``).
 
+Given the ground (``MPCPolicy(..., terrain=...)``, privileged information), the MPC works in the world frame: its
+plans' switching constraints put a landing foot on the terrain under it, the reference heights follow the ground, and
+the late-landing rule, the state filter, the bias estimate and the flight reach measure the feet from the terrain.
+
 A failed re-plan (exception, non-finite rollout, no decrease) never ends the episode: the previous plan's
 feedback law keeps acting and the failure is counted in :attr:`MPCPolicy.stats`. Only while no plan exists yet
 (the episode's first re-plan failed) does the schedule-driven heuristic act instead (a start-up controller).
@@ -52,12 +56,18 @@ from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.references import check_height_offset
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.core.terrain import Terrain, check_terrain
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, StateFilter
+from hsddp_gym.planners.policies.estimation import (
+    ContactModelPredictor,
+    MeasurementBias,
+    StateFilter,
+    terrain_clearance,
+)
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.latency import DelayEstimator
 from hsddp_gym.planners.policies.tracking import PlanTracker
@@ -602,9 +612,11 @@ def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed:
     return float(min(max(tau, 0.0), 0.9 * duration))
 
 
-def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_height: float | None) -> Mode:
+def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_height: float | None,
+                 terrain: Terrain | None = None) -> Mode:
     """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
-    ``touchdown_height`` [m] of the ground (None: ``mode`` as it is).
+    ``touchdown_height`` [m] of the ground (None: ``mode`` as it is): the plane ``z = 0``, or with a ``terrain``
+    (:class:`~hsddp_gym.core.terrain.Terrain`, the state in the world frame) its surface under the foot.
 
     A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
     stiff contact a landing foot can touch and leave within every step (it bounces at the control rate), so no
@@ -621,25 +633,39 @@ def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_h
         return mode
     if robot is None:
         robot = _nominal_robot()
-    if robot.foot_height(x[:NQ], landing) < touchdown_height:
+    if terrain_clearance(robot, x[:NQ], landing, terrain) < touchdown_height:
         return Mode(int(mode) | (1 << landing))
     return mode
 
 
 def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None,
-                      touchdown_height: float | None = None) -> Mode:
+                      touchdown_height: float | None = None, terrain: Terrain | None = None) -> Mode:
     """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
     observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
     update rule of the MPC and of the learners that rebuild its clock from observations. ``touchdown_height``: a
     late flight's landing foot that ``x`` puts within this height [m] of the ground counts as in contact
-    (:func:`late_landing`; None: the flags alone, as the learners' features use it)."""
+    (:func:`late_landing`; None: the flags alone, as the learners' features use it), measured from ``terrain``'s
+    surface when one is given (None: from ``z = 0``)."""
     x = check_vector(x, NX, "x")
     if clock.phase is None and robot is None:
         robot = _nominal_robot()
-    mode = late_landing(clock, Mode(mode), x, robot, touchdown_height)
+    mode = late_landing(clock, Mode(mode), x, robot, touchdown_height, terrain)
     return clock.update(mode, float(x[NQ + IPITCH]),
                         elapsed=None if clock.phase is not None else
                         (lambda phase, duration: stance_elapsed(robot, x, phase, duration)))
+
+
+def env_terrain(env):
+    """A function of no argument returning the terrain of ``env``'s current episode (its unwrapped env's
+    ``terrain`` attribute: a :class:`~hsddp_gym.core.terrain.Terrain`, or None on flat ground), for
+    ``MPCPolicy(..., terrain=env_terrain(env))``: a random terrain (``hsddp_gym/Terrain-v0``) is drawn at every
+    reset of the env, and the MPC reads it at its own reset."""
+    unwrapped = env.unwrapped
+
+    def terrain():
+        return getattr(unwrapped, "terrain", None)
+
+    return terrain
 
 
 @functools.lru_cache(maxsize=1)
@@ -656,8 +682,18 @@ class MPCPolicy(Policy):
     Args:
         interface: the env's public settings (``MPCPolicy.from_env(env)``).
         options: :class:`MPCOptions`.
+        terrain: the ground, given to the MPC as privileged information (None, the default: the MPC plans for flat
+            ground, and the feet on the ground set the height it plans from, ``bias_memory``): a
+            :class:`~hsddp_gym.core.terrain.Terrain`, or a function of no argument returning the current episode's
+            (a Terrain or None; called at every :meth:`reset`, e.g. :func:`env_terrain` of an env whose terrain is
+            drawn at its reset: reset the env first). A flat Terrain is None. With a terrain the MPC works in the
+            world frame (:attr:`terrain`, see the docs' "Terrain" section): its plans' switching constraints put a
+            landing foot on the terrain under it, the reference heights follow the ground, the late-landing rule,
+            the state filter's contact model and the bias estimate measure the feet from the terrain's surface,
+            and without the trunk x in the observation the MPC integrates the measured forward speed for it.
 
     Attributes:
+        terrain: the terrain of the current episode (None: flat ground).
         stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list),
             ``time_budget_stops`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
             MPC does, and counted here rather than as failures), ``restarts`` and ``restarts_kept``
@@ -665,10 +701,17 @@ class MPCPolicy(Policy):
         last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
     """
 
-    def __init__(self, interface: EnvInterface = EnvInterface(), options: MPCOptions = MPCOptions()) -> None:
+    def __init__(self, interface: EnvInterface = EnvInterface(), options: MPCOptions = MPCOptions(),
+                 terrain=None) -> None:
         super().__init__(interface)
         if not isinstance(options, MPCOptions):
             raise TypeError(f"options must be an MPCOptions, got {type(options).__name__}")
+        if terrain is not None and not isinstance(terrain, Terrain) and not callable(terrain):
+            raise TypeError(f"terrain must be None, a Terrain or a function returning the episode's Terrain "
+                            f"(e.g. env_terrain(env)), got {type(terrain).__name__}")
+        self.terrain_source = terrain
+        """The ``terrain`` argument (None, a Terrain or a function returning one)."""
+        self.terrain: Terrain | None = None
         self.options = options
         if options.durations is not None:
             self.durations = tuple(float(d) for d in options.durations)
@@ -749,6 +792,8 @@ class MPCPolicy(Policy):
         self._filter.reset()
         if self._bias is not None:
             self._bias.reset()
+        self._set_terrain()
+        self._odometry: tuple[float, float] | None = None  # (trunk x [m], forward speed [m/s]) at the last obs
         self._first_obs = True
         self._start_speed: float | None = None
         self.last_estimate: np.ndarray | None = None
@@ -766,6 +811,57 @@ class MPCPolicy(Policy):
         self._ref_window = collections.deque(maxlen=n_cycle)  # the speed references at the same steps
         self._bias_time = 0.0
 
+    def _set_terrain(self) -> None:
+        """Read the episode's terrain (``terrain``) and give it to the models that see the ground."""
+        source = self.terrain_source
+        if source is None:
+            return
+        name = "terrain"
+        if not isinstance(source, Terrain):
+            source, name = source(), "terrain()"
+        terrain = check_terrain(source, name)
+        self.terrain = None if terrain is None or terrain.is_flat else terrain
+        for predictor in (self._predictor, self._filter.predictor,
+                          None if self._delay_estimator is None else self._delay_estimator.predictor):
+            if predictor is not None:
+                predictor.set_terrain(self.terrain)
+        if self._bias is not None:
+            self._bias.terrain = self.terrain
+
+    def _trunk_x(self, x_obs: np.ndarray) -> np.ndarray:
+        """On a terrain, without the trunk x in the observation: ``x_obs`` (14,) with its x set to the trapezoidal
+        integral of the measured forward speed since the first observation (at x = 0, the env's start up to its reset
+        noise). The MPC needs to know where it is on the terrain."""
+        if self.terrain is None or not self.interface.layout.exclude_current_positions:
+            return x_obs
+        vx = float(x_obs[NQ])
+        if self._odometry is None:
+            self._odometry = (0.0, vx)
+        else:
+            x0, v0 = self._odometry
+            self._odometry = (x0 + 0.5 * (v0 + vx) * self.interface.control_dt, vx)
+        x_obs = x_obs.copy()
+        x_obs[0] = self._odometry[0]
+        return x_obs
+
+    def _ground(self, xs) -> np.ndarray:
+        """The ground [m] under the trunk x ``xs`` (any shape) [m]: the mean of the terrain under its two hips (the
+        trunk level), 0 without a terrain."""
+        xs = np.asarray(xs, dtype=np.float64)
+        if self.terrain is None:
+            return np.zeros_like(xs)
+        hip = self.dynamics.robot.params.hip_offset
+        return 0.5 * (self.terrain.support_heights(xs - hip) + self.terrain.support_heights(xs + hip))
+
+    def _level(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (14,) with its height measured from :meth:`_ground` (``x`` itself without a terrain): for the
+        heuristic controllers, which hold a trunk height above flat ground."""
+        if self.terrain is None:
+            return x
+        x = np.array(x, dtype=np.float64)
+        x[IZ] -= float(self._ground(x[0]))
+        return x
+
     # ------------------------------------------------------------------ gait clock
     @property
     def _phase_j(self) -> int | None:
@@ -780,7 +876,7 @@ class MPCPolicy(Policy):
         # the state says where a foot is relative to the ground once the feet on it have calibrated the measured
         # height (MeasurementBias; before the first stance of an episode, the flags alone)
         height = self.options.touchdown_height if self._bias is None or self._bias.calibrated else None
-        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height)
+        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height, self.terrain)
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -824,6 +920,9 @@ class MPCPolicy(Policy):
         t = self._reach_grid
         z = x[IZ] + x[NQ + IZ] * t - 0.5 * params.gravity * t * t - side * params.hip_offset * np.sin(
             x[IPITCH] + x[NQ + IPITCH] * t)
+        if self.terrain is not None:  # the hip's height above the terrain under it
+            z = z - self.terrain.support_heights(x[0] + x[NQ] * t + side * params.hip_offset * np.cos(
+                x[IPITCH] + x[NQ + IPITCH] * t))
         below = np.flatnonzero(z <= reach)
         return float(t[below[0]]) if below.size else float(t[-1])
 
@@ -887,7 +986,8 @@ class MPCPolicy(Policy):
         from hsddp_gym.core.rollout import rollout
 
         ctrl = self._warm_controller.as_schedule_controller(problem.schedule)
-        traj = rollout(problem.dynamics, problem.schedule, problem.x0, controller=ctrl)
+        # the planner's dynamics do not depend on the ground's height: the heuristic acts from its level
+        traj = rollout(problem.dynamics, problem.schedule, self._level(problem.x0), controller=ctrl)
         if not traj.is_finite:
             raise RuntimeError("heuristic warm start diverged")
         if traj.U.shape[0] == problem.n_knots:
@@ -947,6 +1047,8 @@ class MPCPolicy(Policy):
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
                                          knots=np.array(knots, dtype=np.int64), height_offset=o.height_offset)
+        if self.terrain is not None:
+            problem = self._on_terrain(problem, self.plan_speed(x))
         try:
             ws = None if self.last_solution is None else self._warm_start(problem, x)
         except ValueError:
@@ -999,6 +1101,21 @@ class MPCPolicy(Policy):
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
 
+    def _on_terrain(self, problem: HybridProblem, speed: float) -> HybridProblem:
+        """``problem`` (a flat-ground bounding problem) on :attr:`terrain`: the switching constraint of a landing
+        foot is its height above the terrain under it (``problem.terrain``), and each phase's reference trunk height
+        is raised by the ground (:meth:`_ground`) under the trunk where it is expected at the phase's end (the
+        re-plan's x moving at the plan's ``speed`` [m/s])."""
+        ends = problem.x0[0] + speed * np.cumsum(problem.schedule.durations)
+        costs = []
+        for cost, ground in zip(problem.costs, self._ground(ends)):
+            x_ref, x_final = cost.x_ref.copy(), cost.x_final.copy()
+            x_ref[IZ] += ground
+            x_final[IZ] += ground
+            costs.append(dataclasses.replace(cost, x_ref=x_ref, x_final=x_final))
+        return HybridProblem(problem.dynamics, problem.schedule, costs, problem.x0, problem.constraints,
+                             knots=problem.knots, terrain=self.terrain)
+
     def _cold_controls(self, problem: HybridProblem) -> np.ndarray:
         """Controls ``(N, 4)`` to solve ``problem`` from scratch: the warm-start heuristic's rollout, or zero torques
         if that rollout diverges from this state."""
@@ -1044,6 +1161,7 @@ class MPCPolicy(Policy):
         a double stance's start); before the first plan exists, the start-up controller
         (:attr:`_startup_controller`)."""
         x_obs, mode, _ = self._parse(obs)
+        x_obs = self._trunk_x(x_obs)
         o = self.options
         if self._bias is not None:
             x_obs = self._bias.correct(x_obs, mode)
@@ -1085,7 +1203,7 @@ class MPCPolicy(Policy):
                 self._pending = (tracker, sol, problem, lam, self.options.latency_steps)
                 self._activate_pending()
         if self.tracker is None:
-            u = self._startup_controller.torque(x, eff)
+            u = self._startup_controller.torque(self._level(x), eff)
         else:
             u = self.tracker.control(x)
             self.tracker.advance(self.interface.control_dt)
