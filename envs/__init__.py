@@ -8,6 +8,9 @@
   ``hsddp_gym/Pronking-v0`` (``MuJoCoPronkingEnv``: ``hsddp_gym/PronkingMuJoCo-v0``).
 * :mod:`hsddp_gym.envs.backflip`: ``BackflipEnv``, the backflip task on the same robot, registered as
   ``hsddp_gym/Backflip-v0`` (``MuJoCoBackflipEnv``: ``hsddp_gym/BackflipMuJoCo-v0``).
+* :mod:`hsddp_gym.envs.jumps`: ``JumpEnv``, a jump over a gap or onto a box from a bound, registered as
+  ``hsddp_gym/GapJump-v0`` and ``hsddp_gym/BoxJump-v0`` (``MuJoCoJumpEnv``: ``hsddp_gym/GapJumpMuJoCo-v0``,
+  ``hsddp_gym/BoxJumpMuJoCo-v0``).
 * :mod:`hsddp_gym.envs.mujoco_twin`: ``MuJoCoBoundingEnv``, the same task on MuJoCo, registered as
   ``hsddp_gym/BoundingMuJoCo-v0`` (optional extra ``mujoco``).
 
@@ -17,9 +20,10 @@ Classes are imported lazily so that ``import hsddp_gym.envs`` stays cheap.
 from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {"backflip": ("BackflipEnv", "MuJoCoBackflipEnv"), "bounding": ("BoundingEnv",),
-            "contact": ("ContactSimulator",), "mujoco_twin": ("MuJoCoBoundingEnv",),
+            "contact": ("ContactSimulator",), "jumps": ("JumpEnv", "MuJoCoJumpEnv"),
+            "mujoco_twin": ("MuJoCoBoundingEnv",),
             "pronking": ("MuJoCoPronkingEnv", "PronkingEnv"),
             "vector": ("BoundingVectorEnv",)}
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
-__all__ = ["BackflipEnv", "BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "MuJoCoBackflipEnv",
-           "MuJoCoBoundingEnv", "MuJoCoPronkingEnv", "PronkingEnv"]
+__all__ = ["BackflipEnv", "BoundingEnv", "BoundingVectorEnv", "ContactSimulator", "JumpEnv", "MuJoCoBackflipEnv",
+           "MuJoCoBoundingEnv", "MuJoCoJumpEnv", "MuJoCoPronkingEnv", "PronkingEnv"]

@@ -11,7 +11,9 @@ vectorization_mode="vector_entry_point")`` gives the compiled vector env (``hsdd
 dynamics, touchdown reset maps). ``hsddp_gym/Pronking-v0`` is the same robot rewarded for pronking
 (``hsddp_gym.envs.pronking``, no compiled vector entry point), ``hsddp_gym/PronkingMuJoCo-v0`` its MuJoCo twin;
 ``hsddp_gym/Backflip-v0`` rewards a backflip from standing (``hsddp_gym.envs.backflip``),
-``hsddp_gym/BackflipMuJoCo-v0`` its MuJoCo twin.
+``hsddp_gym/BackflipMuJoCo-v0`` its MuJoCo twin; ``hsddp_gym/GapJump-v0`` and ``hsddp_gym/BoxJump-v0`` reward
+a jump from a bound over a 0.3 m gap and onto a 0.1 m box (``hsddp_gym.envs.jumps``), ``hsddp_gym/GapJumpMuJoCo-v0``
+and ``hsddp_gym/BoxJumpMuJoCo-v0`` their MuJoCo twins.
 """
 
 __version__ = "0.2.0"
@@ -38,6 +40,17 @@ BACKFLIP_MUJOCO_ENV_ID = "hsddp_gym/BackflipMuJoCo-v0"
 """The backflip task simulated by MuJoCo (needs the extra ``mujoco``)."""
 BACKFLIP_MAX_EPISODE_STEPS = 400
 """400 control steps = 2 s at the default 200 Hz (the flip and its landing take 1.05 s, then a hold)."""
+
+GAP_JUMP_ENV_ID = "hsddp_gym/GapJump-v0"
+"""The jump over a 0.3 m gap on Bounding-v0's robot and physics (``hsddp_gym.envs.jumps``, ``task="gap_jump"``)."""
+BOX_JUMP_ENV_ID = "hsddp_gym/BoxJump-v0"
+"""The jump onto a 0.1 m box (``hsddp_gym.envs.jumps``, ``task="box_jump"``)."""
+GAP_JUMP_MUJOCO_ENV_ID = "hsddp_gym/GapJumpMuJoCo-v0"
+"""The gap jump simulated by MuJoCo (needs the extra ``mujoco``)."""
+BOX_JUMP_MUJOCO_ENV_ID = "hsddp_gym/BoxJumpMuJoCo-v0"
+"""The box jump simulated by MuJoCo (needs the extra ``mujoco``)."""
+JUMP_MAX_EPISODE_STEPS = 400
+"""400 control steps = 2 s at the default 200 Hz (the approach and the jump take 1 s, then bounding on)."""
 
 
 def _register_envs() -> None:
@@ -68,6 +81,12 @@ def _register_envs() -> None:
     if BACKFLIP_MUJOCO_ENV_ID not in gym.registry:
         gym.register(id=BACKFLIP_MUJOCO_ENV_ID, entry_point="hsddp_gym.envs.backflip:MuJoCoBackflipEnv",
                      max_episode_steps=BACKFLIP_MAX_EPISODE_STEPS)
+    for env_id, entry, task in ((GAP_JUMP_ENV_ID, "JumpEnv", "gap_jump"), (BOX_JUMP_ENV_ID, "JumpEnv", "box_jump"),
+                                (GAP_JUMP_MUJOCO_ENV_ID, "MuJoCoJumpEnv", "gap_jump"),
+                                (BOX_JUMP_MUJOCO_ENV_ID, "MuJoCoJumpEnv", "box_jump")):
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=f"hsddp_gym.envs.jumps:{entry}", kwargs={"task": task},
+                         max_episode_steps=JUMP_MAX_EPISODE_STEPS)
 
 
 _register_envs()

@@ -234,7 +234,8 @@ def cmd_demo(args) -> int:
 # ----------------------------------------------------------------------------------------------- dataset, train
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
-DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0")
+DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0",
+                "hsddp_gym/BoxJump-v0")
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 
@@ -543,7 +544,8 @@ def _add_learning_parsers(sub) -> None:
                    help="mpc: HS-DDP MPC; expert: tracks the 5-cycle al-reb HS-DDP plan (episodes start at the "
                         "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
                         "controller; random: uniform actions; in Pronking-v0 expert tracks a 4-cycle HS-DDP pronk "
-                        "plan periodically from the env's (noisy) start, in Backflip-v0 the HS-DDP backflip plan "
+                        "plan periodically from the env's (noisy) start, in GapJump-v0 / BoxJump-v0 the HS-DDP "
+                        "jump plan then its cycle after the jump looped, in Backflip-v0 the HS-DDP backflip plan "
                         "then holds its landing posture (default: %(default)s)")
     p.add_argument("--env", choices=DATASET_ENVS, default=DATASET_ENVS[0],
                    help="the env the episodes are recorded in; the default dataset id follows it "
@@ -601,10 +603,10 @@ def _add_learning_parsers(sub) -> None:
                         "Stable-Baselines3 RL on hsddp_gym/Bounding-v0 (or --env)")
     p.add_argument("--env", choices=DATASET_ENVS, default=None,
                    help="ppo/sac/dagger: the env to train and evaluate in (default: hsddp_gym/Bounding-v0; dagger: "
-                        "the env of --dataset's metadata if given); hsddp_gym/Pronking-v0 and hsddp_gym/Backflip-v0 "
-                        "take no --vector-env, --condition, --estimator or --action-queue, and dagger labels them "
-                        "with --expert expert (the task's plan tracker); bc: refused, it evaluates in the env of its "
-                        "dataset")
+                        "the env of --dataset's metadata if given); hsddp_gym/Pronking-v0, hsddp_gym/Backflip-v0 and "
+                        "the jumps take no --vector-env, --condition, --estimator or --action-queue, and dagger labels "
+                        "them with --expert expert (the task's plan tracker); bc: refused, it evaluates in the env of "
+                        "its dataset")
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the network initialization and minibatch order (bc/dagger), of the DAgger "
                         "rollouts, or of the model and training env (ppo/sac); the final evaluation always uses "
@@ -671,7 +673,7 @@ def _add_learning_parsers(sub) -> None:
     p.add_argument("--curve", type=_int_list, default=None,
                    help="bc: comma-separated numbers of demonstration episodes for the learning curve, e.g. 1,5,10")
     p.add_argument("--expert", choices=("mpc", "expert", "heuristic"), default=None,
-                   help="dagger: the labelling expert; in hsddp_gym/Pronking-v0 and hsddp_gym/Backflip-v0 only "
+                   help="dagger: the labelling expert; in hsddp_gym/Pronking-v0, Backflip-v0 and the jumps only "
                         "expert, the task's plan tracker (default: mpc; expert in those two)")
     p.add_argument("--rounds", type=_nonnegative_int, default=4,
                    help="dagger: relabelling rounds after round 0 (round 0: BC on --dataset or on expert "

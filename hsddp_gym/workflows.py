@@ -181,11 +181,53 @@ def backflip_plan(hold: int = 5):
     return _BACKFLIP_PLANS[key]
 
 
+def is_jump_env(env) -> bool:
+    """Whether ``env`` (wrapped or not) is an env of a jump task (``hsddp_gym/GapJump-v0``, ``hsddp_gym/BoxJump-v0``
+    or their MuJoCo twins)."""
+    from hsddp_gym.envs.jumps import JumpTask
+
+    return isinstance(getattr(env, "unwrapped", env), JumpTask)
+
+
+def jump_expert(env):
+    """The jump expert for ``env``: :class:`~hsddp_gym.planners.policies.jumps.JumpExpert` tracking
+    :func:`jump_plan` of the env's task for its control period (solved once per process, about 1 s); the env starts
+    at the plan's start, so no reset options are needed."""
+    from hsddp_gym.planners.policies.jumps import JumpExpert
+
+    return JumpExpert.from_env(env, solution=jump_plan(getattr(env, "unwrapped", env).task, backflip_hold(env)))
+
+
+_JUMP_PLANS: dict = {}
+
+
+def jump_plan(motion: str, hold: int = 5):
+    """The HS-DDP jump plan of ``motion`` (``"gap_jump"`` or ``"box_jump"``) for a control held ``hold`` plan knots
+    (:func:`hsddp_gym.planners.motions.plan_jump_held`), cached per ``(motion, hold)``."""
+    from hsddp_gym.planners.motions import plan_jump_held
+
+    key = (str(motion), int(hold))
+    if key not in _JUMP_PLANS:
+        _JUMP_PLANS[key] = plan_jump_held(key[0], key[1])
+    return _JUMP_PLANS[key]
+
+
+def task_expert(env):
+    """The plan-tracking expert of ``env``'s task (pronking, backflip, a jump), or None for Bounding-v0's."""
+    if is_pronking_env(env):
+        return pronking_expert(env)
+    if is_backflip_env(env):
+        return backflip_expert(env)
+    if is_jump_env(env):
+        return jump_expert(env)
+    return None
+
+
 def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
     ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
     (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`, in the
-    backflip task :func:`backflip_expert`)."""
+    backflip task :func:`backflip_expert`, in the jump tasks :func:`jump_expert`)."""
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
@@ -208,11 +250,10 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
         from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
         return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
-    if name == "expert" and is_pronking_env(env):
-        return pronking_expert(env), None
-    if name == "expert" and is_backflip_env(env):
-        return backflip_expert(env), None
     if name == "expert":
+        expert = task_expert(env)
+        if expert is not None:
+            return expert, None
         from hsddp_gym.planners.tasks import plan_bounding
 
         sol = plan_bounding("al-reb", cycles=5).solution

@@ -932,6 +932,24 @@ def plan_motion(motion: str, speed: float = 1.0, cycles: int | None = None, opti
     return plan_transition(motion, speed, 2 if cycles is None else cycles, options=options, verbose=verbose)
 
 
+def _solve_held(problem: HybridProblem, phases: list[MotionPhase], options: SolverOptions, hold: int):
+    """``problem`` solved once from its heuristic warm start, with its gains ``K`` replaced by the held-input gains
+    of the same backward pass and its controls ``U`` by their means over the held knots (``hold`` knots per
+    control)."""
+    from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
+
+    warm = motion_warm_start(problem, phases)
+    solver = HSDDP(options)
+    sol = solver.solve(problem, warm.U)
+    return dataclasses.replace(sol, K=held_input_gains(solver, problem, hold),
+                               U=held_feedforward(sol.U, problem.phase_start, hold))
+
+
+def _check_options(options) -> None:
+    if options is not None and not isinstance(options, SolverOptions):
+        raise TypeError(f"options must be a SolverOptions or None, got {type(options).__name__}")
+
+
 def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
     """The backflip plan for a controller that holds each control for ``hold`` knots (the envs' 5 ms control period
     over the plan's 1 ms knots: ``hold = 5``): :func:`plan_backflip`'s problem, warm start and options, solved
@@ -941,21 +959,27 @@ def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
     (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`); ``hold = 1`` leaves the plan as solved. Its
     ``X`` is the solved trajectory. Used by the backflip expert
     (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
-    from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
-
     m = check_int(hold, "hold", minimum=1)
-    if options is not None and not isinstance(options, SolverOptions):
-        raise TypeError(f"options must be a SolverOptions or None, got {type(options).__name__}")
+    _check_options(options)
     problem, phases = backflip_problem()
-    warm = motion_warm_start(problem, phases)
-    solver = HSDDP(BACKFLIP_OPTIONS if options is None else options)
-    sol = solver.solve(problem, warm.U)
-    return dataclasses.replace(sol, K=held_input_gains(solver, problem, m),
-                               U=held_feedforward(sol.U, problem.phase_start, m))
+    return _solve_held(problem, phases, BACKFLIP_OPTIONS if options is None else options, m)
+
+
+def plan_jump_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int = 2,
+                   options: SolverOptions | None = None):
+    """The plan of a jump (:data:`JUMPS`, :func:`plan_jump`'s problem, warm start and default options) for a
+    controller that holds each control for ``hold`` knots, as :func:`plan_backflip_held`: the solved
+    :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
+    Used by the jump expert (:class:`~hsddp_gym.planners.policies.jumps.JumpExpert`)."""
+    m = check_int(hold, "hold", minimum=1)
+    _check_options(options)
+    problem, phases = jump_problem(motion, speed, cycles)
+    return _solve_held(problem, phases, SolverOptions() if options is None else options, m)
 
 
 __all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LIMITS", "MotionPhase", "leg_posture",
            "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
            "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
            "plan_transition", "plan_motion", "JUMPS", "GAP_WIDTH", "BOX_HEIGHT", "JUMP_FLIGHT", "jump_terrain",
-           "jump_problem", "plan_jump", "backflip_problem", "plan_backflip", "plan_backflip_held", "BACKFLIP_OPTIONS"]
+           "jump_problem", "plan_jump", "plan_jump_held", "backflip_problem", "plan_backflip", "plan_backflip_held",
+           "BACKFLIP_OPTIONS"]

@@ -80,6 +80,21 @@ def max_rel_err(value: np.ndarray, reference: np.ndarray) -> float:
     return float(np.max(np.abs(value - reference) / np.maximum(1.0, np.abs(reference))))
 
 
+def random_rollout(env, seed: int, n: int = 60, action_seed: int = 0) -> list:
+    """``env`` reset with ``seed``, then up to ``n`` steps of uniform actions in ``(-0.3, 0.3)`` drawn with
+    ``action_seed``: the first observation and every step's observation with its reward appended (to compare
+    trajectories for determinism)."""
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(action_seed)
+    out = [obs]
+    for _ in range(n):
+        obs, reward, terminated, truncated, _ = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
+        out.append(np.append(obs, reward))
+        if terminated or truncated:
+            break
+    return out
+
+
 def assert_same_datasets(a, b, ignore=()) -> None:
     """Two datasets (directories or ``episodes.npz``) hold the same arrays: episodes, boundaries, seeds and every
     ``infos`` key but those in ``ignore`` (e.g. the wall-clock ``solve_ms``)."""
@@ -100,7 +115,7 @@ def tools() -> types.SimpleNamespace:
     return types.SimpleNamespace(random_state=random_state, random_control=random_control, fd_jacobian=fd_jacobian,
                                  max_rel_err=max_rel_err, FD_EPS=FD_EPS, FD_TOL=FD_TOL, SEED=SEED, MODES=MODES,
                                  CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS,
-                                 assert_same_datasets=assert_same_datasets)
+                                 assert_same_datasets=assert_same_datasets, random_rollout=random_rollout)
 
 
 @pytest.fixture(scope="session")

@@ -15,7 +15,9 @@ from hsddp_gym.util.validation import check_positive
 ENV_ID = "hsddp_gym/Bounding-v0"
 PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
 BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
-DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID)
+JUMP_ENV_IDS = {"hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump"}
+"""The jump tasks' envs and their motions (``hsddp_gym.planners.motions.JUMPS``)."""
+DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS)
 """The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
 POLICIES = ("mpc", "expert", "heuristic", "random")
 EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
@@ -26,6 +28,10 @@ periodically (:class:`hsddp_gym.planners.policies.pronking.PronkingExpert`)."""
 EXPERT_BACKFLIP_PLAN = {"motion": "backflip", "hold": "control period / 1 ms (5 by default)"}
 """The backflip expert's plan in Backflip-v0: ``hsddp_gym.planners.motions.plan_backflip_held(hold)``, tracked then
 held (:class:`hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
+EXPERT_JUMP_PLAN = {"motion": "gap_jump or box_jump", "speed": 1.0, "cycles": 2,
+                    "hold": "control period / 1 ms (5 by default)"}
+"""The jump expert's plan in GapJump-v0 / BoxJump-v0: ``hsddp_gym.planners.motions.plan_jump_held(motion, hold)``,
+tracked, then its cycle after the jump looped (:class:`hsddp_gym.planners.policies.jumps.JumpExpert`)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -101,6 +107,10 @@ class PolicySpec:
             from hsddp_gym.planners.policies.backflip import BackflipExpert
 
             return BackflipExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
+        if self.name == "expert" and check_env_id(self.env_id) in JUMP_ENV_IDS:
+            from hsddp_gym.planners.policies.jumps import JumpExpert
+
+            return JumpExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
         if self.name == "expert":
             sol = _load_plan(str(self.plan_path))
             return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
@@ -130,6 +140,13 @@ class PolicySpec:
                             "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
                                         "clear; after the plan a joint PD on its last posture",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
+        elif self.name == "expert" and check_env_id(self.env_id) in JUMP_ENV_IDS:
+            d["class"] = f"{policies}.jumps.JumpExpert"
+            d["options"] = {"plan": {**EXPERT_JUMP_PLAN, "motion": JUMP_ENV_IDS[self.env_id]},
+                            "plan_file": "expert_plan.npz",
+                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
+                                        "clear; after the plan its first cycle after the jump, looped",
+                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert":
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
                             "reset_options": "{'state': plan.X[0]} (no reset noise)",
@@ -157,12 +174,13 @@ def _load_plan(path: str):
 
 def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0, hold: int = 5) -> dict:
     """Solve the expert's plan (:data:`EXPERT_PLAN`; in Pronking-v0 :data:`EXPERT_PRONK_PLAN` at ``target_speed``
-    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN` for a control held ``hold`` plan knots), save it to ``path``
+    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN`, in GapJump-v0 / BoxJump-v0 :data:`EXPERT_JUMP_PLAN`, for a
+    control held ``hold`` plan knots), save it to ``path``
     and return its summary."""
-    if check_env_id(env_id) == BACKFLIP_ENV_ID:
-        from hsddp_gym.planners.motions import plan_backflip_held
+    if check_env_id(env_id) in (BACKFLIP_ENV_ID, *JUMP_ENV_IDS):
+        from hsddp_gym.planners.motions import plan_backflip_held, plan_jump_held
 
-        sol = plan_backflip_held(hold)
+        sol = plan_backflip_held(hold) if env_id == BACKFLIP_ENV_ID else plan_jump_held(JUMP_ENV_IDS[env_id], hold)
         sol.save(path)
         return {"status": sol.status, "converged": bool(sol.converged), "al_iterations": int(sol.al_iterations),
                 "ddp_iterations": int(sol.ddp_iterations), "switching_violation": float(sol.switching_violation),

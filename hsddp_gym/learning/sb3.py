@@ -41,9 +41,10 @@ from hsddp_gym.util.io import atomic_path, read_npz, write_json, write_npz
 from hsddp_gym.util.validation import check_int, check_positive
 
 ENV_ID = "hsddp_gym/Bounding-v0"
-ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0")
-"""The envs :func:`train_sb3` trains in (``env_id``): Bounding-v0 (the default), the pronking task Pronking-v0 and
-the backflip task Backflip-v0, which offer no compiled vector env and no robustness conditions."""
+ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0")
+"""The envs :func:`train_sb3` trains in (``env_id``): Bounding-v0 (the default), the pronking task Pronking-v0, the
+backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no compiled vector env and no
+robustness conditions."""
 ALGOS = ("ppo", "sac")
 
 PPO_HYPERPARAMS: dict = {

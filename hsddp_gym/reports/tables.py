@@ -692,28 +692,26 @@ def tasks_pronking(store: Store) -> str:
                       source_line(store, rid)])
 
 
-def tasks_backflip(store: Store) -> str:
-    """The backflip task: the HS-DDP backflip expert (Backflip-v0 and its MuJoCo twin), BC and DAgger per training
-    seed on unseen seeds, with the samples and training time each learner used (``experiments/backflip.py``)."""
-    rid = "tasks/backflip"
+def _plan_task_table(store: Store, rid: str, command: str, measures: list, measure_cells, episodes_note: str) -> str:
+    """The table of a plan-tracking task record (``experiments/tasks.py``): the expert (env and MuJoCo twin), BC and
+    DAgger per training seed, the task's ``measures`` columns (``measure_cells(row)`` their cells) and the note."""
     if rid not in store.ids():
-        return ("No `tasks/backflip` record yet: run `python experiments/backflip.py --record "
-                "results/tasks/backflip.json`.")
+        return f"No `{rid}` record yet: run `{command}`."
     d = store.data(rid)
-    header = ["policy", "env", "return", "success", "falls", "lowest pitch [rad]", "final pitch [rad]",
-              "lowest trunk clearance [m]", "samples", "training time"]
+    env_name = f"`{d['env_id'].split('/')[-1]}`"
+    header = ["policy", "env", "return", "success", "falls", *measures, "samples", "training time"]
 
     def cells(r, samples, train_time):
         return [r["label"], f"`{r['env_id'].split('/')[-1]}`", f"{r['mean_return']:.1f} ± {r['std_return']:.1f}",
-                f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", f"{r['mean_min_pitch']:.2f}",
-                f"{r['mean_final_pitch']:.2f}", f"{r['min_trunk_clearance']:.3f}", samples, train_time]
+                f"{r['successes']}/{r['episodes']}", f"{r['falls']}/{r['episodes']}", *measure_cells(r), samples,
+                train_time]
 
     def seeds_row(label, group):
         ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
         mean = sum(r["mean_return"] for r in group) / len(group)
-        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", "`Backflip-v0`",
-                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}", "", "", "",
-                "", ""]
+        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", env_name,
+                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}",
+                *[""] * len(measures), "", ""]
 
     rows = [cells(r, "–", "–") for r in d["rows"]]
     for r in d["bc"]:
@@ -729,16 +727,71 @@ def tasks_backflip(store: Store) -> str:
                      f"{r['episodes_per_round']} expert episodes")
             rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
                                  f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
-        rows.append(seeds_row(f"DAgger, {rounds} round{'s' if rounds != 1 else ''}", group))
+        rows.append(seeds_row(f"DAgger, {rounds} iteration{'s' if rounds != 1 else ''}", group))
     seeds = d["seeds"]
     note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), "
-            f"{d['max_episode_steps']} steps (2 s) from standing, reset noise 0.01; return: mean ± std over the "
-            f"episodes; lowest and final pitch: means over the episodes (a full turn is -6.28 rad); lowest trunk "
-            f"clearance: over every step of every episode (a fall below 0.05 m). Success: {d['success_rule']}. "
+            f"{d['max_episode_steps']} steps (2 s) {episodes_note}. Success: {d['success_rule']}. "
             "Samples: the expert's labelled (observation, action) pairs BC and DAgger learned from (DAgger's include "
             "BC's demonstrations). Training time: wall-clock seconds on the shared 2-core machine.")
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, rid)])
+
+
+def tasks_terrain(store: Store) -> str:
+    """The terrain task: the terrain-aware MPC (the episode's terrain as privileged information), the flat-ground MPC
+    and the heuristic on ``hsddp_gym/Terrain-v0``, per block of seeds (``experiments/terrain.py``)."""
+    rid = "tasks/terrain"
+    if rid not in store.ids():
+        return ("No `tasks/terrain` record yet: run `python experiments/terrain.py --record "
+                "results/tasks/terrain.json`.")
+    d = store.data(rid)
+    header = ["seeds", "policy", "falls", "fell on seeds", "return", "speed [m/s]", "failed re-plans"]
+    rows = []
+    for r in d["rows"]:
+        fell = ", ".join(str(s) for s in r["fell_seeds"]) or "–"
+        failures = str(r["planner_failures"]) if "planner_failures" in r else "–"
+        rows.append([f"{r['seeds'][0]}-{r['seeds'][1]}", f"`{r['label']}`", f"{r['falls']}/{r['episodes']}", fell,
+                     f"{r['mean_return']:.1f} ± {r['std_return']:.1f}", f"{r['mean_speed']:.3f}", failures])
+    uses = " ".join(f"Seeds {b['seeds'][0]}-{b['seeds'][1]}: {b['use']}." for b in d["seed_blocks"])
+    note = (f"`{d['env_id']}`, one 5 s episode per seed ({d['episode_steps']} steps, target speed "
+            f"{d['target_speed']:g} m/s, a new random terrain per seed); return: mean ± std over the episodes. {uses} "
+            "Failed re-plans: re-plans whose solve failed (the previous plan kept acting), summed over the episodes.")
+    return "\n".join([markdown_table(header, rows, ["l", "l", "r", "l", "r", "r", "r"]), "", note,
+                      source_line(store, rid)])
+
+
+def tasks_backflip(store: Store) -> str:
+    """The backflip task: the HS-DDP backflip expert (Backflip-v0 and its MuJoCo twin), BC and DAgger per training
+    seed on unseen seeds, with the samples and training time each learner used (``experiments/backflip.py``)."""
+    return _plan_task_table(
+        store, "tasks/backflip", "python experiments/backflip.py --record results/tasks/backflip.json",
+        ["lowest pitch [rad]", "final pitch [rad]", "lowest trunk clearance [m]"],
+        lambda r: [f"{r['mean_min_pitch']:.2f}", f"{r['mean_final_pitch']:.2f}", f"{r['min_trunk_clearance']:.3f}"],
+        "from standing, reset noise 0.01; return: mean ± std over the episodes; lowest and final pitch: means over "
+        "the episodes (a full turn is -6.28 rad); lowest trunk clearance: over every step of every episode (a fall "
+        "below 0.05 m)")
+
+
+def _tasks_jump(store: Store, task: str) -> str:
+    return _plan_task_table(
+        store, f"tasks/{task}", f"python experiments/tasks.py --task {task} --record results/tasks/{task}.json",
+        ["final trunk x [m]", "final pitch [rad]", "lowest trunk height [m]"],
+        lambda r: [f"{r['mean_final_x']:.2f}", f"{r['mean_final_pitch']:.2f}", f"{r['min_trunk_height']:.3f}"],
+        "from bounding at 0.9 m/s, reset noise 0.01; return: mean ± std over the episodes; final trunk x and pitch: "
+        "means over the episodes; lowest trunk height: the trunk centre over the ground under it, over every step of "
+        "every episode (a fall below 0.12 m)")
+
+
+def tasks_gap_jump(store: Store) -> str:
+    """The jump over a 0.3 m gap: the HS-DDP jump expert (GapJump-v0 and its MuJoCo twin), BC and DAgger per training
+    seed on unseen seeds (``experiments/tasks.py --task gap_jump``)."""
+    return _tasks_jump(store, "gap_jump")
+
+
+def tasks_box_jump(store: Store) -> str:
+    """The jump onto a 0.1 m box: the HS-DDP jump expert (BoxJump-v0 and its MuJoCo twin), BC and DAgger per training
+    seed on unseen seeds (``experiments/tasks.py --task box_jump``)."""
+    return _tasks_jump(store, "box_jump")
 
 
 # -- generality of the MPC ---------------------------------------------------------------------------------------------
@@ -850,6 +903,9 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "motions/summary": motions_summary,
     "tasks/pronking": tasks_pronking,
     "tasks/backflip": tasks_backflip,
+    "tasks/terrain": tasks_terrain,
+    "tasks/gap_jump": tasks_gap_jump,
+    "tasks/box_jump": tasks_box_jump,
     "robustness/generality": robustness_generality,
     "robustness/generality_summary": robustness_generality_summary,
 }

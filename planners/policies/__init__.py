@@ -22,6 +22,7 @@ _EXPORTS = {  # module: the public names it defines
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
     "evaluation": ("EpisodeResult", "run_episode", "summarize",),
     "expert": ("PlanTrackingExpert",),
+    "jumps": ("JumpExpert",),
     "heuristic": (
         "ContactEventBoundingController", "ContactEventGains", "HeuristicBoundingController", "HeuristicGains",
         "HeuristicPolicy",
@@ -31,7 +32,7 @@ _EXPORTS = {  # module: the public names it defines
     ),
     "random_policy": ("RandomPolicy",),
     "pronking": ("PeriodicPlanTracker", "PronkingExpert",),
-    "tracking": ("PlanTracker", "tracking_error",),
+    "tracking": ("ClearancePlanTracker", "HeldPlanExpert", "PlanTracker", "tracking_error",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(name for names in _EXPORTS.values() for name in names)
