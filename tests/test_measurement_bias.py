@@ -113,3 +113,20 @@ def test_the_mpc_bounds_under_a_biased_sensor_and_falls_without_the_estimate():
         env.close()
     assert not result.fell and result.length == 400 and result.forward_speed > 0.5
     assert policy._bias.bias[IZ] == pytest.approx(-0.02, abs=3e-3)  # the bias of sensor_bias, height
+
+
+def test_a_landing_foot_is_measured_from_where_the_measurement_puts_the_ground():
+    from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+    from hsddp_gym.planners.policies.mpc import GaitClock, late_landing
+
+    robot = CheetahModel()
+    clock = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005)
+    clock.phase, clock.tau = 1, PAPER_BOUNDING_DURATIONS[1]  # a flight at its nominal end: the front foot lands
+    q = robot.place_feet(np.array([0.0, 0.3, 0.0, -0.8, 1.6, -0.8, 1.6]), np.array([[0.2, 0.005], [-0.2, 0.1]]))
+    x = np.r_[q, np.zeros(NX - NQ)]  # the measured state: the front foot 5 mm up
+    assert late_landing(clock, Mode.FLIGHT, x, robot, 0.01) == Mode.FRONT_STANCE
+    # the measurement puts a foot on the ground 2 cm low: this one is 2.5 cm above the ground
+    assert late_landing(clock, Mode.FLIGHT, x, robot, 0.01, None, (-0.02, -0.02)) == Mode.FLIGHT
+    est = MeasurementBias(robot, 0.005)
+    est.bias[IZ] = -0.02
+    assert est.ground_offset(q, 0) == pytest.approx(-0.02)

@@ -148,12 +148,14 @@ class MeasurementBias:
     and ``b = (b_z, b_pitch)`` the biases. One foot sees a combination of them; the two feet of a gait over a cycle
     see both. They are estimated by least squares over the observations, the older ones forgotten with the time
     constant ``memory`` (an exponential weight), from a prior of zero bias worth ``prior_steps`` observations of one
-    foot (a pitch's observation scaled by the hip's lever arm), and subtracted from every measurement
-    (:meth:`correct`).
+    foot (a pitch's observation scaled by the hip's lever arm). :meth:`ground_offset` is then the height at which
+    the measurement puts a foot that stands on the ground (where a landing foot will stop, in the measurement's
+    frame); :meth:`correct` subtracts the bias from a measurement.
 
-    Whatever else holds a stance foot off the flat ground is read as a bias too and corrected the same way: a foot
-    that sinks into a soft contact or stands on a step (the measurement is then expressed relative to the ground
-    under the stance feet, the frame a flat-ground planner needs). A sample whose residual exceeds ``gate`` [m]
+    Whatever else holds a stance foot off the flat ground is read as a bias too: a foot that sinks into a soft
+    contact or stands on a step. For :meth:`ground_offset` that is right (a landing foot will sink as deep); for
+    :meth:`correct` it is not (in a flight the trunk is where the sensors say, not where the sunk feet put it), so
+    the MPC uses the estimate as the landing feet's ground only. A sample whose residual exceeds ``gate`` [m]
     (a foot flagged on the ground far from it) is not used; the estimates are bounded by ``limit`` (``(height [m],
     pitch [rad])``). Velocities are not estimated: on a compliant contact a stance foot is not at rest (it sinks
     and rebounds), and a velocity bias of the size of the measurement noise is the feedback's business (the MPC's
@@ -236,6 +238,15 @@ class MeasurementBias:
             b = np.linalg.solve(self._info + self._prior, self._vec)
             self.bias[self.INDEX] = np.clip(b, -self.limit, self.limit)
         return self.bias
+
+    def ground_offset(self, q: np.ndarray, foot: int) -> float:
+        """The height [m] above the ground (or :attr:`terrain`) at which a configuration ``q`` (7,) measured now
+        puts ``foot`` when it stands on the ground: ``J_f(q) b`` (0 before any foot on the ground)."""
+        if self.terrain is None:
+            j = self.robot.foot_jacobian(q, foot)[1, self.INDEX]
+        else:
+            j = clearance_jacobian(self.robot, q, foot, self.INDEX, self.terrain)
+        return float(j @ self.bias[self.INDEX])
 
     def correct(self, y: np.ndarray, mode: Mode) -> np.ndarray:
         """The measurement ``y`` (14,) less the bias estimated with it (:meth:`update`): a new array."""

@@ -26,8 +26,7 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
 
-Before step 1 the observation is corrected by the bias of its trunk height and pitch that the feet on the ground
-reveal (``bias_memory``), goes through the model-based state filter (``state_filter``) and, when the env
+Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
 actions already sent (``latency_compensation``): the plan and its feedback law are for the state at which the
 action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
@@ -210,14 +209,14 @@ class MPCOptions:
             innovation beyond the gate for the next observation as well and restarts the estimate one control step
             later. 1 for sensors with no single-step outliers and a model that matches the contact.
         bias_memory: time constant [s] of the estimate of a constant bias of the measured trunk height and pitch
-            (None: the measurements are taken as they are). A foot the contact flags put on the ground is at the
-            ground, so the height at which the measurement puts it is the measurement's error seen at the foot; the
-            two feet of a gait cycle give the height and the pitch bias, estimated by least squares over the
-            observations with this forgetting and subtracted from every measurement before the filter
+            (None: none). A foot the contact flags put on the ground is at the ground, so the height at which the
+            measurement puts it is the measurement's error seen at the foot; the two feet of a gait cycle give the
+            height and the pitch bias, estimated by least squares over the observations with this forgetting
             (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`). The late-landing rule
-            (``touchdown_height``) then measures a foot from the ground the feet have found, and waits for the
-            first stance's calibration before it acts. A foot that sinks into a soft contact is read the same way.
-            Velocity biases are not estimated (the speed integral absorbs a forward-speed bias).
+            (``touchdown_height``) measures a landing foot from where the measurement puts a foot on the ground, and
+            waits for the first stance's calibration before it acts. The estimate is not subtracted from the state:
+            a foot that sinks into a soft contact reads as a bias too, right for where a landing foot stops, wrong
+            for the trunk in a flight.
         action_delay: control steps between an action's return and its execution (None: the env's,
             ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
         latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
@@ -613,10 +612,12 @@ def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed:
 
 
 def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_height: float | None,
-                 terrain: Terrain | None = None) -> Mode:
+                 terrain: Terrain | None = None, ground_offset: tuple[float, float] = (0.0, 0.0)) -> Mode:
     """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
     ``touchdown_height`` [m] of the ground (None: ``mode`` as it is): the plane ``z = 0``, or with a ``terrain``
-    (:class:`~hsddp_gym.core.terrain.Terrain`, the state in the world frame) its surface under the foot.
+    (:class:`~hsddp_gym.core.terrain.Terrain`, the state in the world frame) its surface under the foot, raised by
+    ``ground_offset[foot]`` [m] (where the measurement puts a foot on the ground,
+    :meth:`~hsddp_gym.planners.policies.estimation.MeasurementBias.ground_offset`; in the order FRONT, BACK).
 
     A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
     stiff contact a landing foot can touch and leave within every step (it bounces at the control rate), so no
@@ -633,13 +634,14 @@ def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_h
         return mode
     if robot is None:
         robot = _nominal_robot()
-    if terrain_clearance(robot, x[:NQ], landing, terrain) < touchdown_height:
+    if terrain_clearance(robot, x[:NQ], landing, terrain) - ground_offset[landing] < touchdown_height:
         return Mode(int(mode) | (1 << landing))
     return mode
 
 
 def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None,
-                      touchdown_height: float | None = None, terrain: Terrain | None = None) -> Mode:
+                      touchdown_height: float | None = None, terrain: Terrain | None = None,
+                      ground_offset: tuple[float, float] = (0.0, 0.0)) -> Mode:
     """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
     observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
     update rule of the MPC and of the learners that rebuild its clock from observations. ``touchdown_height``: a
@@ -649,7 +651,7 @@ def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None,
     x = check_vector(x, NX, "x")
     if clock.phase is None and robot is None:
         robot = _nominal_robot()
-    mode = late_landing(clock, Mode(mode), x, robot, touchdown_height, terrain)
+    mode = late_landing(clock, Mode(mode), x, robot, touchdown_height, terrain, ground_offset)
     return clock.update(mode, float(x[NQ + IPITCH]),
                         elapsed=None if clock.phase is not None else
                         (lambda phase, duration: stance_elapsed(robot, x, phase, duration)))
@@ -876,7 +878,9 @@ class MPCPolicy(Policy):
         # the state says where a foot is relative to the ground once the feet on it have calibrated the measured
         # height (MeasurementBias; before the first stance of an episode, the flags alone)
         height = self.options.touchdown_height if self._bias is None or self._bias.calibrated else None
-        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height, self.terrain)
+        offset = (0.0, 0.0) if self._bias is None or height is None else \
+            tuple(self._bias.ground_offset(x[:NQ], foot) for foot in (FRONT, BACK))
+        return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height, self.terrain, offset)
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
         """Schedule from the gait clock: the current phase for the rest of its nominal duration (at least
@@ -1164,7 +1168,7 @@ class MPCPolicy(Policy):
         x_obs = self._trunk_x(x_obs)
         o = self.options
         if self._bias is not None:
-            x_obs = self._bias.correct(x_obs, mode)
+            self._bias.update(x_obs, mode)
         if self._delay_estimator is not None:
             if self._last_observed is not None:
                 torques = np.array(self._sent, dtype=np.float64) * self.interface.torque_limit
