@@ -794,6 +794,46 @@ def tasks_box_jump(store: Store) -> str:
     return _tasks_jump(store, "box_jump")
 
 
+def tasks_summary(store: Store) -> str:
+    """Every task beyond bounding in one table: its expert's successes in the env and in the MuJoCo twin, and the
+    learners' from its datasets, over all training seeds (the task records ``tasks/*``)."""
+    tasks = [("tasks/pronking", "pronk"), ("tasks/backflip", "backflip from standing"),
+             ("tasks/gap_jump", "jump over a 0.3 m gap"), ("tasks/box_jump", "jump onto a 0.1 m box")]
+    header = ["task", "env", "expert", "expert in the MuJoCo twin", "BC", "DAgger", "seeds"]
+    rows, used = [], []
+
+    def total(group):
+        return (f"{sum(r['successes'] for r in group)}/{sum(r['episodes'] for r in group)} "
+                f"({len(group)} training seed{'s' if len(group) != 1 else ''})") if group else "–"
+
+    for rid, what in tasks:
+        if rid not in store.ids():
+            continue
+        used.append(rid)
+        d = store.data(rid)
+        env_id = d["env_id"]
+        expert = {r["env_id"]: r for r in d["rows"] if r["label"] == "expert"}
+        own = expert.get(env_id)
+        twin = [r for e, r in expert.items() if e != env_id]
+        dagger = d.get("dagger", [])
+        by_iterations = {n: [r for r in dagger if r["rounds"] == n] for n in sorted({r["rounds"] for r in dagger})}
+        dagger_cell = "; ".join(f"{total(group)[:-1]}, {n} iterations)" for n, group in by_iterations.items()) or "–"
+        if "target_speed" in d:
+            what = f"{what} at {d['target_speed']:g} m/s"
+        rows.append([what, f"`{env_id.split('/')[-1]}`",
+                     f"{own['successes']}/{own['episodes']}" if own else "–",
+                     f"{twin[0]['successes']}/{twin[0]['episodes']}" if twin else "–",
+                     total(d.get("bc", [])), dagger_cell, f"{d['seeds'][0]}-{d['seeds'][-1]}"])
+    if not rows:
+        return "No task record yet: run `python experiments/tasks.py --task backflip`."
+    note = ("Successes / episodes on seeds used by no dataset or training run; each task's success rule, the learners' "
+            "samples and training time are on the [tasks page](docs/env/tasks.md). BC and DAgger: summed over their "
+            "training seeds, DAgger per number of iterations. The expert tracks the task's HS-DDP plan with the plan's "
+            "feedback gains (the pronk: a periodic plan).")
+    return "\n".join([markdown_table(header, rows, ["l", "l", "r", "r", "r", "r", "l"]), "", note,
+                      source_line(store, *used)])
+
+
 # -- generality of the MPC ---------------------------------------------------------------------------------------------
 
 def _generality_groups() -> tuple:
@@ -906,6 +946,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "tasks/terrain": tasks_terrain,
     "tasks/gap_jump": tasks_gap_jump,
     "tasks/box_jump": tasks_box_jump,
+    "tasks/summary": tasks_summary,
     "robustness/generality": robustness_generality,
     "robustness/generality_summary": robustness_generality_summary,
 }
