@@ -235,7 +235,8 @@ def cmd_demo(args) -> int:
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
 DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0",
-                "hsddp_gym/BoxJump-v0")
+                "hsddp_gym/BoxJump-v0", "hsddp_gym/Terrain-v0")
+MPC_ENVS = (DATASET_ENVS[0], "hsddp_gym/Terrain-v0")  # their expert is the MPC (in Terrain-v0 the terrain-aware one)
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 
@@ -273,6 +274,9 @@ def cmd_dataset(args) -> int:
     if args.condition is not None and args.env != DATASET_ENVS[0]:
         raise UsageError("--condition", f"given with --env {args.env}",
                          f"--condition with --env {DATASET_ENVS[0]} only (the conditions perturb Bounding-v0)")
+    if args.policy == "expert" and args.env == MPC_ENVS[1]:
+        raise UsageError("--policy", f"expert with --env {args.env}",
+                         "mpc (the terrain-aware MPC, the task's expert), heuristic or random")
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if args.address is not None and args.backend != "ray":
         raise UsageError("--address", f"{args.address!r} without --backend ray", "only with --backend ray")
@@ -354,7 +358,8 @@ def _bc_extra(args) -> dict:
 def _check_train_env(args) -> None:
     """``train --env``: the env of ppo/sac/dagger; Bounding-v0's extras (the compiled vector env, the robustness
     conditions, the MPC expert, the state estimator) only there. dagger: the env defaults to its --dataset's (which
-    must match --env) and ``--expert`` to ``mpc`` in Bounding-v0, ``expert`` in Pronking-v0."""
+    must match --env) and ``--expert`` to ``mpc`` in Bounding-v0 and Terrain-v0 (there the terrain-aware MPC),
+    ``expert`` in the plan-tracking tasks."""
     if args.algo == "dagger":
         env = args.env
         if args.dataset:
@@ -366,7 +371,7 @@ def _check_train_env(args) -> None:
                                  "the dataset's env")
             env = recorded
         if args.expert is None:
-            args.expert = "mpc" if env in (None, DATASET_ENVS[0]) else "expert"
+            args.expert = "mpc" if env in (None, *MPC_ENVS) else "expert"
         args.env = env
     if args.env is None:
         return
@@ -379,6 +384,10 @@ def _check_train_env(args) -> None:
                         ("--estimator", args.estimator), ("--action-queue", bool(args.action_queue))):
         if given:
             raise UsageError(flag, f"given with --env {args.env}", f"only with --env {DATASET_ENVS[0]}")
+    if args.algo == "dagger" and args.env == MPC_ENVS[1]:
+        if args.expert == "expert":
+            raise UsageError("--expert", f"expert with --env {args.env}", "mpc (the terrain-aware MPC) or heuristic")
+        return
     if args.algo == "dagger" and args.expert != "expert":
         raise UsageError("--expert", f"{args.expert} with --env {args.env}",
                          f"expert (the task's HS-DDP plan tracker) with --env {args.env}")
@@ -546,10 +555,12 @@ def _add_learning_parsers(sub) -> None:
                         "controller; random: uniform actions; in Pronking-v0 expert tracks a 4-cycle HS-DDP pronk "
                         "plan periodically from the env's (noisy) start, in GapJump-v0 / BoxJump-v0 the HS-DDP "
                         "jump plan then its cycle after the jump looped, in Backflip-v0 the HS-DDP backflip plan "
-                        "then holds its landing posture (default: %(default)s)")
+                        "then holds its landing posture; in Terrain-v0 mpc is the terrain-aware MPC (given each "
+                        "episode's terrain) and there is no expert (default: %(default)s)")
     p.add_argument("--env", choices=DATASET_ENVS, default=DATASET_ENVS[0],
                    help="the env the episodes are recorded in; the default dataset id follows it "
-                        "(hsddp_gym/bounding/POLICY-v0, hsddp_gym/pronking/POLICY-v0, hsddp_gym/backflip/POLICY-v0) "
+                        "(hsddp_gym/bounding/POLICY-v0, hsddp_gym/pronking/POLICY-v0, hsddp_gym/backflip/POLICY-v0, "
+                        "hsddp_gym/terrain/POLICY-v0, ...) "
                         "(default: %(default)s)")
     p.add_argument("--episodes", type=_positive_int, default=10,
                    help="episodes; episode i is reset with seed --seed + i (default: %(default)s)")

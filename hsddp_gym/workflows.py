@@ -212,6 +212,15 @@ def jump_plan(motion: str, hold: int = 5):
     return _JUMP_PLANS[key]
 
 
+def is_terrain_env(env) -> bool:
+    """Whether ``env`` is ``hsddp_gym/Terrain-v0`` (by its spec), whose ``mpc`` is the terrain-aware MPC
+    (``MPCPolicy(..., terrain=env_terrain(env))``, as in :class:`hsddp_gym.datasets.recording.PolicySpec`)."""
+    from hsddp_gym.datasets.recording import TERRAIN_ENV_ID
+
+    spec = getattr(env, "spec", None)
+    return getattr(spec, "id", None) == TERRAIN_ENV_ID
+
+
 def task_expert(env):
     """The plan-tracking expert of ``env``'s task (pronking, backflip, a jump), or None for Bounding-v0's."""
     if is_pronking_env(env):
@@ -227,7 +236,8 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
     ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
     (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`, in the
-    backflip task :func:`backflip_expert`, in the jump tasks :func:`jump_expert`)."""
+    backflip task :func:`backflip_expert`, in the jump tasks :func:`jump_expert`; in ``hsddp_gym/Terrain-v0``
+    ``mpc`` is the terrain-aware MPC, given each episode's terrain, as in its datasets, :func:`is_terrain_env`)."""
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.expert import PlanTrackingExpert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
@@ -247,9 +257,10 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
 
         return load_trained_policy(run, env), None
     if name == "mpc":
-        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, env_terrain
 
-        return MPCPolicy.from_env(env, options=mpc_options or MPCOptions()), None
+        terrain = env_terrain(env) if is_terrain_env(env) else None
+        return MPCPolicy.from_env(env, options=mpc_options or MPCOptions(), terrain=terrain), None
     if name == "expert":
         expert = task_expert(env)
         if expert is not None:

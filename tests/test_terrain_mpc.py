@@ -1,6 +1,7 @@
 """The terrain-aware MPC: ``MPCPolicy(..., terrain=...)`` given the ground as privileged information (its switching
 constraints, reference heights, late-landing rule, state filter and bias estimate on the terrain), the planner's
-switching constraint on a slope, and the argument's checks."""
+switching constraint on a slope, the argument's checks, and a Terrain-v0 dataset recorded with it
+(``hsddp-gym dataset --env hsddp_gym/Terrain-v0 --policy mpc``)."""
 
 from __future__ import annotations
 
@@ -194,3 +195,73 @@ def test_the_switching_constraint_gradient_on_a_terrain_matches_finite_differenc
         xm[k] -= eps
         fd = (_switching_gradient(terrain, xp)[0] - _switching_gradient(terrain, xm)[0]) / (2 * eps)
         assert abs(grad[k] - fd) < 1e-6, k
+
+
+def test_a_small_terrain_dataset_is_recorded_by_the_terrain_aware_mpc(terrain_env, tmp_path, capsys):
+    """``hsddp-gym dataset --env hsddp_gym/Terrain-v0 --policy mpc``: the expert is given each episode's terrain
+    (its actions are the terrain-aware MPC's, not the flat-ground MPC's, past the flat start), Minari loads the
+    dataset and rebuilds Terrain-v0; ``--policy expert`` (a flat-ground plan tracker) is refused."""
+    pytest.importorskip("minari")
+    import minari
+
+    from hsddp_gym import cli
+    from hsddp_gym.datasets.storage import load_npz, minari_root, read_metadata
+
+    out, steps, seed = tmp_path / "terrain", 150, FALL_SEED
+    assert cli.main(["dataset", "--env", TERRAIN_ENV, "--policy", "mpc", "--episodes", "2", "--seed", str(seed),
+                     "--max-episode-steps", str(steps), "--out", str(out), "--quiet"]) == 0
+    meta = read_metadata(out)
+    dataset_id = "hsddp_gym/terrain/mpc-v0"
+    assert meta["dataset_id"] == dataset_id and meta["env_id"] == TERRAIN_ENV
+    assert meta["policy"]["class"].endswith("mpc.MPCPolicy") and "env_terrain" in meta["policy"]["terrain"]
+    with minari_root(out / "minari"):
+        ds = minari.load_dataset(dataset_id)
+        assert ds.total_episodes == 2 and ds.total_steps == 2 * steps
+        env = ds.recover_environment()
+        assert env.spec.id == TERRAIN_ENV and env.unwrapped.terrain_option == "random_mixed"
+        env.close()
+    data = load_npz(out)
+    assert data.n_episodes == 2
+    recorded = data.actions[:steps]
+    env = terrain_env
+    aware = run_episode(env, MPCPolicy(EnvInterface.from_env(env), MPCOptions(), terrain=env_terrain(env)), seed,
+                        max_steps=steps).actions
+    flat = run_episode(env, MPCPolicy(EnvInterface.from_env(env), MPCOptions()), seed, max_steps=steps).actions
+    np.testing.assert_array_equal(recorded, aware)
+    assert not np.array_equal(recorded, flat)
+    assert cli.main(["dataset", "--env", TERRAIN_ENV, "--policy", "expert", "--episodes", "1",
+                     "--out", str(tmp_path / "expert")]) == 2
+    assert "terrain-aware MPC" in capsys.readouterr().err and not (tmp_path / "expert").exists()
+
+
+def test_make_policy_mpc_in_terrain_v0_is_the_terrain_aware_mpc(terrain_env):
+    from hsddp_gym.workflows import make_policy
+
+    policy, options = make_policy("mpc", terrain_env)
+    assert options is None
+    terrain_env.reset(seed=FALL_SEED)
+    policy.reset()
+    assert policy.terrain is terrain_env.unwrapped.terrain and not policy.terrain.is_flat
+    flat_env = gym.make("hsddp_gym/Bounding-v0")
+    policy, _ = make_policy("mpc", flat_env)
+    flat_env.reset(seed=0)
+    policy.reset()
+    assert policy.terrain is None
+    flat_env.close()
+
+
+def test_dagger_in_terrain_v0_is_labelled_by_the_terrain_aware_mpc(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from hsddp_gym import cli
+    from hsddp_gym.learning.bc import BCConfig
+    from hsddp_gym.learning.dagger import DAggerConfig, run_dagger
+
+    config = DAggerConfig(rounds=1, episodes_per_round=1, max_episode_steps=20, bc=BCConfig(epochs=1))
+    summary = run_dagger("mpc", tmp_path / "dagger", config=config, eval_episodes=0, progress=False,
+                         env_id=TERRAIN_ENV)
+    assert summary["env_id"] == TERRAIN_ENV and "env_terrain" in summary["expert"]["terrain"]
+    with pytest.raises(ValueError, match="terrain-aware MPC"):
+        run_dagger("expert", tmp_path / "expert", config=config, eval_episodes=0, progress=False, env_id=TERRAIN_ENV)
+    assert cli.main(["train", "--algo", "dagger", "--env", TERRAIN_ENV, "--expert", "expert",
+                     "--out", str(tmp_path / "x")]) == 2
+    assert capsys.readouterr().err.startswith("error: --expert")

@@ -16,6 +16,7 @@ from hsddp_gym.datasets.collection import checkpoint_path, collect_episodes, mak
 from hsddp_gym.datasets.recording import (
     ENV_ID,
     NONDETERMINISTIC_INFOS,
+    TERRAIN_ENV_ID,
     PolicySpec,
     check_env_id,
     solve_expert_plan,
@@ -200,12 +201,14 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             or the running cluster at ``address``); see :func:`hsddp_gym.util.parallel.run_parallel`. The data
             do not depend on it; an episode whose worker dies is run again.
         address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
-        dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding``, ``pronking`` or
-            ``backflip``).
+        dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding``, ``pronking``,
+            ``backflip``, ``gap_jump``, ``box_jump`` or ``terrain``).
         env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
             (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
             (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`), in ``hsddp_gym/Backflip-v0`` a
-            backflip plan (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`).
+            backflip plan (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`); in
+            ``hsddp_gym/Terrain-v0`` ``mpc`` is the terrain-aware MPC, given each episode's terrain (``MPCPolicy(...,
+            terrain=env_terrain(env))``), and there is no ``expert``.
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
         policy_options: ``MPCOptions`` fields for ``mpc``.
@@ -257,7 +260,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
         if policy == "expert":
             spec = PolicySpec("expert", plan_path=str(plan_file), env_id=None if env_id == ENV_ID else env_id)
         else:
-            spec = PolicySpec(policy, options=dict(policy_options or {}))
+            spec = PolicySpec(policy, options=dict(policy_options or {}),
+                              env_id=TERRAIN_ENV_ID if policy == "mpc" and env_id == TERRAIN_ENV_ID else None)
     else:
         spec = policy
     name = policy_name or (spec.name if isinstance(spec, PolicySpec) else type(spec).__name__)

@@ -17,8 +17,14 @@ PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
 BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
 JUMP_ENV_IDS = {"hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump"}
 """The jump tasks' envs and their motions (``hsddp_gym.planners.motions.JUMPS``)."""
-DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS)
+TERRAIN_ENV_ID = "hsddp_gym/Terrain-v0"
+"""Bounding-v0 on a seeded random terrain per episode: its ``mpc`` is the terrain-aware MPC (:data:`MPC_ENVS`)."""
+DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS, TERRAIN_ENV_ID)
 """The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
+MPC_ENVS = (ENV_ID, TERRAIN_ENV_ID)
+"""The envs whose expert is the MPC (``mpc``; the others' is their task's plan tracker, ``expert``). In
+``hsddp_gym/Terrain-v0`` the MPC is given each episode's terrain: ``MPCPolicy(EnvInterface.from_env(env),
+options, terrain=env_terrain(env))`` (:func:`hsddp_gym.planners.policies.mpc.env_terrain`, read at every reset)."""
 POLICIES = ("mpc", "expert", "heuristic", "random")
 EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
 """The expert's plan: ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
@@ -74,7 +80,8 @@ class PolicySpec:
         env_id: the env the expert's plan is for (None: Bounding-v0): in ``hsddp_gym/Pronking-v0`` the expert
             is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan, in
             ``hsddp_gym/Backflip-v0`` :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` of a backflip
-            plan (no reset options).
+            plan (no reset options); in ``hsddp_gym/Terrain-v0`` ``mpc`` is the terrain-aware MPC (the episode's
+            terrain as privileged information, :data:`MPC_ENVS`).
     """
 
     name: str
@@ -87,6 +94,8 @@ class PolicySpec:
             raise ValueError(f"policy name must be one of {POLICIES}, got {self.name!r}")
         if self.name == "expert" and self.plan_path is None:
             raise ValueError("the expert policy needs plan_path (its plan, saved with Solution.save)")
+        if self.name == "expert" and check_env_id(self.env_id) == TERRAIN_ENV_ID:
+            raise ValueError(f"in {TERRAIN_ENV_ID} the expert is 'mpc' (the terrain-aware MPC), not a plan tracker")
         check_env_id(self.env_id)
 
     def __call__(self, env, episode_seed: int):
@@ -96,9 +105,10 @@ class PolicySpec:
         from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
         if self.name == "mpc":
-            from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+            from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, env_terrain
 
-            return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options))), None
+            terrain = env_terrain(env) if check_env_id(self.env_id) == TERRAIN_ENV_ID else None
+            return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options)), terrain=terrain), None
         if self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
             from hsddp_gym.planners.policies.pronking import PronkingExpert
 
@@ -129,6 +139,9 @@ class PolicySpec:
             from hsddp_gym.planners.policies.mpc import MPCOptions
 
             d["options"] = dataclasses.asdict(MPCOptions(**_mpc_options(self.options)))
+            if check_env_id(self.env_id) == TERRAIN_ENV_ID:
+                d["terrain"] = ("env_terrain(env): the episode's terrain (privileged information), read at every "
+                                "reset")
         elif self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
             d["class"] = f"{policies}.pronking.PronkingExpert"
             d["options"] = {"plan": dict(EXPERT_PRONK_PLAN), "plan_file": "expert_plan.npz",

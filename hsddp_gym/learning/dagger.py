@@ -333,7 +333,14 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
             ``hsddp_gym/Pronking-v0`` the expert must be ``"expert"``: the pronk plan tracker
             (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`, its plan solved at the env's target speed).
     """
-    from hsddp_gym.datasets.recording import ENV_ID, PolicySpec, check_env_id, solve_expert_plan
+    from hsddp_gym.datasets.recording import (
+        ENV_ID,
+        MPC_ENVS,
+        TERRAIN_ENV_ID,
+        PolicySpec,
+        check_env_id,
+        solve_expert_plan,
+    )
     from hsddp_gym.util.extras import require
     from hsddp_gym.util.io import write_json
 
@@ -348,9 +355,11 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     env_id = check_env_id(given[0] if given else None)
     if any(check_env_id(e) != env_id for e in given):
         raise ValueError(f"env_id: the env given, config.env_id and the dataset's env differ: {given}")
-    if env_id != ENV_ID and expert != "expert":
+    if env_id not in MPC_ENVS and expert != "expert":
         raise ValueError(f"expert {expert!r} is a {ENV_ID} controller; in {env_id} the expert is 'expert' (the "
                          "task's plan tracker)")
+    if env_id == TERRAIN_ENV_ID and expert == "expert":
+        raise ValueError(f"in {env_id} the expert is 'mpc' (the terrain-aware MPC), not a plan tracker")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     config = dataclasses.replace(config, seed=int(seed), env_id=env_id,
@@ -364,7 +373,8 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
                           env_id=None if env_id == ENV_ID else env_id)
         files.append("expert_plan.npz")
     else:
-        spec = PolicySpec(expert, options=dict(mpc_options or {}))
+        spec = PolicySpec(expert, options=dict(mpc_options or {}),
+                          env_id=TERRAIN_ENV_ID if expert == "mpc" and env_id == TERRAIN_ENV_ID else None)
     initial = load_demonstrations(dataset, episodes=demos, fmt=fmt) if dataset is not None else None
 
     def evaluate(p):

@@ -739,25 +739,45 @@ def _plan_task_table(store: Store, rid: str, command: str, measures: list, measu
 
 def tasks_terrain(store: Store) -> str:
     """The terrain task: the terrain-aware MPC (the episode's terrain as privileged information), the flat-ground MPC
-    and the heuristic on ``hsddp_gym/Terrain-v0``, per block of seeds (``experiments/terrain.py``)."""
+    and the heuristic on ``hsddp_gym/Terrain-v0``, per block of seeds, and BC / DAgger from the terrain-aware MPC's
+    demonstrations beside it on unseen seeds, with their samples and training time (``experiments/terrain.py``)."""
     rid = "tasks/terrain"
     if rid not in store.ids():
         return ("No `tasks/terrain` record yet: run `python experiments/terrain.py --record "
                 "results/tasks/terrain.json`.")
     d = store.data(rid)
+    learned = any("training_seed" in r for r in d["rows"])
     header = ["seeds", "policy", "falls", "fell on seeds", "return", "speed [m/s]", "failed re-plans"]
     rows = []
     for r in d["rows"]:
         fell = ", ".join(str(s) for s in r["fell_seeds"]) or "–"
         failures = str(r["planner_failures"]) if "planner_failures" in r else "–"
-        rows.append([f"{r['seeds'][0]}-{r['seeds'][1]}", f"`{r['label']}`", f"{r['falls']}/{r['episodes']}", fell,
+        label = r["label"] if "training_seed" in r else f"`{r['label']}`"
+        rows.append([f"{r['seeds'][0]}-{r['seeds'][1]}", label, f"{r['falls']}/{r['episodes']}", fell,
                      f"{r['mean_return']:.1f} ± {r['std_return']:.1f}", f"{r['mean_speed']:.3f}", failures])
+        if learned and "expert_labels" in r:
+            rollouts = r["rounds"] * r["episodes_per_round"]
+            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
+                     f"{r['episodes_per_round']} expert episodes")
+            rows[-1] += [f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled rollouts)",
+                         f"{r['train_wall_time_s']:.0f} s"]
+        elif learned and "training_seed" in r:
+            rows[-1] += [f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
+                         f"{r['train_wall_time_s']:.0f} s"]
+        elif learned:
+            rows[-1] += ["–", "–"]
     uses = " ".join(f"Seeds {b['seeds'][0]}-{b['seeds'][1]}: {b['use']}." for b in d["seed_blocks"])
     note = (f"`{d['env_id']}`, one 5 s episode per seed ({d['episode_steps']} steps, target speed "
             f"{d['target_speed']:g} m/s, a new random terrain per seed); return: mean ± std over the episodes. {uses} "
             "Failed re-plans: re-plans whose solve failed (the previous plan kept acting), summed over the episodes.")
-    return "\n".join([markdown_table(header, rows, ["l", "l", "r", "l", "r", "r", "r"]), "", note,
-                      source_line(store, rid)])
+    if learned:
+        header += ["samples", "training time"]
+        note += (" BC and DAgger: learned from the terrain-aware MPC (their expert, the record's commands), acting "
+                 "on the observation alone (no terrain). Samples: the expert's labelled (observation, action) pairs "
+                 "they learned from (DAgger's include BC's demonstrations). Training time: wall-clock seconds on the "
+                 "shared 2-core machine.")
+    return "\n".join([markdown_table(header, rows, ["l", "l", "r", "l", "r", "r", "r"] + ["l", "r"] * learned), "",
+                      note, source_line(store, rid)])
 
 
 def tasks_backflip(store: Store) -> str:
