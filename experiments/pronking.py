@@ -78,20 +78,6 @@ def evaluate(label: str, env_id: str, make, seeds, quiet: bool) -> dict:
     return row
 
 
-def _without_made_with(argv) -> list[str]:
-    import sys
-
-    out, skip = [], False
-    for a in (sys.argv[1:] if argv is None else list(argv)):
-        if a == "--made-with":
-            skip = True
-        elif skip and a.startswith("--"):
-            skip = False
-        if not skip:
-            out.append(a)
-    return out
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seed", type=int, default=9500, help="first evaluation seed (default: %(default)s)")
@@ -170,7 +156,7 @@ def main(argv=None) -> int:
                        hyperparameters=train["hyperparameters"])
             sac_rows.append(row)
     if args.record:
-        from hsddp_gym.reports.store import invoked_command, write_record
+        from hsddp_gym.reports.store import invoked_command, without_option, write_record
 
         data = {"env_id": PRONKING, "seeds": seeds, "target_speed": 1.0, "rows": rows, "bc": bc_rows,
                 "dagger": dagger_rows, "sac": sac_rows,
@@ -179,7 +165,7 @@ def main(argv=None) -> int:
         write_record(args.record, data, "The pronking task: the HS-DDP pronk expert (Pronking-v0 and its MuJoCo "
                                         "twin), BC from its demonstrations, DAgger labelled by it and SAC on unseen "
                                         "seeds.",
-                     command=list(args.made_with) + [invoked_command(_without_made_with(argv))])
+                     command=list(args.made_with) + [invoked_command(without_option(argv, "--made-with"))])
         print(f"wrote {args.record}")
     return 0
 

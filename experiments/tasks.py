@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -180,18 +179,6 @@ def evaluate(task: Task, label: str, env_id: str, make, seeds, quiet: bool) -> d
     return row
 
 
-def _without_made_with(argv) -> list[str]:
-    out, skip = [], False
-    for a in (sys.argv[1:] if argv is None else list(argv)):
-        if a == "--made-with":
-            skip = True
-        elif skip and a.startswith("--"):
-            skip = False
-        if not skip:
-            out.append(a)
-    return out
-
-
 def main(argv=None, task: str | None = None) -> int:
     """The script; ``task``: a fixed task (``experiments/backflip.py``), else ``--task`` chooses it."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -254,12 +241,12 @@ def main(argv=None, task: str | None = None) -> int:
                    train_wall_time_s=float(train["wall_time_s"]))
         dagger_rows.append(row)
     if args.record:
-        from hsddp_gym.reports.store import invoked_command, write_record
+        from hsddp_gym.reports.store import invoked_command, without_option, write_record
 
         data = {"env_id": env_id, "seeds": seeds, "max_episode_steps": 400, "rows": rows, "bc": bc_rows,
                 "dagger": dagger_rows, "success_rule": spec.success_rule}
         write_record(args.record, data, spec.description,
-                     command=list(args.made_with) + [invoked_command(_without_made_with(argv))])
+                     command=list(args.made_with) + [invoked_command(without_option(argv, "--made-with"))])
         print(f"wrote {args.record}")
     return 0
 

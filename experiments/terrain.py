@@ -161,20 +161,6 @@ def learner_rows(bc, dagger, seeds, quiet: bool = False) -> list[dict]:
     return rows
 
 
-def _without_made_with(argv) -> list[str]:
-    import sys
-
-    out, skip = [], False
-    for a in (sys.argv[1:] if argv is None else list(argv)):
-        if a == "--made-with":
-            skip = True
-        elif skip and a.startswith("--"):
-            skip = False
-        if not skip:
-            out.append(a)
-    return out
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--policies", nargs="+", default=list(POLICIES), choices=POLICIES,
@@ -213,7 +199,7 @@ def main(argv=None) -> int:
         blocks.append({"seeds": [seeds[0], seeds[-1]],
                        "use": LEARNER_USE if args.learner_seed == LEARNER_SEED else "not stated"})
     if args.record:
-        from hsddp_gym.reports.store import invoked_command, write_record
+        from hsddp_gym.reports.store import invoked_command, without_option, write_record
 
         data = {"env_id": TERRAIN, "target_speed": 1.0, "episode_steps": 1000, "seed_blocks": blocks,
                 "episode_fields": list(EPISODE_FIELDS), "rows": rows}
@@ -221,7 +207,7 @@ def main(argv=None) -> int:
                                         "privileged information), the flat-ground MPC, the heuristic, and BC and "
                                         "DAgger from the terrain-aware MPC's demonstrations on "
                                         "hsddp_gym/Terrain-v0.", machine=machine,
-                     command=list(args.made_with) + [invoked_command(_without_made_with(argv))])
+                     command=list(args.made_with) + [invoked_command(without_option(argv, "--made-with"))])
         print(f"wrote {args.record}")
     return 0
 

@@ -170,3 +170,12 @@ def test_an_unclosed_marker_is_an_error_naming_the_line():
     assert markers.render_text(text, lambda tid: f"new {tid}") == expected
     with pytest.raises(KeyError, match="unknown results table"):
         tables.render(Store(ROOT), "no/such")
+
+
+def test_without_option_drops_the_option_and_its_values():
+    from hsddp_gym.reports.store import without_option
+
+    argv = ["--bc", "a", "b", "--made-with", "cmd 1", "cmd 2", "--record", "r.json"]
+    assert without_option(argv, "--made-with") == ["--bc", "a", "b", "--record", "r.json"]
+    assert without_option(["--made-with", "x"], "--made-with") == []
+    assert without_option(argv, "--absent") == argv

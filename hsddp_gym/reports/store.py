@@ -47,6 +47,21 @@ def machine_info() -> dict:
             "platform": platform.platform(terse=True), "processor": platform.machine()}
 
 
+def without_option(argv: list[str] | None, option: str) -> list[str]:
+    """``argv`` (default ``sys.argv[1:]``) less ``option`` and the values that follow it (up to the next ``--``
+    option): e.g. ``--made-with`` (the commands that made a record's inputs) is not part of the command that makes
+    the record."""
+    out, skip = [], False
+    for a in (sys.argv[1:] if argv is None else list(argv)):
+        if a == option:
+            skip = True
+        elif skip and a.startswith("--"):
+            skip = False
+        if not skip:
+            out.append(a)
+    return out
+
+
 def invoked_command(argv: list[str] | None = None) -> str:
     """The command line of this process as a user would type it (``python experiments/x.py ...``).
 
