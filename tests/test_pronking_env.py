@@ -64,21 +64,8 @@ def test_sync_vector_env_runs():
     envs.close()
 
 
-def rollout(seed: int, n: int = 60):
-    env = gym.make(ENV_ID)
-    obs, _ = env.reset(seed=seed)
-    rng = np.random.default_rng(0)
-    out = [obs]
-    for _ in range(n):
-        obs, reward, terminated, truncated, _ = env.step(rng.uniform(-0.3, 0.3, 4).astype(np.float32))
-        out.append(np.append(obs, reward))
-        if terminated or truncated:
-            break
-    return out
-
-
-def test_same_seed_same_trajectory_and_different_seed_differs():
-    a, b, c = rollout(5), rollout(5), rollout(6)
+def test_same_seed_same_trajectory_and_different_seed_differs(tools):
+    a, b, c = (tools.random_rollout(gym.make(ENV_ID), seed) for seed in (5, 5, 6))
     assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
     assert not np.array_equal(a[0], c[0])
 
