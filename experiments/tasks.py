@@ -1,12 +1,15 @@
-"""The plan-tracking tasks (``--task``): the HS-DDP expert of ``hsddp_gym/Backflip-v0``, ``hsddp_gym/GapJump-v0`` or
-``hsddp_gym/BoxJump-v0`` in the env and its MuJoCo twin, and BC (and DAgger) from its demonstrations, on unseen
+"""The plan-tracking tasks (``--task``): the HS-DDP expert of ``hsddp_gym/Backflip-v0``, ``hsddp_gym/GapJump-v0``,
+``hsddp_gym/BoxJump-v0`` or a gait transition (``hsddp_gym/StandToBound-v0``, ``hsddp_gym/BoundPronkBound-v0``,
+``hsddp_gym/BoundToStop-v0``) in the env and its MuJoCo twin, and BC (and DAgger) from its demonstrations, on unseen
 seeds.
 
 Each policy plays ``--episodes`` episodes seeded ``--seed, --seed + 1, ...`` (default 9600-9619 for the backflip,
-9650-9669 for the jumps: seeds no dataset uses) of the default task (400 steps = 2 s, reset noise 0.01); per episode
-the return, a fall, the task's own measures (the backflip: the lowest and final pitch and the lowest trunk
-clearance; the jumps: the final trunk x and pitch and the lowest trunk height over the ground) and the task's success
-(``info["success"]`` at the episode's last step).
+9650-9669 for the jumps, 9700-9719 for the gait transitions: seeds no dataset uses) of the default task (400 steps =
+2 s, 300 for stand-to-bound and bound-to-stop; reset noise 0.01); per episode the return, a fall, the task's own
+measures (the backflip: the lowest and final pitch and the lowest trunk clearance; the jumps: the final trunk x and
+pitch and the lowest trunk height over the ground; the transitions: the mean and final forward speed, the final
+pitch, the lowest trunk height and the pronk stances) and the task's success (``info["success"]`` at the episode's
+last step).
 
     hsddp-gym dataset --env hsddp_gym/GapJump-v0 --policy expert --episodes 24 --seed 1000 --action-noise 0.01 \\
         --out runs/gap_jump_expert24_dart
@@ -49,6 +52,7 @@ class Task:
     success_rule: str
     description: str
     episode_start: str  # for the help text
+    max_episode_steps: int = 400  # the registered TimeLimit
 
 
 # ------------------------------------------------------------------ the backflip
@@ -115,6 +119,54 @@ def _jump_task(env_id: str, what: str) -> Task:
                 episode_start="bounding")
 
 
+# ------------------------------------------------------------------ the gait transitions
+def _gait_start(info) -> dict:
+    return {"min_height": float(info["qpos"][1]), "x0": float(info["x_position"]), "t0": float(info["time"])}
+
+
+def _gait_update(acc, info) -> None:
+    if not info.get("invalid_state", False):
+        acc["min_height"] = min(acc["min_height"], float(info["qpos"][1]))
+
+
+def _gait_finish(acc, info) -> dict:
+    t = max(float(info["time"]) - acc["t0"], 1e-9)
+    return {"mean_speed": round((float(info["x_position"]) - acc["x0"]) / t, 4),
+            "final_speed": round(float(info["qvel"][0]), 4), "final_pitch": round(float(info["qpos"][2]), 4),
+            "min_trunk_height": round(acc["min_height"], 4), "pronk_stances": int(info["pronk_stances"])}
+
+
+def _gait_summary(eps) -> dict:
+    return {"mean_final_speed": float(np.mean([e["final_speed"] for e in eps])),
+            "mean_speed": float(np.mean([e["mean_speed"] for e in eps])),
+            "min_trunk_height": float(np.min([e["min_trunk_height"] for e in eps]))}
+
+
+_BOUNDING_RULE = ("bounding over the last 60 steps (0.3 s): back stance alone and front stance alone at least 4 steps "
+                  "each, both feet down at most 20 % of them, mean forward speed within 0.3 m/s of 1 m/s")
+_TRANSITION_RULES = {
+    "stand_to_bound": f"no fall, past the plan (0.84 s), and {_BOUNDING_RULE}",
+    "bound_pronk_bound": (f"no fall, past the plan (1.59 s), at least 2 double stances of 30 ms or more (the pronk), "
+                          f"and {_BOUNDING_RULE}"),
+    "bound_to_stop": ("no fall, past the plan (0.99 s), both feet down over the last 60 steps (0.3 s) and at the end "
+                      "trunk speed <= 0.1 m/s, |pitch rate| <= 0.5 rad/s, |pitch| <= 0.3 rad, trunk centre >= 0.15 m"),
+}
+
+
+def _transition_task(task: str, env_id: str, what: str, start: str) -> Task:
+    from hsddp_gym.envs.transitions import MAX_EPISODE_STEPS
+
+    return Task(env_id=env_id, twin_id=env_id.replace("-v0", "MuJoCo-v0"), first_seed=9700,
+                expert="transition_expert", start=_gait_start, update=_gait_update, finish=_gait_finish,
+                per_episode=("seed", "return", "length", "fell", "success", "final_speed"), summarize=_gait_summary,
+                describe=lambda r: (f"final speed {r['mean_final_speed']:.2f} m/s  lowest trunk height "
+                                    f"{r['min_trunk_height']:.3f} m"),
+                success_rule=f"{_TRANSITION_RULES[task]} (hsddp_gym.envs.transitions.TransitionTask.success)",
+                description=(f"The gait transition {what}: the HS-DDP transition expert ({env_id.split('/')[-1]} "
+                             "and its MuJoCo twin) on unseen seeds."),
+                episode_start=start, max_episode_steps=MAX_EPISODE_STEPS[task])
+
+
 TASKS = {
     "backflip": Task(
         env_id="hsddp_gym/Backflip-v0", twin_id="hsddp_gym/BackflipMuJoCo-v0", first_seed=9600,
@@ -130,6 +182,12 @@ TASKS = {
         episode_start="standing"),
     "gap_jump": _jump_task("hsddp_gym/GapJump-v0", "over a 0.3 m gap"),
     "box_jump": _jump_task("hsddp_gym/BoxJump-v0", "onto a 0.1 m box"),
+    "stand_to_bound": _transition_task("stand_to_bound", "hsddp_gym/StandToBound-v0",
+                                       "from standing into a bound at 1 m/s", "standing"),
+    "bound_pronk_bound": _transition_task("bound_pronk_bound", "hsddp_gym/BoundPronkBound-v0",
+                                          "from a bound into a pronk and back", "bounding"),
+    "bound_to_stop": _transition_task("bound_to_stop", "hsddp_gym/BoundToStop-v0",
+                                      "from a bound to rest standing", "bounding"),
 }
 """The tasks of ``--task``."""
 
@@ -185,7 +243,8 @@ def main(argv=None, task: str | None = None) -> int:
     if task is None:
         p.add_argument("--task", choices=sorted(TASKS), required=True)
     p.add_argument("--seed", type=int, default=None,
-                   help="first evaluation seed (default: 9600 for the backflip, 9650 for the jumps)")
+                   help="first evaluation seed (default: 9600 for the backflip, 9650 for the jumps, 9700 for the "
+                        "gait transitions)")
     p.add_argument("--episodes", type=int, default=20, help="episodes per policy (default: %(default)s)")
     p.add_argument("--bc", nargs="*", default=[], help="BC runs (hsddp-gym train --algo bc --out DIR) on a dataset "
                                                        "of the task's env, one per training seed")
@@ -243,7 +302,8 @@ def main(argv=None, task: str | None = None) -> int:
     if args.record:
         from hsddp_gym.reports.store import invoked_command, without_option, write_record
 
-        data = {"env_id": env_id, "seeds": seeds, "max_episode_steps": 400, "rows": rows, "bc": bc_rows,
+        data = {"env_id": env_id, "seeds": seeds, "max_episode_steps": spec.max_episode_steps, "rows": rows,
+                "bc": bc_rows,
                 "dagger": dagger_rows, "success_rule": spec.success_rule}
         write_record(args.record, data, spec.description,
                      command=list(args.made_with) + [invoked_command(without_option(argv, "--made-with"))])

@@ -13,7 +13,10 @@ dynamics, touchdown reset maps). ``hsddp_gym/Pronking-v0`` is the same robot rew
 ``hsddp_gym/Backflip-v0`` rewards a backflip from standing (``hsddp_gym.envs.backflip``),
 ``hsddp_gym/BackflipMuJoCo-v0`` its MuJoCo twin; ``hsddp_gym/GapJump-v0`` and ``hsddp_gym/BoxJump-v0`` reward
 a jump from a bound over a 0.3 m gap and onto a 0.1 m box (``hsddp_gym.envs.jumps``), ``hsddp_gym/GapJumpMuJoCo-v0``
-and ``hsddp_gym/BoxJumpMuJoCo-v0`` their MuJoCo twins.
+and ``hsddp_gym/BoxJumpMuJoCo-v0`` their MuJoCo twins; ``hsddp_gym/StandToBound-v0``, ``hsddp_gym/BoundPronkBound-v0``
+and ``hsddp_gym/BoundToStop-v0`` reward the gait transitions of the HS-DDP transition plans
+(``hsddp_gym.envs.transitions``), ``hsddp_gym/StandToBoundMuJoCo-v0``, ``hsddp_gym/BoundPronkBoundMuJoCo-v0`` and
+``hsddp_gym/BoundToStopMuJoCo-v0`` their MuJoCo twins.
 """
 
 __version__ = "0.2.0"
@@ -52,6 +55,15 @@ BOX_JUMP_MUJOCO_ENV_ID = "hsddp_gym/BoxJumpMuJoCo-v0"
 JUMP_MAX_EPISODE_STEPS = 400
 """400 control steps = 2 s at the default 200 Hz (the approach and the jump take 1 s, then bounding on)."""
 
+TRANSITION_ENV_IDS = {"stand_to_bound": "hsddp_gym/StandToBound-v0",
+                      "bound_pronk_bound": "hsddp_gym/BoundPronkBound-v0", "bound_to_stop": "hsddp_gym/BoundToStop-v0"}
+"""The gait-transition tasks' envs (``hsddp_gym.envs.transitions``, ``task=`` the key)."""
+TRANSITION_MUJOCO_ENV_IDS = {task: env_id.replace("-v0", "MuJoCo-v0") for task, env_id in TRANSITION_ENV_IDS.items()}
+"""Their MuJoCo twins (need the extra ``mujoco``)."""
+TRANSITION_MAX_EPISODE_STEPS = {"stand_to_bound": 300, "bound_pronk_bound": 400, "bound_to_stop": 300}
+"""Control steps per episode (1.5 s, 2 s, 1.5 s at 200 Hz: the plan and at least 0.4 s more;
+``hsddp_gym.envs.transitions.MAX_EPISODE_STEPS``)."""
+
 
 def _register_envs() -> None:
     import gymnasium as gym
@@ -87,6 +99,11 @@ def _register_envs() -> None:
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=f"hsddp_gym.envs.jumps:{entry}", kwargs={"task": task},
                          max_episode_steps=JUMP_MAX_EPISODE_STEPS)
+    for task, env_id in TRANSITION_ENV_IDS.items():
+        for eid, entry in ((env_id, "TransitionEnv"), (TRANSITION_MUJOCO_ENV_IDS[task], "MuJoCoTransitionEnv")):
+            if eid not in gym.registry:
+                gym.register(id=eid, entry_point=f"hsddp_gym.envs.transitions:{entry}", kwargs={"task": task},
+                             max_episode_steps=TRANSITION_MAX_EPISODE_STEPS[task])
 
 
 _register_envs()

@@ -212,6 +212,40 @@ def jump_plan(motion: str, hold: int = 5):
     return _JUMP_PLANS[key]
 
 
+def is_transition_env(env) -> bool:
+    """Whether ``env`` (wrapped or not) is an env of a gait-transition task (``hsddp_gym/StandToBound-v0``,
+    ``hsddp_gym/BoundPronkBound-v0``, ``hsddp_gym/BoundToStop-v0`` or their MuJoCo twins)."""
+    from hsddp_gym.envs.transitions import TransitionTask
+
+    return isinstance(getattr(env, "unwrapped", env), TransitionTask)
+
+
+def transition_expert(env):
+    """The transition expert for ``env``: :class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`
+    tracking :func:`transition_plan` of the env's task for its control period (solved once per process, about 1 s);
+    the env starts at the plan's start, so no reset options are needed."""
+    from hsddp_gym.planners.policies.transitions import TransitionExpert
+
+    task = getattr(env, "unwrapped", env).task
+    return TransitionExpert.from_env(env, solution=transition_plan(task, backflip_hold(env)), task=task)
+
+
+_TRANSITION_PLANS: dict = {}
+
+
+def transition_plan(motion: str, hold: int = 5):
+    """The HS-DDP plan of the gait transition ``motion`` (``hsddp_gym.planners.motions.TRANSITIONS``) for a control
+    held ``hold`` plan knots (:func:`hsddp_gym.planners.motions.plan_transition_held`, with the expert's cycles
+    ``hsddp_gym.planners.policies.transitions.PLAN_CYCLES``), cached per ``(motion, hold)``."""
+    from hsddp_gym.planners.motions import plan_transition_held
+    from hsddp_gym.planners.policies.transitions import PLAN_CYCLES
+
+    key = (str(motion), int(hold))
+    if key not in _TRANSITION_PLANS:
+        _TRANSITION_PLANS[key] = plan_transition_held(key[0], key[1], cycles=PLAN_CYCLES[key[0]])
+    return _TRANSITION_PLANS[key]
+
+
 def is_terrain_env(env) -> bool:
     """Whether ``env`` is ``hsddp_gym/Terrain-v0`` (by its spec), whose ``mpc`` is the terrain-aware MPC
     (``MPCPolicy(..., terrain=env_terrain(env))``, as in :class:`hsddp_gym.datasets.recording.PolicySpec`)."""
@@ -229,6 +263,8 @@ def task_expert(env):
         return backflip_expert(env)
     if is_jump_env(env):
         return jump_expert(env)
+    if is_transition_env(env):
+        return transition_expert(env)
     return None
 
 

@@ -977,9 +977,21 @@ def plan_jump_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int =
     return _solve_held(problem, phases, SolverOptions() if options is None else options, m)
 
 
+def plan_transition_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int = 2,
+                         options: SolverOptions | None = None):
+    """The plan of a gait transition (:data:`TRANSITIONS`, :func:`plan_transition`'s problem, warm start and default
+    options) for a controller that holds each control for ``hold`` knots, as :func:`plan_jump_held`: the solved
+    :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
+    Used by the transition expert (:class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`)."""
+    m = check_int(hold, "hold", minimum=1)
+    _check_options(options)
+    problem, phases = transition_problem(motion, speed, cycles)
+    return _solve_held(problem, phases, SolverOptions() if options is None else options, m)
+
+
 __all__ = ["MOTIONS", "TRANSITIONS", "SPEED_RANGE", "PRONK_DURATIONS", "JOINT_LIMITS", "MotionPhase", "leg_posture",
            "double_stance_state", "pronk_reference", "stand_reference", "pronk_phases", "bound_phases",
            "motion_problem", "pronk_problem", "transition_problem", "motion_warm_start", "motion_limits", "plan_pronk",
            "plan_transition", "plan_motion", "JUMPS", "GAP_WIDTH", "BOX_HEIGHT", "JUMP_FLIGHT", "jump_terrain",
            "jump_problem", "plan_jump", "plan_jump_held", "backflip_problem", "plan_backflip", "plan_backflip_held",
-           "BACKFLIP_OPTIONS"]
+           "BACKFLIP_OPTIONS", "plan_transition_held"]

@@ -730,7 +730,8 @@ def _plan_task_table(store: Store, rid: str, command: str, measures: list, measu
         rows.append(seeds_row(f"DAgger, {rounds} iteration{'s' if rounds != 1 else ''}", group))
     seeds = d["seeds"]
     note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), "
-            f"{d['max_episode_steps']} steps (2 s) {episodes_note}. Success: {d['success_rule']}. "
+            f"{d['max_episode_steps']} steps ({d['max_episode_steps'] * 0.005:g} s) {episodes_note}. "
+            f"Success: {d['success_rule']}. "
             "Samples: the expert's labelled (observation, action) pairs BC and DAgger learned from (DAgger's include "
             "BC's demonstrations). Training time: wall-clock seconds on the shared 2-core machine.")
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
@@ -814,11 +815,42 @@ def tasks_box_jump(store: Store) -> str:
     return _tasks_jump(store, "box_jump")
 
 
+def _tasks_transition(store: Store, task: str, start: str) -> str:
+    return _plan_task_table(
+        store, f"tasks/{task}",
+        f"python experiments/tasks.py --task {task} --mujoco --record results/tasks/{task}.json",
+        ["mean speed [m/s]", "final speed [m/s]", "lowest trunk height [m]"],
+        lambda r: [f"{r['mean_speed']:.2f}", f"{r['mean_final_speed']:.2f}", f"{r['min_trunk_height']:.3f}"],
+        f"{start}, reset noise 0.01; return: mean ± std over the episodes; mean speed (the trunk's x over the "
+        "episode's time) and final speed: means over the episodes; lowest trunk height: over every step of every "
+        "episode (a fall below 0.12 m)")
+
+
+def tasks_stand_to_bound(store: Store) -> str:
+    """From standing into a bound: the HS-DDP transition expert (StandToBound-v0 and its MuJoCo twin) on unseen seeds
+    (``experiments/tasks.py --task stand_to_bound``)."""
+    return _tasks_transition(store, "stand_to_bound", "from standing at rest")
+
+
+def tasks_bound_pronk_bound(store: Store) -> str:
+    """From a bound into a pronk and back: the HS-DDP transition expert (BoundPronkBound-v0 and its MuJoCo twin) on
+    unseen seeds (``experiments/tasks.py --task bound_pronk_bound``)."""
+    return _tasks_transition(store, "bound_pronk_bound", "from bounding at 0.9 m/s")
+
+
+def tasks_bound_to_stop(store: Store) -> str:
+    """From a bound to rest: the HS-DDP transition expert (BoundToStop-v0 and its MuJoCo twin) on unseen seeds
+    (``experiments/tasks.py --task bound_to_stop``)."""
+    return _tasks_transition(store, "bound_to_stop", "from bounding at 0.9 m/s")
+
+
 def tasks_summary(store: Store) -> str:
     """Every task beyond bounding in one table: its expert's successes in the env and in the MuJoCo twin, and the
     learners' from its datasets, over all training seeds (the task records ``tasks/*``)."""
     tasks = [("tasks/pronking", "pronk"), ("tasks/backflip", "backflip from standing"),
-             ("tasks/gap_jump", "jump over a 0.3 m gap"), ("tasks/box_jump", "jump onto a 0.1 m box")]
+             ("tasks/gap_jump", "jump over a 0.3 m gap"), ("tasks/box_jump", "jump onto a 0.1 m box"),
+             ("tasks/stand_to_bound", "stand to bound"), ("tasks/bound_pronk_bound", "bound, pronk, bound"),
+             ("tasks/bound_to_stop", "bound to stop")]
     header = ["task", "env", "expert", "expert in the MuJoCo twin", "BC", "DAgger", "seeds"]
     rows, used = [], []
 
@@ -966,6 +998,9 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "tasks/terrain": tasks_terrain,
     "tasks/gap_jump": tasks_gap_jump,
     "tasks/box_jump": tasks_box_jump,
+    "tasks/stand_to_bound": tasks_stand_to_bound,
+    "tasks/bound_pronk_bound": tasks_bound_pronk_bound,
+    "tasks/bound_to_stop": tasks_bound_to_stop,
     "tasks/summary": tasks_summary,
     "robustness/generality": robustness_generality,
     "robustness/generality_summary": robustness_generality_summary,
