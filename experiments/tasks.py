@@ -163,7 +163,7 @@ def _transition_task(task: str, env_id: str, what: str, start: str) -> Task:
                                     f"{r['min_trunk_height']:.3f} m"),
                 success_rule=f"{_TRANSITION_RULES[task]} (hsddp_gym.envs.transitions.TransitionTask.success)",
                 description=(f"The gait transition {what}: the HS-DDP transition expert ({env_id.split('/')[-1]} "
-                             "and its MuJoCo twin) on unseen seeds."),
+                             "and its MuJoCo twin) and BC from its demonstrations on unseen seeds."),
                 episode_start=start, max_episode_steps=MAX_EPISODE_STEPS[task])
 
 

@@ -235,7 +235,8 @@ def cmd_demo(args) -> int:
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
 DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
 DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0",
-                "hsddp_gym/BoxJump-v0", "hsddp_gym/Terrain-v0")
+                "hsddp_gym/BoxJump-v0", "hsddp_gym/Terrain-v0", "hsddp_gym/StandToBound-v0",
+                "hsddp_gym/BoundPronkBound-v0", "hsddp_gym/BoundToStop-v0")
 MPC_ENVS = (DATASET_ENVS[0], "hsddp_gym/Terrain-v0")  # their expert is the MPC (in Terrain-v0 the terrain-aware one)
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
@@ -554,7 +555,9 @@ def _add_learning_parsers(sub) -> None:
                         "plan's initial state, no reset noise, so they are identical); heuristic: the warm-start "
                         "controller; random: uniform actions; in Pronking-v0 expert tracks a 4-cycle HS-DDP pronk "
                         "plan periodically from the env's (noisy) start, in GapJump-v0 / BoxJump-v0 the HS-DDP "
-                        "jump plan then its cycle after the jump looped, in Backflip-v0 the HS-DDP backflip plan "
+                        "jump plan then its cycle after the jump looped, in StandToBound-v0 / BoundPronkBound-v0 / "
+                        "BoundToStop-v0 the HS-DDP transition plan then its bounding cycle looped or its last "
+                        "posture held, in Backflip-v0 the HS-DDP backflip plan "
                         "then holds its landing posture; in Terrain-v0 mpc is the terrain-aware MPC (given each "
                         "episode's terrain) and there is no expert (default: %(default)s)")
     p.add_argument("--env", choices=DATASET_ENVS, default=DATASET_ENVS[0],

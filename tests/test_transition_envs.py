@@ -120,3 +120,29 @@ def test_expert_succeeds_and_zero_torque_never_does(task):
     zero = np.zeros(4, dtype=np.float32)
     info, _ = _episode(env, lambda obs: zero, 9700)
     assert not info["success"]
+
+
+def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
+    pytest.importorskip("minari")
+    from hsddp_gym import cli
+    from hsddp_gym.datasets.storage import load_npz, minari_root, read_metadata
+
+    task = "bound_to_stop"
+    out = tmp_path / task
+    assert cli.main(["dataset", "--env", ENV_IDS[task], "--policy", "expert", "--episodes", "2",
+                     "--max-episode-steps", "30", "--action-noise", "0.01", "--out", str(out), "--quiet"]) == 0
+    import minari
+
+    meta = read_metadata(out)
+    dataset_id = f"hsddp_gym/{task}/expert-v0"
+    assert meta["dataset_id"] == dataset_id and meta["env_id"] == ENV_IDS[task]
+    assert meta["policy"]["class"].endswith("transitions.TransitionExpert")
+    assert meta["policy"]["options"]["plan"]["motion"] == task
+    with minari_root(out / "minari"):
+        ds = minari.load_dataset(dataset_id)
+        assert ds.total_episodes == 2 and ds.total_steps == 60
+        ep = next(ds.iterate_episodes())
+        assert ep.observations.shape == (31, 17) and "success" in ep.infos and "expert_action" in ep.infos
+        env = ds.recover_environment().unwrapped
+        assert isinstance(env, TransitionEnv) and env.task == task
+    assert load_npz(out).n_episodes == 2

@@ -202,7 +202,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             do not depend on it; an episode whose worker dies is run again.
         address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
         dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding``, ``pronking``,
-            ``backflip``, ``gap_jump``, ``box_jump`` or ``terrain``).
+            ``backflip``, ``gap_jump``, ``box_jump``, ``terrain``, ``stand_to_bound``, ``bound_pronk_bound`` or
+            ``bound_to_stop``).
         env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
             (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
             (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`), in ``hsddp_gym/Backflip-v0`` a

@@ -17,9 +17,12 @@ PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
 BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
 JUMP_ENV_IDS = {"hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump"}
 """The jump tasks' envs and their motions (``hsddp_gym.planners.motions.JUMPS``)."""
+TRANSITION_ENV_IDS = {"hsddp_gym/StandToBound-v0": "stand_to_bound",
+                      "hsddp_gym/BoundPronkBound-v0": "bound_pronk_bound", "hsddp_gym/BoundToStop-v0": "bound_to_stop"}
+"""The gait-transition tasks' envs and their tasks (``hsddp_gym.planners.motions.TRANSITIONS``)."""
 TERRAIN_ENV_ID = "hsddp_gym/Terrain-v0"
 """Bounding-v0 on a seeded random terrain per episode: its ``mpc`` is the terrain-aware MPC (:data:`MPC_ENVS`)."""
-DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS, TERRAIN_ENV_ID)
+DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS, TERRAIN_ENV_ID, *TRANSITION_ENV_IDS)
 """The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
 MPC_ENVS = (ENV_ID, TERRAIN_ENV_ID)
 """The envs whose expert is the MPC (``mpc``; the others' is their task's plan tracker, ``expert``). In
@@ -38,6 +41,13 @@ EXPERT_JUMP_PLAN = {"motion": "gap_jump or box_jump", "speed": 1.0, "cycles": 2,
                     "hold": "control period / 1 ms (5 by default)"}
 """The jump expert's plan in GapJump-v0 / BoxJump-v0: ``hsddp_gym.planners.motions.plan_jump_held(motion, hold)``,
 tracked, then its cycle after the jump looped (:class:`hsddp_gym.planners.policies.jumps.JumpExpert`)."""
+EXPERT_TRANSITION_PLAN = {"motion": "stand_to_bound, bound_pronk_bound or bound_to_stop", "speed": 1.0,
+                          "cycles": "hsddp_gym.planners.policies.transitions.PLAN_CYCLES[motion]",
+                          "hold": "control period / 1 ms (5 by default)"}
+"""The transition expert's plan in StandToBound-v0 / BoundPronkBound-v0 / BoundToStop-v0:
+``hsddp_gym.planners.motions.plan_transition_held(motion, hold, cycles=PLAN_CYCLES[motion])``, tracked, then its
+bounding cycle looped or its last posture held
+(:class:`hsddp_gym.planners.policies.transitions.TransitionExpert`)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -80,8 +90,10 @@ class PolicySpec:
         env_id: the env the expert's plan is for (None: Bounding-v0): in ``hsddp_gym/Pronking-v0`` the expert
             is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan, in
             ``hsddp_gym/Backflip-v0`` :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` of a backflip
-            plan (no reset options); in ``hsddp_gym/Terrain-v0`` ``mpc`` is the terrain-aware MPC (the episode's
-            terrain as privileged information, :data:`MPC_ENVS`).
+            plan (no reset options), in the jumps' and the gait transitions' envs their task's plan tracker
+            (:class:`~hsddp_gym.planners.policies.jumps.JumpExpert`,
+            :class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`); in ``hsddp_gym/Terrain-v0``
+            ``mpc`` is the terrain-aware MPC (the episode's terrain as privileged information, :data:`MPC_ENVS`).
     """
 
     name: str
@@ -121,6 +133,11 @@ class PolicySpec:
             from hsddp_gym.planners.policies.jumps import JumpExpert
 
             return JumpExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
+        if self.name == "expert" and check_env_id(self.env_id) in TRANSITION_ENV_IDS:
+            from hsddp_gym.planners.policies.transitions import TransitionExpert
+
+            return TransitionExpert.from_env(env, solution=_load_plan(str(self.plan_path)),
+                                             task=TRANSITION_ENV_IDS[self.env_id]), None
         if self.name == "expert":
             sol = _load_plan(str(self.plan_path))
             return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
@@ -160,6 +177,19 @@ class PolicySpec:
                             "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
                                         "clear; after the plan its first cycle after the jump, looped",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
+        elif self.name == "expert" and check_env_id(self.env_id) in TRANSITION_ENV_IDS:
+            from hsddp_gym.planners.policies.transitions import LOOPS, PLAN_CYCLES
+
+            task = TRANSITION_ENV_IDS[self.env_id]
+            after = ("its last control plus a joint PD to its last knot's joint angles" if LOOPS[task][0] is None
+                     else f"its bounding cycle (phases {LOOPS[task][0]}-{LOOPS[task][1] - 1}), looped")
+            d["class"] = f"{policies}.transitions.TransitionExpert"
+            d["options"] = {"plan": {**EXPERT_TRANSITION_PLAN, "motion": task, "cycles": PLAN_CYCLES[task]},
+                            "plan_file": "expert_plan.npz",
+                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen clear "
+                                        "(2 cm, or half the plan's lowest landing-foot peak if lower); after the plan "
+                                        + after,
+                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert":
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
                             "reset_options": "{'state': plan.X[0]} (no reset noise)",
@@ -187,13 +217,21 @@ def _load_plan(path: str):
 
 def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0, hold: int = 5) -> dict:
     """Solve the expert's plan (:data:`EXPERT_PLAN`; in Pronking-v0 :data:`EXPERT_PRONK_PLAN` at ``target_speed``
-    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN`, in GapJump-v0 / BoxJump-v0 :data:`EXPERT_JUMP_PLAN`, for a
-    control held ``hold`` plan knots), save it to ``path``
+    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN`, in GapJump-v0 / BoxJump-v0 :data:`EXPERT_JUMP_PLAN`, in the
+    gait transitions' envs :data:`EXPERT_TRANSITION_PLAN`, for a control held ``hold`` plan knots), save it to
+    ``path``
     and return its summary."""
-    if check_env_id(env_id) in (BACKFLIP_ENV_ID, *JUMP_ENV_IDS):
-        from hsddp_gym.planners.motions import plan_backflip_held, plan_jump_held
+    if check_env_id(env_id) in (BACKFLIP_ENV_ID, *JUMP_ENV_IDS, *TRANSITION_ENV_IDS):
+        from hsddp_gym.planners.motions import plan_backflip_held, plan_jump_held, plan_transition_held
+        from hsddp_gym.planners.policies.transitions import PLAN_CYCLES
 
-        sol = plan_backflip_held(hold) if env_id == BACKFLIP_ENV_ID else plan_jump_held(JUMP_ENV_IDS[env_id], hold)
+        if env_id == BACKFLIP_ENV_ID:
+            sol = plan_backflip_held(hold)
+        elif env_id in JUMP_ENV_IDS:
+            sol = plan_jump_held(JUMP_ENV_IDS[env_id], hold)
+        else:
+            task = TRANSITION_ENV_IDS[env_id]
+            sol = plan_transition_held(task, hold, cycles=PLAN_CYCLES[task])
         sol.save(path)
         return {"status": sol.status, "converged": bool(sol.converged), "al_iterations": int(sol.al_iterations),
                 "ddp_iterations": int(sol.ddp_iterations), "switching_violation": float(sol.switching_violation),

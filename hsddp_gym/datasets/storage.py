@@ -36,10 +36,14 @@ def default_dataset_id(policy_name: str, env_id: str | None = None) -> str:
     """``hsddp_gym/bounding/<policy>-v0`` (``env_id`` None or Bounding-v0), ``hsddp_gym/pronking/<policy>-v0``
     (``hsddp_gym/Pronking-v0``), ``hsddp_gym/backflip/<policy>-v0`` (``hsddp_gym/Backflip-v0``),
     ``hsddp_gym/gap_jump/<policy>-v0`` (``hsddp_gym/GapJump-v0``), ``hsddp_gym/box_jump/<policy>-v0``
-    (``hsddp_gym/BoxJump-v0``), ``hsddp_gym/terrain/<policy>-v0`` (``hsddp_gym/Terrain-v0``)."""
+    (``hsddp_gym/BoxJump-v0``), ``hsddp_gym/terrain/<policy>-v0`` (``hsddp_gym/Terrain-v0``),
+    ``hsddp_gym/stand_to_bound/<policy>-v0``, ``hsddp_gym/bound_pronk_bound/<policy>-v0`` and
+    ``hsddp_gym/bound_to_stop/<policy>-v0`` (the gait transitions' envs)."""
     task = {"hsddp_gym/Pronking-v0": "pronking", "hsddp_gym/Backflip-v0": "backflip",
             "hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump",
-            "hsddp_gym/Terrain-v0": "terrain"}.get(env_id, "bounding")
+            "hsddp_gym/Terrain-v0": "terrain", "hsddp_gym/StandToBound-v0": "stand_to_bound",
+            "hsddp_gym/BoundPronkBound-v0": "bound_pronk_bound",
+            "hsddp_gym/BoundToStop-v0": "bound_to_stop"}.get(env_id, "bounding")
     return f"hsddp_gym/{task}/{policy_name}-v0"
 
 

@@ -827,20 +827,20 @@ def _tasks_transition(store: Store, task: str, start: str) -> str:
 
 
 def tasks_stand_to_bound(store: Store) -> str:
-    """From standing into a bound: the HS-DDP transition expert (StandToBound-v0 and its MuJoCo twin) on unseen seeds
-    (``experiments/tasks.py --task stand_to_bound``)."""
+    """From standing into a bound: the HS-DDP transition expert (StandToBound-v0 and its MuJoCo twin) and BC per
+    training seed on unseen seeds (``experiments/tasks.py --task stand_to_bound``)."""
     return _tasks_transition(store, "stand_to_bound", "from standing at rest")
 
 
 def tasks_bound_pronk_bound(store: Store) -> str:
-    """From a bound into a pronk and back: the HS-DDP transition expert (BoundPronkBound-v0 and its MuJoCo twin) on
-    unseen seeds (``experiments/tasks.py --task bound_pronk_bound``)."""
+    """From a bound into a pronk and back: the HS-DDP transition expert (BoundPronkBound-v0 and its MuJoCo twin) and
+    BC per training seed on unseen seeds (``experiments/tasks.py --task bound_pronk_bound``)."""
     return _tasks_transition(store, "bound_pronk_bound", "from bounding at 0.9 m/s")
 
 
 def tasks_bound_to_stop(store: Store) -> str:
-    """From a bound to rest: the HS-DDP transition expert (BoundToStop-v0 and its MuJoCo twin) on unseen seeds
-    (``experiments/tasks.py --task bound_to_stop``)."""
+    """From a bound to rest: the HS-DDP transition expert (BoundToStop-v0 and its MuJoCo twin) and BC per training
+    seed on unseen seeds (``experiments/tasks.py --task bound_to_stop``)."""
     return _tasks_transition(store, "bound_to_stop", "from bounding at 0.9 m/s")
 
 
