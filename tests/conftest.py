@@ -109,13 +109,44 @@ def assert_same_datasets(a, b, ignore=()) -> None:
         np.testing.assert_array_equal(da.infos[k], db.infos[k], err_msg=k)
 
 
+HEADLESS_HUMAN_RENDER_WARNING = "render_mode='human' needs an interactive matplotlib backend"
+"""Gymnasium's checker renders in human mode; on a headless machine the envs warn that they cannot (expected)."""
+
+
+def assert_gymnasium_checker_passes(env) -> None:
+    """Gymnasium's env checker passes on ``env`` (its unwrapped env) with no warning but the headless one."""
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    unexpected = [str(w.message) for w in caught if HEADLESS_HUMAN_RENDER_WARNING not in str(w.message)]
+    assert not unexpected, unexpected
+
+
+def assert_sb3_checker_passes(env) -> None:
+    """Stable-Baselines3's env checker passes on ``env`` (unwrapped), every warning an error (skipped without SB3)."""
+    import warnings
+
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.env_checker import check_env
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, warn=True)
+
+
 @pytest.fixture(scope="session")
 def tools() -> types.SimpleNamespace:
     """The helpers and constants above: ``tools.random_state(rng)``, ``tools.fd_jacobian(f, x)``, ..."""
     return types.SimpleNamespace(random_state=random_state, random_control=random_control, fd_jacobian=fd_jacobian,
                                  max_rel_err=max_rel_err, FD_EPS=FD_EPS, FD_TOL=FD_TOL, SEED=SEED, MODES=MODES,
                                  CONTACT_MODES=CONTACT_MODES, INTEGRATORS=INTEGRATORS,
-                                 assert_same_datasets=assert_same_datasets, random_rollout=random_rollout)
+                                 assert_same_datasets=assert_same_datasets, random_rollout=random_rollout,
+                                 assert_gymnasium_checker_passes=assert_gymnasium_checker_passes,
+                                 assert_sb3_checker_passes=assert_sb3_checker_passes)
 
 
 @pytest.fixture(scope="session")

@@ -5,12 +5,10 @@ recorded in it."""
 from __future__ import annotations
 
 import math
-import warnings
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import hsddp_gym
 from hsddp_gym.envs.backflip import (
@@ -22,7 +20,6 @@ from hsddp_gym.envs.backflip import (
 )
 
 ENV_ID = "hsddp_gym/Backflip-v0"
-HEADLESS_HUMAN_RENDER_WARNING = "render_mode='human' needs an interactive matplotlib backend"
 
 
 def test_registered_with_a_time_limit_and_no_vector_entry_point():
@@ -36,22 +33,12 @@ def test_registered_with_a_time_limit_and_no_vector_entry_point():
     assert gym.spec("hsddp_gym/BackflipMuJoCo-v0").entry_point == "hsddp_gym.envs.backflip:MuJoCoBackflipEnv"
 
 
-def test_gymnasium_env_checker_passes():
-    env = gym.make(ENV_ID)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        gym_check_env(env.unwrapped)
-    unexpected = [str(w.message) for w in caught if HEADLESS_HUMAN_RENDER_WARNING not in str(w.message)]
-    assert not unexpected, unexpected
+def test_gymnasium_env_checker_passes(tools):
+    tools.assert_gymnasium_checker_passes(gym.make(ENV_ID))
 
 
-def test_sb3_env_checker_passes():
-    pytest.importorskip("stable_baselines3")
-    from stable_baselines3.common.env_checker import check_env
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_env(gym.make(ENV_ID).unwrapped, warn=True)
+def test_sb3_env_checker_passes(tools):
+    tools.assert_sb3_checker_passes(gym.make(ENV_ID))
 
 
 def test_sync_vector_env_runs():

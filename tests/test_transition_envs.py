@@ -4,18 +4,14 @@ HS-DDP transition expert, never by zero torque)."""
 
 from __future__ import annotations
 
-import warnings
-
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env as gym_check_env
 
 import hsddp_gym
 from hsddp_gym.envs.transitions import SCHEDULES, TASKS, TransitionEnv, contact_schedule, plan_duration
 
 ENV_IDS = hsddp_gym.TRANSITION_ENV_IDS
-HEADLESS_HUMAN_RENDER_WARNING = "render_mode='human' needs an interactive matplotlib backend"
 
 
 @pytest.mark.parametrize("task", TASKS)
@@ -54,23 +50,13 @@ def test_contact_schedule_repeats_the_bound_or_stays_standing():
 
 
 @pytest.mark.parametrize("task", TASKS)
-def test_gymnasium_env_checker_passes(task):
-    env = gym.make(ENV_IDS[task])
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        gym_check_env(env.unwrapped)
-    unexpected = [str(w.message) for w in caught if HEADLESS_HUMAN_RENDER_WARNING not in str(w.message)]
-    assert not unexpected, unexpected
+def test_gymnasium_env_checker_passes(task, tools):
+    tools.assert_gymnasium_checker_passes(gym.make(ENV_IDS[task]))
 
 
 @pytest.mark.parametrize("task", TASKS)
-def test_sb3_env_checker_passes(task):
-    pytest.importorskip("stable_baselines3")
-    from stable_baselines3.common.env_checker import check_env
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        check_env(gym.make(ENV_IDS[task]).unwrapped, warn=True)
+def test_sb3_env_checker_passes(task, tools):
+    tools.assert_sb3_checker_passes(gym.make(ENV_IDS[task]))
 
 
 def test_sync_vector_env_runs():
