@@ -126,7 +126,7 @@ def test_a_landing_foot_is_measured_from_where_the_measurement_puts_the_ground()
     x = np.r_[q, np.zeros(NX - NQ)]  # the measured state: the front foot 5 mm up
     assert late_landing(clock, Mode.FLIGHT, x, robot, 0.01) == Mode.FRONT_STANCE
     # the measurement puts a foot on the ground 2 cm low: this one is 2.5 cm above the ground
-    assert late_landing(clock, Mode.FLIGHT, x, robot, 0.01, None, (-0.02, -0.02)) == Mode.FLIGHT
+    assert late_landing(clock, Mode.FLIGHT, x, robot, 0.01, None, lambda q, foot: -0.02) == Mode.FLIGHT
     est = MeasurementBias(robot, 0.005)
     est.bias[IZ] = -0.02
     assert est.ground_offset(q, 0) == pytest.approx(-0.02)

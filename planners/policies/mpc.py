@@ -612,12 +612,13 @@ def stance_elapsed(robot, x: np.ndarray, phase: int, duration: float, min_speed:
 
 
 def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_height: float | None,
-                 terrain: Terrain | None = None, ground_offset: tuple[float, float] = (0.0, 0.0)) -> Mode:
+                 terrain: Terrain | None = None, ground_offset=None) -> Mode:
     """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
     ``touchdown_height`` [m] of the ground (None: ``mode`` as it is): the plane ``z = 0``, or with a ``terrain``
     (:class:`~hsddp_gym.core.terrain.Terrain`, the state in the world frame) its surface under the foot, raised by
-    ``ground_offset[foot]`` [m] (where the measurement puts a foot on the ground,
-    :meth:`~hsddp_gym.planners.policies.estimation.MeasurementBias.ground_offset`; in the order FRONT, BACK).
+    ``ground_offset(q, foot)`` [m] (where the measurement puts a foot on the ground,
+    :meth:`~hsddp_gym.planners.policies.estimation.MeasurementBias.ground_offset`; None: 0), evaluated only for a
+    late flight's landing foot.
 
     A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
     stiff contact a landing foot can touch and leave within every step (it bounces at the control rate), so no
@@ -634,20 +635,21 @@ def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_h
         return mode
     if robot is None:
         robot = _nominal_robot()
-    if terrain_clearance(robot, x[:NQ], landing, terrain) - ground_offset[landing] < touchdown_height:
+    offset = 0.0 if ground_offset is None else float(ground_offset(x[:NQ], landing))
+    if terrain_clearance(robot, x[:NQ], landing, terrain) - offset < touchdown_height:
         return Mode(int(mode) | (1 << landing))
     return mode
 
 
 def update_gait_clock(clock: GaitClock, mode: Mode, x: np.ndarray, robot=None,
                       touchdown_height: float | None = None, terrain: Terrain | None = None,
-                      ground_offset: tuple[float, float] = (0.0, 0.0)) -> Mode:
+                      ground_offset=None) -> Mode:
     """Advance ``clock`` by one observation: contact ``mode`` and state ``x`` (14,) (its pitch rate; on the first
     observation the stance already elapsed, :func:`stance_elapsed` with ``robot``, default the nominal one). The one
     update rule of the MPC and of the learners that rebuild its clock from observations. ``touchdown_height``: a
     late flight's landing foot that ``x`` puts within this height [m] of the ground counts as in contact
     (:func:`late_landing`; None: the flags alone, as the learners' features use it), measured from ``terrain``'s
-    surface when one is given (None: from ``z = 0``)."""
+    surface when one is given (None: from ``z = 0``) raised by ``ground_offset(q, foot)`` (None: 0)."""
     x = check_vector(x, NX, "x")
     if clock.phase is None and robot is None:
         robot = _nominal_robot()
@@ -878,8 +880,7 @@ class MPCPolicy(Policy):
         # the state says where a foot is relative to the ground once the feet on it have calibrated the measured
         # height (MeasurementBias; before the first stance of an episode, the flags alone)
         height = self.options.touchdown_height if self._bias is None or self._bias.calibrated else None
-        offset = (0.0, 0.0) if self._bias is None or height is None else \
-            tuple(self._bias.ground_offset(x[:NQ], foot) for foot in (FRONT, BACK))
+        offset = None if self._bias is None else self._bias.ground_offset
         return update_gait_clock(self.clock, mode, x, self.dynamics.robot, height, self.terrain, offset)
 
     def _schedule(self, x: np.ndarray | None = None) -> ModeSchedule:
