@@ -627,6 +627,37 @@ def motions_summary(store: Store) -> str:
                       source_line(store, *rids)])
 
 
+def _seeds_row(label: str, group: list, env_name: str, blanks: int) -> list:
+    """The row that sums a learner's training seeds: successes and falls over all of them, the mean of their mean
+    returns, then ``blanks`` empty cells."""
+    ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
+    mean = sum(r["mean_return"] for r in group) / len(group)
+    return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", env_name,
+            f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}", *[""] * blanks]
+
+
+def _imitation_rows(d: dict, cells, seeds_row, dagger_unit: str) -> list:
+    """A task record's BC and DAgger rows (``d["bc"]``, ``d["dagger"]``), one per training seed and one summing
+    them per learner: ``cells(row, samples, training time)`` and ``seeds_row(label, group)`` make the cells;
+    ``dagger_unit`` names DAgger's iterations in its label."""
+    rows = []
+    for r in d["bc"]:
+        rows.append(cells(r, f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
+                          f"{r['train_wall_time_s']:.0f} s"))
+    if d["bc"]:
+        rows.append(seeds_row("BC", d["bc"]))
+    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
+        group = [r for r in d["dagger"] if r["rounds"] == rounds]
+        for r in group:
+            rollouts = r["rounds"] * r["episodes_per_round"]
+            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
+                     f"{r['episodes_per_round']} expert episodes")
+            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
+                                 f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
+        rows.append(seeds_row(f"DAgger, {rounds} {dagger_unit}{'s' if rounds != 1 else ''}", group))
+    return rows
+
+
 def tasks_pronking(store: Store) -> str:
     """The pronking task: the expert (Pronking-v0 and its MuJoCo twin), BC and DAgger per training seed and SAC per
     training seed and checkpoint on unseen seeds, with the samples and training time each learner used
@@ -646,27 +677,9 @@ def tasks_pronking(store: Store) -> str:
                 train_time]
 
     def seeds_row(label, group):
-        ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
-        mean = sum(r["mean_return"] for r in group) / len(group)
-        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", "`Pronking-v0`",
-                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}", "", "", "",
-                ""]
+        return _seeds_row(label, group, "`Pronking-v0`", 4)
 
-    rows = [cells(r, "–", "–") for r in d["rows"]]
-    for r in d["bc"]:
-        rows.append(cells(r, f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
-                          f"{r['train_wall_time_s']:.0f} s"))
-    if d["bc"]:
-        rows.append(seeds_row("BC", d["bc"]))
-    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
-        group = [r for r in d["dagger"] if r["rounds"] == rounds]
-        for r in group:
-            rollouts = r["rounds"] * r["episodes_per_round"]
-            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
-                     f"{r['episodes_per_round']} expert episodes")
-            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
-                                 f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
-        rows.append(seeds_row(f"DAgger, {rounds} round{'s' if rounds != 1 else ''}", group))
+    rows = [cells(r, "–", "–") for r in d["rows"]] + _imitation_rows(d, cells, seeds_row, "round")
     for r in d.get("sac", []):
         steps = (f"{r['env_steps']:,} env steps" if r["checkpoint"] == "final" else
                  f"{r['env_steps']:,} of {r['total_env_steps']:,} env steps")
@@ -707,27 +720,9 @@ def _plan_task_table(store: Store, rid: str, command: str, measures: list, measu
                 train_time]
 
     def seeds_row(label, group):
-        ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
-        mean = sum(r["mean_return"] for r in group) / len(group)
-        return [f"{label}, {len(group)} training seed{'s' if len(group) > 1 else ''}", env_name,
-                f"{mean:.1f} (mean of the seeds)", f"{ok}/{n}", f"{sum(r['falls'] for r in group)}/{n}",
-                *[""] * len(measures), "", ""]
+        return _seeds_row(label, group, env_name, len(measures) + 2)
 
-    rows = [cells(r, "–", "–") for r in d["rows"]]
-    for r in d["bc"]:
-        rows.append(cells(r, f"{r['transitions']:,} expert labels ({r['demonstrations']} demos)",
-                          f"{r['train_wall_time_s']:.0f} s"))
-    if d["bc"]:
-        rows.append(seeds_row("BC", d["bc"]))
-    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
-        group = [r for r in d["dagger"] if r["rounds"] == rounds]
-        for r in group:
-            rollouts = r["rounds"] * r["episodes_per_round"]
-            first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
-                     f"{r['episodes_per_round']} expert episodes")
-            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
-                                 f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
-        rows.append(seeds_row(f"DAgger, {rounds} iteration{'s' if rounds != 1 else ''}", group))
+    rows = [cells(r, "–", "–") for r in d["rows"]] + _imitation_rows(d, cells, seeds_row, "iteration")
     seeds = d["seeds"]
     note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), "
             f"{d['max_episode_steps']} steps ({d['max_episode_steps'] * 0.005:g} s) {episodes_note}. "
