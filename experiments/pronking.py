@@ -108,6 +108,7 @@ def main(argv=None) -> int:
                 p.error(f"{flag}: {run} is a {train.get('algo')} run in {train.get('env_id')}, not {algo} in "
                         f"{PRONKING}")
 
+    from hsddp_gym.learning.reporting import imitation_run_fields
     from hsddp_gym.workflows import load_policy, pronking_expert
 
     seeds = list(range(args.seed, args.seed + args.episodes))
@@ -116,26 +117,17 @@ def main(argv=None) -> int:
         rows.append(evaluate("expert", PRONKING_MUJOCO, pronking_expert, seeds, args.quiet))
     bc_rows = []
     for run in args.bc:
-        train = json.loads((Path(run) / "summary.json").read_text())
-        row = evaluate(f"BC (training seed {train['seed']})", PRONKING,
+        fields = imitation_run_fields(run, "bc")
+        row = evaluate(f"BC (training seed {fields['training_seed']})", PRONKING,
                        lambda env, run=run: load_policy(f"bc:{run}", env), seeds, args.quiet)
-        row.update(run=str(run), training_seed=int(train["seed"]), transitions=int(train["transitions"]),
-                   demonstrations=int(train["demonstrations"]), train_wall_time_s=float(train["wall_time_s"]),
-                   dataset_id=train.get("dataset_id"))
-        bc_rows.append(row)
+        bc_rows.append({**row, **fields})
     dagger_rows = []
     for run in args.dagger:
-        train = json.loads((Path(run) / "summary.json").read_text())
-        cfg = train["config"]
-        rounds = f"{cfg['rounds']} round{'s' if cfg['rounds'] != 1 else ''}"
-        row = evaluate(f"DAgger, {rounds} (training seed {train['seed']})", PRONKING,
+        fields = imitation_run_fields(run, "dagger")
+        rounds = f"{fields['rounds']} round{'s' if fields['rounds'] != 1 else ''}"
+        row = evaluate(f"DAgger, {rounds} (training seed {fields['training_seed']})", PRONKING,
                        lambda env, run=run: load_policy(f"dagger:{run}", env), seeds, args.quiet)
-        row.update(run=str(run), training_seed=int(train["seed"]), expert_labels=int(train["expert_labels"]),
-                   transitions=int(train["transitions"]), initial_demonstrations=train.get("initial_demonstrations"),
-                   rounds=int(cfg["rounds"]), episodes_per_round=int(cfg["episodes_per_round"]),
-                   beta_decay=float(cfg["beta_decay"]), train_wall_time_s=float(train["wall_time_s"]),
-                   initial_dataset=train.get("initial_dataset"))
-        dagger_rows.append(row)
+        dagger_rows.append({**row, **fields})
     sac_rows = []
     for run in args.sac:
         from hsddp_gym.learning.sb3 import load_trained_policy

@@ -270,6 +270,7 @@ def main(argv=None, task: str | None = None) -> int:
                         f"{env_id}")
 
     from hsddp_gym import workflows
+    from hsddp_gym.learning.reporting import imitation_run_fields
     from hsddp_gym.workflows import load_policy
 
     expert = getattr(workflows, spec.expert)
@@ -280,25 +281,17 @@ def main(argv=None, task: str | None = None) -> int:
         rows.append(evaluate(spec, "expert", spec.twin_id, expert, seeds, args.quiet))
     bc_rows = []
     for run in args.bc:
-        train = json.loads((Path(run) / "summary.json").read_text())
-        row = evaluate(spec, f"BC (training seed {train['seed']})", env_id,
+        fields = imitation_run_fields(run, "bc")
+        row = evaluate(spec, f"BC (training seed {fields['training_seed']})", env_id,
                        lambda env, run=run: load_policy(f"bc:{run}", env), seeds, args.quiet)
-        row.update(run=str(run), training_seed=int(train["seed"]), transitions=int(train["transitions"]),
-                   demonstrations=int(train["demonstrations"]), train_wall_time_s=float(train["wall_time_s"]),
-                   dataset_id=train.get("dataset_id"))
-        bc_rows.append(row)
+        bc_rows.append({**row, **fields})
     dagger_rows = []
     for run in args.dagger:
-        train = json.loads((Path(run) / "summary.json").read_text())
-        cfg = train["config"]
-        iterations = f"{cfg['rounds']} iteration{'s' if cfg['rounds'] != 1 else ''}"
-        row = evaluate(spec, f"DAgger, {iterations} (training seed {train['seed']})", env_id,
+        fields = imitation_run_fields(run, "dagger")
+        iterations = f"{fields['rounds']} iteration{'s' if fields['rounds'] != 1 else ''}"
+        row = evaluate(spec, f"DAgger, {iterations} (training seed {fields['training_seed']})", env_id,
                        lambda env, run=run: load_policy(f"dagger:{run}", env), seeds, args.quiet)
-        row.update(run=str(run), training_seed=int(train["seed"]), expert_labels=int(train["expert_labels"]),
-                   transitions=int(train["transitions"]), initial_demonstrations=train.get("initial_demonstrations"),
-                   rounds=int(cfg["rounds"]), episodes_per_round=int(cfg["episodes_per_round"]),
-                   train_wall_time_s=float(train["wall_time_s"]))
-        dagger_rows.append(row)
+        dagger_rows.append({**row, **fields})
     if args.record:
         from hsddp_gym.reports.store import invoked_command, without_option, write_record
 

@@ -6,6 +6,28 @@ import numpy as np
 
 
 # ================================================================================================ evaluation
+def imitation_run_fields(run, algo: str) -> dict:
+    """What a task record keeps of a finished ``hsddp-gym train --algo bc|dagger --out run`` (its
+    ``summary.json``): the run, its training seed, its samples and wall time (and DAgger's configuration)."""
+    import json
+    from pathlib import Path
+
+    if algo not in ("bc", "dagger"):
+        raise ValueError(f"algo must be 'bc' or 'dagger', got {algo!r}")
+    train = json.loads((Path(run) / "summary.json").read_text())
+    fields = {"run": str(run), "training_seed": int(train["seed"]), "transitions": int(train["transitions"]),
+              "train_wall_time_s": float(train["wall_time_s"])}
+    if algo == "bc":
+        fields.update(demonstrations=int(train["demonstrations"]), dataset_id=train.get("dataset_id"))
+    else:
+        cfg = train["config"]
+        fields.update(expert_labels=int(train["expert_labels"]),
+                      initial_demonstrations=train.get("initial_demonstrations"), rounds=int(cfg["rounds"]),
+                      episodes_per_round=int(cfg["episodes_per_round"]), beta_decay=float(cfg["beta_decay"]),
+                      initial_dataset=train.get("initial_dataset"))
+    return fields
+
+
 def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwargs: dict | None = None,
                              max_episode_steps: int | None = None, reset_options: dict | None = None,
                              env_id: str | None = None) -> dict:
