@@ -359,50 +359,43 @@ def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
         MPCOptions(flight_reach="high")
 
 
-def test_a_foot_back_on_the_ground_in_a_flight_is_planned_as_its_stance():
-    """``plan_retouch`` (default True): in a flight, the foot of the stance before it back on the ground after a
-    swing (:attr:`GaitClock.retouched`) is planned as that foot's stance for the rest of the flight, then the landing
-    foot's stance; the clock's phase does not change. A foot that never left the ground or only scuffs it is not
-    retouched; False plans the flight."""
+def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stance_again():
+    """``restep``: in a flight, the foot of the stance before it back on the ground after a swing of ``min_flight``
+    of its flight, debounced, starts its stance again (the cycle goes on from there, ``resynced``). A foot that
+    never left the ground or only scuffs it does not; without ``restep`` (the learners' clock) the flight goes on."""
     durs = (0.08, 0.072, 0.072, 0.072)
     bs, fl = Mode.BACK_STANCE, Mode.FLIGHT
-    c = GaitClock(durs, 0.005)
+    c = GaitClock(durs, 0.005, restep=True)
+    assert c.copy().restep and not GaitClock(durs, 0.005).restep
     c.update(fl, 1.0)  # flight 1: after the back stance, lands the front foot
-    assert c.phase == 1 and not c.retouched
+    assert c.phase == 1
     _stance_then(c, fl, 6, bs, 1)  # 35 ms in the air, then the back foot touches: not yet debounced
-    assert c.phase == 1 and not c.retouched
-    _stance_then(c, bs, 1, bs, 0)
-    assert c.phase == 1 and c.retouched
-    assert c.copy().retouched
-    _stance_then(c, fl, 1, fl, 0)  # it lifts off again
-    assert not c.retouched and c.phase == 1
+    assert c.phase == 1
+    c.tick()
+    assert c.update(bs, 0.0) == bs and c.phase == 0 and c.tau == 0.0 and c.resynced
+    # the stance gets its nominal duration, then the flight that lands the front foot
+    _stance_then(c, bs, 15, bs, 0)
+    assert c.phase == 0
+    _stance_then(c, bs, 1, fl, 0)
+    assert c.phase == 1
+    # without restep: the flight goes on
+    w = GaitClock(durs, 0.005)
+    w.update(fl, 1.0)
+    _stance_then(w, fl, 6, bs, 4)
+    assert w.phase == 1 and w.mode == fl
     # a scuff: 10 ms after the back stance ended, 10 ms in the air
-    s = GaitClock(durs, 0.005)
+    s = GaitClock(durs, 0.005, restep=True)
     s.update(bs, 0.0)
     _stance_then(s, bs, 16, bs, 0)  # the back stance ends on time with the foot still down
     assert s.phase == 1
     _stance_then(s, bs, 1, fl, 2)
     _stance_then(s, bs, 3, bs, 0)
-    assert s.phase == 1 and not s.retouched
+    assert s.phase == 1
     # a foot that stays down from the stance into the flight
-    d = GaitClock(durs, 0.005)
+    d = GaitClock(durs, 0.005, restep=True)
     d.update(bs, 0.0)
     _stance_then(d, bs, 20, bs, 0)
-    assert d.phase == 1 and not d.retouched
-    # stances are never retouched
-    assert not GaitClock(durs, 0.005).retouched
-
-    policy = MPCPolicy(EnvInterface())
-    off = MPCPolicy(EnvInterface(), MPCOptions(plan_retouch=False))
-    assert policy.options.plan_retouch
-    for p in (policy, off):
-        p.clock.update(fl, 1.0)
-        _stance_then(p.clock, fl, 6, bs, 2)
-        assert p.clock.retouched
-    planned = policy._schedule()
-    assert list(planned.modes[:3]) == [bs, Mode.FRONT_STANCE, fl]
-    assert planned.touchdown_feet(0) == (0,)  # the front foot lands at the end of the retouched stance
-    assert list(off._schedule().modes[:2]) == [fl, Mode.FRONT_STANCE]
-    assert planned.durations[0] == pytest.approx(off._schedule().durations[0])
-    with pytest.raises(TypeError, match="plan_retouch"):
-        MPCOptions(plan_retouch="yes")
+    assert d.phase == 1
+    with pytest.raises(TypeError, match="restep"):
+        GaitClock(durs, 0.005, restep="yes")
+    assert MPCPolicy(EnvInterface()).clock.restep and not MPCPolicy(EnvInterface(), MPCOptions(restep=False)).clock.restep

@@ -19,6 +19,7 @@ from hsddp_gym.util.lazy import lazy_exports
 _EXPORTS = {  # module: the public names it defines
     "backflip": ("BackflipExpert", "FlipPlanTracker",),
     "base": ("EnvInterface", "Policy",),
+    "contact_consistency": ("PushingTorques",),
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
     "evaluation": ("EpisodeResult", "run_episode", "summarize",),
     "expert": ("PlanTrackingExpert",),

@@ -12,7 +12,8 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    most ``speed_ramp`` from the measured speed (a reference governor for pushes), a stance whose foot
    has left the ground is replaced at once by the flight that lands it again (:class:`GaitClock`), and
    a touchdown that finds the other foot on the ground starts a planned double stance (``double_stance``), a
-   flight whose other foot is back on the ground is planned as that foot's stance (``plan_retouch``), and a flight
+   flight whose landing hip a pitch kick takes out of reach is planned as a re-step of the other foot, and a foot
+   that lands again in the flight after its stance starts that stance again (``restep``), a flight
    past its nominal end whose landing foot the state puts at the ground ends, whatever that foot's contact flag
    says (``touchdown_height``, :func:`late_landing`; the ground where the feet on it put it, ``bias_memory``);
 3. the previous plan, aligned by phase with the contact events
@@ -24,7 +25,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    previous plan's objective is solved again from scratch (``restart_ratio``), and the augmented Lagrangian's
    multipliers and penalty are the warm start's (no outer-loop update between re-plans);
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
-   between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor.
+   between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor, projected onto the
+   torques with which every planned stance foot pushes on the ground inside the friction cone
+   (``min_stance_force``, :class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`).
 
 Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
@@ -61,6 +64,7 @@ from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import BOUNDING_WEIGHTS, ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.planners.policies.contact_consistency import PushingTorques
 from hsddp_gym.planners.policies.estimation import (
     ContactModelPredictor,
     MeasurementBias,
@@ -114,7 +118,7 @@ class MPCOptions:
             nominal end (from the nominal end on, one contact step ends it). Raise it for noisier contact flags.
         min_flight: a fraction of the nominal flight: a touchdown before it is taken for a graze, and a foot must
             have been in the air at least that long for its contact to count as a landing (double stance,
-            ``plan_retouch``).
+            ``restep``).
         touchdown_height: from a flight's nominal end on, its landing foot counts as touched down when the
             (estimated) state puts it within this height [m] of the ground, whatever the contact flag says (None:
             the flags alone; :func:`late_landing`). A flag samples the contact at the end of a control step; on a
@@ -252,11 +256,26 @@ class MPCOptions:
             nominal duration; without this rule each plan would put the touchdown ``min_phase`` ahead while the
             foot is still far above the ground. At bounding height the hips are within reach, so unperturbed
             bounding is planned the same.
-        plan_retouch: in a flight whose other foot (the foot of the stance before it) is back on the ground
-            (:attr:`GaitClock.retouched`), plan that foot's stance for the rest of the flight, then the landing
-            foot's stance (False: plan the flight). After a nose-down push the front foot can come down again while
-            the clock waits for the back foot; planned as a flight, the leg that holds the trunk up would get no
-            planned force.
+        restep: a *re-step*, the stance of the foot that has just lifted off once more, then the flight again
+            (False: the plans and the clock wait for the landing foot, whatever the other foot does). The plans
+            make one in a flight whose landing hip the ballistic flight (as for ``flight_reach``) puts out of reach
+            at the flight's nominal end while the other hip (the foot of the stance before the flight) is within
+            reach sooner: the rest of the flight, that foot's stance, this flight, the landing foot's stance. A
+            pitch-rate kick in a flight (5-7 rad/s) lifts the landing hip while it lowers the other one; waiting for
+            the landing foot lets the trunk rotate until it falls, a second stance of the other foot stops the
+            rotation. The gait clock makes one when that foot lands again in the flight (after a real swing,
+            debounced; at its first contact when planned, :attr:`GaitClock.restep_foot`): the clock goes on from
+            its stance, which gets its nominal duration. Unperturbed bounding never makes one (the landing hip is
+            within reach at every flight's end, and the foot that lifted off stays up).
+        min_stance_force: the least normal force [N] every foot the plan has on the ground must be able to push
+            with: the torques sent are the nearest (Euclidean) to the plan's feedback law for which the contact
+            pushes with at least this force inside the plan's friction cone (``plan_friction``), within the torque
+            limit (:class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`; None: the feedback law's
+            torques as they are). Far from the plan (a touchdown earlier or later than planned, a push) the linear
+            feedback law can ask a stance leg for torques that pull its foot off the ground or slide it; the light
+            leg then whips away, the stance is lost and found again at every control step. Unperturbed bounding
+            never needs the projection (the same actions bit for bit); each control step in a stance costs one
+            evaluation of the constrained dynamics (about 15 us), a projection five more.
     """
 
     # Timing
@@ -307,7 +326,8 @@ class MPCOptions:
     lost_stance_steps: int = 1
     double_stance: float | None = 0.04
     flight_reach: float | None = 0.85
-    plan_retouch: bool = True
+    restep: bool = True
+    min_stance_force: float | None = 0.0
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -333,8 +353,10 @@ class MPCOptions:
             check_positive(self.double_stance, "double_stance")
         if self.touchdown_height is not None:
             check_positive(self.touchdown_height, "touchdown_height")
-        if not isinstance(self.plan_retouch, (bool, np.bool_)):
-            raise TypeError(f"plan_retouch must be a bool, got {self.plan_retouch!r}")
+        if not isinstance(self.restep, (bool, np.bool_)):
+            raise TypeError(f"restep must be a bool, got {self.restep!r}")
+        if self.min_stance_force is not None:
+            check_positive(self.min_stance_force, "min_stance_force", allow_zero=True)
         if self.flight_reach is not None:
             if check_in_range(self.flight_reach, 0.0, 1.0, "flight_reach") == 0.0:
                 raise ValueError("flight_reach must be in (0, 1] (a fraction of the leg length) or None, got 0.0")
@@ -391,9 +413,11 @@ class GaitClock:
     ``debounce_steps`` (in a flight, once ``min_flight`` of it has passed).
     It lasts ``double_stance`` seconds or until the other foot has lifted off for ``debounce_steps``, then the
     stance of the foot that landed follows (:attr:`resynced` is set when it starts); a foot still down when that
-    stance starts does not start another double stance until it has lifted off and touched down again. In a flight,
-    :attr:`retouched` says that the foot of the stance before it is back on the ground (the MPC plans that stance,
-    ``MPCOptions.plan_retouch``; the phase stays the flight). The first
+    stance starts does not start another double stance until it has lifted off and touched down again. With
+    ``restep``, a *re-step*: in a flight, the foot of the stance before it that lands again (after a swing of at
+    least ``min_flight`` of its flight, for ``debounce_steps``; at its first contact step when the planner has planned
+    it, :attr:`restep_foot`) starts its stance again, :attr:`resynced` set, and the cycle goes on from there (without
+    ``restep`` the clock waits for the landing foot whatever the other foot does). The first
     observation picks the phase from the contacts (and, in flight, the sign of the pitch rate).
 
     Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
@@ -409,10 +433,12 @@ class GaitClock:
         lost_stance_steps: control steps a stance foot must be off the ground before its stance is lost (0: never).
         double_stance: duration [s] of a double stance (0: the clock never enters one; the MPC's clock has
             ``MPCOptions.double_stance``).
+        restep: whether a foot that lands again in the flight after its stance starts that stance again (the MPC's
+            clock has ``MPCOptions.restep``; learners that rebuild the clock from observations use False).
     """
 
     def __init__(self, durations, dt: float, debounce_steps: int = 2, min_flight: float = 0.3,
-                 lost_stance_steps: int = 0, double_stance: float = 0.0) -> None:
+                 lost_stance_steps: int = 0, double_stance: float = 0.0, restep: bool = False) -> None:
         if len(durations) != 4 or any(not (float(d) > 0) for d in durations):
             raise ValueError(f"durations must be 4 positive numbers [s], got {durations!r}")
         self.durations = tuple(float(d) for d in durations)
@@ -422,6 +448,9 @@ class GaitClock:
         self.lost_stance_steps = check_int(lost_stance_steps, "lost_stance_steps", minimum=0)
         self.double_stance = check_positive(double_stance, "double_stance", allow_zero=True)
         """Duration [s] of a double stance entered now (0: the clock never enters one)."""
+        if not isinstance(restep, (bool, np.bool_)):
+            raise TypeError(f"restep must be a bool, got {restep!r}")
+        self.restep = bool(restep)
         self.reset()
 
     def reset(self) -> None:
@@ -440,15 +469,20 @@ class GaitClock:
         """The duration [s] of the current double stance (``double_stance`` when it started)."""
         self.resynced = False
         """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
+        self.restep_foot: int | None = None
+        """Set by the planner in a flight: the foot of the stance before it, when the plans put it on the ground
+        again (a planned re-step, ``MPCOptions.restep``): with ``restep``, its first contact step then starts its
+        stance. Cleared at every phase change."""
 
     def copy(self) -> GaitClock:
         twin = GaitClock(self.durations, self.dt, self.debounce_steps, self.min_flight, self.lost_stance_steps,
-                         self.double_stance)
+                         self.double_stance, self.restep)
         twin.after_double, twin.double_duration = self.after_double, self.double_duration
         twin.phase, twin.tau, twin._contact_steps = self.phase, self.tau, list(self._contact_steps)
         twin._air_steps, twin.resynced, twin._stance_touched = list(self._air_steps), self.resynced, \
             self._stance_touched
         twin._phase_updates, twin._swing_steps = self._phase_updates, list(self._swing_steps)
+        twin.restep_foot = self.restep_foot
         return twin
 
     def update(self, mode: Mode, pitch_rate: float, elapsed=None) -> Mode:
@@ -462,6 +496,7 @@ class GaitClock:
         mode = self._update(mode, pitch_rate, elapsed)
         if self.phase != before:
             self._phase_updates = 0
+            self.restep_foot = None
         return mode
 
     def _update(self, mode: Mode, pitch_rate: float, elapsed) -> Mode:
@@ -504,6 +539,11 @@ class GaitClock:
         touched = False
         if _CYCLE[j] == Mode.FLIGHT:
             landing = FRONT if j == 1 else BACK
+            other = 1 - landing
+            if self.restep and ((self.restep_foot == other and self._contact_steps[other]) or self._landed(other)):
+                # a re-step: the foot of the stance before this flight is down again, its stance starts again
+                self.phase, self.tau, self.resynced, self._stance_touched = (j - 1) % 4, 0.0, True, True
+                return _CYCLE[self.phase]
             # debounced early in the flight (a graze is not a touchdown); from its nominal end on, any contact is
             touched = self._contact_steps[landing] >= (self.debounce_steps if self.tau < nominal - 1e-9 else 1)
             advance = touched and self.tau >= self.min_flight * self.durations[j]
@@ -529,17 +569,6 @@ class GaitClock:
             # a stance that starts at its foot's touchdown has touched: if the foot bounces off, it is lost
             self._stance_touched = touched
         return _CYCLE[self.phase]
-
-    @property
-    def retouched(self) -> bool:
-        """In a flight, whether the foot of the stance before it is back on the ground: its contact began in this
-        flight, after a swing of at least ``min_flight`` of the flight that lands it (a scuff at lift-off is not), and
-        has lasted ``debounce_steps`` (the landing rule of a double stance, :meth:`_landed`). The phase does not
-        change (the clock still waits for the landing foot)."""
-        j = self.phase
-        if j not in (1, 3):
-            return False
-        return self._landed(BACK if j == 1 else FRONT)
 
     def _landed(self, foot: int) -> bool:
         """Whether ``foot`` has landed in the current phase: its contact began in this phase, after a swing of at
@@ -741,6 +770,10 @@ class MPCPolicy(Policy):
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
+        self._pushing = PushingTorques(interface.torque_limit, options.min_stance_force,
+                                       options.plan_friction if options.plan_friction is not None else
+                                       self.dynamics.robot.params.friction) \
+            if options.min_stance_force is not None else None
         self._startup_controller = HeuristicBoundingController(gains=HeuristicGains(speed=interface.target_speed),
                                                                height_offset=options.height_offset)
         """Acts while no plan exists yet (the episode's first re-plan failed): the schedule-driven heuristic
@@ -782,7 +815,7 @@ class MPCPolicy(Policy):
         self._cs: ConstraintState | None = None
         o = self.options
         self.clock = GaitClock(self.durations, self.interface.control_dt, o.debounce_steps, o.min_flight,
-                               o.lost_stance_steps, o.double_stance or 0.0)
+                               o.lost_stance_steps, o.double_stance or 0.0, o.restep)
         self._plan_clock = self.clock
         # the last actions returned (oldest first), as many as the largest delay considered + 1: with a delay d,
         # _sent[-1 - d] was executed over the last control period and the d after it are still to be executed
@@ -893,18 +926,27 @@ class MPCPolicy(Policy):
             x: the re-plan's state (14,), for ``flight_reach`` (None: the flight's nominal duration)."""
         o = self.options
         j = self._phase_j
+        self.restep_foot = None
         if j == DOUBLE_STANCE_PHASE:  # the double stance, then the cycle from the stance that follows it
             j = self._plan_clock.after_double
             modes = [Mode.DOUBLE_STANCE, _CYCLE[j]]
             durs = [max(self._plan_clock.double_duration - self._tau, o.min_phase), self.durations[j]]
         else:
             modes, durs = [_CYCLE[j]], [max(self.durations[j] - self._tau, o.min_phase)]
+            restep = False
             if _CYCLE[j] == Mode.FLIGHT and o.flight_reach is not None and x is not None:
                 # a flight lasts at least until the landing foot can reach the ground
-                durs[0] = max(durs[0], self._reach_time(x, _CYCLE[(j + 1) % 4]))
-            if o.plan_retouch and self._plan_clock.retouched:
-                # the foot of the stance before this flight is back on the ground: plan it as its stance
-                modes[0] = _CYCLE[(j - 1) % 4]
+                if o.restep:
+                    end = self._reach_time(x, _CYCLE[(j + 1) % 4], durs[0])
+                    restep = end > self._reach_time(x, _CYCLE[(j - 1) % 4], durs[0])
+                if not restep:
+                    durs[0] = max(durs[0], self._reach_time(x, _CYCLE[(j + 1) % 4]))
+            self.restep_foot = (BACK if j == 1 else FRONT) if restep else None
+            if restep:
+                # the landing hip is out of reach at the flight's end and the other one is within it: step again
+                # with the other foot (the stance before this flight, then this flight again)
+                j = (j - 1) % 4
+                modes, durs = [Mode.FLIGHT, _CYCLE[j]], [durs[0], self.durations[j]]
         while sum(durs) < self.horizon - 1e-9 or _CYCLE[j] == Mode.FLIGHT:
             j = (j + 1) % 4
             modes.append(_CYCLE[j])
@@ -915,14 +957,19 @@ class MPCPolicy(Policy):
         durs = [max(1, round(d / h)) * h for d in durs]
         return ModeSchedule(modes, durs, final_mode=_CYCLE[(j + 1) % 4])
 
-    def _reach_time(self, x: np.ndarray, stance: Mode) -> float:
+    def _reach_time(self, x: np.ndarray, stance: Mode, after: float = 0.0) -> float:
         """``flight_reach``: the time [s] from state ``x`` (14,) until the hip of the foot that lands in ``stance``
         is within ``flight_reach`` x the leg length of the ground, the trunk flying ballistically (its velocity,
-        gravity, its pitch rate held); 0 when it already is, the plan's horizon when it is not within it."""
+        gravity, its pitch rate held); 0 when it already is, the plan's horizon when it is not within it. With
+        ``after`` [s], the first such time at or after it (``after`` itself when the hip is within reach then)."""
         params = self.dynamics.robot.params
         side = 1.0 if stance == Mode.FRONT_STANCE else -1.0  # the front hip is at +hip_offset along the trunk
         reach = self.options.flight_reach * params.leg_length
         t = self._reach_grid
+        if after > 0.0:
+            t = t[t >= after - 1e-9]
+            if not t.size:
+                return float(self._reach_grid[-1])
         z = x[IZ] + x[NQ + IZ] * t - 0.5 * params.gravity * t * t - side * params.hip_offset * np.sin(
             x[IPITCH] + x[NQ + IPITCH] * t)
         if self.terrain is not None:  # the hip's height above the terrain under it
@@ -1047,6 +1094,7 @@ class MPCPolicy(Policy):
         o = self.options
         t0 = time.perf_counter()
         schedule = self._schedule(x)
+        self.clock.restep_foot = self.restep_foot
         knots = [max(1, round(d / h)) for d, h in zip(schedule.durations, self._phase_steps(len(schedule)))]
         problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
                                          dynamics=self.dynamics, constraints=self._constraints,
@@ -1211,6 +1259,8 @@ class MPCPolicy(Policy):
             u = self._startup_controller.torque(self._level(x), eff)
         else:
             u = self.tracker.control(x)
+            if self._pushing is not None:
+                u = self._pushing(x, u, self.tracker.modes[self.tracker.phase])
             self.tracker.advance(self.interface.control_dt)
         self.clock.tick()
         self._since_replan += self.interface.control_dt

@@ -1,0 +1,154 @@
+"""The MPC after a pitch kick: a re-step with the foot on the ground side when the ballistic flight takes the
+landing hip out of reach (``MPCOptions.restep``, ``GaitClock.restep_foot``), and torques that never pull a stance
+foot off the ground or out of the friction cone (``MPCOptions.min_stance_force``, ``PushingTorques``)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, Mode
+from hsddp_gym.core.references import paper_initial_state
+from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+from hsddp_gym.planners.policies.evaluation import run_episode
+from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy
+
+RESTEP_SEED = 30027
+"""``push_flight``: a nose-down kick of 6.8 rad/s just after the front foot's lift-off. The back hip rises out of
+reach; without the re-step the MPC waits for the back foot and falls nose-down at 1.3 s."""
+PULL_SEED = 30043
+"""``push_x3``: after the first push the front foot lands and its stance torques (the feedback law far from the
+plan) pull it off the ground at once, again and again; without the contact-consistent torques the MPC falls at
+1.85 s."""
+STEPS_2S = 400
+
+
+def _run(condition: str, options: MPCOptions, seed: int):
+    from hsddp_gym.envs.perturbations import make_env
+
+    env = make_env(condition)
+    try:
+        return run_episode(env, MPCPolicy.from_env(env, options=options), seed, max_steps=STEPS_2S)
+    finally:
+        env.close()
+
+
+def _flight_after_front_stance(clock: GaitClock) -> None:
+    clock.update(Mode.FRONT_STANCE, 0.0)
+    while clock.phase == 2:
+        clock.tick()
+        clock.update(Mode.FRONT_STANCE, 0.0)
+    for _ in range(6):  # 30 ms of the flight that lands the back foot: the front foot has swung
+        clock.tick()
+        assert clock.update(Mode.FLIGHT, 0.0) == Mode.FLIGHT
+    assert clock.phase == 3
+
+
+def test_a_planned_restep_ends_the_flight_at_the_other_foots_first_contact():
+    clock = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, restep=True)
+    _flight_after_front_stance(clock)
+    twin = clock.copy()
+    clock.restep_foot = FRONT
+    assert clock.copy().restep_foot == FRONT
+    clock.tick()
+    assert clock.update(Mode.FRONT_STANCE, 0.0) == Mode.FRONT_STANCE  # one contact step is enough: it was planned
+    assert clock.phase == 2 and clock.tau == 0.0 and clock.resynced and clock.restep_foot is None
+    # not planned: the landing is debounced (one contact step could be a graze)
+    twin.tick()
+    assert twin.update(Mode.FRONT_STANCE, 0.0) == Mode.FLIGHT and twin.phase == 3
+    twin.tick()
+    assert twin.update(Mode.FRONT_STANCE, 0.0) == Mode.FRONT_STANCE and twin.phase == 2
+    # the planned foot must be the foot of the stance before the flight
+    other = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, restep=True)
+    _flight_after_front_stance(other)
+    other.restep_foot = BACK
+    other.tick()
+    assert other.update(Mode.FRONT_STANCE, 0.0) == Mode.FLIGHT
+    # a clock without restep ignores the plan
+    off = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005)
+    _flight_after_front_stance(off)
+    off.restep_foot = FRONT
+    for _ in range(3):
+        off.tick()
+        assert off.update(Mode.FRONT_STANCE, 0.0) == Mode.FLIGHT
+
+
+def _policy_in_flight_3(tau: float = 0.02) -> MPCPolicy:
+    policy = MPCPolicy(options=MPCOptions())
+    policy.reset()
+    policy.clock.phase, policy.clock.tau = 3, tau
+    policy._plan_clock = policy.clock
+    return policy
+
+
+def _flight_state(pitch_rate: float) -> np.ndarray:
+    x = paper_initial_state().copy()
+    x[IZ], x[IPITCH] = 0.31, 0.0
+    x[NQ:] = 0.0
+    x[NQ] = 1.0
+    x[NQ + IPITCH] = pitch_rate
+    return x
+
+
+def test_restep_is_planned_only_when_the_landing_hip_leaves_reach_and_the_other_stays_in_it():
+    policy = _policy_in_flight_3()
+    nominal = policy._schedule(_flight_state(-2.5))  # the flight before the back stance of unperturbed bounding
+    assert list(nominal.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and policy.restep_foot is None
+    kicked = policy._schedule(_flight_state(6.0))  # nose-down: the back hip rises, the front hip stays low
+    assert list(kicked.modes[:4]) == [Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT, Mode.BACK_STANCE]
+    assert policy.restep_foot == FRONT
+    assert kicked.durations[0] == pytest.approx(nominal.durations[0])  # the landing keeps the flight's nominal end
+    off = MPCPolicy(options=MPCOptions(restep=False))
+    off.reset()
+    off.clock.phase, off.clock.tau = 3, 0.02
+    off._plan_clock = off.clock
+    late = off._schedule(_flight_state(6.0))
+    assert list(late.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE]  # the plans wait for the back foot
+    up = _flight_state(0.0)
+    up[NQ + IZ] = 2.0  # thrown up level: both hips leave reach, neither foot can land sooner
+    stretched = policy._schedule(up)
+    assert list(stretched.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and policy.restep_foot is None
+    assert policy._reach_time(up, Mode.BACK_STANCE, 0.052) > 0.052  # the back hip is out of reach at the end
+
+
+def test_neither_mechanism_acts_while_bounding_unpushed():
+    env = gym.make("hsddp_gym/Bounding-v0")
+    actions = []
+    for options in (MPCOptions(), MPCOptions(restep=False, min_stance_force=None)):
+        policy = MPCPolicy.from_env(env, options=options)
+        obs, _ = env.reset(seed=1)
+        policy.reset()
+        run = []
+        for _ in range(300):
+            run.append(policy(obs))
+            obs, _, terminated, _, _ = env.step(run[-1])
+            assert not terminated
+        actions.append(np.array(run))
+    env.close()
+    np.testing.assert_array_equal(actions[0], actions[1])
+
+
+@pytest.mark.slow
+def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
+    without = _run("push_flight", MPCOptions(restep=False), RESTEP_SEED)
+    assert without.fell and without.simulated_time < 1.5
+    result = _run("push_flight", MPCOptions(), RESTEP_SEED)
+    assert not result.fell and result.length == STEPS_2S
+
+
+@pytest.mark.slow
+def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
+    without = _run("push_x3", MPCOptions(min_stance_force=None), PULL_SEED)
+    assert without.fell and without.simulated_time < 2.0
+    policy_options = MPCOptions()
+    result = _run("push_x3", policy_options, PULL_SEED)
+    assert not result.fell and result.length == STEPS_2S
+
+
+def test_recovery_options_are_validated():
+    with pytest.raises(TypeError, match="restep"):
+        MPCOptions(restep=1)
+    with pytest.raises(ValueError, match="min_stance_force"):
+        MPCOptions(min_stance_force=-1.0)
