@@ -51,7 +51,8 @@ def test_forces_are_affine_in_the_torques_and_G_is_their_derivative():
     for i in range(4):
         e = np.zeros(4)
         e[i] = 1e-4
-        fd = (dyn.accelerations(x, u + e, Mode.BACK_STANCE)[1] - dyn.accelerations(x, u - e, Mode.BACK_STANCE)[1]) / 2e-4
+        plus, minus = dyn.accelerations(x, u + e, Mode.BACK_STANCE)[1], dyn.accelerations(x, u - e, Mode.BACK_STANCE)[1]
+        fd = (plus - minus) / 2e-4
         np.testing.assert_allclose(G[:, i], fd, rtol=1e-5, atol=1e-6)
     assert np.all(grf[[0, 1]] == 0.0)  # the front foot is in the air: no force
 
@@ -105,3 +106,27 @@ def test_arguments_are_validated():
         p(np.zeros(13), np.zeros(4), Mode.BACK_STANCE)
     with pytest.raises(ValueError, match="u"):
         p(np.zeros(14), np.zeros(3), Mode.BACK_STANCE)
+
+
+def test_on_a_slope_the_cone_is_the_surface_normals():
+    """With the surface's normals under the feet the forces are split along them: a projection keeps the force inside
+    the tilted cone, and a flat-ground normal gives the flat-ground result exactly."""
+    x = stance_state()
+    slope = 0.3
+    n = np.array([-slope, 1.0]) / np.hypot(slope, 1.0)
+    normals = np.array([n, n])
+    p = PushingTorques(LIMIT, min_force=2.0, friction=MU)
+    rng = np.random.default_rng(3)
+    tilted = 0
+    for _ in range(30):
+        u0 = rng.uniform(-LIMIT, LIMIT, 4)
+        u = p(x, u0, Mode.BACK_STANCE, normals)
+        fx, fz = p.forces(x, u, Mode.BACK_STANCE)[0][2:]
+        f_n, f_t = n[0] * fx + n[1] * fz, n[1] * fx - n[0] * fz
+        assert f_n >= 2.0 - 1e-6 and abs(f_t) <= MU * f_n + 1e-6
+        flat = p(x, u0, Mode.BACK_STANCE)
+        np.testing.assert_array_equal(p(x, u0, Mode.BACK_STANCE, np.array([[0.0, 1.0], [0.0, 1.0]])), flat)
+        tilted += not np.allclose(u, flat)
+    assert tilted > 0
+    with pytest.raises(ValueError, match="normals"):
+        p(x, np.zeros(4), Mode.BACK_STANCE, np.array([[0.0, 2.0], [0.0, 1.0]]))

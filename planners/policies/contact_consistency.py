@@ -11,7 +11,8 @@ limit.
 For a contact mode and a state the ground forces are affine in the torques, ``grf(u) = grf(0) + G u`` (the
 constrained dynamics, paper eq. 11): five evaluations of the constrained dynamics give them exactly, and the
 projection onto the intersection of the half-spaces and the torque box is computed with Dykstra's alternating
-projections. Torques that the contact can transmit are returned unchanged (one evaluation).
+projections. Torques that the contact can transmit are returned unchanged (one evaluation). On a terrain the normal
+and tangential forces are taken along the surface's normal under each foot (``normals``).
 """
 
 from __future__ import annotations
@@ -52,20 +53,24 @@ class PushingTorques:
         self._dynamics = dynamics if dynamics is not None else HybridDynamics()
         self.projections = 0
 
-    def _constraints(self, mode: Mode) -> tuple[np.ndarray, np.ndarray]:
-        """``(A (m, 4), c (m,))``: the contact's conditions on a ground-force vector ``A grf >= c`` for ``mode``."""
+    def _constraints(self, mode: Mode, normals) -> tuple[np.ndarray, np.ndarray]:
+        """``(A (m, 4), c (m,))``: the contact's conditions on a ground-force vector ``A grf >= c`` for ``mode``
+        (``normals``: None, or the surface's unit normals ``(2, 2)`` ``(n_x, n_z)`` under the front and back foot)."""
         rows, lows = [], []
         for foot in mode.feet:
-            t, n = 2 * foot, 2 * foot + 1  # grf = [f_front_x, f_front_z, f_back_x, f_back_z]
-            a = np.zeros(NGRF)
-            a[n] = 1.0
-            rows.append(a)
+            ix, iz = 2 * foot, 2 * foot + 1  # grf = [f_front_x, f_front_z, f_back_x, f_back_z]
+            normal, tangent = np.zeros(NGRF), np.zeros(NGRF)
+            if normals is None:  # flat ground: exactly z and x
+                normal[iz], tangent[ix] = 1.0, 1.0
+            else:
+                nx, nz = normals[foot]
+                normal[ix], normal[iz] = nx, nz
+                tangent[ix], tangent[iz] = nz, -nx
+            rows.append(normal)
             lows.append(self.min_force)
             if self.friction is not None:
                 for sign in (1.0, -1.0):
-                    a = np.zeros(NGRF)
-                    a[n], a[t] = self.friction, -sign
-                    rows.append(a)
+                    rows.append(self.friction * normal - sign * tangent)
                     lows.append(0.0)
         return np.array(rows), np.array(lows)
 
@@ -81,15 +86,21 @@ class PushingTorques:
             G[:, i] = self._dynamics._accelerations(x, du, mode)[1] - grf
         return grf, G
 
-    def __call__(self, x: np.ndarray, u: np.ndarray, mode: Mode) -> np.ndarray:
+    def __call__(self, x: np.ndarray, u: np.ndarray, mode: Mode, normals=None) -> np.ndarray:
         """Torques (4,) [N m] for state ``x`` (14,) and the plan's contact ``mode``: ``u`` (4,) clipped to the limit
-        in a flight or when the contact can transmit them, else their projection onto the set it can."""
+        in a flight or when the contact can transmit them, else their projection onto the set it can. ``normals``:
+        the ground's unit normals ``(2, 2)`` ``(n_x, n_z)`` under the front and back foot (None: flat ground)."""
         x = check_vector(x, NX, "x")
         u = np.clip(check_vector(u, NU, "u"), -self.torque_limit, self.torque_limit)
         mode = Mode(mode)
         if mode == Mode.FLIGHT:
             return u
-        A, c = self._constraints(mode)
+        if normals is not None:
+            normals = np.asarray(normals, dtype=np.float64)
+            if normals.shape != (2, 2) or not np.all(np.isfinite(normals)) or not np.allclose(
+                    np.linalg.norm(normals, axis=1), 1.0):
+                raise ValueError(f"normals must be None or two unit vectors (2, 2), got {normals!r}")
+        A, c = self._constraints(mode, normals)
         grf = self._dynamics._accelerations(x, u, mode)[1]
         if np.all(A @ grf >= c - 1e-9):
             return u
