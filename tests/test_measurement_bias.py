@@ -15,9 +15,9 @@ from hsddp_gym.planners.policies.estimation import MeasurementBias
 from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 
-BIASED_SEED = 9707
-"""A seed on which the MPC that takes the biased measurement as it is falls within 1 s under ``sensor_bias`` (its
-late-landing rule sees the landing foot at the ground 1-2 cm early)."""
+BIASED_SEED = 9787
+"""A seed on which the MPC that takes the biased measurement as it is falls within 1 s under ``sensor_bias`` (at
+0.5 s)."""
 
 
 @pytest.fixture(scope="module")

@@ -398,4 +398,5 @@ def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stan
     assert d.phase == 1
     with pytest.raises(TypeError, match="restep"):
         GaitClock(durs, 0.005, restep="yes")
-    assert MPCPolicy(EnvInterface()).clock.restep and not MPCPolicy(EnvInterface(), MPCOptions(restep=False)).clock.restep
+    assert MPCPolicy(EnvInterface()).clock.restep
+    assert not MPCPolicy(EnvInterface(), MPCOptions(restep=False)).clock.restep

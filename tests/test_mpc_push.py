@@ -148,31 +148,36 @@ def test_a_stance_foot_observed_in_the_air_is_never_planned_on_the_ground(lost_s
 
 
 def _push_episode(options: MPCOptions, seed: int):
-    """One ``make_env("push")`` episode of the MPC: (fell, the times [s] at which its clock was in a double stance,
-    the episode's push as ``info["push"]`` of the reset)."""
+    """One ``make_env("push_flight")`` episode of the MPC: (fell, the times [s] at which its clock was in a double
+    stance, the applied push ``info["push_applied"]``)."""
     from hsddp_gym.envs.perturbations import make_env as make_perturbed_env
     from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE
 
-    env = make_perturbed_env("push")
+    env = make_perturbed_env("push_flight")
     policy = MPCPolicy.from_env(env, options=options)
-    obs, info = env.reset(seed=seed)
+    obs, _ = env.reset(seed=seed)
     policy.reset()
-    double = []
-    for k in range(env.spec.max_episode_steps):
-        obs, _, terminated, truncated, _ = env.step(policy(obs))
-        if policy.clock.phase == DOUBLE_STANCE_PHASE:
-            double.append((k + 1) * env.unwrapped.dt)
-        if terminated or truncated:
-            return terminated, double, info["push"]
-    return False, double, info["push"]
+    double, push = [], None
+    try:
+        for k in range(env.spec.max_episode_steps):
+            obs, _, terminated, truncated, info = env.step(policy(obs))
+            push = info.get("push_applied", push)
+            if policy.clock.phase == DOUBLE_STANCE_PHASE:
+                double.append((k + 1) * env.unwrapped.dt)
+            if terminated or truncated:
+                return terminated, double, push
+    finally:
+        env.close()
+    return False, double, push
 
 
 def test_a_landing_on_both_feet_is_planned_as_a_double_stance():
-    """Development seed 567 of the ``push`` condition: a push at t = 3.66 s (Δv = (+0.13, +0.57) m/s, -3.7 rad/s)
-    brings the robot down on both feet at 3.93 s. The default plans the landing as a 40 ms double stance, then the
-    stance of the foot that landed, and bounds on; planned as that stance (``double_stance=None``) it falls."""
-    fell, double, push = _push_episode(MPCOptions(), 567)
-    assert push["time"] == pytest.approx(3.66, abs=0.01)
+    """Development seed 30026 of ``push_flight``: a push in a flight at t = 1.265 s (Δv = (+0.70, -0.58) m/s,
+    -4.9 rad/s) brings the robot down on both feet at 1.40 s. The default plans the landing as a 40 ms double stance,
+    then the stance of the foot that landed, and bounds on; planned as that stance (``double_stance=None``) it falls
+    at 1.8 s."""
+    fell, double, push = _push_episode(MPCOptions(), 30026)
+    assert push["time"] == pytest.approx(1.265, abs=0.01)
     assert not fell
     assert double and push["time"] < double[0] < push["time"] + 0.3  # entered at the landing, never before the push
     # each double stance lasts its 40 ms (8 control steps), none follows another at once
@@ -180,5 +185,5 @@ def test_a_landing_on_both_feet_is_planned_as_a_double_stance():
     assert all(len(run) <= 8 for run in runs)
     assert all(b[0] - a[-1] > 0.05 for a, b in zip(runs, runs[1:]))
     # without it
-    fell_off, double_off, _ = _push_episode(MPCOptions(double_stance=None), 567)
+    fell_off, double_off, _ = _push_episode(MPCOptions(double_stance=None), 30026)
     assert fell_off and not double_off
