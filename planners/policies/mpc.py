@@ -265,8 +265,8 @@ class MPCOptions:
             the landing foot lets the trunk rotate until it falls, a second stance of the other foot stops the
             rotation. The gait clock makes one when that foot lands again in the flight (after a real swing,
             debounced; at its first contact when planned, :attr:`GaitClock.restep_foot`): the clock goes on from
-            its stance, which gets its nominal duration. Unperturbed bounding never makes one (the landing hip is
-            within reach at every flight's end, and the foot that lifted off stays up).
+            its stance, which gets its nominal duration. Unperturbed bounding makes none (seeds 0-9 of the default env:
+            the landing hip is within reach at every flight's end, and the foot that lifted off stays up).
         min_stance_force: the least normal force [N] every foot the plan has on the ground must be able to push
             with: the torques sent are the nearest (Euclidean) to the plan's feedback law for which the contact
             pushes with at least this force inside the plan's friction cone (``plan_friction``), within the torque
