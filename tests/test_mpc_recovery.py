@@ -147,6 +147,14 @@ def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_f
     assert not result.fell and result.length == STEPS_5S
 
 
+def test_each_copy_projects_with_its_own_model_and_none_is_off():
+    policy = MPCPolicy(options=MPCOptions())
+    twin = policy.spawn()
+    assert twin._pushing is not policy._pushing and twin._pushing._dynamics is not policy._pushing._dynamics
+    assert policy._pushing.friction == policy.options.plan_friction
+    assert MPCPolicy(options=MPCOptions(min_stance_force=None))._pushing is None
+
+
 def test_recovery_options_are_validated():
     with pytest.raises(TypeError, match="restep"):
         MPCOptions(restep=1)

@@ -775,10 +775,7 @@ class MPCPolicy(Policy):
         params = self.dynamics.robot.params
         self._constraints = None if options.plan_friction is None else ConstraintSpec(
             torque_limit=params.torque_limit, friction=options.plan_friction)
-        self._pushing = PushingTorques(interface.torque_limit, options.min_stance_force,
-                                       options.plan_friction if options.plan_friction is not None else
-                                       self.dynamics.robot.params.friction) \
-            if options.min_stance_force is not None else None
+        self._pushing = self._make_pushing()
         self._startup_controller = HeuristicBoundingController(gains=HeuristicGains(speed=interface.target_speed),
                                                                height_offset=options.height_offset)
         """Acts while no plan exists yet (the episode's first re-plan failed): the schedule-driven heuristic
@@ -801,10 +798,19 @@ class MPCPolicy(Policy):
                            o.filter_position_noise, o.filter_velocity_noise, o.filter_acceleration_noise,
                            o.filter_innovation_gate, o.filter_restart_steps)
 
+    def _make_pushing(self) -> PushingTorques | None:
+        """The projection of the feedback law's torques (``min_stance_force``; its own constrained dynamics)."""
+        o = self.options
+        if o.min_stance_force is None:
+            return None
+        friction = o.plan_friction if o.plan_friction is not None else self.dynamics.robot.params.friction
+        return PushingTorques(self.interface.torque_limit, o.min_stance_force, friction)
+
     def _reset_copy_state(self) -> None:
         self.dynamics = HybridDynamics(dt=self.options.planner_dt, integrator=self.options.integrator)
         self._predictor = self._make_predictor()
         self._filter = self._make_filter()
+        self._pushing = self._make_pushing()
         if self._bias is not None:
             self._bias = MeasurementBias(self.dynamics.robot, self.interface.control_dt, self.options.bias_memory)
 
