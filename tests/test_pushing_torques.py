@@ -106,6 +106,10 @@ def test_arguments_are_validated():
         p(np.zeros(13), np.zeros(4), Mode.BACK_STANCE)
     with pytest.raises(ValueError, match="u"):
         p(np.zeros(14), np.zeros(3), Mode.BACK_STANCE)
+    with pytest.raises(ValueError, match="mode"):
+        p(np.zeros(14), np.zeros(4), 7)
+    with pytest.raises(ValueError, match="x"):
+        p(np.full(14, np.nan), np.zeros(4), Mode.BACK_STANCE)
 
 
 def test_on_a_slope_the_cone_is_the_surface_normals():

@@ -282,15 +282,20 @@ class Terrain:
             object.__setattr__(self, "_surface", out)
         return out
 
-    def surface_heights(self, xs) -> np.ndarray:
-        """Height [m] of the simulated surface (:meth:`surface_vertices`) at ``xs`` (any shape) [m], with the
-        contact kernel's arithmetic (``z_j + s (x - x_j)`` on the piece ``[x_j, x_j+1)``, level beyond the ends)."""
+    def _surface_pieces(self, xs):
+        """``(xs, vx, vz, j, s)``: ``xs`` as finite floats, the surface's vertices, the index ``j`` of the piece
+        ``[x_j, x_j+1)`` under each x (the end pieces beyond the ends) and that piece's slope ``s``."""
         xs = np.asarray(xs, dtype=np.float64)
         if not np.all(np.isfinite(xs)):
             raise ValueError("xs must be finite [m]")
         vx, vz = self.surface_vertices()
         j = np.clip(np.searchsorted(vx, xs, side="right") - 1, 0, len(vx) - 2)
-        s = (vz[j + 1] - vz[j]) / (vx[j + 1] - vx[j])
+        return xs, vx, vz, j, (vz[j + 1] - vz[j]) / (vx[j + 1] - vx[j])
+
+    def surface_heights(self, xs) -> np.ndarray:
+        """Height [m] of the simulated surface (:meth:`surface_vertices`) at ``xs`` (any shape) [m], with the
+        contact kernel's arithmetic (``z_j + s (x - x_j)`` on the piece ``[x_j, x_j+1)``, level beyond the ends)."""
+        xs, vx, vz, j, s = self._surface_pieces(xs)
         h = vz[j] + s * (xs - vx[j])
         return np.where(xs < vx[0], vz[0], np.where(xs >= vx[-1], vz[-1], h))
 
@@ -298,12 +303,7 @@ class Terrain:
         """Unit outward normals ``(..., 2)`` ``(n_x, n_z)`` of the simulated surface at ``xs`` (any shape) [m]:
         ``(-s, 1) / sqrt(1 + s^2)`` with ``s`` the slope of the piece under x (a point on a vertex belongs to the
         piece on its right)."""
-        xs = np.asarray(xs, dtype=np.float64)
-        if not np.all(np.isfinite(xs)):
-            raise ValueError("xs must be finite [m]")
-        vx, vz = self.surface_vertices()
-        j = np.clip(np.searchsorted(vx, xs, side="right") - 1, 0, len(vx) - 2)
-        s = (vz[j + 1] - vz[j]) / (vx[j + 1] - vx[j])
+        xs, vx, _, _, s = self._surface_pieces(xs)
         s = np.where((xs < vx[0]) | (xs >= vx[-1]), 0.0, s)
         inv = 1.0 / np.sqrt(1.0 + s * s)
         return np.stack([-s * inv, inv], axis=-1)

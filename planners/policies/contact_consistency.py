@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hsddp_gym.core.conventions import NGRF, NU, NX, Mode
+from hsddp_gym.core.conventions import NGRF, NU, NX, Mode, as_mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.util.validation import check_int, check_positive, check_vector
 
@@ -77,7 +77,7 @@ class PushingTorques:
     def forces(self, x: np.ndarray, u: np.ndarray, mode: Mode) -> tuple[np.ndarray, np.ndarray]:
         """``(grf (4,), G (4, 4))``: the ground forces [N] under torques ``u`` (4,) at state ``x`` (14,) in contact
         ``mode``, and their (constant) derivative with respect to the torques."""
-        mode = Mode(mode)
+        mode = as_mode(mode)
         grf = self._dynamics._accelerations(x, u, mode)[1]
         G = np.empty((NGRF, NU))
         for i in range(NU):
@@ -92,7 +92,7 @@ class PushingTorques:
         the ground's unit normals ``(2, 2)`` ``(n_x, n_z)`` under the front and back foot (None: flat ground)."""
         x = check_vector(x, NX, "x")
         u = np.clip(check_vector(u, NU, "u"), -self.torque_limit, self.torque_limit)
-        mode = Mode(mode)
+        mode = as_mode(mode)
         if mode == Mode.FLIGHT:
             return u
         if normals is not None:

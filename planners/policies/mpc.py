@@ -1271,10 +1271,11 @@ class MPCPolicy(Policy):
             u = self._startup_controller.torque(self._level(x), eff)
         else:
             u = self.tracker.control(x)
-            if self._pushing is not None:
+            plan_mode = self.tracker.modes[self.tracker.phase]
+            if self._pushing is not None and plan_mode != Mode.FLIGHT:
                 normals = None if self.terrain is None else \
                     self.terrain.surface_normals(self.dynamics.robot.foot_positions(x[:NQ])[:, 0])
-                u = self._pushing(x, u, self.tracker.modes[self.tracker.phase], normals)
+                u = self._pushing(x, u, plan_mode, normals)
             self.tracker.advance(self.interface.control_dt)
         self.clock.tick()
         self._since_replan += self.interface.control_dt
