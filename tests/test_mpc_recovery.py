@@ -1,6 +1,7 @@
 """The MPC after a pitch kick: a re-step with the foot on the ground side when the ballistic flight takes the
-landing hip out of reach (``MPCOptions.restep``, ``GaitClock.restep_foot``), and torques that never pull a stance
-foot off the ground or out of the friction cone (``MPCOptions.min_stance_force``, ``PushingTorques``)."""
+landing hip out of reach (``MPCOptions.restep``, ``GaitClock.restep_foot``), torques that never pull a stance
+foot off the ground or out of the friction cone (``MPCOptions.min_stance_force``, ``PushingTorques``), and a re-plan
+at once when the feedback law far from its plan would saturate the motors (``MPCOptions.replan_feedback``)."""
 
 from __future__ import annotations
 
@@ -18,10 +19,13 @@ from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy
 RESTEP_SEED = 30027
 """``push_flight``: a nose-down kick of 6.8 rad/s just after the front foot's lift-off. The back hip rises out of
 reach; without the re-step the MPC waits for the back foot and falls nose-down at 1.3 s."""
-PULL_SEED = 30014
-"""``push_x3``: after the third push the front foot lands and the stance torques of the feedback law, far from the
-plan, pull it off the ground within a control step, three times in 0.1 s (the clock finds the front stance and loses
-it again each time); without the contact-consistent torques the MPC falls at 3.9 s."""
+PULL_SEED = 30067
+"""``push_x3``: after the second push (2.88 s) the front foot lands and the stance torques of the feedback law, far
+from the plan, pull it off the ground within a control step, twice in 40 ms (the clock finds the front stance and
+loses it again each time); without the contact-consistent torques the MPC falls at 3.06 s."""
+FEEDBACK_SEED = 35040
+"""``push_x3``: after the first push (1.38 s, +4.7 rad/s nose-down) the feedback law of the plan made before it
+saturates the motors; re-planning only every 20 ms, the MPC falls at 1.78 s."""
 STEPS_2S = 400
 STEPS_5S = 1000
 
@@ -142,7 +146,7 @@ def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
 @pytest.mark.slow
 def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
     without = _run("push_x3", MPCOptions(min_stance_force=None), PULL_SEED, STEPS_5S)
-    assert without.fell and without.simulated_time < 4.0
+    assert without.fell and without.simulated_time < 3.5
     result = _run("push_x3", MPCOptions(), PULL_SEED, STEPS_5S)
     assert not result.fell and result.length == STEPS_5S
 
@@ -155,8 +159,45 @@ def test_each_copy_projects_with_its_own_model_and_none_is_off():
     assert MPCPolicy(options=MPCOptions(min_stance_force=None))._pushing is None
 
 
+def test_a_push_triggers_a_replan_at_once_and_none_waits_for_the_period():
+    env = gym.make("hsddp_gym/Bounding-v0")
+    push = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
+    counts = {}
+    try:
+        for name, options in (("default", MPCOptions()), ("off", MPCOptions(replan_feedback=None))):
+            policy = MPCPolicy.from_env(env, options=options)
+            obs, _ = env.reset(seed=1, options={"push": push})
+            policy.reset()
+            before = None
+            for k in range(220):  # to 1.1 s
+                if k == 200:
+                    before = policy.stats["feedback_replans"]
+                obs, _, terminated, _, _ = env.step(policy(obs))
+                assert not terminated
+            counts[name] = (before, policy.stats["feedback_replans"], policy.stats["replans"])
+    finally:
+        env.close()
+    before, after, replans = counts["default"]
+    assert after > before  # the push's first 0.1 s made re-plans at once
+    assert counts["off"][:2] == (0, 0)
+    assert replans > counts["off"][2]
+
+
+@pytest.mark.slow
+def test_a_saturating_feedback_law_is_replaced_at_once_and_the_mpc_falls_without():
+    without = _run("push_x3", MPCOptions(replan_feedback=None), FEEDBACK_SEED, STEPS_5S)
+    assert without.fell and without.simulated_time < 2.0
+    result = _run("push_x3", MPCOptions(), FEEDBACK_SEED, STEPS_5S)
+    assert not result.fell and result.length == STEPS_5S
+    assert result.policy_stats["feedback_replans"] > 0
+
+
 def test_recovery_options_are_validated():
     with pytest.raises(TypeError, match="restep"):
         MPCOptions(restep=1)
     with pytest.raises(ValueError, match="min_stance_force"):
         MPCOptions(min_stance_force=-1.0)
+    for bad in (0.0, -0.5):
+        with pytest.raises(ValueError, match="replan_feedback"):
+            MPCOptions(replan_feedback=bad)
+    assert MPCOptions(replan_feedback=None).replan_feedback is None

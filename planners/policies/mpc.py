@@ -27,7 +27,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor, projected onto the
    torques with which every planned stance foot pushes on the ground inside the friction cone
-   (``min_stance_force``, :class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`).
+   (``min_stance_force``, :class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`); when the
+   feedback term ``K_k (x - X_k)`` alone would reach ``replan_feedback`` of the torque limit, the state is too far
+   from the plan for its linearization and the MPC re-plans from it at once.
 
 Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
@@ -278,6 +280,13 @@ class MPCOptions:
             10,000 control steps of seeds 0-9 of the default env, at seed 4's start); each control step in a stance
             costs one evaluation of the constrained dynamics (about 20 us), a projection about 0.25 ms (five more and
             Dykstra's sweeps).
+        replan_feedback: re-plan at once, whatever ``replan_period`` says, when the plan's feedback term
+            ``K_k (x - X_k)`` asks any motor for more than this fraction of the torque limit (> 0; None:
+            re-plan every ``replan_period`` only). The feedback law is the plan's linearization; after a push, a
+            touchdown the plan did not expect or a stance that ends early, the state is far from the plan, the law
+            saturates the motors, the light legs whip at 50-170 rad/s, and the next periodic re-plan (up to 20 ms
+            later) starts from a state that is already lost. A plan made from the present state has no feedback term
+            at its first knot. Unperturbed bounding triggers it 0-2 times in 1,000 control steps.
     """
 
     # Timing
@@ -330,6 +339,7 @@ class MPCOptions:
     flight_reach: float | None = 0.85
     restep: bool = True
     min_stance_force: float | None = 0.0
+    replan_feedback: float | None = 0.5
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
@@ -359,6 +369,8 @@ class MPCOptions:
             raise TypeError(f"restep must be a bool, got {self.restep!r}")
         if self.min_stance_force is not None:
             check_positive(self.min_stance_force, "min_stance_force", allow_zero=True)
+        if self.replan_feedback is not None:
+            check_positive(self.replan_feedback, "replan_feedback")
         if self.flight_reach is not None:
             if check_in_range(self.flight_reach, 0.0, 1.0, "flight_reach") == 0.0:
                 raise ValueError("flight_reach must be in (0, 1] (a fraction of the leg length) or None, got 0.0")
@@ -733,7 +745,9 @@ class MPCPolicy(Policy):
         stats: ``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list),
             ``time_budget_stops`` (re-plans stopped by ``time_budget``: their best iterate is used, as any-time
             MPC does, and counted here rather than as failures), ``restarts`` and ``restarts_kept``
-            (``MPCOptions.restart_ratio``).
+            (``MPCOptions.restart_ratio``), ``delay_changes`` (``MPCOptions.delay_search``) and
+            ``feedback_replans`` (re-plans made at once by ``MPCOptions.replan_feedback``, also counted in
+            ``replans`` when they succeed).
         last_solution: the latest plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`).
         restep_foot: the foot (``FRONT`` or ``BACK``) the latest schedule plans a re-step with (None: none;
             ``MPCOptions.restep``).
@@ -851,7 +865,7 @@ class MPCPolicy(Policy):
         the state predicted ``action_delay`` steps ahead."""
         self._since_replan = np.inf
         self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
-                      "iterations": [], "time_budget_stops": 0, "delay_changes": 0}
+                      "iterations": [], "time_budget_stops": 0, "delay_changes": 0, "feedback_replans": 0}
         self._time = 0.0  # env time since reset [s]
         self.speed_bias = 0.0
         """The integral action on the plans' speed reference [m/s] (``MPCOptions.speed_integral_gain``)."""
@@ -1271,6 +1285,14 @@ class MPCPolicy(Policy):
             u = self._startup_controller.torque(self._level(x), eff)
         else:
             u = self.tracker.control(x)
+            if (o.replan_feedback is not None and self._since_replan > 0.0
+                    and np.abs(u - self.tracker.nominal()[1]).max() > o.replan_feedback * self.interface.torque_limit):
+                # far from the plan the feedback law alone would saturate the motors: plan again from here
+                self.stats["feedback_replans"] += 1
+                self._since_replan = 0.0
+                if self.replan(x, eff) and self._pending[4] == 0:
+                    self._activate_pending()
+                    u = self.tracker.control(x)
             plan_mode = self.tracker.modes[self.tracker.phase]
             if self._pushing is not None and plan_mode != Mode.FLIGHT:
                 normals = None if self.terrain is None else \
