@@ -40,6 +40,16 @@ def _run(condition: str, options: MPCOptions, seed: int, steps: int = STEPS_2S):
         env.close()
 
 
+def _bounds_and_falls_without(condition: str, without: MPCOptions, seed: int, steps: int, fall_before: float):
+    """The default MPC bounds all ``steps`` of ``condition``'s episode ``seed``; with the options ``without`` (the
+    default less one mechanism) it falls before ``fall_before`` seconds. Returns the default's episode."""
+    off = _run(condition, without, seed, steps)
+    assert off.fell and off.simulated_time < fall_before
+    result = _run(condition, MPCOptions(), seed, steps)
+    assert not result.fell and result.length == steps
+    return result
+
+
 def _flight_after_front_stance(clock: GaitClock) -> None:
     clock.update(Mode.FRONT_STANCE, 0.0)
     while clock.phase == 2:
@@ -137,18 +147,12 @@ def test_neither_mechanism_acts_in_unpushed_bounding_on_seed_1():
 
 @pytest.mark.slow
 def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
-    without = _run("push_flight", MPCOptions(restep=False), RESTEP_SEED)
-    assert without.fell and without.simulated_time < 1.5
-    result = _run("push_flight", MPCOptions(), RESTEP_SEED)
-    assert not result.fell and result.length == STEPS_2S
+    _bounds_and_falls_without("push_flight", MPCOptions(restep=False), RESTEP_SEED, STEPS_2S, fall_before=1.5)
 
 
 @pytest.mark.slow
 def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
-    without = _run("push_x3", MPCOptions(min_stance_force=None), PULL_SEED, STEPS_5S)
-    assert without.fell and without.simulated_time < 3.5
-    result = _run("push_x3", MPCOptions(), PULL_SEED, STEPS_5S)
-    assert not result.fell and result.length == STEPS_5S
+    _bounds_and_falls_without("push_x3", MPCOptions(min_stance_force=None), PULL_SEED, STEPS_5S, fall_before=3.5)
 
 
 def test_each_copy_projects_with_its_own_model_and_none_is_off():
@@ -185,10 +189,8 @@ def test_a_push_triggers_a_replan_at_once_and_none_waits_for_the_period():
 
 @pytest.mark.slow
 def test_a_saturating_feedback_law_is_replaced_at_once_and_the_mpc_falls_without():
-    without = _run("push_x3", MPCOptions(replan_feedback=None), FEEDBACK_SEED, STEPS_5S)
-    assert without.fell and without.simulated_time < 2.0
-    result = _run("push_x3", MPCOptions(), FEEDBACK_SEED, STEPS_5S)
-    assert not result.fell and result.length == STEPS_5S
+    result = _bounds_and_falls_without("push_x3", MPCOptions(replan_feedback=None), FEEDBACK_SEED, STEPS_5S,
+                                       fall_before=2.0)
     assert result.policy_stats["feedback_replans"] > 0
 
 

@@ -286,7 +286,8 @@ class MPCOptions:
             touchdown the plan did not expect or a stance that ends early, the state is far from the plan, the law
             saturates the motors, the light legs whip at 50-170 rad/s, and the next periodic re-plan (up to 20 ms
             later) starts from a state that is already lost. A plan made from the present state has no feedback term
-            at its first knot. Unperturbed bounding triggers it 0-2 times in 1,000 control steps.
+            at its first knot. Unperturbed bounding triggers it 4 times in the 10,000 control steps of seeds 0-9 of the
+            default env.
     """
 
     # Timing
