@@ -25,8 +25,9 @@ from hsddp_gym.planners.policies.mpc import GaitClock, env_terrain, late_landing
 TERRAIN_ENV = "hsddp_gym/Terrain-v0"
 FALL_SEED = 9801
 """A Terrain-v0 seed on which the flat-ground MPC falls at 4.0 s: past x = 3.84 m the ground steps 6 cm down (to
-8.6 cm below the start; it rose to 5.4 cm above the start at 1.2-1.8 m), and the MPC, which measures the ground only from
-the feet it has seen on it, comes down there with its trunk 12 cm above the ground, pitched 0.33 rad nose-down."""
+8.6 cm below the start; it rose to 5.4 cm above the start at 1.2-1.8 m), and the MPC, which measures the ground
+only from the feet it has seen on it, comes down there with its trunk 12 cm above the ground, pitched 0.33 rad
+nose-down."""
 
 
 DRIFT_SEED = 9812
