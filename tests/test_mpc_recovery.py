@@ -24,8 +24,9 @@ PULL_SEED = 30067
 from the plan, pull it off the ground within a control step, twice in 40 ms (the clock finds the front stance and
 loses it again each time); without the contact-consistent torques the MPC falls at 3.06 s."""
 FEEDBACK_SEED = 35040
-"""``push_x3``: after the first push (1.38 s, +4.7 rad/s nose-down) the feedback law of the plan made before it
-saturates the motors; re-planning only every 20 ms, the MPC falls at 1.78 s."""
+"""``push_x3``: after the first push (1.38 s, +4.7 rad/s nose-down) the feedback term of the plan made before it asks
+the motors for more than half their limit (the default re-plans at once 10 times between 1.39 and 1.53 s);
+re-planning only every 20 ms, the MPC falls at 1.78 s."""
 STEPS_2S = 400
 STEPS_5S = 1000
 
