@@ -79,12 +79,17 @@ class PushingTorques:
         ``mode``, and their (constant) derivative with respect to the torques."""
         mode = as_mode(mode)
         grf = self._dynamics._accelerations(x, u, mode)[1]
+        return grf, self._derivative(x, u, mode, grf)
+
+    def _derivative(self, x: np.ndarray, u: np.ndarray, mode: Mode, grf: np.ndarray) -> np.ndarray:
+        """``G (4, 4)``: the forces' derivative with respect to the torques, from the forces ``grf`` (4,) under
+        ``u`` and four more evaluations of the constrained dynamics (the forces are affine in the torques)."""
         G = np.empty((NGRF, NU))
         for i in range(NU):
             du = u.copy()
             du[i] += 1.0
             G[:, i] = self._dynamics._accelerations(x, du, mode)[1] - grf
-        return grf, G
+        return G
 
     def __call__(self, x: np.ndarray, u: np.ndarray, mode: Mode, normals=None) -> np.ndarray:
         """Torques (4,) [N m] for state ``x`` (14,) and the plan's contact ``mode``: ``u`` (4,) clipped to the limit
@@ -104,7 +109,7 @@ class PushingTorques:
         grf = self._dynamics._accelerations(x, u, mode)[1]
         if np.all(A @ grf >= c - 1e-9):
             return u
-        grf, G = self.forces(x, u, mode)
+        G = self._derivative(x, u, mode, grf)  # the forces under u are already known
         M = A @ G  # half-spaces M v >= b over the torques v
         b = c - A @ (grf - G @ u)
         self.projections += 1
