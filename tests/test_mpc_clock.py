@@ -90,8 +90,11 @@ def test_lost_stance_rule():
 
 @pytest.mark.slow
 def test_features_rebuilt_from_observations_match_the_mpc_clock():
+    """The learners' clock reads the observations' contact flags. The MPC's late-landing rule (``touchdown_height``)
+    reads its estimate's foot heights, which the learners do not rebuild: off here, the clocks agree step for step
+    (with it, seed 3 lands the MPC's clock one step early three times in 120)."""
     env = gym.make("hsddp_gym/Bounding-v0")
-    mpc = MPCPolicy.from_env(env, options=MPCOptions(warmup_iterations=5, max_iterations=1))
+    mpc = MPCPolicy.from_env(env, options=MPCOptions(warmup_iterations=5, max_iterations=1, touchdown_height=None))
     obs, _ = env.reset(seed=3)
     mpc.reset()
     O, live = [], []

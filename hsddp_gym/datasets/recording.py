@@ -281,7 +281,8 @@ _CAPTURE: dict = {}
 @contextlib.contextmanager
 def capture_plan_controls():
     """While active, every :meth:`hsddp_gym.planners.policies.tracking.PlanTracker.control` call records the knot it
-    used in the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot).
+    used in the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot) and the torques (4,) [N m] its law gave
+    (``"u"``).
 
     The trackers of :class:`~hsddp_gym.planners.policies.expert.PlanTrackingExpert` and
     :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`
@@ -296,7 +297,8 @@ def capture_plan_controls():
     def control(self, x):
         k = self.knot
         slot["X"], slot["U"], slot["K"] = self.X[k], self.U[k], self.K[k]
-        return original(self, x)
+        slot["u"] = original(self, x)
+        return slot["u"]
 
     PlanTracker.control = control
     try:
@@ -342,7 +344,10 @@ class DecisionRecorder:
         d = {k: v.copy() for k, v in self.last.items()}
         d["replanned"] = np.array(False)
         d["planner_failed"] = np.array(False)
-        d["expert_tracking"] = np.array("U" in slot)
+        # the law produced the action unless the policy changed its torques afterwards (the MPC's projection of
+        # stance torques that would push a foot off the ground)
+        law = np.clip(np.asarray(slot["u"], dtype=np.float64) / self.torque_limit, -1.0, 1.0) if "u" in slot else None
+        d["expert_tracking"] = np.array(law is not None and bool(np.allclose(action, law, rtol=0.0, atol=1e-6)))
         if "U" in slot:
             d["expert_state_nominal"] = np.array(slot["X"], dtype=np.float64)
             d["expert_action_nominal"] = np.array(slot["U"], dtype=np.float64) / self.torque_limit

@@ -57,7 +57,8 @@ def clock_from_params(params: dict):
 def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
     reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
-    (exactly what :class:`MLPPolicy` and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy` do while acting)."""
+    (exactly what :class:`MLPPolicy` does while acting, and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
+    with ``touchdown_height=None``: its late-landing rule reads the foot heights of its state estimate)."""
     from hsddp_gym.core.observation import DEFAULT_LAYOUT, state_from_observation
     from hsddp_gym.planners.policies.mpc import update_gait_clock
 

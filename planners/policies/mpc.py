@@ -165,8 +165,10 @@ class MPCOptions:
         durations: nominal (back stance, flight, front stance, flight) durations [s] (None: the paper's
             80/72/72/72 ms at every target speed). :data:`FAST_BOUNDING_DURATIONS` are the authors' 1.5 m/s gait.
             The speed comes from the stride (see ``speed_integral_gain``), not from the durations.
-        weights: cost weights, one of ``"paper"`` or ``"later"``
-            (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`; None: ``"paper"``).
+        weights: cost weights, ``"later"`` (the authors' later code: more weight on the joints and their rates,
+            less on the forward speed, half the torque weights) or ``"paper"`` (their code closest to the paper)
+            (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`). ``"later"`` trades a little
+            forward speed for holding the posture after pushes (the MPC page has the numbers).
         z_velocity: vertical-velocity references at the phase ends
             (:func:`hsddp_gym.planners.optimizer.problem.bounding_phase_cost`): ``"code"`` (the authors' +-1 m/s:
             real flights with clearance) or ``"paper"`` (0: the swing feet barely leave the ground and graze it).
@@ -316,7 +318,7 @@ class MPCOptions:
     warm_start_kd: float = 0.1
     # References
     durations: tuple | None = None
-    weights: str | None = None
+    weights: str = "later"
     z_velocity: str = "code"
     height_offset: float = 0.04
     plan_friction: float | None = 0.45
@@ -386,8 +388,8 @@ class MPCOptions:
             check_positive(self.speed_ramp, "speed_ramp")
         if self.durations is not None and (len(self.durations) != 4 or any(not (d > 0) for d in self.durations)):
             raise ValueError(f"durations must be 4 positive numbers [s], got {self.durations!r}")
-        if self.weights is not None and self.weights not in BOUNDING_WEIGHTS:
-            raise ValueError(f"weights must be None or one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
+        if self.weights not in BOUNDING_WEIGHTS:
+            raise ValueError(f"weights must be one of {BOUNDING_WEIGHTS}, got {self.weights!r}")
         if self.action_delay is not None:
             check_int(self.action_delay, "action_delay", minimum=0)
         check_int(self.delay_search, "delay_search", minimum=0)
@@ -771,7 +773,7 @@ class MPCPolicy(Policy):
             self.durations = tuple(float(d) for d in options.durations)
         else:
             self.durations = PAPER_BOUNDING_DURATIONS
-        self.weights = options.weights if options.weights is not None else "paper"
+        self.weights = options.weights
         self.horizon = options.horizon if options.horizon is not None else float(sum(self.durations))
         # times [s] at which _reach_time looks for the landing hip's reach: the plan's knots over its horizon
         self._reach_grid = np.arange(0.0, self.horizon + 0.5 * options.planner_dt, options.planner_dt)
