@@ -749,7 +749,8 @@ def build_parser() -> argparse.ArgumentParser:
                                     "figures and a summary",
                        description="The main job: the HS-DDP (al-reb) plan of the paper's bounding task "
                                    "beside its warm start (the heuristic controller up to 5 cycles, a repeated "
-                                   "cycle of the solved 5-cycle plan beyond), figures (motion.png, states.png, convergence.png), "
+                                   "cycle of the solved 5-cycle plan beyond), figures (motion.png, states.png, "
+                                   "convergence.png), "
                                    "solution.npz, then the HS-DDP MPC bounding in hsddp_gym/Bounding-v0 "
                                    "(mpc/summary.json, mpc/episode0.gif) and summary.json in --out.")
     p.add_argument("--out", default="runs/demo", help="output directory (default: %(default)s)")

@@ -246,6 +246,11 @@ def test_saved_clock_settings_round_trip_and_refuse_a_flight_time_limit():
     assert "max_wait" not in params
     rebuilt = clock_from_params(params)
     assert clock_params(rebuilt) == params
+    # every setting of the MPC's clock comes back, so the features a learner acts on are those it was trained on
+    for name in ("lost_stance_steps", "double_stance", "restep", "debounce_steps", "min_flight", "durations", "dt"):
+        assert getattr(rebuilt, name) == getattr(MPCPolicy(EnvInterface()).clock, name), name
+    assert rebuilt.restep is True
+    assert clock_from_params({k: v for k, v in params.items() if k != "restep"}).restep is False  # saved before
     assert clock_params(clock_from_params({**params, "max_wait": None})) == params
     with pytest.raises(ValueError, match="max_wait"):
         clock_from_params({**params, "max_wait": 0.03})

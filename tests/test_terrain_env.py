@@ -155,7 +155,8 @@ def test_a_flat_terrain_is_the_flat_ground_bit_for_bit():
 
 def test_a_terrain_far_away_changes_nothing_near_the_robot(robot):
     """The kernel's terrain code path (closest points, rotated Jacobian rows, projection rows along a direction) on a
-    level piece gives the flat ground's steps to float precision: the same contact states, states within 1e-7 relative."""
+    level piece gives the flat ground's steps to float precision: the same contact states, states within 1e-7
+    relative."""
     rng = np.random.default_rng(11)
     for _ in range(4):
         x0 = on_terrain(robot, Terrain.flat(), bound_state(robot, rng))

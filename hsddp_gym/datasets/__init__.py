@@ -64,7 +64,8 @@ taken at it (for t < T; the last row, where no action is taken, repeats the last
   ``expert_action_nominal (4,)`` u-bar / torque_limit (normalized, not clipped) of the plan knot whose
   feedback law ``u = u-bar + K (x - x-bar)`` produced the action, ``expert_tracking`` (True when it did;
   False also when the policy changed the law's torques afterwards, as the MPC's projection of stance torques that
-  would push a foot off the ground does; when no plan acted the nominal holds its last value, zeros before any), ``solver_iterations`` (DDP iterations),
+  would push a foot off the ground does; when no plan acted the nominal holds its last value, zeros before any),
+  ``solver_iterations`` (DDP iterations),
   ``solver_converged``, ``max_violation`` (largest constraint violation of the plan: touchdown foot height
   [m], torque [N m], friction and negative normal force [N], each in its own unit) and ``solve_ms`` of the
   latest solve, ``replanned`` (a solve was attempted at this step), ``planner_failed`` (it failed; the old

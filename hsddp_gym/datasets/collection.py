@@ -159,7 +159,8 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
     from tqdm import tqdm
 
     tasks = [EpisodeTask(i, int(seed) + i, policy_factory, dict(env_kwargs or {}), max_episode_steps, include_gains,
-                         float(action_noise), cond, env_id) for i, cond in enumerate(episode_conditions(conditions, episodes))]
+                         float(action_noise), cond, env_id)
+             for i, cond in enumerate(episode_conditions(conditions, episodes))]
     results: list[Episode | None] = [None] * episodes
     if checkpoint_dir is not None:
         Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)

@@ -380,7 +380,8 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
                "demonstrations": data.n_episodes, "transitions": len(data), "expert_labels": len(data),
                "gain_labels": hist["gain_labels"],
                "config": config.to_dict(), "loss": hist["loss"], "final_loss": hist["loss"][-1],
-               "wall_time_s": hist["wall_time_s"], "env_id": env_id or "hsddp_gym/Bounding-v0", "env_kwargs": env_kwargs,
+               "wall_time_s": hist["wall_time_s"], "env_id": env_id or "hsddp_gym/Bounding-v0",
+               "env_kwargs": env_kwargs,
                "max_episode_steps": max_episode_steps,
                "files": ["policy.npz", "loss.csv", "summary.json"]}
     if eval_episodes > 0:

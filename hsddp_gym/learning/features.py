@@ -27,9 +27,9 @@ def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict 
     return MPCPolicy(interface, o).clock.copy()
 
 
-_CLOCK_EXTRA = ("lost_stance_steps", "double_stance")
+_CLOCK_EXTRA = ("lost_stance_steps", "double_stance", "restep")
 """Optional :class:`hsddp_gym.planners.policies.mpc.GaitClock` settings, saved (and passed back) only when the clock
-has them."""
+has them (a learner saved without one gets the clock's default: off)."""
 
 
 def clock_params(clock) -> dict:
