@@ -62,6 +62,24 @@ def test_speed_governor_and_lost_stance_rule_leave_unpushed_bounding_unchanged()
     np.testing.assert_array_equal(a_bare, a_default)
 
 
+def test_options_from_a_record_of_an_earlier_version():
+    """``MPCOptions.from_record``: the stored options of a dataset come back; ``weights`` None (the paper's weights,
+    the default of earlier versions) is ``"paper"``; a field this version does not have is left out with a warning
+    naming it; anything else is checked as ``MPCOptions`` checks it."""
+    import dataclasses
+    import json
+
+    stored = json.loads(json.dumps(dataclasses.asdict(MPCOptions(durations=(0.08, 0.1, 0.08, 0.1)))))
+    assert MPCOptions.from_record(stored) == MPCOptions(durations=(0.08, 0.1, 0.08, 0.1))
+    old = {**stored, "weights": None, "plan_retouch": True}
+    with pytest.warns(UserWarning, match="plan_retouch"):
+        assert MPCOptions.from_record(old).weights == "paper"
+    with pytest.raises(ValueError, match="weights"):
+        MPCOptions.from_record({"weights": "mine"})
+    with pytest.raises(TypeError, match="options"):
+        MPCOptions.from_record([("weights", "paper")])
+
+
 def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_speed():
     x = np.zeros(14)
     policy = MPCPolicy()  # target 1.0 m/s, speed_ramp 0.5

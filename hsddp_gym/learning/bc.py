@@ -366,9 +366,11 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
 
     clock = None
     if config.features == "gait_clock":
+        from hsddp_gym.planners.policies.mpc import MPCOptions
+
         pol_meta = meta.get("policy", {})
         opts = pol_meta.get("options") if isinstance(pol_meta, dict) and pol_meta.get("name") == "mpc" else None
-        clock = make_gait_clock(interface, opts)
+        clock = make_gait_clock(interface, MPCOptions.from_record(opts) if opts is not None else None)
     policy, hist = train_bc(data, config, interface, callback=cb, clock=clock)
     if loss_bar is not None:
         loss_bar.close()

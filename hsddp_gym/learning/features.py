@@ -18,12 +18,13 @@ QUEUE_SLOT_SIZE = NU + 1
 
 
 # ================================================================================================ features
-def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options: dict | None = None):
+def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options=None):
     """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of an :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    built for ``interface`` with ``MPCOptions(**mpc_options)`` (default options)."""
+    built for ``interface`` with ``mpc_options``: an ``MPCOptions``, a dict of its fields (``MPCOptions(**d)``) or
+    None (default options)."""
     from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 
-    o = MPCOptions(**dict(mpc_options or {}))
+    o = mpc_options if isinstance(mpc_options, MPCOptions) else MPCOptions(**dict(mpc_options or {}))
     return MPCPolicy(interface, o).clock.copy()
 
 

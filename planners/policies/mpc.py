@@ -53,6 +53,7 @@ import dataclasses
 import functools
 import math
 import time
+import warnings
 
 import numpy as np
 
@@ -344,6 +345,26 @@ class MPCOptions:
     restep: bool = True
     min_stance_force: float | None = 0.0
     replan_feedback: float | None = 0.5
+
+    @classmethod
+    def from_record(cls, options: dict) -> MPCOptions:
+        """The options stored in a record (``dataclasses.asdict`` of an ``MPCOptions`` as JSON: a dataset's
+        ``metadata.json`` policy options, a workflow's summary) back as ``MPCOptions``. Records of earlier versions
+        load too: ``weights`` None (the paper's weights, the default then) becomes ``"paper"``, and fields this
+        version no longer has are left out with a ``UserWarning`` naming them."""
+        if not isinstance(options, dict):
+            raise TypeError(f"options must be a dict of MPCOptions fields, got {type(options).__name__}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        dropped = sorted(set(options) - known)
+        if dropped:
+            warnings.warn(f"MPCOptions.from_record: left out fields this version does not have: {dropped}",
+                          UserWarning, stacklevel=2)
+        opts = {k: v for k, v in options.items() if k in known}
+        if "weights" in opts and opts["weights"] is None:
+            opts["weights"] = "paper"
+        if opts.get("durations") is not None:
+            opts["durations"] = tuple(opts["durations"])
+        return cls(**opts)
 
     def __post_init__(self) -> None:
         if self.horizon is not None:
