@@ -279,19 +279,20 @@ class MPCOptions:
             along the surface's normal under each foot; None: the feedback law's torques as they are). Far from the
             plan (a touchdown earlier or later than planned, a push) the linear feedback law can ask a stance leg for
             torques that pull its foot off the ground or slide it; the light leg then whips away, the stance is
-            lost and found again at every control step. Unperturbed bounding rarely needs the projection (3 of the
-            10,000 control steps of seeds 0-9 of the default env, at seed 4's start); each control step in a stance
-            costs one evaluation of the constrained dynamics (about 20 us), a projection about 0.25 ms (five more and
-            Dykstra's sweeps).
+            lost and found again at every control step. Unperturbed bounding does not need the projection (none of
+            the 10,000 control steps of seeds 0-9 of the default env; 3 with ``weights="paper"``); each control step
+            in a stance costs one evaluation of the constrained dynamics (about 20 us), a projection about 0.25 ms
+            (five more and Dykstra's sweeps).
         replan_feedback: re-plan at once, whatever ``replan_period`` says, when the plan's feedback term
             ``K_k (x - X_k)`` asks any motor for more than this fraction of the torque limit (> 0; None:
             re-plan every ``replan_period`` only). The feedback law is the plan's linearization; after a push, a
             touchdown the plan did not expect or a stance that ends early, the state is far from the plan, the law
             saturates the motors, the light legs whip at 50-170 rad/s, and the next periodic re-plan (up to 20 ms
             later) starts from a state that is already lost. A plan made from the present state has no feedback term
-            at its first knot. Unperturbed bounding triggers it 4 times in the 10,000 control steps of seeds 0-9 of the
-            default env. A re-plan that fails (``stats["planner_failures"]``) leaves the previous plan acting and is
-            tried again at the next control step while the feedback term stays that large.
+            at its first knot. Unperturbed bounding never triggers it in the 10,000 control steps of seeds 0-9 of the
+            default env (4 times with ``weights="paper"``). A re-plan that fails (``stats["planner_failures"]``)
+            leaves the previous plan acting and is tried again at the next control step while the feedback term stays
+            that large.
     """
 
     # Timing
