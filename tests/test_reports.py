@@ -179,3 +179,35 @@ def test_without_option_drops_the_option_and_its_values():
     assert without_option(argv, "--made-with") == ["--bc", "a", "b", "--record", "r.json"]
     assert without_option(["--made-with", "x"], "--made-with") == []
     assert without_option(argv, "--absent") == argv
+
+
+def test_the_wilson_interval_matches_known_values_and_refuses_bad_counts():
+    lo, hi = tables.wilson_interval(0, 100)
+    assert lo == 0.0 and hi == pytest.approx(0.0370, abs=1e-4)
+    lo, hi = tables.wilson_interval(5, 100)
+    assert (lo, hi) == (pytest.approx(0.0215, abs=1e-4), pytest.approx(0.1118, abs=1e-4))
+    assert tables.wilson_interval(20, 20)[1] == 1.0
+    for k, n in ((1, 0), (-1, 10), (11, 10)):
+        with pytest.raises(ValueError, match="k <= n"):
+            tables.wilson_interval(k, n)
+
+
+def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
+    seeds = list(range(100, 140))  # two blocks of 20
+
+    def cell(fall_seeds):
+        return {"episodes": len(seeds), "falls": len(fall_seeds), "fall_seeds": fall_seeds}
+
+    data = {"seeds": seeds, "conditions": ["push", "push_x3"],
+            "results": {"mpc": {"push": cell([101]), "push_x3": cell([])},
+                        "heuristic": {"push": cell([125, 130]), "push_x3": cell([139])}}}
+    write_record(tmp_path / "results" / "robustness" / "pushes.json", data, "a test record",
+                 command="python experiments/robustness.py --record results/robustness/pushes.json")
+    text = tables.robustness_pushes(Store(tmp_path))
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in text.splitlines() if line.startswith("| ")}
+    # push: the first block has the MPC's one fall and none of the heuristic's; the second, the heuristic's two
+    assert rows["`push`"][0] == "1/40" and rows["`push`"][-1] == "1 of 2"
+    assert rows["`push_x3`"][-1] == "0 of 2"
+    assert rows["**all pushes**"][0] == "**1/80**" and rows["**all pushes**"][-1] == "1 of 4"
+    assert "`push` 101" in text and "2.5 % (" in text

@@ -969,6 +969,58 @@ def robustness_generality_summary(store: Store) -> str:
     return "\n".join([markdown_table(header, rows), "", note, source_line(store, "robustness/generality")])
 
 
+def wilson_interval(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The Wilson score interval (default 95 %) of a rate from ``k`` events in ``n`` trials: ``(low, high)`` in
+    [0, 1]. Unlike ``k/n ± z·se`` it stays inside [0, 1] and is not empty at ``k = 0``."""
+    if n <= 0 or not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n and n > 0, got k={k!r}, n={n!r}")
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * (p * (1 - p) / n + z * z / (4 * n * n)) ** 0.5
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def _rate(cell: dict) -> str:
+    lo, hi = wilson_interval(cell["falls"], cell["episodes"])
+    return f"{100 * cell['falls'] / cell['episodes']:.1f} % ({100 * lo:.1f}–{100 * hi:.1f})"
+
+
+PUSH_BLOCK = 20
+"""Seeds per cell of the generality table: the pushes record counts its blocks of this many seeds."""
+
+
+def robustness_pushes(store: Store) -> str:
+    """Falls under each push law on many fresh seeds (``robustness/pushes``), the MPC beside the heuristic: the fall
+    rate with its 95 % Wilson interval, and in how many blocks of :data:`PUSH_BLOCK` consecutive seeds (a cell of the
+    generality table) the MPC fell more often than the heuristic."""
+    d = store.data("robustness/pushes")
+    res, seeds = d["results"], list(d["seeds"])
+    blocks = [seeds[i:i + PUSH_BLOCK] for i in range(0, len(seeds) - PUSH_BLOCK + 1, PUSH_BLOCK)]
+    header = ["condition", "MPC falls", "MPC fall rate (95 % interval)", "heuristic falls",
+              "heuristic fall rate (95 % interval)", f"blocks of {PUSH_BLOCK} seeds with more MPC falls"]
+    rows = []
+    totals = {p: {"falls": 0, "episodes": 0} for p in ("mpc", "heuristic")}
+    worse_total = 0
+    for c in d["conditions"]:
+        mpc, heur = res["mpc"][c], res["heuristic"][c]
+        worse = sum(sum(s in blk for s in mpc["fall_seeds"]) > sum(s in blk for s in heur["fall_seeds"])
+                    for blk in blocks)
+        worse_total += worse
+        for p, cell in (("mpc", mpc), ("heuristic", heur)):
+            totals[p]["falls"] += cell["falls"]
+            totals[p]["episodes"] += cell["episodes"]
+        rows.append([f"`{c}`", _falls(mpc), _rate(mpc), _falls(heur), _rate(heur), f"{worse} of {len(blocks)}"])
+    rows.append(["**all pushes**", f"**{_falls(totals['mpc'])}**", _rate(totals["mpc"]),
+                 f"**{_falls(totals['heuristic'])}**", _rate(totals["heuristic"]),
+                 f"{worse_total} of {len(blocks) * len(d['conditions'])}"])
+    mpc_seeds = {c: res["mpc"][c]["fall_seeds"] for c in d["conditions"] if res["mpc"][c]["fall_seeds"]}
+    note = (f"Seeds {seeds[0]}-{seeds[-1]} (never used to develop or tune anything), one 1000-step episode (5 s) per "
+            f"seed and condition in Bounding-v0; the MPC fell on "
+            + (", ".join(f"`{c}` {', '.join(map(str, v))}" for c, v in mpc_seeds.items()) or "no seed")
+            + f". Two episodes at a time on {_machine_note(store, 'robustness/pushes')}.")
+    return "\n".join([markdown_table(header, rows), "", note, source_line(store, "robustness/pushes")])
+
+
 TABLES: dict[str, Callable[[Store], str]] = {
     "paper/task1": paper_task1,
     "paper/sto_variants": paper_sto_variants,
@@ -999,6 +1051,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "tasks/summary": tasks_summary,
     "robustness/generality": robustness_generality,
     "robustness/generality_summary": robustness_generality_summary,
+    "robustness/pushes": robustness_pushes,
 }
 """``{table id: renderer}``."""
 
