@@ -213,11 +213,44 @@ def generality(data: dict, out_dir) -> list[Path]:
     return [path]
 
 
+
+def pushes(data: dict, out_dir) -> list[Path]:
+    """``pushes.png``: the fall rate under each push law with its 95 % Wilson interval, the MPC beside the heuristic
+    (a ``robustness/pushes`` record)."""
+    from hsddp_gym.reports.tables import wilson_interval
+
+    conds = list(data["conditions"])
+    res = data["results"]
+    policies = [p for p in ("mpc", "heuristic") if p in res]
+    labels = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
+    plt = plotting._plt()
+    fig, ax = plt.subplots(figsize=(6.0, 2.8))
+    x = np.arange(len(conds))
+    width = 0.8 / max(len(policies), 1)
+    for i, p in enumerate(policies):
+        cells = [res[p][c] for c in conds]
+        rate = np.array([100.0 * c["falls"] / c["episodes"] for c in cells])
+        bounds = np.array([wilson_interval(c["falls"], c["episodes"]) for c in cells]) * 100.0
+        err = np.vstack([rate - bounds[:, 0], bounds[:, 1] - rate])
+        ax.bar(x + (i - (len(policies) - 1) / 2) * width, rate, width=width, color=f"C{i}", yerr=err, capsize=3,
+               label=labels.get(p, p))
+    ax.axhline(5.0, color="k", ls=":", lw=0.8, label="1 fall in 20")
+    ax.set_xticks(x, conds, fontsize=8)
+    ax.set_ylabel("falls [%] (95 % interval)")
+    episodes = res[policies[0]][conds[0]]["episodes"]
+    ax.set_title(f"{episodes} episodes per push law (seeds {data['seeds'][0]}-{data['seeds'][-1]})", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.grid(axis="y", alpha=0.3)
+    path = Path(out_dir) / "pushes.png"
+    plotting._save(fig, path, dpi=90)
+    return [path]
+
 FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
     "paper/task1": paper_task1,
     "paper/sto": paper_task2,
     "rl/curves": rl_curves,
     "robustness/generality": generality,
+    "robustness/pushes": pushes,
 }
 """``{record id: drawing function of the record's data}``; each writes its figures into the folder it is given."""
 
