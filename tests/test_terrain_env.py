@@ -182,11 +182,27 @@ def test_no_penetration_under_bang_bang_torques_in_every_physics_step(robot, nam
     """Every 1 ms step, 12 random start states dropped onto the terrain, 0.4 s of bang-bang joint torques (the torque
     limit, sign flipped every 5 ms): no foot ends a step more than 1 um below the surface under it (also checked
     along the surface's normal), the energy balance holds in every step, and the feet do touch the terrain."""
-    terrain = TERRAINS[name]
-    rng = np.random.default_rng(zlib.crc32(name.encode()))  # str hash() differs per process (PYTHONHASHSEED)
+    deepest, worst_excess, contacts = _bang_bang(robot, TERRAINS[name], zlib.crc32(name.encode()))
+    assert deepest <= 1e-6
+    assert worst_excess <= TOL_J
+    assert contacts > 100
+
+
+@pytest.mark.xfail(strict=True, reason="known: a foot that slides into the random terrain's 4.4 mm step up at "
+                                       "x = 1.056 m ends a step 4.4 mm inside it (seed 110: episode 4, step 372)")
+def test_no_penetration_where_a_foot_slides_into_a_small_step(robot):
+    deepest, _, _ = _bang_bang(robot, TERRAINS["random"], 110, episodes=5)
+    assert deepest <= 1e-6
+
+
+def _bang_bang(robot, terrain, seed: int, episodes: int = 12):
+    """``(deepest penetration [m], worst energy excess per step [J], contact steps)`` of ``episodes`` random start
+    states dropped onto ``terrain``, each 0.4 s of bang-bang torques (1 ms steps; random states and signs from
+    ``seed``)."""
+    rng = np.random.default_rng(seed)
     limit = BoundingEnv().torque_limit
     deepest, worst_excess, contacts = 0.0, -np.inf, 0
-    for _ in range(12):
+    for _ in range(episodes):
         sim = CompiledContactSimulator(robot, motor_speed_limits=(36.0, 50.0), terrain=terrain)
         sim.set_state(on_terrain(robot, terrain, bound_state(robot, rng)))
         e = sim.energy()
@@ -203,9 +219,7 @@ def test_no_penetration_under_bang_bang_torques_in_every_physics_step(robot, nam
             deepest = max(deepest, -float(vertical.min()), -float(normal.min()))
             contacts += int(sim.contact.sum())
         assert np.all(np.isfinite(sim.x))
-    assert deepest <= 1e-6
-    assert worst_excess <= TOL_J
-    assert contacts > 100
+    return deepest, worst_excess, contacts
 
 
 @pytest.mark.parametrize("name", ["step_up", "slope_up", "random"])
