@@ -211,3 +211,8 @@ def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
     assert rows["`push_x3`"][-1] == "0 of 2"
     assert rows["**all pushes**"][0] == "**1/80**" and rows["**all pushes**"][-1] == "1 of 4"
     assert "`push` 101" in text and "2.5 % (" in text
+    del data["results"]["heuristic"]
+    write_record(tmp_path / "results" / "robustness" / "pushes.json", data, "a test record",
+                 command="python experiments/robustness.py --record results/robustness/pushes.json")
+    with pytest.raises(ValueError, match="missing \\['heuristic'\\]"):
+        tables.robustness_pushes(Store(tmp_path))

@@ -182,6 +182,10 @@ def jumps(store, out_dir) -> list[Path]:
 FIGURE_DIR = "docs/figures"
 """Where the published figures live (relative to the repository's top folder)."""
 
+POLICY_LABELS = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
+"""Legend names of the policies in the MPC-beside-heuristic figures."""
+
+
 def generality(data: dict, out_dir) -> list[Path]:
     """``generality.png``: falls of 20 per condition, the MPC beside the heuristic, over the suite and the
     conditions the MPC was not built on (a ``robustness/generality`` record; the groups of its table)."""
@@ -192,14 +196,14 @@ def generality(data: dict, out_dir) -> list[Path]:
     order += [c for c in conds if c not in order]
     res = data["results"]
     policies = [p for p in ("mpc", "heuristic") if p in res]
-    labels = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
     plt = plotting._plt()
     fig, ax = plt.subplots(figsize=(7.5, 0.22 * len(order) + 1.2))
     y = np.arange(len(order))
     height = 0.8 / max(len(policies), 1)
     for i, p in enumerate(policies):
         falls = [res[p][c]["falls"] for c in order]
-        ax.barh(y + (i - (len(policies) - 1) / 2) * height, falls, height=height, color=f"C{i}", label=labels.get(p, p))
+        ax.barh(y + (i - (len(policies) - 1) / 2) * height, falls, height=height, color=f"C{i}",
+                label=POLICY_LABELS.get(p, p))
     episodes = max(res[p][c]["episodes"] for p in policies for c in order)
     ax.axvline(1, color="k", ls=":", lw=0.8, label="1 fall")
     ax.set_yticks(y, order, fontsize=7)
@@ -213,7 +217,6 @@ def generality(data: dict, out_dir) -> list[Path]:
     return [path]
 
 
-
 def pushes(data: dict, out_dir) -> list[Path]:
     """``pushes.png``: the fall rate under each push law with its 95 % Wilson interval, the MPC beside the heuristic
     (a ``robustness/pushes`` record)."""
@@ -222,7 +225,6 @@ def pushes(data: dict, out_dir) -> list[Path]:
     conds = list(data["conditions"])
     res = data["results"]
     policies = [p for p in ("mpc", "heuristic") if p in res]
-    labels = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
     plt = plotting._plt()
     fig, ax = plt.subplots(figsize=(6.0, 2.8))
     x = np.arange(len(conds))
@@ -233,7 +235,7 @@ def pushes(data: dict, out_dir) -> list[Path]:
         bounds = np.array([wilson_interval(c["falls"], c["episodes"]) for c in cells]) * 100.0
         err = np.vstack([rate - bounds[:, 0], bounds[:, 1] - rate])
         ax.bar(x + (i - (len(policies) - 1) / 2) * width, rate, width=width, color=f"C{i}", yerr=err, capsize=3,
-               label=labels.get(p, p))
+               label=POLICY_LABELS.get(p, p))
     ax.axhline(5.0, color="k", ls=":", lw=0.8, label="1 fall in 20")
     ax.set_xticks(x, conds, fontsize=8)
     ax.set_ylabel("falls [%] (95 % interval)")
@@ -244,6 +246,7 @@ def pushes(data: dict, out_dir) -> list[Path]:
     path = Path(out_dir) / "pushes.png"
     plotting._save(fig, path, dpi=90)
     return [path]
+
 
 FIGURES: dict[str, Callable[[dict, Path], list[Path]]] = {
     "paper/task1": paper_task1,

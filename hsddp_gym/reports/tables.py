@@ -995,6 +995,9 @@ def robustness_pushes(store: Store) -> str:
     generality table) the MPC fell more often than the heuristic."""
     d = store.data("robustness/pushes")
     res, seeds = d["results"], list(d["seeds"])
+    missing = [p for p in ("mpc", "heuristic") if p not in res]
+    if missing:
+        raise ValueError(f"robustness/pushes: the record needs the policies 'mpc' and 'heuristic', missing {missing}")
     blocks = [seeds[i:i + PUSH_BLOCK] for i in range(0, len(seeds) - PUSH_BLOCK + 1, PUSH_BLOCK)]
     header = ["condition", "MPC falls", "MPC fall rate (95 % interval)", "heuristic falls",
               "heuristic fall rate (95 % interval)", f"blocks of {PUSH_BLOCK} seeds with more MPC falls"]
