@@ -313,12 +313,15 @@ def _terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir
     Each row is ``d . foot = target`` with a unit direction ``d`` (``taxis`` 2): a sticking foot keeps its position
     along the tangent of the step's start and a contact foot ends on the tangent line of its contact point (both the
     LCP's frame); a foot that ends below the surface (a sliding one too, when that is not the same line: a concave
-    corner) is put back onto it at its closest point."""
+    corner) is put back onto it at its closest point. When that point's piece is parallel to the foot's contact row
+    and above it (the foot slid past a riser lower than the step's travel), the contact row moves onto it."""
     nt = 0
     held0 = False
     held1 = False
     stick0 = False
     stick1 = False
+    row0 = -1
+    row1 = -1
     for i in range(ncand):
         foot = cfoot[i]
         st = states[foot]
@@ -340,11 +343,13 @@ def _terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir
             tdir[nt, 0] = nx
             tdir[nt, 1] = nz
             tval[nt] = fa[foot]
-            nt += 1
             if foot == 0:
                 held0 = True
+                row0 = nt
             else:
                 held1 = True
+                row1 = nt
+            nt += 1
     for foot in range(2):
         if (stick0 if foot == 0 else stick1):
             continue  # pinned to its start, on the surface
@@ -353,7 +358,13 @@ def _terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir
         if fz < th:
             phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, np.inf)
             if (held0 if foot == 0 else held1) and nx * fn[foot, 0] + nz * fn[foot, 1] > 1.0 - 1e-6:
-                continue  # the same line as its contact row
+                # the contact row's direction: the same line, or a parallel one above it (a foot slid past a low
+                # riser onto the next level) that its row is moved to
+                row = row0 if foot == 0 else row1
+                target = nx * cx + nz * cz
+                if target > tval[row] + POSITION_TOLERANCE:
+                    tval[row] = target
+                continue
             tfoot[nt] = foot
             taxis[nt] = 2
             tdir[nt, 0] = nx
@@ -379,11 +390,16 @@ def _terrain_corner_rows(p, pts, nt, tfoot, taxis, tdir, tval, res, residual):
         phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, np.inf)
         rows_f = 0
         same = False
+        target = nx * cx + nz * cz
         for a in range(nt):
             if tfoot[a] == foot:
                 rows_f += 1
                 if tdir[a, 0] * nx + tdir[a, 1] * nz > 1.0 - 1e-6:
                     same = True
+                    if target > tval[a] + POSITION_TOLERANCE:  # a parallel line above the row's: it moves there
+                        res[a] += target - tval[a]
+                        tval[a] = target
+                        residual = max(residual, abs(res[a]))
         if rows_f >= 2 or same:
             continue
         tfoot[nt] = foot
