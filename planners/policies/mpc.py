@@ -29,7 +29,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    torques with which every planned stance foot pushes on the ground inside the friction cone
    (``min_stance_force``, :class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`); when the
    feedback term ``K_k (x - X_k)`` alone would reach ``replan_feedback`` of the torque limit, the state is too far
-   from the plan for its linearization and the MPC re-plans from it at once.
+   from the plan for its linearization and the MPC re-plans from it at once, solving that plan further than a
+   periodic one (``feedback_iterations`` DDP iterations in each of ``feedback_al_iterations`` outer iterations, the
+   multipliers and penalty updated between them).
 
 Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
@@ -293,6 +295,17 @@ class MPCOptions:
             default env (4 times with ``weights="paper"``). A re-plan that fails (``stats["planner_failures"]``)
             leaves the previous plan acting and is tried again at the next control step while the feedback term stays
             that large.
+        feedback_iterations: DDP iterations in each outer (augmented-Lagrangian) iteration of a warm-started
+            feedback re-plan (``replan_feedback``; None: solved as a periodic re-plan, ``max_iterations`` and no
+            outer-loop update). A periodic re-plan's single iteration only nudges the plan it shifts; after a push
+            that plan is far off, and the switching constraints' soft penalty lets its touchdowns miss the ground
+            by centimetres. The feedback re-plan, rare and made at the moment the robot is furthest from any plan,
+            is solved onto them: ``feedback_iterations`` DDP iterations, then the multipliers and the penalty are
+            updated (Algorithm 1) and the next outer iteration starts, ``feedback_al_iterations`` times, so at most
+            ``feedback_iterations * feedback_al_iterations`` iterations (and ``time_budget``). Its multipliers and
+            penalty are the warm start of the re-plans that follow. FB_NUMBERS
+        feedback_al_iterations: outer iterations of a feedback re-plan (>= 1; with 1 only ``feedback_iterations``
+            DDP iterations and no update).
     """
 
     # Timing
@@ -346,6 +359,8 @@ class MPCOptions:
     restep: bool = True
     min_stance_force: float | None = 0.0
     replan_feedback: float | None = 0.5
+    feedback_iterations: int | None = 3
+    feedback_al_iterations: int = 3
 
     @classmethod
     def from_record(cls, options: dict) -> MPCOptions:
@@ -397,6 +412,9 @@ class MPCOptions:
             check_positive(self.min_stance_force, "min_stance_force", allow_zero=True)
         if self.replan_feedback is not None:
             check_positive(self.replan_feedback, "replan_feedback")
+        if self.feedback_iterations is not None:
+            check_int(self.feedback_iterations, "feedback_iterations", minimum=1)
+        check_int(self.feedback_al_iterations, "feedback_al_iterations", minimum=1)
         if self.flight_reach is not None:
             if check_in_range(self.flight_reach, 0.0, 1.0, "flight_reach") == 0.0:
                 raise ValueError("flight_reach must be in (0, 1] (a fraction of the leg length) or None, got 0.0")
@@ -1141,8 +1159,10 @@ class MPCPolicy(Policy):
         vx = float(x[NQ])
         return float(min(max(target, vx - ramp), vx + ramp))
 
-    def replan(self, x: np.ndarray, mode: Mode) -> bool:
-        """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success."""
+    def replan(self, x: np.ndarray, mode: Mode, feedback: bool = False) -> bool:
+        """Plan from state ``x`` (14,) in (effective) contact ``mode``; returns True on success. ``feedback``: a
+        re-plan made at once because the feedback law would saturate (``replan_feedback``), solved with
+        ``feedback_iterations`` and ``feedback_al_iterations`` when it is warm-started."""
         o = self.options
         t0 = time.perf_counter()
         schedule = self._schedule(x)
@@ -1162,9 +1182,14 @@ class MPCPolicy(Policy):
         # after a lost stance at start-up) gets the first plan's iterations; a shifted plan, max_iterations
         cold = ws is None
         iters = o.warmup_iterations if cold else o.max_iterations
+        outer, total = (4 if cold else 2), iters
+        if feedback and not cold and o.feedback_iterations is not None:
+            # far from the plan: solve further, onto the switching constraints (outer-loop updates in between)
+            iters, outer = o.feedback_iterations, o.feedback_al_iterations
+            total = iters * outer
         self._solver.options = SolverOptions(method=o.method, max_ddp_iterations=iters,
-                                             max_total_ddp_iterations=iters, time_limit=o.time_budget,
-                                             max_al_iterations=4 if cold else 2, refresh_gains=o.refresh_gains)
+                                             max_total_ddp_iterations=total, time_limit=o.time_budget,
+                                             max_al_iterations=outer, refresh_gains=o.refresh_gains)
         try:
             sol = None
             if ws is not None:
@@ -1317,7 +1342,7 @@ class MPCPolicy(Policy):
                 # far from the plan the feedback law alone would saturate the motors: plan again from here
                 self.stats["feedback_replans"] += 1
                 self._since_replan = 0.0
-                if self.replan(x, eff) and self._pending[4] == 0:
+                if self.replan(x, eff, feedback=True) and self._pending[4] == 0:
                     self._activate_pending()
                     u = self.tracker.control(x)
             plan_mode = self.tracker.modes[self.tracker.phase]
