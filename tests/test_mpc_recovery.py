@@ -23,12 +23,18 @@ PULL_SEED = 30067
 """``push_x3``, the MPC with the paper's weights: after the second push (2.88 s) the front foot lands and the stance
 torques of the feedback law, far from the plan, pull it off the ground within a control step, twice in 40 ms (the
 clock finds the front stance and loses it again each time); without the contact-consistent torques it falls at
-3.06 s. With the default (later) weights, the MPC without them fell on none of ``push_x3``'s seeds 40100-40199."""
+3.06 s (its feedback re-plans solved as periodic ones, ``feedback_iterations=None``; solved further, they catch this
+seed as well). With the default (later) weights, the MPC without them fell on none of ``push_x3``'s seeds
+40100-40199."""
 FEEDBACK_SEED = 40002
 """``push`` (at 2.20 s: +0.44 m/s forward, +0.78 m/s up, -1.4 rad/s): the default re-plans at once 5 times in the
 episode's 5 s and bounds; re-planning only every 20 ms, the MPC falls at 2.5 s, 0.3 s after the push. The only such
 seed in 300 (``push``, ``push_stance`` and ``push_x3``, 40000-40099): with the later weights the feedback re-plans
 rarely decide an episode."""
+CONVERGED_SEED = 42192
+"""``push_stance`` (at 1.04 s, 10 ms into a front stance: +0.47 m/s forward, -0.19 m/s, a nose-up kick of -6.8
+rad/s): the default's three feedback re-plans, solved further (up to 3 x 3 iterations), bound; solved as periodic
+re-plans (one iteration, ``feedback_iterations=None``), the MPC falls at 1.29 s."""
 STEPS_2S = 400
 STEPS_5S = 1000
 
@@ -160,8 +166,8 @@ def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
 
 @pytest.mark.slow
 def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
-    _bounds_and_falls_without("push_x3", {"min_stance_force": None}, PULL_SEED, STEPS_5S, fall_before=3.5,
-                              weights="paper")
+    _bounds_and_falls_without("push_x3", {"min_stance_force": None, "feedback_iterations": None}, PULL_SEED,
+                              STEPS_5S, fall_before=3.5, weights="paper")
 
 
 def test_each_copy_projects_with_its_own_model_and_none_is_off():
@@ -202,6 +208,46 @@ def test_a_saturating_feedback_law_is_replaced_at_once_and_the_mpc_falls_without
     assert result.policy_stats["feedback_replans"] > 0
 
 
+def test_feedback_replans_are_solved_further_and_none_solves_them_as_periodic_ones():
+    """After a pitch kick, each re-plan made at once runs more than one DDP iteration (at most feedback_iterations *
+    feedback_al_iterations) and updates the multipliers between its outer iterations; a periodic re-plan runs one.
+    With feedback_iterations=None every warm-started re-plan runs one (a kept restart, solved from scratch, is left
+    out of both)."""
+    env = gym.make("hsddp_gym/Bounding-v0")
+    push = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
+    kinds = {}
+    try:
+        for name, options in (("default", MPCOptions()), ("off", MPCOptions(feedback_iterations=None))):
+            policy = MPCPolicy.from_env(env, options=options)
+            obs, _ = env.reset(seed=1, options={"push": push})
+            policy.reset()
+            feedback, periodic = [], []
+            for k in range(220):  # to 1.1 s
+                n_fb, n_replans = policy.stats["feedback_replans"], policy.stats["replans"]
+                n_restarts = policy.stats["restarts_kept"]
+                obs, _, terminated, _, _ = env.step(policy(obs))
+                assert not terminated
+                if k >= 100 and policy.stats["replans"] > n_replans and policy.stats["restarts_kept"] == n_restarts:
+                    made = policy.stats["iterations"][n_replans:]
+                    (feedback if policy.stats["feedback_replans"] > n_fb else periodic).extend(made)
+            kinds[name] = (feedback, periodic)
+    finally:
+        env.close()
+    feedback, periodic = kinds["default"]
+    o = MPCOptions()
+    assert feedback and max(feedback) > o.feedback_iterations  # an outer-loop update and more iterations after it
+    assert all(1 < n <= o.feedback_iterations * o.feedback_al_iterations for n in feedback)
+    assert periodic and set(periodic) == {o.max_iterations}
+    feedback_off, periodic_off = kinds["off"]
+    assert feedback_off and set(feedback_off) | set(periodic_off) == {o.max_iterations}
+
+
+@pytest.mark.slow
+def test_a_feedback_replan_solved_further_keeps_the_mpc_up_and_one_iteration_falls():
+    _bounds_and_falls_without("push_stance", {"feedback_iterations": None}, CONVERGED_SEED, STEPS_2S,
+                              fall_before=1.4)
+
+
 def test_recovery_options_are_validated():
     with pytest.raises(TypeError, match="restep"):
         MPCOptions(restep=1)
@@ -211,3 +257,8 @@ def test_recovery_options_are_validated():
         with pytest.raises(ValueError, match="replan_feedback"):
             MPCOptions(replan_feedback=bad)
     assert MPCOptions(replan_feedback=None).replan_feedback is None
+    for name in ("feedback_iterations", "feedback_al_iterations"):
+        for bad in (0, 1.5, "3"):
+            with pytest.raises((TypeError, ValueError), match=name):
+                MPCOptions(**{name: bad})
+    assert MPCOptions(feedback_iterations=None).feedback_iterations is None

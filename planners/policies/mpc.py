@@ -303,7 +303,9 @@ class MPCOptions:
             is solved onto them: ``feedback_iterations`` DDP iterations, then the multipliers and the penalty are
             updated (Algorithm 1) and the next outer iteration starts, ``feedback_al_iterations`` times, so at most
             ``feedback_iterations * feedback_al_iterations`` iterations (and ``time_budget``). Its multipliers and
-            penalty are the warm start of the re-plans that follow. FB_NUMBERS
+            penalty are the warm start of the re-plans that follow. On 3,000 push episodes on seeds never used
+            before, 35 falls against 55 with None (the MPC page has the numbers); a feedback re-plan takes about
+            11 ms (median) where a periodic one takes 3.5 ms.
         feedback_al_iterations: outer iterations of a feedback re-plan (>= 1; with 1 only ``feedback_iterations``
             DDP iterations and no update).
     """
