@@ -23,8 +23,8 @@ the flight."""
 SOFT_SEED = 9125
 """A seed on which the MPC with the paper's weights whose filter restarts at every innovation beyond the gate falls in
 the softest corner (at 1.23 s) when its feedback re-plans are solved as periodic ones (``feedback_iterations=None``;
-solved further, they catch this seed as well). With the default (later) weights, restarting at once fell on none of the softest
-corner's seeds 40000-40079 (3 s each)."""
+solved further, they catch this seed as well). With the default (later) weights, restarting at once fell on none of
+the softest corner's seeds 40000-40079 (3 s each)."""
 STEPS_2S = 400
 
 

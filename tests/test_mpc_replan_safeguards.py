@@ -90,11 +90,12 @@ def _pushed_episode(seed=PUSHED_SEED, **options):
 
 
 def test_a_missed_touchdown_does_not_wind_up_the_multipliers():
-    """Every periodic warm-started re-plan keeps the multipliers it was warm-started with (the previous plan's, shifted
-    phase by phase): while the touchdown after the push cannot be met, they do not grow. Restarts are off here (a restart
-    solves from scratch and brings its own multipliers); a plan from scratch (the first, or one whose schedule the
-    previous plan does not cover, as after this push) brings its own too, and a feedback re-plan solved further
-    updates them between its outer iterations (``feedback_al_iterations``): they do not grow beyond its updates."""
+    """Every periodic warm-started re-plan keeps the multipliers it was warm-started with (the previous plan's,
+    shifted phase by phase): while the touchdown after the push cannot be met, they do not grow. Restarts are off
+    here (a restart solves from scratch and brings its own multipliers); a plan from scratch (the first, or one whose
+    schedule the previous plan does not cover, as after this push) brings its own too, and a feedback re-plan solved
+    further updates them between its outer iterations (``feedback_al_iterations``): they do not grow beyond its
+    updates."""
     result, policy, lam, restarts, further = _pushed_episode(restart_ratio=None)
     assert not result.fell and not restarts
     assert policy.stats["replans"] > 100 and policy.stats["planner_failures"] == 0
