@@ -178,22 +178,38 @@ def test_each_copy_projects_with_its_own_model_and_none_is_off():
     assert MPCPolicy(options=MPCOptions(min_stance_force=None))._pushing is None
 
 
+KICK = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
+"""A nose-down pitch kick of 6 rad/s at 1 s (reset option ``push``), on seed 1 of the default env."""
+
+
+def _kicked(env, options: MPCOptions, on_step, steps: int = 220) -> MPCPolicy:
+    """The MPC with ``options`` through :data:`KICK` on seed 1 of ``env`` for ``steps`` control steps (220: to 1.1 s),
+    none of which may end the episode; after each step ``on_step(k, policy, before)`` with ``before`` the policy's
+    stats before that step (list entries as their lengths)."""
+    policy = MPCPolicy.from_env(env, options=options)
+    obs, _ = env.reset(seed=1, options={"push": KICK})
+    policy.reset()
+    for k in range(steps):
+        before = {key: len(v) if isinstance(v, list) else v for key, v in policy.stats.items()}
+        obs, _, terminated, _, _ = env.step(policy(obs))
+        assert not terminated
+        on_step(k, policy, before)
+    return policy
+
+
 def test_a_push_triggers_a_replan_at_once_and_none_waits_for_the_period():
     env = gym.make("hsddp_gym/Bounding-v0")
-    push = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
     counts = {}
     try:
         for name, options in (("default", MPCOptions()), ("off", MPCOptions(replan_feedback=None))):
-            policy = MPCPolicy.from_env(env, options=options)
-            obs, _ = env.reset(seed=1, options={"push": push})
-            policy.reset()
-            before = None
-            for k in range(220):  # to 1.1 s
+            at_1s = {}
+
+            def record(k, policy, before, at_1s=at_1s):
                 if k == 200:
-                    before = policy.stats["feedback_replans"]
-                obs, _, terminated, _, _ = env.step(policy(obs))
-                assert not terminated
-            counts[name] = (before, policy.stats["feedback_replans"], policy.stats["replans"])
+                    at_1s["feedback_replans"] = before["feedback_replans"]
+
+            policy = _kicked(env, options, record)
+            counts[name] = (at_1s["feedback_replans"], policy.stats["feedback_replans"], policy.stats["replans"])
     finally:
         env.close()
     before, after, replans = counts["default"]
@@ -214,22 +230,20 @@ def test_feedback_replans_are_solved_further_and_none_solves_them_as_periodic_on
     With feedback_iterations=None every warm-started re-plan runs one (a kept restart, solved from scratch, is left
     out of both)."""
     env = gym.make("hsddp_gym/Bounding-v0")
-    push = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
     kinds = {}
     try:
         for name, options in (("default", MPCOptions()), ("off", MPCOptions(feedback_iterations=None))):
-            policy = MPCPolicy.from_env(env, options=options)
-            obs, _ = env.reset(seed=1, options={"push": push})
-            policy.reset()
             feedback, periodic = [], []
-            for k in range(220):  # to 1.1 s
-                n_fb, n_replans = policy.stats["feedback_replans"], policy.stats["replans"]
-                n_restarts = policy.stats["restarts_kept"]
-                obs, _, terminated, _, _ = env.step(policy(obs))
-                assert not terminated
-                if k >= 100 and policy.stats["replans"] > n_replans and policy.stats["restarts_kept"] == n_restarts:
-                    made = policy.stats["iterations"][n_replans:]
-                    (feedback if policy.stats["feedback_replans"] > n_fb else periodic).extend(made)
+
+            def sort(k, policy, before, feedback=feedback, periodic=periodic):
+                # after the start-up's plans from scratch; a kept restart is solved from scratch too
+                if k >= 100 and policy.stats["replans"] > before["replans"] \
+                        and policy.stats["restarts_kept"] == before["restarts_kept"]:
+                    made = policy.stats["iterations"][before["replans"]:]
+                    fed_back = policy.stats["feedback_replans"] > before["feedback_replans"]
+                    (feedback if fed_back else periodic).extend(made)
+
+            _kicked(env, options, sort)
             kinds[name] = (feedback, periodic)
     finally:
         env.close()
