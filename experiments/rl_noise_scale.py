@@ -9,7 +9,7 @@ Writes ``noise_scale.md`` and ``noise_scale.json`` (every episode's return, fall
 
 Usage::
 
-    python experiments/rl_noise_scale.py --runs runs/rl_lin36/ppo/seed0 runs/ppo_sde37/ppo/seed0 \
+    python experiments/rl_noise_scale.py --runs runs/rl_lin36/ppo/seed0 runs/ppo_sde37/ppo/seed0 \\
         --out runs/noise_scale [--checkpoint final] [--scales 0 0.25 0.5 1] [--episodes 10] [--noise-seed 0]
 """
 

@@ -18,13 +18,13 @@ terrain-aware MPC, the task's expert, evaluated with their final weights) a four
 (``--learner-seed``), plays the terrain-aware MPC and every learner on the same seeds, none of which a dataset or
 training run used:
 
-    hsddp-gym dataset --env hsddp_gym/Terrain-v0 --policy mpc --episodes 24 --workers 1 --seed 1000 \
+    hsddp-gym dataset --env hsddp_gym/Terrain-v0 --policy mpc --episodes 24 --workers 1 --seed 1000 \\
         --action-noise 0.01 --out runs/terrain_mpc24_dart
     hsddp-gym train --algo bc --dataset runs/terrain_mpc24_dart --seed 0 --out runs/terrain_bc_s0   # seeds 0, 1, 2
-    hsddp-gym train --algo dagger --env hsddp_gym/Terrain-v0 --dataset runs/terrain_mpc24_dart --rounds 4 \
+    hsddp-gym train --algo dagger --env hsddp_gym/Terrain-v0 --dataset runs/terrain_mpc24_dart --rounds 4 \\
         --episodes-per-round 8 --seed 0 --out runs/terrain_dagger4_s0                              # seeds 0, 1
-    python experiments/terrain.py --bc runs/terrain_bc_s0 runs/terrain_bc_s1 runs/terrain_bc_s2 \
-        --dagger runs/terrain_dagger4_s0 runs/terrain_dagger4_s1 --record results/tasks/terrain.json \
+    python experiments/terrain.py --bc runs/terrain_bc_s0 runs/terrain_bc_s1 runs/terrain_bc_s2 \\
+        --dagger runs/terrain_dagger4_s0 runs/terrain_dagger4_s1 --record results/tasks/terrain.json \\
         --made-with "hsddp-gym dataset ..." "hsddp-gym train ..."
 
 The record keeps one line per episode (:data:`EPISODE_FIELDS`).

@@ -23,7 +23,7 @@ Usage:
     python experiments/train_rl.py --algos ppo sac --seeds 0 1 2 3 4 --steps 1000000 --out runs/rl  # the protocol
     python experiments/train_rl.py --algos ppo --preset parallel --vector-env --seeds 0 1 2 \\
         --steps 100000000 --time-limit 1200 --eval-freq 500000 --out runs/rl_parallel     # 64 robots, 20 min each
-    python experiments/train_rl.py --env hsddp_gym/Pronking-v0 --algos sac --seeds 0 --steps 1000000 \
+    python experiments/train_rl.py --env hsddp_gym/Pronking-v0 --algos sac --seeds 0 --steps 1000000 \\
         --time-limit 1500 --eval-freq 10000 --out runs/rl_pronk                           # the pronking task
 
 ``--env`` picks the env every run trains and is evaluated in (hsddp_gym.learning.sb3.ENV_IDS; default

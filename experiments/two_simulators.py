@@ -9,7 +9,7 @@ directories (``--bc DIR`` ...; skipped with a note when the files are missing). 
 
 Usage::
 
-    python experiments/two_simulators.py --out runs/two_sims --policies mpc heuristic bc sac --bc runs/bc \
+    python experiments/two_simulators.py --out runs/two_sims --policies mpc heuristic bc sac --bc runs/bc \\
         --sac runs/sac [--episodes 10] [--max-episode-steps N]
 """
 

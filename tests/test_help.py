@@ -1,9 +1,11 @@
 """Every command-line entry point explains itself: ``--help`` of every ``experiments/`` script and of every
 ``hsddp-gym`` subcommand prints its usage and exits 0 (a stray ``%`` in a help text makes argparse's ``--help`` raise,
-which nothing else would notice)."""
+which nothing else would notice), and the shell commands a script's help quotes keep their line continuations (a
+single backslash at a line's end in a docstring joins the lines)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -36,6 +38,8 @@ def test_every_experiment_script_prints_its_help(name, experiment, capsys):
     assert exit_.value.code == 0
     out = capsys.readouterr().out
     assert out.startswith("usage:") and "--help" in out
+    joined = re.findall(r"\S {4,}--[a-z]", script.__doc__ or "")  # "... --seed 1000         --action-noise ..."
+    assert not joined, f"a command in experiments/{name}.py's docstring lost its line continuation: {joined}"
 
 
 @pytest.mark.parametrize("command", SUBCOMMANDS)
