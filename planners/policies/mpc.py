@@ -23,7 +23,8 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    previous plan copy the same mode one cycle earlier;
 4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds); a plan that ends far above the
    previous plan's objective is solved again from scratch (``restart_ratio``), and the augmented Lagrangian's
-   multipliers and penalty are the warm start's (no outer-loop update between re-plans);
+   multipliers and penalty passed on to the next re-plan are the warm start's (no outer-loop update is carried
+   from one re-plan to the next, not even a feedback re-plan's);
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor, projected onto the
    torques with which every planned stance foot pushes on the ground inside the friction cone
@@ -31,7 +32,7 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    feedback term ``K_k (x - X_k)`` alone would reach ``replan_feedback`` of the torque limit, the state is too far
    from the plan for its linearization and the MPC re-plans from it at once, solving that plan further than a
    periodic one (``feedback_iterations`` DDP iterations in each of ``feedback_al_iterations`` outer iterations, the
-   multipliers and penalty updated between them).
+   multipliers and penalty updated between them and not carried on).
 
 Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
@@ -302,10 +303,12 @@ class MPCOptions:
             by centimetres. The feedback re-plan, rare and made at the moment the robot is furthest from any plan,
             is solved onto them: ``feedback_iterations`` DDP iterations, then the multipliers and the penalty are
             updated (Algorithm 1) and the next outer iteration starts, ``feedback_al_iterations`` times, so at most
-            ``feedback_iterations * feedback_al_iterations`` iterations (and ``time_budget``). Its multipliers and
-            penalty are the warm start of the re-plans that follow. On 3,000 push episodes on seeds never used
-            before, 35 falls against 55 with None (the MPC page has the numbers); a feedback re-plan takes about
-            11 ms (median) where a periodic one takes 3.5 ms.
+            ``feedback_iterations * feedback_al_iterations`` iterations (and ``time_budget``). The plan it makes is
+            kept; its updated multipliers and penalty are not: the re-plans that follow start from the ones it was
+            warm-started with. Its updates pull toward touchdowns that the state it was made from calls for;
+            carried from one feedback re-plan to the next, they wound up (to thousands) where a touchdown could not
+            be met, as for the MPC blind to the terrain of Terrain-v0. The MPC page has the measurements; a
+            feedback re-plan takes about 11 ms (median) where a periodic one takes 3.5 ms.
         feedback_al_iterations: outer iterations of a feedback re-plan (>= 1; with 1 only ``feedback_iterations``
             DDP iterations and no update).
     """
@@ -1185,7 +1188,8 @@ class MPCPolicy(Policy):
         cold = ws is None
         iters = o.warmup_iterations if cold else o.max_iterations
         outer, total = (4 if cold else 2), iters
-        if feedback and not cold and o.feedback_iterations is not None:
+        further = feedback and not cold and o.feedback_iterations is not None
+        if further:
             # far from the plan: solve further, onto the switching constraints (outer-loop updates in between)
             iters, outer = o.feedback_iterations, o.feedback_al_iterations
             total = iters * outer
@@ -1224,6 +1228,11 @@ class MPCPolicy(Policy):
             self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
             return False
         cs = self._solver.last_constraint_state
+        if further and cs is not None and self._cs is not None:
+            # keep the plan, not its outer-loop updates: the next re-plans start from this one's warm start
+            cs = cs.copy()
+            cs.lam = ws[3].copy()
+            cs.sigma = min(self._cs.sigma, o.sigma_max)
         self._cs = cs
         self.stats["replans"] += 1
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
