@@ -24,7 +24,8 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 4. HS-DDP runs at most ``max_iterations`` DDP iterations (and ``time_budget`` seconds); a plan that ends far above the
    previous plan's objective is solved again from scratch (``restart_ratio``), and the augmented Lagrangian's
    multipliers and penalty passed on to the next re-plan are the warm start's (no outer-loop update is carried
-   from one re-plan to the next, not even a feedback re-plan's);
+   from one re-plan to the next, not even a feedback re-plan's; a plan from scratch, and a restart kept by a
+   periodic re-plan, pass on their own);
 5. the new plan replaces the old one ``latency_steps`` control steps later (simulated solver latency);
    between re-plans the policy applies ``u = U_k + K_k (x - X_k)`` at the plan's cursor, projected onto the
    torques with which every planned stance foot pushes on the ground inside the friction cone
@@ -1229,7 +1230,8 @@ class MPCPolicy(Policy):
             return False
         cs = self._solver.last_constraint_state
         if further and cs is not None and self._cs is not None:
-            # keep the plan, not its outer-loop updates: the next re-plans start from this one's warm start
+            # keep the plan, not its outer-loop updates: the next re-plans start from this one's warm start (also
+            # when a restart from scratch was kept: its multipliers are this state's updates too)
             cs = cs.copy()
             cs.lam = ws[3].copy()
             cs.sigma = min(self._cs.sigma, o.sigma_max)
