@@ -133,3 +133,94 @@ def test_a_landing_foot_is_measured_from_where_the_measurement_puts_the_ground()
     est = MeasurementBias(robot, 0.005)
     est.bias[IZ] = -0.02
     assert est.ground_offset(q, 0) == pytest.approx(-0.02)
+
+
+def test_the_plans_put_the_ground_where_the_feet_put_it_and_search_for_it_before():
+    """The plans' ground (``_plan_ground``): before a stance has calibrated the bias estimate, the measured ground,
+    lowered from a flight's nominal end on by ``ground_search_speed`` times the lateness (at most the estimate's
+    height bound); once calibrated, where the estimate puts a foot that stands on the ground. The switching
+    constraints land the feet on it and the reference heights are measured from it."""
+    env = gym.make("hsddp_gym/Bounding-v0")
+    try:
+        policy = MPCPolicy.from_env(env)
+        obs, info = env.reset(seed=0)
+        policy.reset()
+        policy.act(obs)
+        x = np.concatenate([info["qpos"], info["qvel"]])
+        clock = policy.clock
+        clock.phase, clock.tau = 1, clock.durations[1] - 0.01  # a flight before its nominal end: the measured ground
+        assert policy._plan_ground() == 0.0
+        assert policy.replan(x, Mode.FLIGHT)
+        assert policy._pending[2].terrain is None
+        flat_refs = np.array([c.x_ref[IZ] for c in policy._pending[2].costs])
+        clock.tau = clock.durations[1] + 0.02  # 20 ms late
+        assert policy._plan_ground() == pytest.approx(-0.5 * 0.02)
+        assert policy.replan(x, Mode.FLIGHT)
+        problem, sol = policy._pending[2], policy._pending[1]
+        assert problem.terrain.height(0.0) == pytest.approx(-0.01)
+        later = [(p, f) for p, f in zip(problem.switch_phase, problem.switch_foot) if f >= 0][1:]
+        assert later and all(policy.dynamics.robot.foot_height(sol.X_pre[p, :NQ], f) < -0.005 for p, f in later)
+        assert np.allclose([c.x_ref[IZ] for c in problem.costs], flat_refs - 0.01)
+        clock.tau = clock.durations[1] + 1.0  # at most the estimate's height bound
+        assert policy._plan_ground() == pytest.approx(-policy._bias.limit[0])
+        clock.phase = 0  # a stance: the measured ground
+        assert policy._plan_ground() == 0.0
+        # calibrated: the ground where the feet put it, in every phase
+        policy._bias._info[0, 0] = MeasurementBias.CALIBRATION_STEPS
+        policy._bias.bias[IZ] = 0.03
+        assert policy._bias.calibrated
+        for phase in (0, 1, 2, 3):
+            clock.phase = phase
+            assert policy._plan_ground() == pytest.approx(0.03)
+        assert policy.replan(x, Mode.FLIGHT)
+        assert policy._pending[2].terrain.height(0.4) == pytest.approx(0.03)
+        off = MPCPolicy.from_env(env, options=MPCOptions(ground_search_speed=None))
+        off.reset()
+        off.clock.phase, off.clock.tau = 1, clock.durations[1] + 0.02
+        assert off._plan_ground() == 0.0
+        bare = MPCPolicy.from_env(env, options=MPCOptions(bias_memory=None))
+        bare.reset()
+        bare.clock.phase, bare.clock.tau = 1, clock.durations[1] + 0.02
+        assert bare._plan_ground() == 0.0
+        with pytest.raises(ValueError, match="ground_search_speed"):
+            MPCOptions(ground_search_speed=0.0)
+    finally:
+        env.close()
+
+
+def test_the_first_landing_under_a_height_bias_finds_the_ground():
+    """``sensor_bias`` seed 49103: the measurement puts the ground 2 cm above it. Without the search the episode's
+    first front foot hovers 1-2 cm above the ground, where a plan at the measured ground stops it, no flag reports
+    its touchdown, and the trunk sinks until the MPC falls (at 0.24 s); with it the foot finds the ground at 0.1 s
+    and the MPC bounds."""
+    from hsddp_gym.envs.perturbations import make_env
+
+    env = make_env("sensor_bias")
+    try:
+        bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(ground_search_speed=None)), 49103,
+                           max_steps=400)
+        assert bare.fell and bare.simulated_time < 0.5
+        policy = MPCPolicy.from_env(env)
+        result = run_episode(env, policy, 49103, max_steps=400)
+        assert not result.fell and result.length == 400 and result.forward_speed > 0.5
+        assert policy._bias.calibrated
+    finally:
+        env.close()
+
+
+def test_the_mpc_bounds_on_the_ground_where_the_feet_put_it_under_a_large_height_bias():
+    """A height sensor 4.5 cm low (the ``sensor_bias`` height bias one and a half times over), seed 48507. With the
+    plans at the measured ground the landing feet stopped 4 cm above the real one while the late-landing rule, which
+    measures them from the estimate, waited: the MPC fell at 0.93 s. The plans land the feet and hold the trunk on the
+    ground where the estimate puts it."""
+    from hsddp_gym.envs.perturbations import HardwareCondition
+
+    env = HardwareCondition("height_bias", "", observation_bias={"bias": {"z": -0.045}}).make(simulator="bounding")
+    try:
+        policy = MPCPolicy.from_env(env)
+        result = run_episode(env, policy, 48507, max_steps=400)
+        assert not result.fell and result.length == 400 and result.forward_speed > 0.5
+        assert policy._bias.bias[IZ] == pytest.approx(-0.045, abs=3e-3)
+        assert policy._problem.terrain.height(0.0) == pytest.approx(policy._bias.bias[IZ])
+    finally:
+        env.close()

@@ -16,15 +16,16 @@ from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateF
 from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import GaitClock, late_landing, update_gait_clock
 
-STIFF_SEED = 40003
-"""A seed on which the MPC without the late-landing rule falls within 1 s in the stiffest corner (at 0.47 s): the
-flags report no debounced touchdown of the back foot, and the trunk sinks to 0.13 m while the clock waits 260 ms in
-the flight."""
+STIFF_SEED = 40007
+"""A seed on which the MPC without the late-landing rule falls within 1 s in the stiffest corner (at 0.44 s) and the
+default bounds. (On the seed before, 40003, the flags reported no debounced touchdown of the back foot and the trunk
+sank to 0.13 m while the clock waited 260 ms in the flight; since the plans put the ground where the feet measure it,
+the MPC without the rule bounds its first 2 s there.)"""
 SOFT_SEED = 9125
-"""A seed on which the MPC with the paper's weights whose filter restarts at every innovation beyond the gate falls in
-the softest corner (at 1.23 s) when its feedback re-plans are solved as periodic ones (``feedback_iterations=None``;
-solved further, they catch this seed as well). With the default (later) weights, restarting at once fell on none of
-the softest corner's seeds 40000-40079 (3 s each)."""
+"""A softest-corner seed on which the MPC with the paper's weights whose filter restarts at every innovation beyond
+the gate (feedback re-plans solved as periodic ones, ``feedback_iterations=None``) fell at 1.23 s. Since the plans put
+the ground where the feet measure it, that variant falls neither here nor on any of the seeds 9120-9276 (3 s each);
+what remains is the mechanism: restarting at once takes about twice as many observations whole."""
 STEPS_2S = 400
 
 
@@ -47,14 +48,28 @@ def test_stiffest_corner_bounds_with_the_late_landing_rule_and_falls_without():
     assert result.forward_speed > 0.5
 
 
-def test_softest_corner_bounds_with_the_persistent_restart_and_falls_without():
+def test_softest_corner_bounds_and_the_persistent_restart_leaves_single_outliers_to_the_gain():
+    """In the softest corner nearly every impact is beyond the innovation gate. Restarting only on a persistent
+    innovation (``filter_restart_steps=2``) corrects a single step's outlier with the filter's gain; restarting at once
+    takes each of them whole, handing the measured velocities of the contact's vibration to the feedback law."""
+    pytest.importorskip("mujoco")
+    from hsddp_gym.envs.perturbations import make_env
+
     steps = 600  # 3 s
-    restart_at_once = _run("contact_softest", MPCOptions(weights="paper", filter_restart_steps=1,
-                                                         feedback_iterations=None), SOFT_SEED, steps)
-    assert restart_at_once.fell
-    for options in (MPCOptions(weights="paper"), MPCOptions()):
-        result = _run("contact_softest", options, SOFT_SEED, steps)
-        assert not result.fell and result.length == steps
+    env = make_env("contact_softest")
+    try:
+        restarts = {}
+        for name, options in (("paper", MPCOptions(weights="paper")), ("default", MPCOptions()),
+                              ("at once", MPCOptions(weights="paper", filter_restart_steps=1,
+                                                     feedback_iterations=None))):
+            policy = MPCPolicy.from_env(env, options=options)
+            result = run_episode(env, policy, SOFT_SEED, max_steps=steps)
+            assert not result.fell and result.length == steps
+            restarts[name] = (policy._filter.restarts, policy._filter.outliers)
+    finally:
+        env.close()
+    assert restarts["paper"][1] > 50 and restarts["default"][1] > 50  # single-step outliers, left to the gain
+    assert restarts["at once"][1] == 0 and restarts["at once"][0] > 1.5 * restarts["paper"][0]
 
 
 @pytest.mark.parametrize("condition", ["contact_softest", "contact_pyramidal", "contact_large_feet"])

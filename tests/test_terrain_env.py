@@ -155,6 +155,18 @@ def test_a_flat_terrain_is_the_flat_ground_bit_for_bit():
     assert all(np.array_equal(np.vstack(runs[0][1:]), np.vstack(r[1:])) for r in runs[1:])
 
 
+def test_a_raised_terrain_is_the_same_profile_shifted_everywhere():
+    base = Terrain((0.5, 1.0, 1.5), (0.0, 0.05, -0.02, 0.1), (False, False, True, False), (0.0, 0.1, 0.0, -0.05))
+    xs = np.linspace(-1.0, 3.0, 401)
+    for dz in (-0.03, 0.0, 0.02):
+        raised = base.raised(dz)
+        assert raised.edges == base.edges and raised.gaps == base.gaps and raised.slopes == base.slopes
+        assert np.allclose(raised.heights(xs), base.heights(xs) + dz, atol=1e-15)
+    assert not Terrain.flat().raised(-0.01).is_flat and Terrain.flat().raised(0.0).is_flat
+    with pytest.raises(ValueError, match="dz"):
+        base.raised(float("nan"))
+
+
 def test_a_terrain_far_away_changes_nothing_near_the_robot(robot):
     """The kernel's terrain code path (closest points, rotated Jacobian rows, projection rows along a direction) on a
     level piece gives the flat ground's steps to float precision: the same contact states, states within 1e-7

@@ -220,6 +220,11 @@ class Terrain:
         return cls(tuple(data["edges"]), tuple(data["levels"]), tuple(data["gaps"]),
                    None if slopes is None else tuple(slopes))
 
+    def raised(self, dz: float) -> Terrain:
+        """The same profile ``dz`` [m] higher (lower if ``dz < 0``): every level, gap floors included."""
+        dz = _real(dz, "dz")
+        return Terrain(self.edges, tuple(v + dz for v in self.levels), self.gaps, self.slopes)
+
     # ------------------------------------------------------------------ queries
     @property
     def is_flat(self) -> bool:

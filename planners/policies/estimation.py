@@ -155,7 +155,8 @@ class MeasurementBias:
     Whatever else holds a stance foot off the flat ground is read as a bias too: a foot that sinks into a soft
     contact or stands on a step. For :meth:`ground_offset` that is right (a landing foot will sink as deep); for
     :meth:`correct` it is not (in a flight the trunk is where the sensors say, not where the sunk feet put it), so
-    the MPC uses the estimate as the landing feet's ground only. A sample whose residual exceeds ``gate`` [m]
+    the MPC uses the estimate as the ground (of its plans and of its late-landing rule) and never corrects the
+    state with it. A sample whose residual exceeds ``gate`` [m]
     (a foot flagged on the ground far from it) is not used; the estimates are bounded by ``limit`` (``(height [m],
     pitch [rad])``). Velocities are not estimated: on a compliant contact a stance foot is not at rest (it sinks
     and rebounds), and a velocity bias of the size of the measurement noise is the feedback's business (the MPC's

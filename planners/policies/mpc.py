@@ -15,7 +15,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
    flight whose landing hip a pitch kick takes out of reach is planned as a re-step of the other foot, and a foot
    that lands again in the flight after its stance starts that stance again (``restep``), a flight
    past its nominal end whose landing foot the state puts at the ground ends, whatever that foot's contact flag
-   says (``touchdown_height``, :func:`late_landing`; the ground where the feet on it put it, ``bias_memory``);
+   says (``touchdown_height``, :func:`late_landing`); the plans and that rule put the ground where the feet on it
+   put it (``bias_memory``), and a late flight before they have put it anywhere plans its touchdown below the
+   measured ground (``ground_search_speed``);
 3. the previous plan, aligned by phase with the contact events
    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`),
    is shifted onto the new schedule as the warm start (controls, states and gains for a feedback first
@@ -132,6 +134,15 @@ class MPCOptions:
             stiff contact a landing foot can bounce at the control rate and be in the air at the end of every step,
             and a clock that waits for the flag keeps the plan in the flight while the trunk sinks. Raise it for a
             noisy state estimate of the feet; None for an env whose flags never miss a touchdown.
+        ground_search_speed: the rate [m/s] at which a late flight's plans lower the ground its landing foot
+            is to meet, until a stance has calibrated where the measurement puts the ground (``bias_memory``; None:
+            the plans put it at the measured ground until then). Before that calibration nothing says where the
+            ground is: a biased height sensor puts it centimetres above or below the measured ``z = 0``. A plan
+            whose switching constraint holds the landing foot at ``z = 0`` stops it there, above a ground that is
+            lower, and the foot hovers while the trunk sinks (the episode's first landing under a height bias). From
+            the flight's nominal end on, the plans put the ground this rate times the lateness below the measured
+            one, at most the bias estimate's height bound (:class:`~hsddp_gym.planners.policies.estimation.
+            MeasurementBias`, 5 cm): the foot keeps reaching down until its contact flag reports the ground.
 
     Attributes: Solver
         method: HS-DDP constraint handling: ``"al-reb"`` (augmented Lagrangian on the switching constraints and
@@ -225,11 +236,12 @@ class MPCOptions:
             (None: none). A foot the contact flags put on the ground is at the ground, so the height at which the
             measurement puts it is the measurement's error seen at the foot; the two feet of a gait cycle give the
             height and the pitch bias, estimated by least squares over the observations with this forgetting
-            (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`). The late-landing rule
-            (``touchdown_height``) measures a landing foot from where the measurement puts a foot on the ground, and
-            waits for the first stance's calibration before it acts. The estimate is not subtracted from the state:
-            a foot that sinks into a soft contact reads as a bias too, right for where a landing foot stops, wrong
-            for the trunk in a flight.
+            (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`). Once a stance has calibrated it, the
+            plans land the feet on the ground where the measurement puts it and hold the trunk above it, and the
+            late-landing rule (``touchdown_height``) measures a landing foot from there; before, the plans search for
+            the ground (``ground_search_speed``) and the rule waits. The estimate is not subtracted from the state: a
+            foot that sinks into a soft contact reads as a bias too, right for where a landing foot stops, wrong for
+            the trunk in a flight.
         action_delay: control steps between an action's return and its execution (None: the env's,
             ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
         latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
@@ -326,6 +338,7 @@ class MPCOptions:
     debounce_steps: int = 2
     min_flight: float = 0.3
     touchdown_height: float | None = 0.01
+    ground_search_speed: float | None = 0.5
     # Solver
     method: str = "al-reb"
     max_iterations: int = 1
@@ -412,6 +425,8 @@ class MPCOptions:
             check_positive(self.double_stance, "double_stance")
         if self.touchdown_height is not None:
             check_positive(self.touchdown_height, "touchdown_height")
+        if self.ground_search_speed is not None:
+            check_positive(self.ground_search_speed, "ground_search_speed")
         if not isinstance(self.restep, (bool, np.bool_)):
             raise TypeError(f"restep must be a bool, got {self.restep!r}")
         if self.min_stance_force is not None:
@@ -1178,8 +1193,9 @@ class MPCPolicy(Policy):
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
                                          knots=np.array(knots, dtype=np.int64), height_offset=o.height_offset)
-        if self.terrain is not None:
-            problem = self._on_terrain(problem, self.plan_speed(x))
+        level = self._plan_ground()
+        if self.terrain is not None or level != 0.0:
+            problem = self._on_terrain(problem, self.plan_speed(x), level)
         try:
             ws = None if self.last_solution is None else self._warm_start(problem, x)
         except ValueError:
@@ -1244,20 +1260,43 @@ class MPCPolicy(Policy):
         self._pending = (new_tracker, sol, problem, cs.lam.copy() if cs is not None else None, o.latency_steps)
         return True
 
-    def _on_terrain(self, problem: HybridProblem, speed: float) -> HybridProblem:
-        """``problem`` (a flat-ground bounding problem) on :attr:`terrain`: the switching constraint of a landing
-        foot is its height above the terrain under it (``problem.terrain``), and each phase's reference trunk height
-        is raised by the ground (:meth:`_ground`) under the trunk where it is expected at the phase's end (the
-        re-plan's x moving at the plan's ``speed`` [m/s])."""
+    def _plan_ground(self) -> float:
+        """The height [m] at which a plan made now puts the ground in the measurement's frame, above the flat ground
+        (or :attr:`terrain`): with a calibrated bias estimate, its height bias (where the measurement puts a foot that
+        stands on the ground, :class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`); before the
+        calibration, 0, lowered in a flight past its nominal end by ``ground_search_speed`` times the lateness, at
+        most the estimate's height bound (the search for the ground); 0 without an estimate."""
+        bias = self._bias
+        if bias is None:
+            return 0.0
+        if bias.calibrated:
+            return float(bias.bias[IZ])
+        speed, clock = self.options.ground_search_speed, self.clock
+        if speed is None or clock.phase not in (1, 3):
+            return 0.0
+        late = clock.tau - clock.durations[clock.phase]
+        if late < -1e-9:
+            return 0.0
+        return -float(min(speed * max(late, 0.0), bias.limit[0]))
+
+    def _on_terrain(self, problem: HybridProblem, speed: float, level: float = 0.0) -> HybridProblem:
+        """``problem`` (a flat-ground bounding problem) on :attr:`terrain` raised by ``level`` [m]
+        (:meth:`_plan_ground`): the switching constraint of a landing foot is its height above that ground under it
+        (``problem.terrain``), and each phase's reference trunk height is raised by that ground (:meth:`_ground`
+        plus ``level``) under the trunk where it is expected at the phase's end (the re-plan's x moving at the plan's
+        ``speed`` [m/s])."""
         ends = problem.x0[0] + speed * np.cumsum(problem.schedule.durations)
         costs = []
-        for cost, ground in zip(problem.costs, self._ground(ends)):
+        for cost, ground in zip(problem.costs, self._ground(ends) + level):
             x_ref, x_final = cost.x_ref.copy(), cost.x_final.copy()
             x_ref[IZ] += ground
             x_final[IZ] += ground
             costs.append(dataclasses.replace(cost, x_ref=x_ref, x_final=x_final))
+        terrain = self.terrain
+        if level != 0.0:
+            terrain = (Terrain.flat() if terrain is None else terrain).raised(level)
         return HybridProblem(problem.dynamics, problem.schedule, costs, problem.x0, problem.constraints,
-                             knots=problem.knots, terrain=self.terrain)
+                             knots=problem.knots, terrain=terrain)
 
     def _cold_controls(self, problem: HybridProblem) -> np.ndarray:
         """Controls ``(N, 4)`` to solve ``problem`` from scratch: the warm-start heuristic's rollout, or zero torques
