@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, NQ, Mode
+from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NGRF, NQ, NU, NX, Mode
 from hsddp_gym.core.terrain import GAP_DEPTH, Terrain
 from hsddp_gym.planners.motions import (
     BOX_HEIGHT,
@@ -28,7 +28,7 @@ from hsddp_gym.planners.motions import (
     plan_jump,
 )
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
-from hsddp_gym.planners.optimizer.objective import Objective
+from hsddp_gym.planners.optimizer.objective import ConstraintState, Objective
 from hsddp_gym.planners.optimizer.problem import ConstraintSpec, HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 
@@ -114,6 +114,49 @@ def test_the_switching_constraint_measures_from_the_terrain_under_the_foot():
         fd = (robot.foot_positions(q + dq)[foot, 1] - robot.foot_positions(q - dq)[foot, 1]) / (2 * eps)
         assert robot.foot_height_derivatives(q, foot)[1][j] == pytest.approx(fd, abs=1e-6)
     assert i >= 0
+
+
+def test_a_ground_at_one_level_is_measured_as_a_terrain_would_measure_it():
+    """A flat ground raised by ``dz`` takes the flat problems' path (``g = foot_z - dz``): the same switching values and
+    augmented-Lagrangian derivatives, bit for bit, as the terrain path of a profile that has that level under the
+    feet (and another far away)."""
+    base = HybridProblem.bounding(cycles=1)
+    X_pre = np.tile(base.x0, (base.n_phases, 1))
+    X_pre[:, IZ] += np.linspace(-0.02, 0.03, base.n_phases)
+    dz = -0.0137
+    level, stepped = Terrain.flat().raised(dz), Terrain.step(100.0, 0.5).raised(dz)
+    assert level.uniform_height == dz and stepped.uniform_height is None
+    problems = [HybridProblem(base.dynamics, base.schedule, base.costs, base.x0, base.constraints, terrain=t)
+                for t in (level, stepped)]
+    objectives = [Objective(p) for p in problems]
+    g = [o.switching_values(X_pre) for o in objectives]
+    rows = base.switch_foot >= 0
+    assert np.array_equal(g[0], g[1]) and np.any(g[0][rows] != Objective(base).switching_values(X_pre)[rows])
+    cs = ConstraintState(sigma=5.0, lam=np.linspace(-1.0, 1.0, base.n_switching), use_al=True, use_reb=False,
+                         delta_torque=0.1, delta_grf=0.1, eps_torque=0.01, eps_grf=0.01)
+    N, n = base.n_knots, base.n_phases
+    X, U, GRF = np.tile(base.x0, (N + 1, 1)), np.zeros((N, NU)), np.zeros((N, NGRF))
+    Phi = []
+    for o in objectives:
+        out = [np.zeros(s) for s in ((N, NX), (N, NU), (N, NX, NX), (N, NU, NU), (N, NU, NX), (n, NX), (n, NX, NX))]
+        o.derivatives(X, X_pre, U, GRF, np.zeros((N, NGRF, NX)), np.zeros((N, NGRF, NU)), cs, *out)
+        Phi.append(out[5:])
+    assert np.array_equal(Phi[0][0], Phi[1][0]) and np.array_equal(Phi[0][1], Phi[1][1])
+    assert np.any(Phi[0][0] != 0.0)
+
+
+def test_the_bounding_problem_raises_its_references_by_the_ground_of_each_phase():
+    base = HybridProblem.bounding(cycles=1)
+    ground = np.linspace(0.01, -0.03, base.n_phases)
+    on = HybridProblem.bounding(cycles=1, ground=ground, terrain=Terrain.flat().raised(0.01))
+    for a, b, z in zip(base.costs, on.costs, ground):
+        assert b.x_ref[IZ] == a.x_ref[IZ] + z and b.x_final[IZ] == a.x_final[IZ] + z
+        assert np.array_equal(np.delete(b.x_ref, IZ), np.delete(a.x_ref, IZ))
+    assert on.terrain.uniform_height == 0.01 and base.terrain is None
+    with pytest.raises(ValueError, match="ground"):
+        HybridProblem.bounding(cycles=1, ground=ground[:-1])
+    with pytest.raises(ValueError, match="ground"):
+        HybridProblem.bounding(cycles=1, ground=np.full(base.n_phases, np.nan))
 
 
 # ----------------------------------------------------------------------------------------------- jumps

@@ -163,6 +163,10 @@ def test_a_raised_terrain_is_the_same_profile_shifted_everywhere():
         assert raised.edges == base.edges and raised.gaps == base.gaps and raised.slopes == base.slopes
         assert np.allclose(raised.heights(xs), base.heights(xs) + dz, atol=1e-15)
     assert not Terrain.flat().raised(-0.01).is_flat and Terrain.flat().raised(0.0).is_flat
+    assert Terrain.flat().uniform_height == 0.0 and Terrain.flat().raised(-0.01).uniform_height == -0.01
+    assert Terrain((1.0,), (0.02, 0.02), (False, False)).uniform_height == 0.02  # an edge between two equal levels
+    for uneven in (base, Terrain.step(1.0, 0.02), Terrain.gap(1.0, 1.2), Terrain((), (0.0,), (False,), (0.1,))):
+        assert uneven.uniform_height is None, uneven
     with pytest.raises(ValueError, match="dz"):
         base.raised(float("nan"))
 

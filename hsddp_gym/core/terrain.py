@@ -231,6 +231,14 @@ class Terrain:
         """True when ``h(x) = 0`` everywhere (no gap)."""
         return not any(self.gaps) and all(v == 0.0 for v in self.levels) and all(v == 0.0 for v in self.slopes)
 
+    @property
+    def uniform_height(self) -> float | None:
+        """The ground's height [m] when it is one level everywhere (no gap, no slope, every segment at the same
+        height; e.g. a flat ground :meth:`raised`), else None."""
+        if any(self.gaps) or any(v != 0.0 for v in self.slopes) or any(v != self.levels[0] for v in self.levels):
+            return None
+        return self.levels[0]
+
     def _segments(self, xs: np.ndarray) -> np.ndarray:
         return np.searchsorted(self._edges, xs, side="right")
 

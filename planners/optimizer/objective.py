@@ -108,9 +108,12 @@ class Objective:
         self._b_f = np.empty((n, 6))
         self._hxx = np.empty((n, NX, NX))  # grf_x^T W grf_x of the derivatives
         self._switching: tuple[np.ndarray, np.ndarray] | None = None  # (X_pre's bits, g) of the last call
-        # the terrain of the switching constraints; None for flat ground (g = foot_z, the flat problems' path)
+        # the terrain of the switching constraints; None for a ground at one level (g = foot_z - level, the flat
+        # problems' path; level 0 without a terrain)
         terrain = pr.terrain
-        self._terrain = None if terrain is None or terrain.is_flat else terrain
+        level = None if terrain is None else terrain.uniform_height
+        self._terrain = None if terrain is None or level is not None else terrain
+        self._level = 0.0 if level is None else level
         # the joint-range and ground-clearance penalties of the running cost (ConstraintSpec.joint_limits,
         # knee_clearance, swing_foot_clearance; None: none, the paper's problem). They are in evaluate() and
         # derivatives(), not in running_rates() / task_running_gradients() (the STO's rates)
@@ -122,20 +125,20 @@ class Objective:
         """``g (m,)``: height of the landing foot of each switching-constraint row (``problem.switch_phase``,
         ``problem.switch_foot``; row ``i < n`` is phase ``i``'s first landing foot, 0 where no touchdown, then the
         second feet of simultaneous touchdowns) above the terrain under it, ``foot_z - h(foot_x)``
-        (``problem.terrain``; flat: ``foot_z``), for the pre-switch states ``X_pre (n, 14)`` [m]. The last ``X_pre``
-        and its ``g`` are remembered (compared bit for bit): the solver asks again for the trajectory it has just
-        evaluated."""
+        (``problem.terrain``; a ground at one level: ``foot_z - level``), for the pre-switch states
+        ``X_pre (n, 14)`` [m]. The last ``X_pre`` and its ``g`` are remembered (compared bit for bit): the solver
+        asks again for the trajectory it has just evaluated."""
         bits = np.ascontiguousarray(X_pre, dtype=np.float64).view(np.uint64)
         last = self._switching
         if last is not None and last[0].shape == bits.shape and (last[0] == bits).all():
             return last[1].copy()
         pr = self.problem
         g = np.zeros(pr.n_switching)
-        terrain = self._terrain
+        terrain, level = self._terrain, self._level
         for r, (i, foot) in enumerate(zip(pr.switch_phase, pr.switch_foot)):
             if foot >= 0:
                 if terrain is None:
-                    g[r] = self.robot.foot_height(X_pre[i, :7], foot)
+                    g[r] = self.robot.foot_height(X_pre[i, :7], foot) - level
                 else:
                     p = self.robot.foot_positions(X_pre[i, :7])[foot]
                     g[r] = p[1] - terrain.height(float(p[0]))
@@ -293,6 +296,7 @@ class Objective:
                 if foot < 0:
                     continue
                 g, g_x, g_xx = self.robot.foot_height_derivatives(X_pre[i, :7], int(foot))
+                g -= self._level
                 if self._terrain is not None:  # dh/dx = 0 off the edges of a level segment
                     terrain = self._terrain
                     fx = float(self.robot.foot_positions(X_pre[i, :7])[foot, 0])

@@ -20,7 +20,7 @@ import dataclasses
 
 import numpy as np
 
-from hsddp_gym.core.conventions import NGRF, NU, NX, Mode, grf_slice
+from hsddp_gym.core.conventions import IZ, NGRF, NU, NX, Mode, grf_slice
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.params import RobotParams
 from hsddp_gym.core.references import end_of_mode_reference
@@ -311,11 +311,15 @@ class HybridProblem:
                  dynamics: HybridDynamics | None = None, constraints: ConstraintSpec | None = None,
                  running_reference: str = "terminal", grf_tracking: bool = True, schedule: ModeSchedule | None = None,
                  z_velocity: str = "paper", weights: str = "paper", terminal_half: bool = True,
-                 knots=None, height_offset: float = 0.0) -> HybridProblem:
+                 knots=None, height_offset: float = 0.0, ground=None, terrain: Terrain | None = None
+                 ) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B); ``running_reference``, ``grf_tracking``,
         ``z_velocity``, ``weights``, ``terminal_half``, ``height_offset`` see :func:`bounding_phase_cost`; ``knots``
-        (n,) the knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases)."""
+        (n,) the knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases);
+        ``ground`` (n,) a height [m] per phase added to its reference trunk heights (running and terminal; the
+        ground under the trunk, e.g. at the phase's end; None: 0); ``terrain`` the ground of the switching
+        constraints (see the class; None: flat)."""
         from hsddp_gym.core.references import paper_initial_state
         from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -326,10 +330,15 @@ class HybridProblem:
         costs = [bounding_phase_cost(m, _reference_foot(schedule, i), speed, params, running_reference, grf_tracking,
                                      z_velocity, weights, terminal_half, height_offset)
                  for i, m in enumerate(schedule.modes)]
+        if ground is not None:
+            ground = check_array(ground, (len(costs),), "ground")
+            for cost, z in zip(costs, ground):  # the costs' own arrays, built above
+                cost.x_ref[IZ] += z
+                cost.x_final[IZ] += z
         if constraints is None:
             constraints = ConstraintSpec(torque_limit=params.torque_limit, friction=params.friction)
         x0 = paper_initial_state(params) if x0 is None else x0
-        return cls(dynamics, schedule, costs, x0, constraints, knots=knots)
+        return cls(dynamics, schedule, costs, x0, constraints, knots=knots, terrain=terrain)
 
     @classmethod
     def bounding_periodic(cls, durations=PERIODIC_BOUNDING_DURATIONS, periodic_weight: float = 1e5,

@@ -1189,13 +1189,13 @@ class MPCPolicy(Policy):
         schedule = self._schedule(x)
         self.clock.restep_foot = self.restep_foot
         knots = [max(1, round(d / h)) for d, h in zip(schedule.durations, self._phase_steps(len(schedule)))]
-        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=self.plan_speed(x),
+        speed = self.plan_speed(x)
+        ground, terrain = self._plan_terrain(schedule, float(x[0]), speed)
+        problem = HybridProblem.bounding(schedule=schedule, x0=x, speed=speed,
                                          dynamics=self.dynamics, constraints=self._constraints,
                                          z_velocity=o.z_velocity, weights=self.weights,
-                                         knots=np.array(knots, dtype=np.int64), height_offset=o.height_offset)
-        level = self._plan_ground()
-        if self.terrain is not None or level != 0.0:
-            problem = self._on_terrain(problem, self.plan_speed(x), level)
+                                         knots=np.array(knots, dtype=np.int64), height_offset=o.height_offset,
+                                         ground=ground, terrain=terrain)
         try:
             ws = None if self.last_solution is None else self._warm_start(problem, x)
         except ValueError:
@@ -1279,24 +1279,22 @@ class MPCPolicy(Policy):
             return 0.0
         return -float(min(speed * max(late, 0.0), bias.limit[0]))
 
-    def _on_terrain(self, problem: HybridProblem, speed: float, level: float = 0.0) -> HybridProblem:
-        """``problem`` (a flat-ground bounding problem) on :attr:`terrain` raised by ``level`` [m]
-        (:meth:`_plan_ground`): the switching constraint of a landing foot is its height above that ground under it
-        (``problem.terrain``), and each phase's reference trunk height is raised by that ground (:meth:`_ground`
-        plus ``level``) under the trunk where it is expected at the phase's end (the re-plan's x moving at the plan's
-        ``speed`` [m/s])."""
-        ends = problem.x0[0] + speed * np.cumsum(problem.schedule.durations)
-        costs = []
-        for cost, ground in zip(problem.costs, self._ground(ends) + level):
-            x_ref, x_final = cost.x_ref.copy(), cost.x_final.copy()
-            x_ref[IZ] += ground
-            x_final[IZ] += ground
-            costs.append(dataclasses.replace(cost, x_ref=x_ref, x_final=x_final))
+    def _plan_terrain(self, schedule: ModeSchedule, x: float, speed: float
+                      ) -> tuple[np.ndarray | None, Terrain | None]:
+        """The ground of a plan of ``schedule`` from trunk x ``x`` [m] at ``speed`` [m/s]: ``(ground, terrain)``,
+        both None on the flat ground ``z = 0`` (no :attr:`terrain`, :meth:`_plan_ground` 0). Else ``ground (n,)``
+        [m], each phase's reference trunk heights raised by the ground under the trunk where it is expected at the
+        phase's end (:meth:`_ground`) plus :meth:`_plan_ground`, and ``terrain`` the ground of the switching
+        constraints (a landing foot's height above it): :attr:`terrain` (None: flat) raised by
+        :meth:`_plan_ground`."""
+        level = self._plan_ground()
+        if self.terrain is None and level == 0.0:
+            return None, None
+        ends = x + speed * np.cumsum(schedule.durations)
         terrain = self.terrain
         if level != 0.0:
             terrain = (Terrain.flat() if terrain is None else terrain).raised(level)
-        return HybridProblem(problem.dynamics, problem.schedule, costs, problem.x0, problem.constraints,
-                             knots=problem.knots, terrain=terrain)
+        return self._ground(ends) + level, terrain
 
     def _cold_controls(self, problem: HybridProblem) -> np.ndarray:
         """Controls ``(N, 4)`` to solve ``problem`` from scratch: the warm-start heuristic's rollout, or zero torques
