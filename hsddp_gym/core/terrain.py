@@ -229,7 +229,7 @@ class Terrain:
     @property
     def is_flat(self) -> bool:
         """True when ``h(x) = 0`` everywhere (no gap)."""
-        return not any(self.gaps) and all(v == 0.0 for v in self.levels) and all(v == 0.0 for v in self.slopes)
+        return self.uniform_height == 0.0
 
     @property
     def uniform_height(self) -> float | None:
