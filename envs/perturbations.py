@@ -657,6 +657,9 @@ SENSOR_BIAS_RANGE = {"z": 0.02, "pitch": 0.03, "hip_front": 0.02, "knee_front": 
 """The half-widths of ``sensor_bias_random`` (:class:`ObservationBias`'s ``random_bias``): each episode a bias
 uniform in +-0.02 m height, +-0.03 rad pitch, +-0.02 rad on each joint angle, +-0.05 m/s on the trunk's forward and
 vertical velocities (the rates are unbiased)."""
+SENSOR_BIAS_X2 = {name: 2.0 * value for name, value in SENSOR_BIAS.items()}
+"""The fixed bias of ``sensor_bias_x2``: :data:`SENSOR_BIAS` twice over, +0.06 rad pitch, +0.1 m/s forward velocity,
+-0.04 m trunk height."""
 PHASE_PUSH_DELTA_V = (1.0, 1.0, 7.0)
 """``max_delta_v`` of ``push_flight`` and ``push_stance``: ``U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)``, larger than
 ``push``'s (0.8, 0.8, 5.0)."""
@@ -679,6 +682,11 @@ def _hardware_conditions() -> tuple:
           observation_bias={"bias": dict(SENSOR_BIAS)}),
         h("sensor_bias_random", "observation bias drawn per episode: U(+-0.02 m) height, U(+-0.03 rad) pitch, "
           "U(+-0.02 rad) joints, U(+-0.05 m/s) vx and vz", observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}),
+        h("sensor_bias_x2", "constant observation bias twice sensor_bias's: +0.06 rad pitch, +0.1 m/s forward "
+          "velocity, -0.04 m height", observation_bias={"bias": dict(SENSOR_BIAS_X2)}),
+        h("noise_bias_latency", "observation noise as obs_noise, a bias drawn as sensor_bias_random's and actions "
+          "executed 2 control steps (10 ms) late with 1 step (5 ms) announced, together", observation_noise=(0.01, 0.1),
+          action_delay=2, announced_action_delay=1, observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}),
         h("push_flight", "one push at the first flight step (no foot in contact) after t ~ U(1, 4) s, "
           "dv ~ U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)",
           phase_push={"phase": "flight", "max_delta_v": PHASE_PUSH_DELTA_V}),
@@ -734,7 +742,8 @@ CONTACT_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if 
 HARDWARE_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, HardwareCondition))
 """The conditions of a real robot (:class:`HardwareCondition`): latencies other than the announced one
 (``delay_<executed>_announced_<announced>``, ``delay_jitter``), sensor biases (``sensor_bias``,
-``sensor_bias_random``) and phase-timed pushes (``push_flight``, ``push_stance``); not in :data:`SUITE`."""
+``sensor_bias_random``, ``sensor_bias_x2``), phase-timed pushes (``push_flight``, ``push_stance``) and noise, a bias and
+a wrongly announced latency together (``noise_bias_latency``); not in :data:`SUITE`."""
 SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS
                                and name not in HARDWARE_CONDITIONS)
 """The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, the contact

@@ -29,10 +29,11 @@ pyramidal, large_feet, low_friction, coarse_step). Their rows also give the mean
 told (``delay_5ms_announced_0ms``, ``delay_10ms_announced_5ms``, ``delay_5ms_announced_10ms``,
 ``delay_15ms_announced_10ms``: executed, then announced; ``delay_jitter``: 10 ms announced, 5, 10 or 15 ms executed,
 drawn per episode), a constant sensor bias (``sensor_bias``: +0.03 rad pitch, +0.05 m/s forward velocity, -0.02 m
-height; ``sensor_bias_random``: a bias drawn per episode) and a push timed by the contact phase (``push_flight``,
-``push_stance``: at the first control step in flight, resp. in stance, after t ~ U(1, 4) s, dv up to 1.0 m/s, 1.0 m/s,
-7 rad/s). Each of their episodes records what was drawn (``perturbation``: the executed and announced delay, the bias,
-the applied push).
+height; ``sensor_bias_random``: a bias drawn per episode; ``sensor_bias_x2``: ``sensor_bias`` twice over), a push timed
+by the contact phase (``push_flight``, ``push_stance``: at the first control step in flight, resp. in stance, after
+t ~ U(1, 4) s, dv up to 1.0 m/s, 1.0 m/s, 7 rad/s) and several at once (``noise_bias_latency``: ``obs_noise``'s noise,
+``sensor_bias_random``'s bias, 10 ms of latency announced as 5 ms). Each of their episodes records what was drawn
+(``perturbation``: the executed and announced delay, the bias, the applied push).
 
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: the scuff rule of the MPC's gait clock (a contact counts as a landing
@@ -285,9 +286,11 @@ def main(argv: list[str] | None = None) -> int:
                         "announced to the policy (delay_<executed>_announced_<announced>, e.g. "
                         "delay_10ms_announced_5ms; delay_jitter: 10 ms announced, 5, 10 or 15 ms executed, drawn per "
                         "episode), a constant sensor bias (sensor_bias: +0.03 rad pitch, +0.05 m/s forward velocity, "
-                        "-0.02 m height; sensor_bias_random: drawn per episode) and pushes timed by the contact phase "
-                        "(push_flight, push_stance: dv up to 1.0 m/s, 1.0 m/s, 7 rad/s at the first flight or stance "
-                        "step after t ~ U(1, 4) s); push_x3: three pushes")
+                        "-0.02 m height; sensor_bias_random: drawn per episode; sensor_bias_x2: sensor_bias twice "
+                        "over), pushes timed by the contact phase (push_flight, push_stance: dv up to 1.0 m/s, "
+                        "1.0 m/s, 7 rad/s at the first flight or stance step after t ~ U(1, 4) s) and several at once "
+                        "(noise_bias_latency: obs_noise's noise, sensor_bias_random's bias, 10 ms of latency "
+                        "announced as 5 ms); push_x3: three pushes")
     p.add_argument("--seeds", type=int, default=20, help="episodes per policy and condition (default: %(default)s)")
     p.add_argument("--first-seed", type=int, default=EVAL_FIRST_SEED,
                    help="first seed (default: %(default)s, the evaluation seeds; develop on others)")

@@ -19,13 +19,14 @@ from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy
 RESTEP_SEED = 30027
 """``push_flight``: a nose-down kick of 6.8 rad/s just after the front foot's lift-off. The back hip rises out of
 reach; without the re-step the MPC waits for the back foot and falls nose-down at 1.3 s."""
-PULL_SEED = 30043
-"""``push_x3``, the MPC with the paper's weights: after the first push (1.61 s: +0.56 m/s forward, +0.49 m/s up, a
-nose-up kick of -4.7 rad/s) it falls at 2.03 s without the contact-consistent torques (its feedback re-plans solved as
-periodic ones, ``feedback_iterations=None``), and bounds all 5 s with them, as the default MPC does. (The seed before,
-30067, traced: the stance torques of the feedback law, far from the plan, pulled the landing front foot off the ground
-within a control step, twice in 40 ms. Its outcome moved when the plans were put on the ground the feet measure.)
-With the default (later) weights, the MPC without them fell on none of ``push_x3``'s seeds 40100-40199."""
+PULL_SEED = 30055
+"""``push_x3``, the MPC with the paper's weights: after the third push (3.56 s: +0.69 m/s forward, +0.53 m/s up, a
+nose-up kick of -3.0 rad/s) it falls at 3.71 s without the contact-consistent torques (its feedback re-plans solved as
+periodic ones, ``feedback_iterations=None``), and bounds all 5 s with them, as the default MPC does. (On 30067,
+traced, the stance torques of the feedback law, far from the plan, pulled the landing front foot off the ground within
+a control step, twice in 40 ms; its outcome moved when the plans were put on the ground the feet measure. On 30043
+that MPC has bounded since the state filter's model stands on that ground too; on 30044-30054 it bounds.) With the
+default (later) weights, the MPC without them fell on none of ``push_x3``'s seeds 40100-40199."""
 FEEDBACK_SEED = 40002
 """``push`` (at 2.20 s: +0.44 m/s forward, +0.78 m/s up, -1.4 rad/s): the default re-plans at once 5 times in the
 episode's 5 s and bounds; re-planning only every 20 ms, the MPC falls at 2.5 s, 0.3 s after the push. The only such
@@ -167,7 +168,7 @@ def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
 @pytest.mark.slow
 def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
     _bounds_and_falls_without("push_x3", {"min_stance_force": None, "feedback_iterations": None}, PULL_SEED,
-                              STEPS_5S, fall_before=2.5, weights="paper")
+                              STEPS_5S, fall_before=4.0, weights="paper")
 
 
 def test_each_copy_projects_with_its_own_model_and_none_is_off():

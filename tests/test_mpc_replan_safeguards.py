@@ -25,11 +25,12 @@ PUSHED_SEED = 531
 the back foot's touchdown comes late: five feedback re-plans in a row (1.45-1.47 s) are made in the flight past its
 nominal end."""
 PUSHED_STEPS = 560
-RESTART_SEED = 40235
-"""A push-condition seed (push at 1.41 s: -0.46 m/s forward, +0.47 m/s up, -1.3 rad/s) on which the default MPC
-restarts four re-plans (objectives 2.8e5 to 2.0e7 warm-started, 1.5e3 to 4.8e3 from scratch, at 1.66-2.15 s) and bounds
-on, and falls without the restarts (at 1.86 s; the outcome is sensitive to rounding: it depends on the compiled
-dynamics' arithmetic)."""
+RESTART_SEED = 40243
+"""A push-condition seed (push at 1.02 s: -0.14 m/s forward, +0.03 m/s up, a nose-down kick of +4.5 rad/s) on which
+the default MPC restarts one re-plan from scratch, keeps the better plan and bounds on, and falls without the restarts
+(at 1.45 s; the outcome is sensitive to rounding: it depends on the compiled dynamics' arithmetic). (On 40235, where
+the MPC restarted four re-plans, it has bounded without them since the state filter's model stands on the ground
+the feet measure.)"""
 
 
 @pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),
@@ -77,8 +78,9 @@ def _pushed_episode(seed=PUSHED_SEED, **options):
     attempt = {}
 
     def recording_warm_start(problem, x):
-        ws = warm_start(problem, x)  # a ValueError leaves attempt["warm"] unset: the re-plan is from scratch
-        attempt["warm"], attempt["warm_lam"] = True, float(np.max(np.abs(ws[3])))
+        ws = warm_start(problem, x)  # a ValueError or None leaves attempt["warm"] unset: the re-plan is from scratch
+        if ws is not None:
+            attempt["warm"], attempt["warm_lam"] = True, float(np.max(np.abs(ws[3])))
         return ws
 
     def recording_replan(x, mode, feedback=False):

@@ -53,8 +53,13 @@ def _rollout(env, seed, n=30):
 
 # ------------------------------------------------------------------------------------------------ registry
 def test_hardware_conditions_are_extra_and_not_for_the_vector_env():
-    assert set(HARDWARE_CONDITIONS) == set(DELAYS) | {"sensor_bias", "sensor_bias_random", "push_flight",
-                                                      "push_stance"}
+    assert set(HARDWARE_CONDITIONS) == set(DELAYS) | {"sensor_bias", "sensor_bias_random", "sensor_bias_x2",
+                                                      "push_flight", "push_stance", "noise_bias_latency"}
+    combined = get_condition("noise_bias_latency")
+    assert combined.observation_noise == get_condition("obs_noise").observation_noise
+    assert (combined.action_delay, combined.announced_delay) == (2, 1)
+    assert combined.observation_bias == get_condition("sensor_bias_random").observation_bias
+    assert get_condition("sensor_bias_x2").observation_bias == {"bias": {"pitch": 0.06, "dx": 0.1, "z": -0.04}}
     assert not set(SUITE) & set(HARDWARE_CONDITIONS) and len(SUITE) == 13 and "push_x3" in CONDITIONS
     for name in HARDWARE_CONDITIONS:
         cond = get_condition(name)

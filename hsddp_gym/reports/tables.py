@@ -891,7 +891,8 @@ def _generality_groups() -> tuple:
     return (("the suite", tuple(SUITE)), ("contact models (MuJoCo twin)", tuple(CONTACT_CONDITIONS)),
             ("latency not known exactly", tuple(c for c in HARDWARE_CONDITIONS if c.startswith("delay_"))),
             ("sensor bias", tuple(c for c in HARDWARE_CONDITIONS if c.startswith("sensor_"))),
-            ("pushes by phase, repeated pushes", pushes))
+            ("pushes by phase, repeated pushes", pushes),
+            ("noise, bias and latency together", ("noise_bias_latency",)))
 
 
 def robustness_generality(store: Store) -> str:

@@ -65,23 +65,33 @@ class ContactModelPredictor:
         contact on its simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`)."""
         self.sim.set_terrain(terrain)
 
-    def step(self, x: np.ndarray, u: np.ndarray, mode: Mode | None = None) -> tuple[np.ndarray, Mode]:
+    def step(self, x: np.ndarray, u: np.ndarray, mode: Mode | None = None, ground: float = 0.0
+             ) -> tuple[np.ndarray, Mode]:
         """One control period from ``x`` (14,) under torques ``u`` (4,) [N m]: ``(x_next (14,), contact mode at
-        the end)``. The contacts follow from the state (``mode`` is accepted for symmetry and not needed)."""
+        the end)``. The contacts follow from the state (``mode`` is accepted for symmetry and not needed).
+        ``ground`` [m]: the height of the ground (of :attr:`terrain` raised by it), in the frame of ``x``."""
         sim = self.sim
+        if ground:
+            if not math.isfinite(ground):
+                raise ValueError(f"ground must be a finite height [m], got {ground!r}")
+            x = np.array(x, dtype=np.float64)
+            x[IZ] -= ground
         sim.set_state(x)
         sim.run(np.asarray(u, dtype=np.float64), self.n_sub)
         x_next = sim.x.copy()
+        if ground:
+            x_next[IZ] += ground
         if not np.all(np.isfinite(x_next)):
             raise ArithmeticError("the model prediction diverged")
         return x_next, mode_from_contacts(bool(sim.contact[0]), bool(sim.contact[1]))
 
-    def predict(self, x: np.ndarray, mode: Mode | None, torques) -> tuple[np.ndarray, Mode | None]:
+    def predict(self, x: np.ndarray, mode: Mode | None, torques, ground: float = 0.0
+                ) -> tuple[np.ndarray, Mode | None]:
         """The state after holding each row of ``torques`` (n, 4) [N m] for one control period, from ``x`` (14,):
-        ``(x (14,), contact mode)`` (``(x, mode)`` itself for n = 0)."""
+        ``(x (14,), contact mode)`` (``(x, mode)`` itself for n = 0). ``ground``: as in :meth:`step`."""
         x = check_vector(x, NX, "x").copy()
         for u in torques:
-            x, mode = self.step(x, np.asarray(u, dtype=np.float64), mode)
+            x, mode = self.step(x, np.asarray(u, dtype=np.float64), mode, ground)
         return x, mode
 
 
@@ -110,13 +120,20 @@ def clearance_jacobian(robot: CheetahModel, q: np.ndarray, foot: int, index, ter
     return J[1, index] + (float(n[0]) / float(n[1])) * J[0, index]
 
 
-def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode, terrain=None) -> np.ndarray:
+def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode, terrain=None,
+                          ground: float = 0.0) -> np.ndarray:
     """``x`` (14,) with its trunk height (and, for two feet, pitch) moved so that the feet in contact in ``mode`` are
     on the ground (one Gauss-Newton step on the feet's heights; a copy), unless they all are within
-    :data:`CONTACT_TOLERANCE` of it. ``terrain``: the ground (:func:`terrain_clearance`; None: ``z = 0``)."""
+    :data:`CONTACT_TOLERANCE` of it. ``terrain``: the ground (:func:`terrain_clearance`; None: ``z = 0``), raised by
+    ``ground`` [m]."""
     x = np.array(x, dtype=np.float64)
     feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
     if not feet:
+        return x
+    if ground:
+        x[IZ] -= ground
+        x = project_onto_contacts(robot, x, mode, terrain)
+        x[IZ] += ground
         return x
     # the common case needs no derivatives
     heights = [terrain_clearance(robot, x[:NQ], f, terrain) for f in feet]
@@ -155,12 +172,14 @@ class MeasurementBias:
     Whatever else holds a stance foot off the flat ground is read as a bias too: a foot that sinks into a soft
     contact or stands on a step. For :meth:`ground_offset` that is right (a landing foot will sink as deep); for
     :meth:`correct` it is not (in a flight the trunk is where the sensors say, not where the sunk feet put it), so
-    the MPC uses the estimate as the ground (of its plans and of its late-landing rule) and never corrects the
-    state with it. A sample whose residual exceeds ``gate`` [m]
-    (a foot flagged on the ground far from it) is not used; the estimates are bounded by ``limit`` (``(height [m],
-    pitch [rad])``). Velocities are not estimated: on a compliant contact a stance foot is not at rest (it sinks
-    and rebounds), and a velocity bias of the size of the measurement noise is the feedback's business (the MPC's
-    speed integral).
+    the MPC uses the estimate as the ground (of its plans, of its late-landing rule and of the model its state
+    filter and latency compensation step) and never corrects the state with it. A sample whose residual from the
+    estimate exceeds ``gate`` [m] (a foot flagged on the ground far from where the estimate puts it) is not used;
+    before :attr:`calibrated` the estimate is not yet known, and the gate is measured from the bound instead (a
+    residual up to ``gate`` plus the height bound is used, so that a bias beyond ``gate`` is found at all). The
+    estimates are bounded by ``limit`` (``(height [m], pitch [rad])``). Velocities are not estimated: on a compliant
+    contact a stance foot is not at rest (it sinks and rebounds), and a velocity bias of the size of the measurement
+    noise is the feedback's business (the MPC's speed integral).
 
     Args:
         robot: the model (its kinematics).
@@ -168,7 +187,8 @@ class MeasurementBias:
         memory: time constant of the forgetting [s] (> 0).
         settle_steps: observations a foot must have been in contact before it is used (>= 1).
         prior_steps: weight of the zero-bias prior, in observations of one foot (> 0).
-        gate: residual [m] beyond which a sample is not used (> 0).
+        gate: residual [m] beyond which a sample is not used (> 0; before the calibration, beyond ``gate`` plus the
+            height bound).
         limit: ``(height [m], pitch [rad])`` bounds of the estimates (> 0).
 
     Attributes:
@@ -185,7 +205,7 @@ class MeasurementBias:
     INDEX = np.array([IZ, IPITCH])
 
     def __init__(self, robot: CheetahModel, control_dt: float, memory: float = 1.0, settle_steps: int = 2,
-                 prior_steps: float = 1.0, gate: float = 0.05, limit: tuple = (0.05, 0.1)) -> None:
+                 prior_steps: float = 1.0, gate: float = 0.05, limit: tuple = (0.1, 0.1)) -> None:
         if not isinstance(robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
         self.robot = robot
@@ -219,6 +239,7 @@ class MeasurementBias:
         self._info *= self.forget
         self._vec *= self.forget
         used = False
+        gate = self.gate if self.calibrated else self.gate + float(self.limit[0])
         for f in (FRONT, BACK):
             self._in_contact[f] = self._in_contact[f] + 1 if mode.in_contact(f) else 0
             if self._in_contact[f] <= self.settle_steps:
@@ -229,7 +250,7 @@ class MeasurementBias:
             else:
                 j = clearance_jacobian(self.robot, y[:NQ], f, self.INDEX, self.terrain)
                 h = terrain_clearance(self.robot, y[:NQ], f, self.terrain)
-            if abs(h - j @ self.bias[self.INDEX]) > self.gate:
+            if abs(h - j @ self.bias[self.INDEX]) > gate:
                 continue
             self._info += np.outer(j, j)
             self._vec += j * h
@@ -317,8 +338,11 @@ class StateFilter:
 
     The feet the (clean) contact flags report on the ground are put on it (:func:`project_onto_contacts`: trunk
     height, and pitch for two feet; on the predictor's terrain, :meth:`ContactModelPredictor.set_terrain`), so that the
-    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. With exact
-    observations and the exact model the estimate is the observation (to round-off).
+    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. The ground
+    is where the measurement puts it: ``update(..., ground=)`` raises it (the terrain, or ``z = 0``) by the height at
+    which a biased measurement puts a foot that stands on it (the height bias of :class:`MeasurementBias`), and when
+    that height moves the estimate moves with it. With exact observations and the exact model the estimate is
+    the observation (to round-off).
 
     Args:
         predictor: the model used for the prior (its ``control_dt`` is the filter's period).
@@ -362,23 +386,29 @@ class StateFilter:
         self.last_nis: float | None = None
         self._beyond = 0  # consecutive observations beyond the gate
 
-    def _take(self, y: np.ndarray, mode: Mode) -> np.ndarray:
-        self.x = project_onto_contacts(self.predictor.robot, y, mode, self.predictor.terrain)
+    def _take(self, y: np.ndarray, mode: Mode, ground: float = 0.0) -> np.ndarray:
+        self._ground = ground
+        self.x = project_onto_contacts(self.predictor.robot, y, mode, self.predictor.terrain, ground)
         self.covariance = self._R.copy()
         self._beyond = 0
         return self.x.copy()
 
-    def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None) -> np.ndarray:
+    def update(self, y: np.ndarray, mode: Mode, u_executed: np.ndarray | None, ground: float = 0.0) -> np.ndarray:
         """The estimate (14,) after measuring ``y`` (14,) in the (clean) contact ``mode``; ``u_executed`` (4,)
-        [N m] is the torque the env executed over the last control period (None: take ``y`` as it is)."""
+        [N m] is the torque the env executed over the last control period (None: take ``y`` as it is); ``ground``
+        [m]: the height of the ground in the measurement's frame (the predictor's terrain, or ``z = 0``, raised by
+        it). A ground other than the last update's moves the estimate's trunk height by the difference."""
         y = check_vector(y, NX, "y")
         mode = Mode(mode)
         if self.x is None or u_executed is None:
-            return self._take(y, mode)
+            return self._take(y, mode, ground)
+        if ground != self._ground:  # the ground moved in the measurement's frame: the estimate moves with it
+            self.x[IZ] += ground - self._ground
+            self._ground = ground
         try:
-            prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64))
+            prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64), ground=ground)
         except (ArithmeticError, ValueError, RuntimeError):
-            return self._take(y, mode)
+            return self._take(y, mode, ground)
         A = self._A
         P_prior = A @ self.covariance @ A.T + self._Q
         S = P_prior + self._R
@@ -394,7 +424,7 @@ class StateFilter:
         self._beyond = self._beyond + 1 if nis > self.innovation_gate else 0
         if self._beyond >= self.restart_steps:
             self.restarts += 1
-            x = self._take(y, mode)
+            x = self._take(y, mode, ground)
         else:
             self.outliers += int(self._beyond > 0)
             L = P_prior @ si
@@ -408,7 +438,7 @@ class StateFilter:
             else:
                 x[NQ:] += L[1, 0] * eq + L[1, 1] * ev
             self.covariance = P
-            x = project_onto_contacts(self.predictor.robot, x, mode, self.predictor.terrain)
+            x = project_onto_contacts(self.predictor.robot, x, mode, self.predictor.terrain, ground)
         x[0] = y[0]
         self.x = x
         return x.copy()

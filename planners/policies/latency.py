@@ -72,7 +72,7 @@ class DelayEstimator:
         self.scores = np.zeros(len(self.candidates))
         self.switches = 0
 
-    def update(self, x_prev: np.ndarray, y: np.ndarray, torques) -> int:
+    def update(self, x_prev: np.ndarray, y: np.ndarray, torques, ground: float = 0.0) -> int:
         """Score the candidates on one control period and return the (possibly moved) estimate.
 
         Args:
@@ -80,6 +80,7 @@ class DelayEstimator:
             y: the state measured (14,) at its end.
             torques: ``(history, 4)`` [N m] the torques of the last :attr:`history` actions returned, oldest first
                 (row ``-1 - d`` is what a delay of ``d`` steps executed over the period).
+            ground: the height [m] of the model's ground (:meth:`ContactModelPredictor.step`).
         Returns:
             The delay estimate [control steps].
         """
@@ -89,7 +90,7 @@ class DelayEstimator:
         errors = np.empty(len(self.candidates))
         try:
             for i, d in enumerate(self.candidates):
-                xp, _ = self.predictor.step(x_prev, torques[-1 - d])
+                xp, _ = self.predictor.step(x_prev, torques[-1 - d], ground=ground)
                 e = y[NQ:] - xp[NQ:]
                 errors[i] = float(np.dot(self._weight, e * e))
         except (ArithmeticError, ValueError, RuntimeError):

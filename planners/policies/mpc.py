@@ -40,7 +40,9 @@ plan. At each re-plan (every ``replan_period`` seconds of env time):
 Before step 1 the observation goes through the model-based state filter (``state_filter``) and, when the env
 executes actions late (``EnvInterface.action_delay_steps``), is predicted over the delay with the model under the
 actions already sent (``latency_compensation``): the plan and its feedback law are for the state at which the
-action will act (:mod:`hsddp_gym.planners.policies.estimation`). The plans' speed reference also moves from the
+action will act (:mod:`hsddp_gym.planners.policies.estimation`). Once the feet on the ground have put the ground in the
+measurement's frame (``bias_memory``), that model stands on it too: the filter, the prediction over the delay and the
+delay's estimate see the ground where the plans see it. The plans' speed reference also moves from the
 start speed toward the target at a bounded rate (``speed_acceleration``).
 
 Given the ground (``MPCPolicy(..., terrain=...)``, privileged information), the MPC works in the world frame: its
@@ -142,7 +144,7 @@ class MPCOptions:
             lower, and the foot hovers while the trunk sinks (the episode's first landing under a height bias). From
             the flight's nominal end on, the plans put the ground this rate times the lateness below the measured
             one, at most the bias estimate's height bound (:class:`~hsddp_gym.planners.policies.estimation.
-            MeasurementBias`, 5 cm): the foot keeps reaching down until its contact flag reports the ground.
+            MeasurementBias`, 10 cm): the foot keeps reaching down until its contact flag reports the ground.
 
     Attributes: Solver
         method: HS-DDP constraint handling: ``"al-reb"`` (augmented Lagrangian on the switching constraints and
@@ -238,10 +240,12 @@ class MPCOptions:
             height and the pitch bias, estimated by least squares over the observations with this forgetting
             (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`). Once a stance has calibrated it, the
             plans land the feet on the ground where the measurement puts it and hold the trunk above it, and the
-            late-landing rule (``touchdown_height``) measures a landing foot from there; before, the plans search for
-            the ground (``ground_search_speed``) and the rule waits. The estimate is not subtracted from the state: a
-            foot that sinks into a soft contact reads as a bias too, right for where a landing foot stops, wrong for
-            the trunk in a flight.
+            late-landing rule (``touchdown_height``) measures a landing foot from there, and the model of the state
+            filter, of the latency compensation and of the delay's estimate stands on that ground (its stance feet are
+            held there, its touchdowns happen there); before, the plans search for the ground
+            (``ground_search_speed``), the rule waits and the model stands on ``z = 0``. The estimate is not
+            subtracted from the state: a foot that sinks into a soft contact reads as a bias too, right for where a
+            landing foot stops, wrong for the trunk in a flight.
         action_delay: control steps between an action's return and its execution (None: the env's,
             ``EnvInterface.action_delay_steps``, e.g. behind :class:`hsddp_gym.envs.perturbations.ActionDelay`).
         latency_compensation: with an action delay ``d > 0``, plan and act for the state ``d`` control steps ahead,
@@ -1279,6 +1283,13 @@ class MPCPolicy(Policy):
             return 0.0
         return -float(min(speed * max(late, 0.0), bias.limit[0]))
 
+    def _model_ground(self) -> float:
+        """The height [m] of the ground on which the state filter, the latency compensation and the delay's estimate
+        put the model, in the measurement's frame: the calibrated height bias, as :meth:`_plan_ground`, and 0 before
+        the calibration (no search: the model's ground moves only with what the feet have measured)."""
+        bias = self._bias
+        return float(bias.bias[IZ]) if bias is not None and bias.calibrated else 0.0
+
     def _plan_terrain(self, schedule: ModeSchedule, x: float, speed: float
                       ) -> tuple[np.ndarray | None, Terrain | None]:
         """The ground of a plan of ``schedule`` from trunk x ``x`` [m] at ``speed`` [m/s]: ``(ground, terrain)``,
@@ -1345,10 +1356,11 @@ class MPCPolicy(Policy):
         o = self.options
         if self._bias is not None:
             self._bias.update(x_obs, mode)
+        ground = self._model_ground()
         if self._delay_estimator is not None:
             if self._last_observed is not None:
                 torques = np.array(self._sent, dtype=np.float64) * self.interface.torque_limit
-                delay = self._delay_estimator.update(self._last_observed, x_obs, torques)
+                delay = self._delay_estimator.update(self._last_observed, x_obs, torques, ground)
                 if delay != self.action_delay:
                     self.stats["delay_changes"] += 1
                     self.action_delay = delay
@@ -1356,7 +1368,7 @@ class MPCPolicy(Policy):
         if o.state_filter:
             executed = None if self._first_obs else \
                 self._sent[-1 - self.action_delay].astype(np.float64) * self.interface.torque_limit
-            x_obs = self._filter.update(x_obs, mode, executed)
+            x_obs = self._filter.update(x_obs, mode, executed, ground)
         if self._first_obs:
             self._start_speed = float(x_obs[NQ])
         self._first_obs = False
@@ -1364,7 +1376,7 @@ class MPCPolicy(Policy):
         self._vx_window.append(float(x_obs[NQ]))
         self._ref_window.append(self.reference_speed())
         eff = self._update_clock(mode, x_obs)
-        x, eff = self._predict_ahead(x_obs, mode, eff)
+        x, eff = self._predict_ahead(x_obs, mode, eff, ground)
         self.last_prediction = x.copy()
         if self.tracker is not None:
             self.tracker.sync(eff)
@@ -1417,10 +1429,11 @@ class MPCPolicy(Policy):
             raise ValueError(f"action must be a finite vector of shape ({NU},), got {a!r}")
         self._sent[-1] = a.copy()
 
-    def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode) -> tuple[np.ndarray, Mode]:
+    def _predict_ahead(self, x: np.ndarray, mode: Mode, eff: Mode, ground: float = 0.0) -> tuple[np.ndarray, Mode]:
         """Latency compensation (``MPCOptions.latency_compensation``): the state (14,) ``action_delay`` control
         steps after the observed ``x``, under the actions already sent, and the gait clock advanced over the
-        prediction with the predicted contacts (in :attr:`_plan_clock`); returns ``(state, clock mode)``.
+        prediction with the predicted contacts (in :attr:`_plan_clock`), on the model's ``ground`` [m]
+        (:meth:`_model_ground`); returns ``(state, clock mode)``.
         Without a delay (or compensation) the observed state and clock."""
         self._plan_clock = self.clock
         if not self.action_delay or not self.options.latency_compensation:
@@ -1429,7 +1442,7 @@ class MPCPolicy(Policy):
         xp = x
         try:
             for a in list(self._sent)[len(self._sent) - self.action_delay:]:  # the actions still to be executed
-                xp, mode = self._predictor.step(xp, a.astype(np.float64) * self.interface.torque_limit, mode)
+                xp, mode = self._predictor.step(xp, a.astype(np.float64) * self.interface.torque_limit, mode, ground)
                 clock.tick()
                 eff = clock.update(mode, float(xp[NQ + IPITCH]))
         except (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError):
