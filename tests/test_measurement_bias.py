@@ -276,8 +276,19 @@ def test_the_model_on_a_raised_ground_is_the_model_on_the_raised_terrain():
     p = project_onto_contacts(robot, y, Mode.DOUBLE_STANCE, None, g)
     assert np.allclose([robot.foot_height(p[:NQ], f) for f in (0, 1)], g, atol=1e-3)  # one Gauss-Newton step
     assert np.allclose(p, project_onto_contacts(robot, y, Mode.DOUBLE_STANCE, Terrain.flat().raised(g)), atol=1e-12)
-    with pytest.raises(ValueError, match="ground"):
-        flat.step(x, u, ground=float("nan"))
+    from hsddp_gym.planners.policies.estimation import StateFilter
+    from hsddp_gym.planners.policies.latency import DelayEstimator
+
+    filt, delay = StateFilter(ContactModelPredictor(0.005)), DelayEstimator(ContactModelPredictor(0.005), 1)
+    for bad, error in ((float("nan"), ValueError), (float("inf"), ValueError), ("0", TypeError), (True, TypeError)):
+        with pytest.raises(error, match="ground"):
+            flat.step(x, u, ground=bad)
+        with pytest.raises(error, match="ground"):
+            project_onto_contacts(robot, y, Mode.FLIGHT, None, bad)
+        with pytest.raises(error, match="ground"):
+            filt.update(x, Mode.FLIGHT, None, bad)
+        with pytest.raises(error, match="ground"):
+            delay.update(x, x, np.zeros((delay.history, 4)), bad)
 
 
 def test_the_state_filter_on_the_measured_ground_sees_a_biased_height_as_the_exact_one():

@@ -24,7 +24,7 @@ import numpy as np
 from hsddp_gym.core.batch_contact import CompiledContactSimulator
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
-from hsddp_gym.util.validation import check_int, check_positive, check_vector
+from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 
 class ContactModelPredictor:
@@ -72,8 +72,7 @@ class ContactModelPredictor:
         ``ground`` [m]: the height of the ground (of :attr:`terrain` raised by it), in the frame of ``x``."""
         sim = self.sim
         if ground:
-            if not math.isfinite(ground):
-                raise ValueError(f"ground must be a finite height [m], got {ground!r}")
+            ground = check_ground(ground)
             x = np.array(x, dtype=np.float64)
             x[IZ] -= ground
         sim.set_state(x)
@@ -93,6 +92,12 @@ class ContactModelPredictor:
         for u in torques:
             x, mode = self.step(x, np.asarray(u, dtype=np.float64), mode, ground)
         return x, mode
+
+
+def check_ground(ground) -> float:
+    """``ground`` (a height [m] of the ground in the measurement's frame) as a finite float; ``TypeError`` /
+    ``ValueError`` naming ``ground`` otherwise."""
+    return check_in_range(ground, -math.inf, math.inf, "ground")
 
 
 CONTACT_TOLERANCE = 1e-4
@@ -127,6 +132,7 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode, terrai
     :data:`CONTACT_TOLERANCE` of it. ``terrain``: the ground (:func:`terrain_clearance`; None: ``z = 0``), raised by
     ``ground`` [m]."""
     x = np.array(x, dtype=np.float64)
+    ground = check_ground(ground)
     feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
     if not feet:
         return x
@@ -385,6 +391,7 @@ class StateFilter:
         self.outliers = 0
         self.last_nis: float | None = None
         self._beyond = 0  # consecutive observations beyond the gate
+        self._ground = 0.0  # the ground [m] of the last update (the estimate moves with it)
 
     def _take(self, y: np.ndarray, mode: Mode, ground: float = 0.0) -> np.ndarray:
         self._ground = ground
@@ -400,6 +407,7 @@ class StateFilter:
         it). A ground other than the last update's moves the estimate's trunk height by the difference."""
         y = check_vector(y, NX, "y")
         mode = Mode(mode)
+        ground = check_ground(ground)
         if self.x is None or u_executed is None:
             return self._take(y, mode, ground)
         if ground != self._ground:  # the ground moved in the measurement's frame: the estimate moves with it

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from hsddp_gym.core.conventions import NQ, NU, NX
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, check_ground
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
 
@@ -84,6 +84,7 @@ class DelayEstimator:
         Returns:
             The delay estimate [control steps].
         """
+        ground = check_ground(ground)
         torques = np.asarray(torques, dtype=np.float64)
         if torques.shape != (self.history, NU):
             raise ValueError(f"torques must have shape ({self.history}, {NU}), got {torques.shape}")
