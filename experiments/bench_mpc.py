@@ -1,8 +1,7 @@
 """Speed of the HS-DDP MPC in hsddp_gym/Bounding-v0: re-plan wall time and real-time factor.
 
 Usage: python experiments/bench_mpc.py [--seconds 3] [--replan-period 0.02] [--planner-dt 0.005]
-       [--fine-dt 0.0025 | --fine-dt none] [--max-iterations 3] [--horizon 0.296] [--target-speed 1.0]
-       [--mpc-options '{"refresh_gains": true}']
+       [--max-iterations 3] [--horizon 0.296] [--target-speed 1.0] [--mpc-options '{"restart_ratio": null}']
 Real-time factor = simulated time / wall time of the whole closed loop (env simulation + policy).
 Target: a real-time factor of at least 2 on a 2-core machine. Run it on a quiet machine: it is single-threaded.
 
@@ -28,21 +27,18 @@ import numpy as np
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0, help="simulated seconds per setting (default 3)")
-    parser.add_argument("--replan-period", type=float, default=None, help="override MPCOptions.replan_period [s]")
-    parser.add_argument("--planner-dt", type=float, default=None, help="override MPCOptions.planner_dt [s]")
-    parser.add_argument("--fine-dt", default=None,
-                        help="override MPCOptions.fine_dt [s] (the first phases' knot spacing; 'none': uniform grid)")
+    parser.add_argument("--replan-period", type=float, default=None, help="override MPCOptions' replan.period [s]")
+    parser.add_argument("--planner-dt", type=float, default=None, help="override MPCOptions' plan.planner_dt [s]")
     parser.add_argument("--target-speed", type=float, default=1.0, help="the env's target speed [m/s] (default 1)")
-    parser.add_argument("--max-iterations", type=int, default=None, help="override MPCOptions.max_iterations")
-    parser.add_argument("--horizon", type=float, default=None, help="override MPCOptions.horizon [s]")
+    parser.add_argument("--max-iterations", type=int, default=None, help="override MPCOptions' replan.iterations")
+    parser.add_argument("--horizon", type=float, default=None, help="override MPCOptions' plan.horizon [s]")
     parser.add_argument("--mpc-options", default=None, metavar="JSON",
-                        help="further MPCOptions fields as a JSON object, e.g. '{\"refresh_gains\": true}' "
-                             "(applied after the flags above)")
+                        help="further MPC settings by their flat names (MPCOptions.replace) as a JSON object, e.g. "
+                             "'{\"restart_ratio\": null}' (applied after the flags above)")
     parser.add_argument("--seed", type=int, default=0, help="the env's reset seed (default 0)")
     parser.add_argument("--record", default=None, metavar="FILE.json",
                         help="also write the measurements as a record of the results store (results/speed/mpc.json)")
     args = parser.parse_args(argv)
-    import dataclasses
     import warnings
 
     import gymnasium as gym
@@ -53,11 +49,6 @@ def main(argv=None) -> int:
     warnings.simplefilter("ignore", RuntimeWarning)
     over = {k: v for k, v in (("replan_period", args.replan_period), ("planner_dt", args.planner_dt),
                               ("max_iterations", args.max_iterations), ("horizon", args.horizon)) if v is not None}
-    if args.fine_dt is not None:
-        try:
-            over["fine_dt"] = None if args.fine_dt.lower() == "none" else float(args.fine_dt)
-        except ValueError:
-            parser.error(f"--fine-dt must be a number of seconds or 'none', got {args.fine_dt!r}")
     if args.mpc_options is not None:
         import json
 
@@ -69,7 +60,7 @@ def main(argv=None) -> int:
             parser.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
         over.update(extra)
     try:
-        opts = dataclasses.replace(MPCOptions(), **over)
+        opts = MPCOptions().replace(**over)
     except (TypeError, ValueError) as exc:
         parser.error(f"bad MPC options: {exc}")
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=100000, target_speed=args.target_speed)
@@ -105,11 +96,12 @@ def main(argv=None) -> int:
     print(f"  re-plans: {policy.stats['replans']} (+{policy.stats['planner_failures']} failed, "
           f"{policy.stats['time_budget_stops']} stopped by the time budget), wall time per re-plan: "
           f"mean {later.mean():.1f} ms, median {np.median(later):.1f} ms, max {later.max():.1f} ms "
-          f"(first plan {ms[0]:.0f} ms, excluded); budget at real time {1e3 * opts.replan_period:.0f} ms")
+          f"(first plan {ms[0]:.0f} ms, excluded); budget at real time {1e3 * opts.replan.period:.0f} ms")
     iters = float(np.mean(policy.stats["iterations"][1:] or policy.stats["iterations"]))
-    floor_ms = pinocchio_floor_ms(policy._problem, policy.last_solution) * iters
-    compiled_ms = compiled_pass_ms(policy._problem, policy.last_solution) * iters
-    print(f"  Pinocchio reference: {floor_ms:.2f} ms ({policy._problem.n_knots} knots x {iters:.1f} iterations of "
+    problem = policy.law.plan.problem
+    floor_ms = pinocchio_floor_ms(problem, policy.last_solution) * iters
+    compiled_ms = compiled_pass_ms(problem, policy.last_solution) * iters
+    print(f"  Pinocchio reference: {floor_ms:.2f} ms ({problem.n_knots} knots x {iters:.1f} iterations of "
           f"constraint-dynamics / ABA derivatives); re-plan / reference = {later.mean() / floor_ms:.2f}")
     print(f"  the same pass compiled (hsddp_gym.core.planar_dynamics): {compiled_ms:.2f} ms, "
           f"{floor_ms / compiled_ms:.1f}x faster than Pinocchio's")
@@ -118,10 +110,10 @@ def main(argv=None) -> int:
     if args.record:
         write_record(args.record, {
             "seconds": sim, "control_steps": done, "fell": bool(done < steps), "replans": policy.stats["replans"],
-            "planner_failures": policy.stats["planner_failures"], "knots": policy._problem.n_knots,
+            "planner_failures": policy.stats["planner_failures"], "knots": problem.n_knots,
             "iterations_per_replan": iters,
             "replan_ms": {"mean": float(later.mean()), "median": float(np.median(later)), "max": float(later.max())},
-            "replan_period_ms": 1e3 * opts.replan_period, "env_us_per_control_step": 1e6 * env_time / done,
+            "replan_period_ms": 1e3 * opts.replan.period, "env_us_per_control_step": 1e6 * env_time / done,
             "pinocchio_reference_ms": floor_ms, "compiled_pass_ms": compiled_ms, "real_time_factor": rtf},
             "The MPC's re-plan time and the closed loop's real-time factor, beside the Pinocchio derivative calls "
             "of the same knots measured in the same run", machine=machine)

@@ -184,9 +184,9 @@ def test_bad_arguments_are_named():
     # the MPC's filter settings are the defaults: one place sets them
     from hsddp_gym.planners.policies.mpc import MPCOptions
 
-    d = MPCOptions()
-    assert EstimationOptions().filter_noise() == (d.filter_position_noise, d.filter_velocity_noise,
-                                                  d.filter_acceleration_noise, d.filter_innovation_gate)
+    d = MPCOptions().estimator
+    assert EstimationOptions().filter_noise() == (d.position_noise, d.velocity_noise, d.acceleration_noise,
+                                                  d.innovation_gate)
 
 
 def test_robustness_benchmark_runs_estimated_twins(tmp_path):

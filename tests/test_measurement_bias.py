@@ -12,14 +12,7 @@ from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NQ, NX, Mode, mode_from_
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.planners.policies import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.estimation import MeasurementBias
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-
-BIASED_SEED = 9787
-"""A seed on which the MPC with the paper's weights that takes the biased measurement as it is and re-plans only
-every 20 ms (``replan_feedback=None``) falls within 1 s under ``sensor_bias`` (at 0.5 s); with the estimate it bounds.
-The feedback re-plans alone also hold it on this seed (without the estimate but with them it bounds its first 2 s),
-and with the default (later) weights the MPC without either fell on none of ``sensor_bias``'s seeds 40000-40079."""
 
 
 @pytest.fixture(scope="module")
@@ -120,24 +113,7 @@ def test_measurement_bias_validation_names_the_argument():
     with pytest.raises(TypeError, match="robot"):
         MeasurementBias(None, 0.005)
     with pytest.raises(ValueError, match="bias_memory"):
-        MPCOptions(bias_memory=-1.0)
-
-
-def test_the_mpc_bounds_under_a_biased_sensor_and_falls_without_the_estimate():
-    from hsddp_gym.envs.perturbations import make_env
-
-    env = make_env("sensor_bias")
-    try:
-        bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(
-            weights="paper", bias_memory=None, replan_feedback=None)), BIASED_SEED, max_steps=400)
-        assert bare.fell and bare.simulated_time < 1.0
-        for options in (MPCOptions(weights="paper", replan_feedback=None), MPCOptions()):
-            policy = MPCPolicy.from_env(env, options=options)
-            result = run_episode(env, policy, BIASED_SEED, max_steps=400)
-            assert not result.fell and result.length == 400 and result.forward_speed > 0.5
-            assert policy._bias.bias[IZ] == pytest.approx(-0.02, abs=3e-3)  # the bias of sensor_bias, height
-    finally:
-        env.close()
+        MPCOptions().replace(bias_memory=-1.0)
 
 
 def test_a_landing_foot_is_measured_from_where_the_measurement_puts_the_ground():
@@ -158,94 +134,77 @@ def test_a_landing_foot_is_measured_from_where_the_measurement_puts_the_ground()
 
 
 def test_the_plans_put_the_ground_where_the_feet_put_it_and_search_for_it_before():
-    """The plans' ground (``_plan_ground``): before a stance has calibrated the bias estimate, the measured ground,
-    lowered from a flight's nominal end on by ``ground_search_speed`` times the lateness (at most the estimate's
-    height bound); once calibrated, where the estimate puts a foot that stands on the ground. The switching
-    constraints land the feet on it and the reference heights are measured from it."""
+    """The plans' ground (``ContactScheduleEstimator.plan_height``): before a stance has calibrated the bias estimate,
+    the measured ground, lowered from a flight's nominal end on by ``ground_search_speed`` times the lateness (at most
+    the estimate's height bound); once calibrated, where the estimate puts a foot that stands on the ground. The
+    switching constraints land the feet on it and the reference heights are measured from it."""
     env = gym.make("hsddp_gym/Bounding-v0")
     try:
         policy = MPCPolicy.from_env(env)
         obs, info = env.reset(seed=0)
-        policy.reset()
         policy.act(obs)
         x = np.concatenate([info["qpos"], info["qvel"]])
-        clock = policy.clock
+        clock, bias, schedule = policy.clock, policy.estimator.bias, policy.schedule
         clock.phase, clock.tau = 1, clock.durations[1] - 0.01  # a flight before its nominal end: the measured ground
-        assert policy._plan_ground() == 0.0
-        assert policy.replan(x, Mode.FLIGHT)
-        assert policy._pending[2].terrain is None
-        flat_refs = np.array([c.x_ref[IZ] for c in policy._pending[2].costs])
+        assert schedule.plan_height(bias) == 0.0
+        assert policy.replan(x)
+        assert policy.law.plan.problem.terrain is None
+        flat_refs = np.array([c.x_ref[IZ] for c in policy.law.plan.problem.costs])
         clock.tau = clock.durations[1] + 0.02  # 20 ms late
-        assert policy._plan_ground() == pytest.approx(-0.5 * 0.02)
-        assert policy.replan(x, Mode.FLIGHT)
-        problem, sol = policy._pending[2], policy._pending[1]
+        assert schedule.plan_height(bias) == pytest.approx(-0.5 * 0.02)
+        assert policy.replan(x)
+        problem, sol = policy.law.plan.problem, policy.law.plan.solution
         assert problem.terrain.height(0.0) == pytest.approx(-0.01)
         later = [(p, f) for p, f in zip(problem.switch_phase, problem.switch_foot) if f >= 0][1:]
-        assert later and all(policy.dynamics.robot.foot_height(sol.X_pre[p, :NQ], f) < -0.005 for p, f in later)
+        robot = policy.planner.dynamics.robot
+        assert later and all(robot.foot_height(sol.X_pre[p, :NQ], f) < -0.005 for p, f in later)
         assert np.allclose([c.x_ref[IZ] for c in problem.costs], flat_refs - 0.01)
         clock.tau = clock.durations[1] + 1.0  # at most the estimate's height bound
-        assert policy._plan_ground() == pytest.approx(-policy._bias.limit[0])
+        assert schedule.plan_height(bias) == pytest.approx(-bias.limit[0])
         clock.phase = 0  # a stance: the measured ground
-        assert policy._plan_ground() == 0.0
-        # calibrated: the ground where the feet put it, in every phase
-        policy._bias._info[0, 0] = MeasurementBias.CALIBRATION_STEPS
-        policy._bias.bias[IZ] = 0.03
-        assert policy._bias.calibrated
+        assert schedule.plan_height(bias) == 0.0
+        # calibrated: the ground where the feet put it, in every phase, and the model stands on it too
+        assert policy.estimator.model_ground() == 0.0
+        bias._info[0, 0] = MeasurementBias.CALIBRATION_STEPS
+        bias.bias[IZ] = 0.03
+        assert bias.calibrated and policy.estimator.model_ground() == 0.03
         for phase in (0, 1, 2, 3):
             clock.phase = phase
-            assert policy._plan_ground() == pytest.approx(0.03)
-        assert policy.replan(x, Mode.FLIGHT)
-        assert policy._pending[2].terrain.height(0.4) == pytest.approx(0.03)
-        off = MPCPolicy.from_env(env, options=MPCOptions(ground_search_speed=None))
-        off.reset()
+            assert schedule.plan_height(bias) == pytest.approx(0.03)
+        assert policy.replan(x)
+        assert policy.law.plan.problem.terrain.height(0.4) == pytest.approx(0.03)
+        off = MPCPolicy.from_env(env, options=MPCOptions().replace(ground_search_speed=None))
         off.clock.phase, off.clock.tau = 1, clock.durations[1] + 0.02
-        assert off._plan_ground() == 0.0
-        bare = MPCPolicy.from_env(env, options=MPCOptions(bias_memory=None))
-        bare.reset()
+        assert off.schedule.plan_height(off.estimator.bias) == 0.0
+        bare = MPCPolicy.from_env(env, options=MPCOptions().replace(bias_memory=None))
         bare.clock.phase, bare.clock.tau = 1, clock.durations[1] + 0.02
-        assert bare._plan_ground() == 0.0
+        assert bare.estimator.bias is None and bare.schedule.plan_height(None) == 0.0
+        assert bare.estimator.model_ground() == 0.0
         with pytest.raises(ValueError, match="ground_search_speed"):
-            MPCOptions(ground_search_speed=0.0)
+            MPCOptions().replace(ground_search_speed=0.0)
     finally:
         env.close()
 
 
-def test_the_first_landing_under_a_height_bias_finds_the_ground():
-    """``sensor_bias`` seed 49103: the measurement puts the ground 2 cm above it. Without the search the episode's
-    first front foot hovers 1-2 cm above the ground, where a plan at the measured ground stops it, no flag reports
-    its touchdown, and the trunk sinks until the MPC falls (at 0.24 s); with it the foot finds the ground at 0.1 s
-    and the MPC bounds."""
-    from hsddp_gym.envs.perturbations import make_env
+def test_the_late_landing_rule_waits_for_the_calibration():
+    """Before the feet have calibrated where the measurement puts the ground, a late flight's landing foot near
+    ``z = 0`` is no evidence of a touchdown (the ground may be centimetres away): the flags alone decide. Once
+    calibrated, the foot is measured from the calibrated ground."""
+    from hsddp_gym.core.conventions import FRONT
 
-    env = make_env("sensor_bias")
-    try:
-        bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(ground_search_speed=None)), 49103,
-                           max_steps=400)
-        assert bare.fell and bare.simulated_time < 0.5
-        policy = MPCPolicy.from_env(env)
-        result = run_episode(env, policy, 49103, max_steps=400)
-        assert not result.fell and result.length == 400 and result.forward_speed > 0.5
-        assert policy._bias.calibrated
-    finally:
-        env.close()
-
-
-def test_the_mpc_bounds_on_the_ground_where_the_feet_put_it_under_a_large_height_bias():
-    """A height sensor 4.5 cm low (the ``sensor_bias`` height bias one and a half times over), seed 48507. With the
-    plans at the measured ground the landing feet stopped 4 cm above the real one while the late-landing rule, which
-    measures them from the estimate, waited: the MPC fell at 0.93 s. The plans land the feet and hold the trunk on the
-    ground where the estimate puts it."""
-    from hsddp_gym.envs.perturbations import HardwareCondition
-
-    env = HardwareCondition("height_bias", "", observation_bias={"bias": {"z": -0.045}}).make(simulator="bounding")
-    try:
-        policy = MPCPolicy.from_env(env)
-        result = run_episode(env, policy, 48507, max_steps=400)
-        assert not result.fell and result.length == 400 and result.forward_speed > 0.5
-        assert policy._bias.bias[IZ] == pytest.approx(-0.045, abs=3e-3)
-        assert policy._problem.terrain.height(0.0) == pytest.approx(policy._bias.bias[IZ], abs=1e-3)  # a plan ago
-    finally:
-        env.close()
+    policy = MPCPolicy()
+    robot, schedule, bias = policy.planner.dynamics.robot, policy.schedule, policy.estimator.bias
+    q = robot.place_feet(np.array([0.0, 0.3, 0.0, -0.8, 1.6, -0.8, 1.6]), np.array([[0.2, 0.005], [-0.2, 0.1]]))
+    x = np.r_[q, np.zeros(NX - NQ)]  # the front foot 5 mm up
+    policy.clock.phase, policy.clock.tau = 1, policy.clock.durations[1] + 0.01  # late: the front foot lands
+    assert not bias.calibrated
+    assert schedule.evidence(x, Mode.FLIGHT, bias) == Mode.FLIGHT
+    assert schedule.evidence(x, Mode.FLIGHT, None) == Mode.FRONT_STANCE  # no estimate: the state from the start
+    bias._info[0, 0] = MeasurementBias.CALIBRATION_STEPS
+    assert schedule.evidence(x, Mode.FLIGHT, bias) == Mode.FRONT_STANCE
+    bias.bias[IZ] = -0.02  # the measurement puts the ground 2 cm low: the foot is 2.5 cm above it
+    assert schedule.evidence(x, Mode.FLIGHT, bias) == Mode.FLIGHT
+    assert Mode.FRONT_STANCE.in_contact(FRONT)
 
 
 def test_the_model_on_a_raised_ground_is_the_model_on_the_raised_terrain():
@@ -330,25 +289,3 @@ def test_the_state_filter_on_the_measured_ground_sees_a_biased_height_as_the_exa
     assert runs["biased"][1] == runs["exact"][1]
     assert runs["biased, ground 0"][1] > runs["exact"][1] + 5
     assert np.abs(runs["biased from halfway"][0][half:] - exact[half:] - shift).max() < 1e-9
-
-
-def test_the_mpc_bounds_under_noise_a_random_bias_and_a_latency_one_step_longer_than_announced(monkeypatch):
-    """Observation noise, a random sensor bias of ``sensor_bias_random``'s size and 10 ms of latency announced as
-    5 ms, together, seed 52000. With the filter, the prediction over the delay and the delay's estimate on the ground
-    at ``z = 0`` while the plans stand on the ground where the feet put it (the bias estimate), the filter held the
-    stance feet off the plans' ground and the MPC fell at 0.55 s; with the model on the plans' ground it bounds."""
-    from hsddp_gym.envs.perturbations import SENSOR_BIAS_RANGE, HardwareCondition
-
-    env = HardwareCondition("noise_bias_latency", "", observation_noise=(0.01, 0.1), action_delay=2,
-                            announced_action_delay=1,
-                            observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}).make(simulator="bounding")
-    try:
-        policy = MPCPolicy.from_env(env)
-        result = run_episode(env, policy, 52000, max_steps=400)
-        assert not result.fell and result.length == 400 and result.forward_speed > 0.5
-        assert policy._bias.calibrated and policy._model_ground() == policy._bias.bias[IZ] != 0.0
-        monkeypatch.setattr(MPCPolicy, "_model_ground", lambda self: 0.0)
-        bare = run_episode(env, MPCPolicy.from_env(env), 52000, max_steps=400)
-        assert bare.fell and bare.simulated_time < 1.0
-    finally:
-        env.close()

@@ -9,13 +9,22 @@ import pytest
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym.core.conventions import Mode
+from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.learning.features import gait_clock_features, make_gait_clock
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy
+from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE, GaitClock, MPCOptions, MPCPolicy, ScheduleOptions
+
+OFF = {"lost_stance_steps": 0, "double_stance": None, "restep": False}
+"""The clock's rules that each test turns on by itself."""
+
+
+def _clock(durations, dt, **settings) -> GaitClock:
+    """A clock with ``settings`` (``ScheduleOptions`` fields) and the other rules off."""
+    return GaitClock(durations, dt, ScheduleOptions(**{**OFF, **settings}))
 
 
 def test_clock_rules():
-    c = GaitClock((0.02, 0.02, 0.02, 0.02), 0.005, debounce_steps=2, min_flight=0.3)
+    c = _clock((0.02, 0.02, 0.02, 0.02), 0.005, debounce_steps=2, min_flight=0.3)
     assert c.update(Mode.BACK_STANCE, 0.0) == Mode.BACK_STANCE and c.phase == 0
     for _ in range(4):  # stance ends on time
         c.tick()
@@ -60,7 +69,7 @@ def _stance_then(clock, mode_before, steps_on, mode_after, steps_off):
 def test_lost_stance_rule():
     durs = (0.04, 0.03, 0.04, 0.03)
     # early in the back stance the back foot leaves the ground: back to the flight that lands it
-    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c = _clock(durs, 0.005, lost_stance_steps=2)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, Mode.BACK_STANCE, 1, Mode.FLIGHT, 1)
     assert c.phase == 0 and not c.resynced  # one step in the air is not enough
@@ -74,18 +83,18 @@ def test_lost_stance_rule():
     _stance_then(c, Mode.BACK_STANCE, 2, Mode.BACK_STANCE, 0)
     assert c.phase == 0
     # late in the front stance (tau >= half of it): the stance simply ends
-    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c = _clock(durs, 0.005, lost_stance_steps=2)
     c.update(Mode.FRONT_STANCE, 0.0)
     _stance_then(c, Mode.FRONT_STANCE, 4, Mode.FLIGHT, 2)
     assert c.phase == 3 and c.tau == 0.0 and not c.resynced
     # with the rule off a stance is never lost
-    c = GaitClock(durs, 0.005, lost_stance_steps=0)
+    c = _clock(durs, 0.005, lost_stance_steps=0)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, Mode.BACK_STANCE, 1, Mode.FLIGHT, 3)
     assert c.phase == 0 and not c.resynced
-    assert c.copy().lost_stance_steps == 0 and GaitClock(durs, 0.005, lost_stance_steps=3).copy().lost_stance_steps == 3
+    assert c.copy().lost_stance_steps == 0 and _clock(durs, 0.005, lost_stance_steps=3).copy().lost_stance_steps == 3
     with pytest.raises(ValueError, match="lost_stance_steps"):
-        GaitClock(durs, 0.005, lost_stance_steps=-1)
+        _clock(durs, 0.005, lost_stance_steps=-1)
 
 
 @pytest.mark.slow
@@ -94,7 +103,8 @@ def test_features_rebuilt_from_observations_match_the_mpc_clock():
     reads its estimate's foot heights, which the learners do not rebuild: off here, the clocks agree step for step
     (with it, seed 3 lands the MPC's clock one step early three times in 120)."""
     env = gym.make("hsddp_gym/Bounding-v0")
-    mpc = MPCPolicy.from_env(env, options=MPCOptions(warmup_iterations=5, max_iterations=1, touchdown_height=None))
+    options = MPCOptions().replace(warmup_iterations=5, max_iterations=1, touchdown_height=None)
+    mpc = MPCPolicy.from_env(env, options=options)
     obs, _ = env.reset(seed=3)
     mpc.reset()
     O, live = [], []
@@ -119,13 +129,13 @@ def test_double_stance_rule():
     durs = (0.04, 0.03, 0.04, 0.03)
     ds = Mode.DOUBLE_STANCE
     # off (the default): a swing foot landing in a stance does not change the phase
-    c = GaitClock(durs, 0.005)
+    c = _clock(durs, 0.005)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, ds, 3, ds, 0)
     assert c.phase == 0 and c.mode == Mode.BACK_STANCE
     # on: the front foot lands in the back stance (debounced, after a swing of min_flight of its flight, 9 ms)
     # -> double stance, then front stance
-    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c = _clock(durs, 0.005, double_stance=0.02)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, Mode.BACK_STANCE, 1, ds, 1)
     assert c.phase == 0  # one contact step of the front foot is not enough
@@ -142,27 +152,27 @@ def test_double_stance_rule():
     c.tick()
     assert c.update(Mode.FRONT_STANCE, 0.0) == Mode.FRONT_STANCE and c.phase == 2 and c.tau == 0.0
     # ... or after its duration, both feet still down; the duration is the one set when it started
-    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c = _clock(durs, 0.005, double_stance=0.02)
     c.update(Mode.FRONT_STANCE, 0.0)
     _stance_then(c, Mode.FRONT_STANCE, 1, ds, 2)
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 0
-    c.double_stance = 0.0
+    c.double_stance = 0.0  # the one entered lasts its own duration
     _stance_then(c, ds, 3, ds, 0)
     assert c.phase == DOUBLE_STANCE_PHASE
     _stance_then(c, ds, 1, ds, 0)
     assert c.phase == 0 and c.mode == Mode.BACK_STANCE
     # in a flight whose lift-off is late: the landing foot touches while the other foot is still down
-    c = GaitClock(durs, 0.005, double_stance=0.02, min_flight=0.0)
+    c = _clock(durs, 0.005, double_stance=0.02, min_flight=0.0)
     c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
     _stance_then(c, Mode.BACK_STANCE, 1, ds, 2)
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
     # a scuff is not a landing: a foot in the air for less than min_flight of its flight (one step, 5 ms) touches
-    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c = _clock(durs, 0.005, double_stance=0.02)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, ds, 3, ds, 0)
     assert c.phase == 0 and c.mode == Mode.BACK_STANCE
     with pytest.raises(ValueError, match="double_stance"):
-        GaitClock(durs, 0.005, double_stance=-0.01)
+        _clock(durs, 0.005, double_stance=-0.01)
 
 
 def test_double_stance_starts_only_at_a_touchdown():
@@ -173,7 +183,7 @@ def test_double_stance_starts_only_at_a_touchdown():
     it is a touchdown."""
     durs = (0.1, 0.03, 0.1, 0.03)
     ds = Mode.DOUBLE_STANCE
-    c = GaitClock(durs, 0.005, double_stance=0.02)
+    c = _clock(durs, 0.005, double_stance=0.02)
     c.update(Mode.BACK_STANCE, 0.0)
     _stance_then(c, Mode.BACK_STANCE, 2, ds, 2)  # the front foot lands in the back stance: double stance, front next
     assert c.phase == DOUBLE_STANCE_PHASE and c.after_double == 2
@@ -191,45 +201,43 @@ def test_double_stance_starts_only_at_a_touchdown():
 
 
 def test_mpc_double_stance_option_plans_the_clock_s_double_stance():
-    """``MPCOptions(double_stance=0.04)`` (the default): the MPC's clock always has that double stance, and a plan's
-    schedule built while the clock is in it starts with it, then the stance of the foot that landed; with None the
-    MPC never enters one. The learner's rebuilt clock keeps the setting."""
-    from hsddp_gym.learning.features import clock_from_params, clock_params
-
+    """``double_stance=0.04`` (the default): the MPC's clock always has that double stance, and a plan's schedule
+    built while the clock is in it starts with it, then the stance of the foot that landed; with None the MPC never
+    enters one. The learner's rebuilt clock keeps the setting."""
     ds = Mode.DOUBLE_STANCE
-    policy = MPCPolicy(EnvInterface(), MPCOptions(double_stance=0.04))
+    policy = MPCPolicy(EnvInterface(), MPCOptions().replace(double_stance=0.04))
     assert policy.clock.double_stance == 0.04
     policy.clock.update(Mode.BACK_STANCE, 0.0)
     _stance_then(policy.clock, Mode.BACK_STANCE, 4, ds, 2)  # the front foot lands in the back stance (debounced)
     assert policy.clock.phase == DOUBLE_STANCE_PHASE and policy.clock.after_double == 2
-    schedule = policy._schedule()
+    schedule = policy.schedule.schedule(paper_initial_state())
     assert schedule.modes[0] == ds and schedule.modes[1] == Mode.FRONT_STANCE
     assert schedule.durations[0] == pytest.approx(0.04)
-    assert clock_from_params(clock_params(policy.clock)).double_stance == 0.04
-    assert MPCOptions().double_stance == 0.04 and MPCPolicy(EnvInterface()).clock.double_stance == 0.04
+    assert GaitClock.from_settings(policy.clock.settings()).double_stance == 0.04
+    assert MPCOptions().schedule.double_stance == 0.04 and MPCPolicy(EnvInterface()).clock.double_stance == 0.04
     # None: no double stance, the clock stays in the back stance and so does the plan
-    off = MPCPolicy(EnvInterface(), MPCOptions(double_stance=None))
+    off = MPCPolicy(EnvInterface(), MPCOptions().replace(double_stance=None))
     assert off.clock.double_stance == 0.0
     off.clock.update(Mode.BACK_STANCE, 0.0)
     _stance_then(off.clock, ds, 2, ds, 0)
-    assert off.clock.phase == 0 and off._schedule().modes[0] == Mode.BACK_STANCE
+    assert off.clock.phase == 0 and off.schedule.schedule(paper_initial_state()).modes[0] == Mode.BACK_STANCE
     for bad in (0.0, -0.01):
         with pytest.raises(ValueError, match="double_stance"):
-            MPCOptions(double_stance=bad)
+            MPCOptions().replace(double_stance=bad)
 
 
 def test_a_flight_waits_for_its_landing_foot_however_late():
     """The clock never moves into a stance whose foot is in the air, and a late flight ends at the landing foot's
     first contact step (a flickering soft contact)."""
     durs = (0.04, 0.03, 0.04, 0.03)
-    c = GaitClock(durs, 0.005)
+    c = _clock(durs, 0.005)
     c.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
     assert c.phase == 1
     _stance_then(c, Mode.FLIGHT, 40, Mode.FLIGHT, 0)  # 0.2 s, almost 7 nominal flights
     assert c.phase == 1 and c.tau == pytest.approx(0.2)
     _stance_then(c, Mode.FRONT_STANCE, 1, Mode.FRONT_STANCE, 0)  # one contact step past the nominal end
     assert c.phase == 2 and c.tau == 0.0
-    early = GaitClock(durs, 0.005)
+    early = _clock(durs, 0.005)
     early.update(Mode.FLIGHT, 1.0)
     _stance_then(early, Mode.FLIGHT, 2, Mode.FRONT_STANCE, 1)  # before the nominal end one step is a graze
     assert early.phase == 1
@@ -238,22 +246,20 @@ def test_a_flight_waits_for_its_landing_foot_however_late():
 
 
 def test_saved_clock_settings_round_trip_and_refuse_a_flight_time_limit():
-    """:func:`clock_params` / :func:`clock_from_params` (saved with a learner): the same clock back; a saved
-    ``"max_wait": None`` is accepted, a time limit on a flight is refused (flights wait for their touchdown)."""
-    from hsddp_gym.learning.features import clock_from_params, clock_params
-
-    params = clock_params(MPCPolicy(EnvInterface()).clock)
+    """:meth:`GaitClock.settings` / :meth:`GaitClock.from_settings` (saved with a learner): the same clock back; a
+    saved ``"max_wait": None`` is accepted, a time limit on a flight is refused (flights wait for their touchdown)."""
+    params = MPCPolicy(EnvInterface()).clock.settings()
     assert "max_wait" not in params
-    rebuilt = clock_from_params(params)
-    assert clock_params(rebuilt) == params
+    rebuilt = GaitClock.from_settings(params)
+    assert rebuilt.settings() == params
     # every setting of the MPC's clock comes back, so the features a learner acts on are those it was trained on
     for name in ("lost_stance_steps", "double_stance", "restep", "debounce_steps", "min_flight", "durations", "dt"):
         assert getattr(rebuilt, name) == getattr(MPCPolicy(EnvInterface()).clock, name), name
     assert rebuilt.restep is True
-    assert clock_from_params({k: v for k, v in params.items() if k != "restep"}).restep is False  # saved before
-    assert clock_params(clock_from_params({**params, "max_wait": None})) == params
+    assert GaitClock.from_settings({k: v for k, v in params.items() if k != "restep"}).restep is False  # saved before
+    assert GaitClock.from_settings({**params, "max_wait": None}).settings() == params
     with pytest.raises(ValueError, match="max_wait"):
-        clock_from_params({**params, "max_wait": 0.03})
+        GaitClock.from_settings({**params, "max_wait": 0.03})
 
 
 def test_a_foot_that_bounces_off_at_touchdown_is_a_lost_stance():
@@ -261,7 +267,7 @@ def test_a_foot_that_bounces_off_at_touchdown_is_a_lost_stance():
     stance, the clock goes back to the flight that lands it (and the MPC does not plan the stance on a foot in the
     air)."""
     durs = (0.08, 0.072, 0.072, 0.072)
-    c = GaitClock(durs, 0.005, lost_stance_steps=2)
+    c = _clock(durs, 0.005, lost_stance_steps=2)
     c.update(Mode.FLIGHT, -1.0)  # flight 3 (lands the back foot)
     _stance_then(c, Mode.FLIGHT, 10, Mode.BACK_STANCE, 2)  # touchdown, debounced: back stance
     assert c.phase == 0 and c.tau == 0.0
@@ -273,11 +279,10 @@ def test_clock_starts_a_stance_where_the_foot_under_the_hip_says():
     """A start-up that does not assume a phase has just begun: the paper's initial state is mid back stance
     (the foot under the hip), so the clock starts there with about half the stance gone; a foot ahead of the hip
     is early in the stance, one behind it late. Flights and a double stance start at 0."""
-    from hsddp_gym.core.references import paper_initial_state
     from hsddp_gym.planners.policies.mpc import stance_elapsed
 
     policy = MPCPolicy(EnvInterface(), MPCOptions())
-    robot = policy.dynamics.robot
+    robot = policy.planner.dynamics.robot
     x = paper_initial_state()
     T = policy.durations[0]
     mid = stance_elapsed(robot, x, 0, T)
@@ -290,20 +295,18 @@ def test_clock_starts_a_stance_where_the_foot_under_the_hip_says():
     assert stance_elapsed(robot, ahead, 0, T) < mid < stance_elapsed(robot, behind, 0, T)
     assert stance_elapsed(robot, x, 1, 0.072) == 0.0
     # the MPC's clock uses it on the first observation only
-    policy._update_clock(Mode.BACK_STANCE, x)
+    policy.schedule.observe(x, Mode.BACK_STANCE, None)
     assert policy.clock.phase == 0 and policy.clock.tau == pytest.approx(mid)
-    policy._update_clock(Mode.BACK_STANCE, behind)  # later observations do not move it
+    policy.schedule.observe(behind, Mode.BACK_STANCE, None)  # later observations do not move it
     assert policy.clock.tau == pytest.approx(mid)
-    clock = GaitClock(policy.durations, 0.005)
+    clock = _clock(policy.durations, 0.005)
     clock.update(Mode.DOUBLE_STANCE, 0.0, elapsed=lambda phase, duration: 0.03)
     assert clock.tau == 0.0
     for bad in (float("nan"), -0.01, 1.0):
         with pytest.raises(ValueError, match="elapsed"):
-            GaitClock(policy.durations, 0.005).update(Mode.BACK_STANCE, 0.0, elapsed=lambda phase, duration, b=bad: b)
-    from hsddp_gym.planners.policies.mpc import update_gait_clock
-
+            _clock(policy.durations, 0.005).update(Mode.BACK_STANCE, 0.0, elapsed=lambda phase, duration, b=bad: b)
     with pytest.raises(ValueError, match="x"):
-        update_gait_clock(GaitClock(policy.durations, 0.005), Mode.BACK_STANCE, np.zeros(3))
+        _clock(policy.durations, 0.005).observe(Mode.BACK_STANCE, np.zeros(3))
 
 
 def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
@@ -315,17 +318,19 @@ def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
 
     policy = MPCPolicy(EnvInterface())
     o = policy.options
-    assert o.flight_reach == 0.85
-    params = policy.dynamics.robot.params
-    reach = o.flight_reach * params.leg_length
+    assert o.schedule.flight_reach == 0.85
+    params = policy.planner.dynamics.robot.params
+    reach = o.schedule.flight_reach * params.leg_length
+    h = o.plan.planner_dt
     x = np.zeros(14)
     x[IZ] = reach + 0.10  # level trunk, both hips 10 cm above their reach, at rest
     fall = np.sqrt(2 * 0.10 / params.gravity)
     for stance in (Mode.FRONT_STANCE, Mode.BACK_STANCE):
-        assert abs(policy._reach_time(x, stance) - fall) <= o.planner_dt
+        assert abs(policy.schedule.reach_time(x, stance) - fall) <= h
     # pitched nose-up (negative pitch): the front hip is higher than the back one and reaches later
     x[IPITCH] = -0.3
-    assert policy._reach_time(x, Mode.FRONT_STANCE) > fall + 0.02 > policy._reach_time(x, Mode.BACK_STANCE) + 0.02
+    reach_time = policy.schedule.reach_time
+    assert reach_time(x, Mode.FRONT_STANCE) > fall + 0.02 > reach_time(x, Mode.BACK_STANCE) + 0.02
     # the hip heights are the model's (forward kinematics), for a pitched trunk at rest: the fall time of each hip
     from hsddp_gym.core.model import CheetahModel
 
@@ -333,38 +338,38 @@ def test_a_flight_is_planned_until_the_landing_hip_can_reach_the_ground():
     hips = CheetahModel().hip_positions(x[:NQ])  # (front, back) x (x, z)
     for stance, hip_z in ((Mode.FRONT_STANCE, hips[0, 1]), (Mode.BACK_STANCE, hips[1, 1])):
         expected = np.sqrt(2 * max(hip_z - reach, 0.0) / params.gravity)
-        assert abs(policy._reach_time(x, stance) - expected) <= o.planner_dt
+        assert abs(policy.schedule.reach_time(x, stance) - expected) <= h
     # moving up at 0.5 m/s: the ballistic time, longer than the fall from rest
     x[IZ], x[IPITCH], x[NQ + IZ] = reach + 0.10, 0.0, 0.5
     up = (0.5 + np.sqrt(0.25 + 2 * params.gravity * 0.10)) / params.gravity
-    assert up > fall + 0.05 and abs(policy._reach_time(x, Mode.BACK_STANCE) - up) <= o.planner_dt
+    assert up > fall + 0.05 and abs(policy.schedule.reach_time(x, Mode.BACK_STANCE) - up) <= h
     # at bounding height (0.29 m) the hips are within reach: no delay
     x[IZ], x[NQ + IZ] = 0.29, 0.0
-    assert policy._reach_time(x, Mode.FRONT_STANCE) == 0.0
+    assert policy.schedule.reach_time(x, Mode.FRONT_STANCE) == 0.0
     # never within the horizon: the horizon
     x[IZ] = 3.0
-    assert policy._reach_time(x, Mode.FRONT_STANCE) == pytest.approx(policy.horizon, abs=o.planner_dt)
+    assert policy.schedule.reach_time(x, Mode.FRONT_STANCE) == pytest.approx(policy.schedule.horizon, abs=h)
 
     # the plan's schedule: a flight 60 ms past its nominal end, the robot high above the ground
     x[IZ] = reach + 0.10
-    off = MPCPolicy(EnvInterface(), MPCOptions(flight_reach=None))
+    off = MPCPolicy(EnvInterface(), MPCOptions().replace(flight_reach=None))
     for p in (policy, off):
         p.clock.update(Mode.FLIGHT, 1.0)  # flight 1 (lands the front foot)
         _stance_then(p.clock, Mode.FLIGHT, int(round((p.durations[1] + 0.06) / 0.005)), Mode.FLIGHT, 0)
         assert p.clock.phase == 1
-    planned = policy._schedule(x)
+    planned = policy.schedule.schedule(x)
     assert planned.modes[0] == Mode.FLIGHT and planned.modes[1] == Mode.FRONT_STANCE
-    assert abs(planned.durations[0] - fall) <= o.planner_dt
-    assert off._schedule(x).durations[0] == pytest.approx(o.min_phase)
+    assert abs(planned.durations[0] - fall) <= h
+    assert off.schedule.schedule(x).durations[0] == pytest.approx(o.plan.min_phase)
     # the clock is not changed, nor a plan from bounding height
     assert policy.clock.phase == 1
     x[IZ] = 0.29
-    assert policy._schedule(x).durations[0] == pytest.approx(o.min_phase)
+    assert policy.schedule.schedule(x).durations[0] == pytest.approx(o.plan.min_phase)
     for bad in (0.0, -0.1, 1.5):
         with pytest.raises(ValueError, match="flight_reach"):
-            MPCOptions(flight_reach=bad)
+            MPCOptions().replace(flight_reach=bad)
     with pytest.raises(TypeError, match="flight_reach"):
-        MPCOptions(flight_reach="high")
+        MPCOptions().replace(flight_reach="high")
 
 
 def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stance_again():
@@ -373,8 +378,8 @@ def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stan
     never left the ground or only scuffs it does not; without ``restep`` (the learners' clock) the flight goes on."""
     durs = (0.08, 0.072, 0.072, 0.072)
     bs, fl = Mode.BACK_STANCE, Mode.FLIGHT
-    c = GaitClock(durs, 0.005, restep=True)
-    assert c.copy().restep and not GaitClock(durs, 0.005).restep
+    c = _clock(durs, 0.005, restep=True)
+    assert c.copy().restep and not _clock(durs, 0.005).restep
     c.update(fl, 1.0)  # flight 1: after the back stance, lands the front foot
     assert c.phase == 1
     _stance_then(c, fl, 6, bs, 1)  # 35 ms in the air, then the back foot touches: not yet debounced
@@ -387,12 +392,12 @@ def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stan
     _stance_then(c, bs, 1, fl, 0)
     assert c.phase == 1
     # without restep: the flight goes on
-    w = GaitClock(durs, 0.005)
+    w = _clock(durs, 0.005)
     w.update(fl, 1.0)
     _stance_then(w, fl, 6, bs, 4)
     assert w.phase == 1 and w.mode == fl
     # a scuff: 10 ms after the back stance ended, 10 ms in the air
-    s = GaitClock(durs, 0.005, restep=True)
+    s = _clock(durs, 0.005, restep=True)
     s.update(bs, 0.0)
     _stance_then(s, bs, 16, bs, 0)  # the back stance ends on time with the foot still down
     assert s.phase == 1
@@ -400,11 +405,11 @@ def test_a_foot_that_lands_again_in_the_flight_after_its_stance_starts_that_stan
     _stance_then(s, bs, 3, bs, 0)
     assert s.phase == 1
     # a foot that stays down from the stance into the flight
-    d = GaitClock(durs, 0.005, restep=True)
+    d = _clock(durs, 0.005, restep=True)
     d.update(bs, 0.0)
     _stance_then(d, bs, 20, bs, 0)
     assert d.phase == 1
     with pytest.raises(TypeError, match="restep"):
-        GaitClock(durs, 0.005, restep="yes")
+        _clock(durs, 0.005, restep="yes")
     assert MPCPolicy(EnvInterface()).clock.restep
-    assert not MPCPolicy(EnvInterface(), MPCOptions(restep=False)).clock.restep
+    assert not MPCPolicy(EnvInterface(), MPCOptions().replace(restep=False)).clock.restep

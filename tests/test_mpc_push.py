@@ -1,5 +1,7 @@
-"""The MPC after a push: the speed reference governor (``MPCOptions.speed_ramp``, :meth:`MPCPolicy.plan_speed`) and
-the gait clock's lost-stance rule (``lost_stance_steps``), and the push grid of ``experiments/push_robustness.py``."""
+"""The MPC after a push: the speed reference governor (``SpeedOptions.ramp``,
+:meth:`~hsddp_gym.planners.policies.mpc.speed.SpeedReference.plan_speed`), the schedule estimator's lost-stance rule
+(``ScheduleOptions.lost_stance_steps``), the options' records, and the push grid of
+``experiments/push_robustness.py``."""
 
 from __future__ import annotations
 
@@ -10,14 +12,7 @@ import numpy as np
 import pytest
 
 import hsddp_gym  # noqa: F401
-from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-GRID_5MS_NO_INTEGRAL = {"planner_dt": 0.005, "speed_integral_gain": None, "max_iterations": 3,
-                        "feedback_iterations": None}
-"""The MPC with a 5 ms planner grid, no integral speed action, 3 DDP iterations per re-plan and feedback re-plans
-solved as the others: the configuration the pushes of the tests pinned to it were picked on."""
 
 
 def make_env():
@@ -34,67 +29,73 @@ def run(env, policy, obs, steps):
     return obs, np.array(actions)
 
 
-def test_speed_governor_and_lost_stance_rule_survive_a_push_the_mpc_without_them_falls_after():
-    """Seed 100, ``[-1.5, 0, 0]`` at t = 1 s: without the speed reference governor (``speed_ramp``) and the
-    lost-stance rule (``lost_stance_steps``) the MPC falls within 0.5 s of the push; with them it bounds on.
-
-    Pinned to the configuration these two mechanisms were measured on (``GRID_5MS_NO_INTEGRAL``): with the default
-    options (the 2.5 ms grid and the integral speed action together) the MPC falls on this one push (about twice the
-    suite's largest); with either of the two alone it survives it."""
-    push = {"push": {"delta_v": [-1.5, 0.0, 0.0], "time": 1.0}}
-    env = make_env()
-    base = GRID_5MS_NO_INTEGRAL
-    bare = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0, **base)),
-                       100, options=push, max_steps=300)
-    assert bare.fell and bare.length < 300
-    default = run_episode(env, MPCPolicy.from_env(env, options=MPCOptions(**base)), 100, options=push, max_steps=300)
-    assert not default.fell
-
-
 def test_speed_governor_and_lost_stance_rule_leave_unpushed_bounding_unchanged():
     """While bounding, the speed stays within ``speed_ramp`` of the target and no stance foot lifts early: the
     same actions as without either mechanism (the start-up's speed rate limit, which does act, off in both)."""
     env = make_env()
-    bare = MPCPolicy.from_env(env, options=MPCOptions(speed_ramp=None, lost_stance_steps=0, speed_acceleration=None))
+    bare = MPCPolicy.from_env(env, options=MPCOptions().replace(speed_ramp=None, lost_stance_steps=0,
+                                                               speed_acceleration=None))
     obs, _ = env.reset(seed=1)
     _, a_bare = run(env, bare, obs, 200)
     obs, _ = env.reset(seed=1)
-    _, a_default = run(env, MPCPolicy.from_env(env, options=MPCOptions(speed_acceleration=None)), obs, 200)
+    _, a_default = run(env, MPCPolicy.from_env(env, options=MPCOptions().replace(speed_acceleration=None)), obs, 200)
     np.testing.assert_array_equal(a_bare, a_default)
 
 
-def test_options_from_a_record_of_an_earlier_version():
-    """``MPCOptions.from_record``: the stored options of a dataset come back; ``weights`` None (the paper's weights,
-    the default of earlier versions) is ``"paper"``; a field this version does not have is left out with a warning
-    naming it; anything else is checked as ``MPCOptions`` checks it."""
+def test_options_from_a_record_grouped_or_flat():
+    """``MPCOptions.from_record``: grouped records (``dataclasses.asdict``) and the flat records of earlier versions
+    come back; a setting this version fixes loads silently when it holds the value this version uses (``weights``
+    None, the paper's weights then, counts as ``"paper"``) and is left out with a warning naming it otherwise, as is an
+    unknown name; every value is checked as the groups check it."""
     import dataclasses
-    import json
 
-    stored = json.loads(json.dumps(dataclasses.asdict(MPCOptions(durations=(0.08, 0.1, 0.08, 0.1)))))
-    assert MPCOptions.from_record(stored) == MPCOptions(durations=(0.08, 0.1, 0.08, 0.1))
-    old = {**stored, "weights": None, "plan_retouch": True}
-    with pytest.warns(UserWarning, match="plan_retouch"):
-        assert MPCOptions.from_record(old).weights == "paper"
-    with pytest.raises(ValueError, match="weights"):
-        MPCOptions.from_record({"weights": "mine"})
+    fast = MPCOptions().replace(durations=(0.08, 0.1, 0.08, 0.1), touchdown_height=None)
+    stored = json.loads(json.dumps(dataclasses.asdict(fast)))
+    assert MPCOptions.from_record(stored) == fast
+    flat = json.loads(json.dumps(fast.flat()))
+    assert MPCOptions.from_record(flat) == fast
+    assert set(flat) == set(MPCOptions().flat()) and len(flat) == 34
+    same = {**flat, "method": "al-reb", "weights": "later", "fine_dt": None, "reb_delta": 0.2, "latency_steps": 0}
+    assert MPCOptions.from_record(same) == fast
+    with pytest.warns(UserWarning, match="weights=.paper.*plan_retouch"):
+        assert MPCOptions.from_record({**flat, "weights": None, "plan_retouch": True}) == fast
+    with pytest.warns(UserWarning, match="schedule.no_such"):
+        MPCOptions.from_record({"schedule": {"restep": False, "no_such": 1}})
+    assert MPCOptions.from_record(None) == MPCOptions() == MPCOptions.from_record({})
+    with pytest.raises(ValueError, match="debounce_steps"):
+        MPCOptions.from_record({"debounce_steps": 0})
     with pytest.raises(TypeError, match="options"):
         MPCOptions.from_record([("weights", "paper")])
+    with pytest.raises(TypeError, match="schedule"):
+        MPCOptions.from_record({"schedule": [1]})
+
+
+def test_options_replace_takes_flat_names_and_groups_and_refuses_unknown_ones():
+    from hsddp_gym.planners.policies.mpc import ReplanOptions
+    from hsddp_gym.planners.policies.mpc.options import GROUPS
+
+    o = MPCOptions().replace(replan_period=0.01, restep=False, min_stance_force=None)
+    assert o.replan.period == 0.01 and o.schedule.restep is False and o.min_stance_force is None
+    assert o.plan == MPCOptions().plan  # the rest stays
+    assert MPCOptions().replace(replan=ReplanOptions(period=0.01)).replan.period == 0.01
+    with pytest.raises(ValueError, match="no setting 'fine_dt'"):
+        MPCOptions().replace(fine_dt=0.001)
+    with pytest.raises(TypeError, match="replan must be a ReplanOptions"):
+        MPCOptions(replan={"period": 0.01})
+    fields = [f for cls in GROUPS.values() for f in cls.__dataclass_fields__]
+    assert len(MPCOptions.__dataclass_fields__) <= 20 and len(fields) + 1 == len(MPCOptions().flat())
 
 
 def test_plan_speed_is_the_target_moved_at_most_speed_ramp_from_the_measured_speed():
     x = np.zeros(14)
-    policy = MPCPolicy()  # target 1.0 m/s, speed_ramp 0.5
+    policy = MPCPolicy()  # target 1.0 m/s, speed ramp 0.5
     for vx, expected in ((1.2, 1.0), (0.6, 1.0), (-0.5, 0.0), (2.5, 2.0)):
         x[7] = vx
-        assert policy.plan_speed(x) == pytest.approx(expected)
-    assert MPCPolicy(options=MPCOptions(speed_ramp=None)).plan_speed(x) == 1.0
-    assert MPCPolicy().weights == "later"
-    assert MPCPolicy(EnvInterface(target_speed=2.0)).weights == "later"  # one gait at every speed
-    assert MPCPolicy(EnvInterface(target_speed=2.0), MPCOptions(weights="paper")).weights == "paper"
-    for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5},
-                {"weights": "mine"}, {"weights": None}):
-        with pytest.raises((ValueError, TypeError), match=next(iter(bad))):
-            MPCOptions(**bad)
+        assert policy.speed.plan_speed(x) == pytest.approx(expected)
+    assert MPCPolicy(options=MPCOptions().replace(speed_ramp=None)).speed.plan_speed(x) == 1.0
+    for bad in ({"speed_ramp": 0.0}, {"speed_ramp": -1.0}, {"lost_stance_steps": -1}, {"lost_stance_steps": 1.5}):
+        with pytest.raises((ValueError, TypeError), match=next(iter(bad)).split("_")[-1]):
+            MPCOptions().replace(**bad)
 
 
 def test_push_robustness_experiment_records_every_episode(tmp_path, experiment):
@@ -139,9 +140,9 @@ def test_a_stance_foot_observed_in_the_air_is_never_planned_on_the_ground(lost_s
     from hsddp_gym.core.conventions import BACK, FRONT, Mode
     from hsddp_gym.core.observation import DEFAULT_LAYOUT
 
-    assert MPCOptions().lost_stance_steps == 1
+    assert MPCOptions().schedule.lost_stance_steps == 1
     env = make_env()
-    policy = MPCPolicy.from_env(env, options=MPCOptions(lost_stance_steps=lost_stance_steps))
+    policy = MPCPolicy.from_env(env, options=MPCOptions().replace(lost_stance_steps=lost_stance_steps))
     obs, _ = env.reset(seed=3)
     for _ in range(400):  # into steady bounding, then to the first control step of a stance
         obs, _, terminated, _, _ = env.step(policy(obs))
@@ -161,49 +162,6 @@ def test_a_stance_foot_observed_in_the_air_is_never_planned_on_the_ground(lost_s
     if lost_stance_steps == 1:
         assert policy.clock.mode == Mode.FLIGHT and policy.clock.phase == (stance_phase - 1) % 4
         # the re-plan of this very step starts from the flight
-        assert policy.stats["replans"] == replans + 1 and policy._problem.schedule.modes[0] == Mode.FLIGHT
+        assert policy.stats["replans"] == replans + 1 and policy.law.plan.problem.schedule.modes[0] == Mode.FLIGHT
     else:
         assert policy.clock.phase == stance_phase
-
-
-def _push_episode(options: MPCOptions, seed: int):
-    """One ``make_env("push_flight")`` episode of the MPC: (fell, the times [s] at which its clock was in a double
-    stance, the applied push ``info["push_applied"]``)."""
-    from hsddp_gym.envs.perturbations import make_env as make_perturbed_env
-    from hsddp_gym.planners.policies.mpc import DOUBLE_STANCE_PHASE
-
-    env = make_perturbed_env("push_flight")
-    policy = MPCPolicy.from_env(env, options=options)
-    obs, _ = env.reset(seed=seed)
-    policy.reset()
-    double, push = [], None
-    try:
-        for k in range(env.spec.max_episode_steps):
-            obs, _, terminated, truncated, info = env.step(policy(obs))
-            push = info.get("push_applied", push)
-            if policy.clock.phase == DOUBLE_STANCE_PHASE:
-                double.append((k + 1) * env.unwrapped.dt)
-            if terminated or truncated:
-                return terminated, double, push
-    finally:
-        env.close()
-    return False, double, push
-
-
-def test_a_landing_on_both_feet_is_planned_as_a_double_stance():
-    """Development seed 40008 of ``push_flight``: a push in a flight at t = 3.435 s (Δv = (+0.25, +0.07) m/s,
-    -4.7 rad/s) brings the robot down on both feet at 3.61 s. The default plans the landing as a 40 ms double stance,
-    then the stance of the foot that landed, and bounds on; planned as that stance (``double_stance=None``) and
-    re-planned only every 20 ms (``replan_feedback=None``) it falls at 3.99 s. Either mechanism alone catches this
-    landing (``double_stance=None`` bounds here, and so does ``replan_feedback=None``)."""
-    fell, double, push = _push_episode(MPCOptions(), 40008)
-    assert push["time"] == pytest.approx(3.435, abs=0.01)
-    assert not fell
-    assert double and push["time"] < double[0] < push["time"] + 0.3  # entered at the landing, never before the push
-    # each double stance lasts its 40 ms (8 control steps), none follows another at once
-    runs = np.split(np.array(double), np.flatnonzero(np.diff(double) > 0.0051) + 1)
-    assert all(len(run) <= 8 for run in runs)
-    assert all(b[0] - a[-1] > 0.05 for a, b in zip(runs, runs[1:]))
-    # without it
-    fell_off, double_off, _ = _push_episode(MPCOptions(double_stance=None, replan_feedback=None), 40008)
-    assert fell_off and not double_off

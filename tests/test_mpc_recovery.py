@@ -1,7 +1,9 @@
-"""The MPC after a pitch kick: a re-step with the foot on the ground side when the ballistic flight takes the
-landing hip out of reach (``MPCOptions.restep``, ``GaitClock.restep_foot``), torques that never pull a stance
-foot off the ground or out of the friction cone (``MPCOptions.min_stance_force``, ``PushingTorques``), and a re-plan
-at once when the feedback law far from its plan would saturate the motors (``MPCOptions.replan_feedback``)."""
+"""The MPC after a pitch kick: a second step of the foot on the ground side when the ballistic flight takes the
+landing hip out of reach (``ScheduleOptions.restep``, ``GaitClock.restep_foot``), torques that never pull a stance
+foot off the ground or out of the friction cone (``MPCOptions.min_stance_force``, ``FeedbackLaw.project``), and a
+re-plan at once, solved further, when the feedback law far from its plan would saturate the motors
+(``ReplanOptions.feedback_threshold``, ``feedback_iterations``). How often the MPC falls with and without each is in
+the results store."""
 
 from __future__ import annotations
 
@@ -13,57 +15,10 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, Mode
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
-from hsddp_gym.planners.policies.evaluation import run_episode
-from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy
+from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy, ScheduleOptions
 
-RESTEP_SEED = 30027
-"""``push_flight``: a nose-down kick of 6.8 rad/s just after the front foot's lift-off. The back hip rises out of
-reach; without the re-step the MPC waits for the back foot and falls nose-down at 1.3 s."""
-PULL_SEED = 30055
-"""``push_x3``, the MPC with the paper's weights: after the third push (3.56 s: +0.69 m/s forward, +0.53 m/s up, a
-nose-up kick of -3.0 rad/s) it falls at 3.71 s without the contact-consistent torques (its feedback re-plans solved as
-periodic ones, ``feedback_iterations=None``), and bounds all 5 s with them, as the default MPC does. (On 30067,
-traced, the stance torques of the feedback law, far from the plan, pulled the landing front foot off the ground within
-a control step, twice in 40 ms; its outcome moved when the plans were put on the ground the feet measure. On 30043
-that MPC has bounded since the state filter's model stands on that ground too; on 30044-30054 it bounds.) With the
-default (later) weights, the MPC without them fell on none of ``push_x3``'s seeds 40100-40199."""
-FEEDBACK_SEED = 40002
-"""``push`` (at 2.20 s: +0.44 m/s forward, +0.78 m/s up, -1.4 rad/s): the default re-plans at once 5 times in the
-episode's 5 s and bounds; re-planning only every 20 ms, the MPC falls at 2.5 s, 0.3 s after the push. The only such
-seed in 300 (``push``, ``push_stance`` and ``push_x3``, 40000-40099): with the later weights the feedback re-plans
-rarely decide an episode."""
-CONVERGED_SEED = 42192
-"""``push_stance`` (at 1.04 s, 10 ms into a front stance: +0.47 m/s forward, -0.19 m/s, a nose-up kick of -6.8
-rad/s): the default's three feedback re-plans, solved further (up to 3 x 3 iterations), bound; solved as periodic
-re-plans (one iteration, ``feedback_iterations=None``), the MPC falls at 1.29 s."""
-STEPS_2S = 400
-STEPS_5S = 1000
-
-
-def _run(condition: str, options: MPCOptions, seed: int, steps: int = STEPS_2S):
-    from hsddp_gym.envs.perturbations import make_env
-
-    env = make_env(condition)
-    try:
-        return run_episode(env, MPCPolicy.from_env(env, options=options), seed, max_steps=steps)
-    finally:
-        env.close()
-
-
-def _bounds_and_falls_without(condition: str, without: dict, seed: int, steps: int, fall_before: float,
-                              weights: str = MPCOptions.weights):
-    """The MPC with the cost ``weights`` bounds all ``steps`` of ``condition``'s episode ``seed``; with the options
-    ``without`` too (one mechanism off) it falls before ``fall_before`` seconds; the default MPC bounds as well.
-    Returns the episode of the MPC with ``weights``."""
-    off = _run(condition, MPCOptions(weights=weights, **without), seed, steps)
-    assert off.fell and off.simulated_time < fall_before
-    result = _run(condition, MPCOptions(weights=weights), seed, steps)
-    assert not result.fell and result.length == steps
-    if weights != MPCOptions.weights:
-        default = _run(condition, MPCOptions(), seed, steps)
-        assert not default.fell and default.length == steps
-    return result
-
+NO_DOUBLE = ScheduleOptions(double_stance=None, lost_stance_steps=0)
+"""The clock's rules but the re-step off (its own tests)."""
 
 def _flight_after_front_stance(clock: GaitClock) -> None:
     clock.update(Mode.FRONT_STANCE, 0.0)
@@ -77,7 +32,7 @@ def _flight_after_front_stance(clock: GaitClock) -> None:
 
 
 def test_a_planned_restep_ends_the_flight_at_the_other_foots_first_contact():
-    clock = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, restep=True)
+    clock = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, NO_DOUBLE)
     _flight_after_front_stance(clock)
     twin = clock.copy()
     clock.restep_foot = FRONT
@@ -91,13 +46,13 @@ def test_a_planned_restep_ends_the_flight_at_the_other_foots_first_contact():
     twin.tick()
     assert twin.update(Mode.FRONT_STANCE, 0.0) == Mode.FRONT_STANCE and twin.phase == 2
     # the planned foot must be the foot of the stance before the flight
-    other = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, restep=True)
+    other = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, NO_DOUBLE)
     _flight_after_front_stance(other)
     other.restep_foot = BACK
     other.tick()
     assert other.update(Mode.FRONT_STANCE, 0.0) == Mode.FLIGHT
     # a clock without restep ignores the plan
-    off = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005)
+    off = GaitClock(PAPER_BOUNDING_DURATIONS, 0.005, ScheduleOptions(restep=False))
     _flight_after_front_stance(off)
     off.restep_foot = FRONT
     for _ in range(3):
@@ -105,11 +60,9 @@ def test_a_planned_restep_ends_the_flight_at_the_other_foots_first_contact():
         assert off.update(Mode.FRONT_STANCE, 0.0) == Mode.FLIGHT
 
 
-def _policy_in_flight_3(tau: float = 0.02) -> MPCPolicy:
-    policy = MPCPolicy(options=MPCOptions())
-    policy.reset()
+def _policy_in_flight_3(options: MPCOptions = MPCOptions(), tau: float = 0.02) -> MPCPolicy:
+    policy = MPCPolicy(options=options)
     policy.clock.phase, policy.clock.tau = 3, tau
-    policy._plan_clock = policy.clock
     return policy
 
 
@@ -124,29 +77,27 @@ def _flight_state(pitch_rate: float) -> np.ndarray:
 
 def test_restep_is_planned_only_when_the_landing_hip_leaves_reach_and_the_other_stays_in_it():
     policy = _policy_in_flight_3()
-    nominal = policy._schedule(_flight_state(-2.5))  # the flight before the back stance of unperturbed bounding
-    assert list(nominal.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and policy.restep_foot is None
-    kicked = policy._schedule(_flight_state(6.0))  # nose-down: the back hip rises, the front hip stays low
+    schedule = policy.schedule
+    nominal = schedule.schedule(_flight_state(-2.5))  # the flight before the back stance of unperturbed bounding
+    assert list(nominal.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and schedule.restep_foot is None
+    kicked = schedule.schedule(_flight_state(6.0))  # nose-down: the back hip rises, the front hip stays low
     assert list(kicked.modes[:4]) == [Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT, Mode.BACK_STANCE]
-    assert policy.restep_foot == FRONT
+    assert schedule.restep_foot == FRONT and policy.clock.restep_foot == FRONT  # the clock is told
     assert kicked.durations[0] == pytest.approx(nominal.durations[0])  # the landing keeps the flight's nominal end
-    off = MPCPolicy(options=MPCOptions(restep=False))
-    off.reset()
-    off.clock.phase, off.clock.tau = 3, 0.02
-    off._plan_clock = off.clock
-    late = off._schedule(_flight_state(6.0))
+    off = _policy_in_flight_3(MPCOptions().replace(restep=False))
+    late = off.schedule.schedule(_flight_state(6.0))
     assert list(late.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE]  # the plans wait for the back foot
     up = _flight_state(0.0)
     up[NQ + IZ] = 2.0  # thrown up level: both hips leave reach, neither foot can land sooner
-    stretched = policy._schedule(up)
-    assert list(stretched.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and policy.restep_foot is None
-    assert policy._reach_time(up, Mode.BACK_STANCE, 0.052) > 0.052  # the back hip is out of reach at the end
+    stretched = schedule.schedule(up)
+    assert list(stretched.modes[:2]) == [Mode.FLIGHT, Mode.BACK_STANCE] and schedule.restep_foot is None
+    assert schedule.reach_time(up, Mode.BACK_STANCE, 0.052) > 0.052  # the back hip is out of reach at the end
 
 
 def test_neither_mechanism_acts_in_unpushed_bounding_on_seed_1():
     env = gym.make("hsddp_gym/Bounding-v0")
     actions = []
-    for options in (MPCOptions(), MPCOptions(restep=False, min_stance_force=None)):
+    for options in (MPCOptions(), MPCOptions().replace(restep=False, min_stance_force=None)):
         policy = MPCPolicy.from_env(env, options=options)
         obs, _ = env.reset(seed=1)
         policy.reset()
@@ -160,23 +111,38 @@ def test_neither_mechanism_acts_in_unpushed_bounding_on_seed_1():
     np.testing.assert_array_equal(actions[0], actions[1])
 
 
-@pytest.mark.slow
-def test_a_nose_down_kick_in_flight_is_caught_by_a_restep_and_falls_without():
-    _bounds_and_falls_without("push_flight", {"restep": False}, RESTEP_SEED, STEPS_2S, fall_before=1.5)
-
-
-@pytest.mark.slow
-def test_stance_torques_that_would_pull_the_foot_off_are_projected_and_the_mpc_falls_without():
-    _bounds_and_falls_without("push_x3", {"min_stance_force": None, "feedback_iterations": None}, PULL_SEED,
-                              STEPS_5S, fall_before=4.0, weights="paper")
-
-
 def test_each_copy_projects_with_its_own_model_and_none_is_off():
     policy = MPCPolicy(options=MPCOptions())
     twin = policy.spawn()
-    assert twin._pushing is not policy._pushing and twin._pushing._dynamics is not policy._pushing._dynamics
-    assert policy._pushing.friction == policy.options.plan_friction
-    assert MPCPolicy(options=MPCOptions(min_stance_force=None))._pushing is None
+    pushing = policy.law.pushing
+    assert twin.law.pushing is not pushing and twin.law.pushing._dynamics is not pushing._dynamics
+    assert twin.estimator is not policy.estimator and twin.planner is not policy.planner
+    assert twin.ground is not policy.ground and twin.law.ground is twin.ground
+    assert pushing.friction == policy.options.plan.friction
+    assert MPCPolicy(options=MPCOptions().replace(min_stance_force=None)).law.pushing is None
+
+
+def test_the_law_projects_the_torques_of_a_planned_stance_only():
+    """``FeedbackLaw.project``: in a planned stance the torques are those the projection gives (a stance foot pushes
+    inside the cone); in a planned flight, or without ``min_stance_force``, the law's torques as they are."""
+    env = gym.make("hsddp_gym/Bounding-v0")
+    policy = MPCPolicy.from_env(env)
+    obs, _ = env.reset(seed=0)
+    policy(obs)  # the first plan: from the paper's start, mid back stance
+    tracker = policy.law.plan.tracker
+    assert tracker.modes[tracker.phase] == Mode.BACK_STANCE
+    x = policy.last_prediction.copy()
+    pull = np.array([0.0, 0.0, 30.0, -30.0])  # back hip and knee torques that lift the stance foot
+    projected = policy.law.project(x, pull)
+    assert np.abs(projected - pull).max() > 1.0
+    assert np.array_equal(projected, policy.law.pushing(x, pull, Mode.BACK_STANCE))
+    off = MPCPolicy.from_env(env, options=MPCOptions().replace(min_stance_force=None))
+    off.law.plan = policy.law.plan
+    assert np.array_equal(off.law.project(x, pull), pull)
+    while tracker.modes[tracker.phase] != Mode.FLIGHT:
+        tracker.advance(0.005)
+    assert np.array_equal(policy.law.project(x, pull), pull)
+    env.close()
 
 
 KICK = {"delta_v": [0.0, 0.0, 6.0], "time": 1.0}
@@ -202,7 +168,7 @@ def test_a_push_triggers_a_replan_at_once_and_none_waits_for_the_period():
     env = gym.make("hsddp_gym/Bounding-v0")
     counts = {}
     try:
-        for name, options in (("default", MPCOptions()), ("off", MPCOptions(replan_feedback=None))):
+        for name, options in (("default", MPCOptions()), ("off", MPCOptions().replace(replan_feedback=None))):
             at_1s = {}
 
             def record(k, policy, before, at_1s=at_1s):
@@ -219,12 +185,6 @@ def test_a_push_triggers_a_replan_at_once_and_none_waits_for_the_period():
     assert replans > counts["off"][2]
 
 
-@pytest.mark.slow
-def test_a_saturating_feedback_law_is_replaced_at_once_and_the_mpc_falls_without():
-    result = _bounds_and_falls_without("push", {"replan_feedback": None}, FEEDBACK_SEED, STEPS_5S, fall_before=3.0)
-    assert result.policy_stats["feedback_replans"] > 0
-
-
 def test_feedback_replans_are_solved_further_and_none_solves_them_as_periodic_ones():
     """After a pitch kick, each re-plan made at once runs more than one DDP iteration (at most feedback_iterations *
     feedback_al_iterations) and updates the multipliers between its outer iterations; a periodic re-plan runs one.
@@ -233,7 +193,7 @@ def test_feedback_replans_are_solved_further_and_none_solves_them_as_periodic_on
     env = gym.make("hsddp_gym/Bounding-v0")
     kinds = {}
     try:
-        for name, options in (("default", MPCOptions()), ("off", MPCOptions(feedback_iterations=None))):
+        for name, options in (("default", MPCOptions()), ("off", MPCOptions().replace(feedback_iterations=None))):
             feedback, periodic = [], []
 
             def sort(k, policy, before, feedback=feedback, periodic=periodic):
@@ -249,31 +209,26 @@ def test_feedback_replans_are_solved_further_and_none_solves_them_as_periodic_on
     finally:
         env.close()
     feedback, periodic = kinds["default"]
-    o = MPCOptions()
+    o = MPCOptions().replan
     assert feedback and max(feedback) > o.feedback_iterations  # an outer-loop update and more iterations after it
     assert all(1 < n <= o.feedback_iterations * o.feedback_al_iterations for n in feedback)
-    assert periodic and set(periodic) == {o.max_iterations}
+    assert periodic and set(periodic) == {o.iterations}
     feedback_off, periodic_off = kinds["off"]
-    assert feedback_off and set(feedback_off) | set(periodic_off) == {o.max_iterations}
-
-
-@pytest.mark.slow
-def test_a_feedback_replan_solved_further_keeps_the_mpc_up_and_one_iteration_falls():
-    _bounds_and_falls_without("push_stance", {"feedback_iterations": None}, CONVERGED_SEED, STEPS_2S,
-                              fall_before=1.4)
+    assert feedback_off and set(feedback_off) | set(periodic_off) == {o.iterations}
 
 
 def test_recovery_options_are_validated():
+    o = MPCOptions()
     with pytest.raises(TypeError, match="restep"):
-        MPCOptions(restep=1)
+        o.replace(restep=1)
     with pytest.raises(ValueError, match="min_stance_force"):
-        MPCOptions(min_stance_force=-1.0)
+        o.replace(min_stance_force=-1.0)
     for bad in (0.0, -0.5):
-        with pytest.raises(ValueError, match="replan_feedback"):
-            MPCOptions(replan_feedback=bad)
-    assert MPCOptions(replan_feedback=None).replan_feedback is None
+        with pytest.raises(ValueError, match="feedback_threshold"):
+            o.replace(replan_feedback=bad)
+    assert o.replace(replan_feedback=None).replan.feedback_threshold is None
     for name in ("feedback_iterations", "feedback_al_iterations"):
         for bad in (0, 1.5, "3"):
             with pytest.raises((TypeError, ValueError), match=name):
-                MPCOptions(**{name: bad})
-    assert MPCOptions(feedback_iterations=None).feedback_iterations is None
+                o.replace(**{name: bad})
+    assert o.replace(feedback_iterations=None).replan.feedback_iterations is None

@@ -14,23 +14,10 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym.core.conventions import BACK, FRONT, IZ, NQ, Mode
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.references import end_of_mode_reference
-from hsddp_gym.envs.perturbations import make_env
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
-from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-PUSHED_SEED = 531
-"""A push-condition seed (push at 1.43 s: -0.44 m/s forward, +0.33 m/s up, a nose-up kick of -4.9 rad/s) after which
-the back foot's touchdown comes late: five feedback re-plans in a row (1.45-1.47 s) are made in the flight past its
-nominal end."""
-PUSHED_STEPS = 560
-RESTART_SEED = 40243
-"""A push-condition seed (push at 1.02 s: -0.14 m/s forward, +0.03 m/s up, a nose-down kick of +4.5 rad/s) on which
-the default MPC restarts one re-plan from scratch, keeps the better plan and bounds on, and falls without the restarts
-(at 1.45 s; the outcome is sensitive to rounding: it depends on the compiled dynamics' arithmetic). (On 40235, where
-the MPC restarted four re-plans, it has bounded without them since the state filter's model stands on the ground
-the feet measure.)"""
+from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, shift_plan
 
 
 @pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),
@@ -56,87 +43,83 @@ def test_height_offset_reaches_the_plans_and_the_warm_start_and_is_validated():
         with pytest.raises((ValueError, TypeError), match="height_offset"):
             end_of_mode_reference(Mode.FLIGHT, FRONT, 1.0, height_offset=bad)
         with pytest.raises((ValueError, TypeError), match="height_offset"):
-            MPCOptions(height_offset=bad)
+            MPCOptions().replace(height_offset=bad)
     for bad in (1.0, 0.5, -2.0, float("inf")):
         with pytest.raises(ValueError, match="restart_ratio"):
-            MPCOptions(restart_ratio=bad)
-    with pytest.raises(TypeError, match="refresh_gains"):
-        MPCOptions(refresh_gains="no")
+            MPCOptions().replace(restart_ratio=bad)
 
 
-def _pushed_episode(seed=PUSHED_SEED, **options):
-    """The push of ``seed`` under ``MPCOptions(**options)``: ``(result, policy, record)`` with ``record`` a dict of
-    arrays over the successful re-plans: ``"lam"`` the largest |multiplier| passed on to the next re-plan,
-    ``"warm"`` whether it was warm-started from the previous plan, ``"further"`` whether it was a feedback re-plan
-    solved further, ``"solved_lam"`` the largest |multiplier| the solver ended with, ``"warm_lam"`` the largest it
-    was warm-started with (nan without a warm start), and ``"restarts"`` the objectives (rejected, kept) of each
-    restart."""
-    env = make_env("push")
-    policy = MPCPolicy.from_env(env, options=MPCOptions(**options))
-    record = {key: [] for key in ("lam", "warm", "further", "solved_lam", "warm_lam", "restarts")}
-    replan, restart, warm_start = policy.replan, policy._restart, policy._warm_start
-    attempt = {}
-
-    def recording_warm_start(problem, x):
-        ws = warm_start(problem, x)  # a ValueError or None leaves attempt["warm"] unset: the re-plan is from scratch
-        if ws is not None:
-            attempt["warm"], attempt["warm_lam"] = True, float(np.max(np.abs(ws[3])))
-        return ws
-
-    def recording_replan(x, mode, feedback=False):
-        attempt.clear()
-        ok = replan(x, mode, feedback=feedback)
-        if ok:
-            record["lam"].append(float(np.max(np.abs(policy._cs.lam))))
-            record["warm"].append(attempt.get("warm", False))
-            record["further"].append(feedback and attempt.get("warm", False)
-                                     and policy.options.feedback_iterations is not None)
-            record["solved_lam"].append(float(np.max(np.abs(policy._solver.last_constraint_state.lam))))
-            record["warm_lam"].append(attempt.get("warm_lam", np.nan))
-        return ok
-
-    def recording_restart(problem, sol):
-        kept = restart(problem, sol)
-        record["restarts"].append((sol.objective, kept.objective))
-        return kept
-
-    policy.replan, policy._restart, policy._warm_start = recording_replan, recording_restart, recording_warm_start
-    result = run_episode(env, policy, seed, max_steps=PUSHED_STEPS)
+def _bounding_mpc(steps: int = 60, **options) -> tuple[MPCPolicy, np.ndarray]:
+    """The MPC with ``options`` after ``steps`` control steps of seed 0 of ``Bounding-v0`` (steady re-plans), and the
+    state (14,) of its last action."""
+    env = gym.make("hsddp_gym/Bounding-v0")
+    policy = MPCPolicy.from_env(env, options=MPCOptions().replace(**options))
+    obs, _ = env.reset(seed=0)
+    for _ in range(steps):
+        obs, _, terminated, _, _ = env.step(policy(obs))
+        assert not terminated
     env.close()
-    return result, policy, {key: np.array(value) for key, value in record.items()}
+    return policy, policy.last_prediction.copy()
 
 
-def test_a_missed_touchdown_does_not_wind_up_the_multipliers():
-    """Every warm-started re-plan passes on the multipliers it was warm-started with (the previous plan's, shifted
-    phase by phase): while the touchdown after the push cannot be met, they do not grow. A periodic re-plan makes no
-    outer-loop update; a feedback re-plan solved further updates them between its outer iterations
-    (``feedback_al_iterations``) and keeps the plan, not the updates. Restarts are off here (a restart solves from
-    scratch and brings its own multipliers); a plan from scratch (the first, or one whose schedule the previous plan
-    does not cover) brings its own too."""
-    result, policy, record = _pushed_episode(restart_ratio=None)
-    assert not result.fell and not len(record["restarts"])
-    assert policy.stats["replans"] > 100 and policy.stats["planner_failures"] == 0
-    lam, warm, further = record["lam"], record["warm"], record["further"]
-    assert not warm[0] and warm.sum() > 100 and further.sum() >= 2
-    # passed on: the warm start's multipliers, whatever the solver did with them
-    np.testing.assert_array_equal(lam[warm], record["warm_lam"][warm])
-    # and the feedback re-plans solved further did update them (the outer loop ran)
-    assert np.any(record["solved_lam"][further] > record["warm_lam"][further])
-    # shifted phase by phase a multiplier only leaves the horizon: no warm-started re-plan raises the largest
-    assert np.all(lam[1:][warm[1:]] <= lam[:-1][warm[1:]])
+def _kick(x: np.ndarray) -> np.ndarray:
+    """``x`` (14,) after a push: 0.5 m/s up, a nose-up kick of 4 rad/s."""
+    x = x.copy()
+    x[NQ + IZ] += 0.5
+    x[NQ + 2] -= 4.0
+    return x
+
+
+@pytest.mark.parametrize("feedback", [False, True])
+def test_a_replan_passes_on_the_multipliers_it_was_warm_started_with(feedback):
+    """Whatever the solver does with them, a warm-started re-plan passes on the multipliers of its warm start (the
+    previous plan's, shifted phase by phase): no outer-loop update is carried from one re-plan to the next, so a
+    touchdown that cannot be met does not wind them up. A periodic re-plan makes no update; a feedback re-plan solved
+    further updates them between its outer iterations and keeps the plan, not the updates."""
+    policy, x = _bounding_mpc(restart_ratio=None)
+    x = _kick(x)
+    previous = policy.law.plan
+    schedule = policy.schedule.schedule(x)
+    problem = policy.planner.problem(x, schedule, policy.speed.plan_speed(x), 0.0)
+    warm = shift_plan(problem, x, previous.tracker, previous.solution, previous.multipliers)
+    assert warm is not None and np.abs(warm[3]).max() > 0
+    plan = policy.planner.plan(x, schedule, policy.speed.plan_speed(x), 0.0, previous, feedback=feedback)
+    assert plan is not None and (plan.solution.ddp_iterations > 1) == feedback
+    np.testing.assert_array_equal(plan.multipliers, warm[3])
+    solved = policy.planner._solver.last_constraint_state.lam
+    if feedback:
+        assert not np.array_equal(solved, warm[3])  # the outer loop ran
+    else:
+        np.testing.assert_array_equal(solved, warm[3])
 
 
 def test_a_warm_start_gone_far_off_is_solved_again_and_the_better_plan_kept():
-    result, policy, record = _pushed_episode(RESTART_SEED)
-    restarts = record["restarts"]
-    assert not result.fell
-    assert policy.options.restart_ratio == 10.0 and policy.stats["restarts"] == len(restarts) >= 1
-    for rejected, kept in restarts:
-        assert kept <= rejected
-    assert policy.stats["restarts_kept"] == sum(kept < rejected for rejected, kept in restarts) >= 1
-    # without it the same push ends in a fall
-    without, _, _ = _pushed_episode(RESTART_SEED, restart_ratio=None)
-    assert without.fell
+    """``restart_ratio``: a warm-started re-plan whose objective ends above 10 times the previous plan's is solved
+    again from scratch, and the plan with the lower objective is kept (its solver then holds the outer-loop state);
+    below the ratio, or with the ratio None, nothing is restarted."""
+    import dataclasses
+
+    policy, x = _bounding_mpc()
+    x = _kick(x)
+    planner, previous = policy.planner, policy.law.plan
+    schedule = policy.schedule.schedule(x)
+    args = (x, schedule, policy.speed.plan_speed(x), 0.0)
+    assert planner.stats["restarts"] == 0
+    low = dataclasses.replace(previous, solution=dataclasses.replace(previous.solution, objective=1e-3))
+    solver = planner._solver
+    warm = planner.plan(*args, previous, feedback=False)  # the same warm start, the true previous objective
+    assert planner.stats["restarts"] == 0
+    planner._solver = solver
+    plan = planner.plan(*args, low, feedback=False)
+    assert planner.stats["restarts"] == 1
+    kept = planner.stats["restarts_kept"] == 1
+    assert plan.solution.objective <= warm.solution.objective
+    assert kept == (plan.solution.objective < warm.solution.objective) and (planner._solver is not solver) == kept
+    off, x_off = _bounding_mpc(restart_ratio=None)
+    off.planner.plan(_kick(x_off), off.schedule.schedule(_kick(x_off)), 1.0, 0.0,
+                     dataclasses.replace(off.law.plan, solution=dataclasses.replace(off.law.plan.solution,
+                                                                                    objective=1e-3)))
+    assert off.stats["restarts"] == 0
 
 
 def test_unpushed_bounding_never_restarts():

@@ -1,5 +1,5 @@
-"""The MPC's robustness mechanisms: latency compensation (model prediction over the action delay), the
-velocity filter; their options' validation."""
+"""The MPC's robustness mechanisms: latency compensation (model prediction over the action delay), the state
+filter, the speed reference, the plans' friction margin; their options' validation."""
 
 from __future__ import annotations
 
@@ -61,42 +61,35 @@ def test_predictor_is_the_nominal_model_not_the_env():
         pred.predict(np.zeros(3), None, [u])
 
 
-def test_without_delay_or_compensation_the_mpc_acts_on_the_observation():
-    env = ActionDelay(gym.make(ENV_ID), 1)
-    policy = MPCPolicy.from_env(env, options=MPCOptions(latency_compensation=False))
+def test_without_a_delay_the_mpc_acts_on_its_estimate():
+    env = gym.make(ENV_ID)
+    policy = MPCPolicy.from_env(env)
+    assert policy.action_delay == 0
     obs, info = env.reset(seed=3)
-    policy.reset()
     policy(obs)
+    assert policy.last_prediction is not policy.last_estimate
+    np.testing.assert_array_equal(policy.last_prediction, policy.last_estimate)
     np.testing.assert_allclose(policy.last_prediction[1:], _state(info)[1:], atol=1e-6)
-    # the default env has no delay: nothing is predicted
-    env0 = gym.make(ENV_ID)
-    p0 = MPCPolicy.from_env(env0)
-    assert p0.action_delay == 0
-    # an explicit option overrides the env's delay
-    assert MPCPolicy.from_env(env0, options=MPCOptions(action_delay=2)).action_delay == 2
-
-
-def test_new_mpc_options_are_validated_by_name():
-    with pytest.raises(ValueError, match="action_delay"):
-        MPCOptions(action_delay=-1)
-    with pytest.raises(TypeError, match="latency_compensation"):
-        MPCOptions(latency_compensation="yes")
     with pytest.raises(ValueError, match="action_delay_steps"):
         EnvInterface(action_delay_steps=-2)
     with pytest.raises(ValueError, match="motor_speed_limits"):
         EnvInterface(motor_speed_limits=(50.0, 36.0))
 
 
-def test_latency_compensated_mpc_survives_a_10ms_delay_episode_start():
-    env = make_env("delay_10ms", max_episode_steps=200)
+def test_a_prediction_the_model_cannot_make_leaves_the_estimate_and_the_clock():
+    """When the model cannot step the estimate over the delay (a state far outside any it can step), the plan starts
+    from the estimate itself and the schedule from the observed phase."""
+    env = ActionDelay(gym.make(ENV_ID), 2)
     policy = MPCPolicy.from_env(env)
-    obs, _ = env.reset(seed=501)
-    policy.reset()
-    for _ in range(200):  # 1 s: the start-up transient where the uncompensated MPC falls
-        obs, _, terminated, truncated, _ = env.step(policy(obs))
-        assert not terminated
-        if truncated:
-            break
+    obs, _ = env.reset(seed=3)
+    policy(obs)
+    x = policy.last_estimate.copy()
+    x[NQ] = np.nan
+    assert policy.estimator.predict(x, 0) is None
+    assert policy.schedule.predict(None) == policy.clock.mode and policy.schedule.plan_clock is policy.clock
+    steps = policy.estimator.predict(policy.last_estimate, 0)
+    assert len(steps) == 2 and policy.schedule.predict(steps) == policy.schedule.plan_clock.mode
+    assert policy.schedule.plan_clock is not policy.clock
 
 
 def _run(env, policy, steps, seed):
@@ -136,7 +129,8 @@ def test_state_filter_reduces_velocity_noise():
     spikes = np.flatnonzero(np.abs(est_err).max(axis=1) > 1.0)
     assert len(spikes) <= 3 and not np.any(np.diff(spikes) == 1)
     # restarting at the first observation beyond the gate, the estimate has no such step
-    est1, true1, raw1 = _run(env, MPCPolicy.from_env(env, options=MPCOptions(filter_restart_steps=1)), 120, seed=503)
+    est1, true1, raw1 = _run(env, MPCPolicy.from_env(env, options=MPCOptions().replace(filter_restart_steps=1)),
+                              120, seed=503)
     err1 = est1[:, 7:] - true1[:, 7:]
     assert err1.std() < 0.9 * (raw1[:, layout.qvel] - true1[:, 7:]).std()
 
@@ -214,10 +208,8 @@ def test_state_filter_corrects_by_the_kalman_gain_and_restarts_on_a_push():
         StateFilter(None)
     for name in ("filter_position_noise", "filter_velocity_noise", "filter_acceleration_noise",
                  "filter_innovation_gate"):
-        with pytest.raises(ValueError, match=name):
-            MPCOptions(**{name: 0.0})
-    with pytest.raises(TypeError, match="state_filter"):
-        MPCOptions(state_filter=1)
+        with pytest.raises(ValueError, match=name.replace("filter_", "")):
+            MPCOptions().replace(**{name: 0.0})
 
 
 def test_speed_reference_rises_from_the_start_speed_at_the_bounded_rate():
@@ -227,22 +219,23 @@ def test_speed_reference_rises_from_the_start_speed_at_the_bounded_rate():
     policy.reset()
     policy(obs)
     v0 = float(info["qvel"][0])
-    assert policy._start_speed == pytest.approx(v0, abs=1e-6)
+    speed = policy.speed
+    assert speed.start_speed == pytest.approx(v0, abs=1e-6)
     x = np.zeros(14)
     x[7] = v0
-    policy._time = 0.3
-    assert policy.plan_speed(x) == pytest.approx(v0 + 0.3)  # 1 m/s^2, inside the 0.5 m/s speed ramp
-    policy._time = 5.0
-    assert policy.plan_speed(x) == pytest.approx(v0 + 0.5)  # the measured-speed ramp still applies
+    speed.time = 0.3
+    assert speed.plan_speed(x) == pytest.approx(v0 + 0.3)  # 1 m/s^2, inside the 0.5 m/s speed ramp
+    speed.time = 5.0
+    assert speed.plan_speed(x) == pytest.approx(v0 + 0.5)  # the measured-speed ramp still applies
     x[7] = 1.9
-    assert policy.plan_speed(x) == pytest.approx(2.0)
-    free = MPCPolicy.from_env(env, options=MPCOptions(speed_acceleration=None))
+    assert speed.plan_speed(x) == pytest.approx(2.0)
+    free = MPCPolicy.from_env(env, options=MPCOptions().replace(speed_acceleration=None))
     free.reset()
     free(obs)
     x[7] = v0
-    assert free.plan_speed(x) == pytest.approx(v0 + 0.5)
-    with pytest.raises(ValueError, match="speed_acceleration"):
-        MPCOptions(speed_acceleration=-1.0)
+    assert free.speed.plan_speed(x) == pytest.approx(v0 + 0.5)
+    with pytest.raises(ValueError, match="acceleration"):
+        MPCOptions().replace(speed_acceleration=-1.0)
 
 
 def test_plans_keep_a_friction_margin():
@@ -251,87 +244,60 @@ def test_plans_keep_a_friction_margin():
     margin = MPCPolicy.from_env(env)
     margin.reset()
     margin(obs)
-    assert margin.options.plan_friction == 0.45 and margin._problem.constraints.friction == 0.45
-    full = MPCPolicy.from_env(env, options=MPCOptions(plan_friction=None))
+    assert margin.options.plan.friction == 0.45 and margin.law.plan.problem.constraints.friction == 0.45
+    full = MPCPolicy.from_env(env, options=MPCOptions().replace(plan_friction=None))
     full.reset()
     full(obs)
-    assert full._problem.constraints.friction == 0.6
-    with pytest.raises(ValueError, match="plan_friction"):
-        MPCOptions(plan_friction=0.0)
+    assert full.law.plan.problem.constraints.friction == 0.6
+    with pytest.raises(ValueError, match="friction"):
+        MPCOptions().replace(plan_friction=0.0)
 
 
 def test_speed_integral_moves_the_reference_by_the_cycle_mean_error():
-    policy = MPCPolicy(EnvInterface(target_speed=1.5))
-    policy.reset()
-    n = policy._vx_window.maxlen
-    assert n == round(sum(policy.durations) / policy.interface.control_dt)
-    policy._start_speed = 1.5  # already at the target: no ramp
-    policy._time = 0.02
-    policy._update_speed_bias()
-    assert policy.speed_bias == 0.0  # no whole cycle observed yet
+    from hsddp_gym.planners.policies.mpc import SpeedOptions, SpeedReference
+
+    o = SpeedOptions()
+    n = round(sum(MPCPolicy().durations) / 0.005)
+    assert MPCPolicy(EnvInterface(target_speed=1.5)).speed._vx.maxlen == n
+    speed = SpeedReference(1.5, n, o)
+    speed.observe(1.5)  # already at the target: no ramp
+    speed.time = 0.02
+    speed.update_bias()
+    assert speed.bias == 0.0  # no whole cycle observed yet
     for _ in range(n):
-        policy._vx_window.append(1.3)
-        policy._ref_window.append(policy.reference_speed())
-    policy._time = 0.04
-    policy._update_speed_bias()  # 0.02 s since the last update, mean error 0.2 m/s
-    gain = policy.options.speed_integral_gain
-    assert policy.speed_bias == pytest.approx(gain * 0.02 * 0.2)
+        speed.observe(1.3)
+    speed.time = 0.04
+    speed.update_bias()  # 0.02 s since the last update, mean error 0.2 m/s
+    assert speed.bias == pytest.approx(o.integral_gain * 0.02 * 0.2)
     x = np.zeros(14)
     x[7] = 1.3
-    assert policy.plan_speed(x) == pytest.approx(1.5 + policy.speed_bias)
-    policy._time = 100.0
-    policy._update_speed_bias()
-    assert policy.speed_bias == pytest.approx(policy.options.speed_bias_limit)  # clipped
-    assert policy.plan_speed(x) == pytest.approx(1.3 + policy.options.speed_ramp)  # the governor still applies
+    assert speed.plan_speed(x) == pytest.approx(1.5 + speed.bias)
+    speed.time = 100.0
+    speed.update_bias()
+    assert speed.bias == pytest.approx(o.bias_limit)  # clipped
+    assert speed.plan_speed(x) == pytest.approx(1.3 + o.ramp)  # the governor still applies
 
 
 def test_speed_integral_is_not_wound_up_by_a_tracked_ramp():
-    policy = MPCPolicy(EnvInterface(target_speed=2.0))
-    policy.reset()
-    policy._start_speed = 0.9
-    for k in range(policy._vx_window.maxlen):  # a robot that follows the ramping reference exactly
-        policy._time = k * policy.interface.control_dt
-        policy._vx_window.append(policy.reference_speed())
-        policy._ref_window.append(policy.reference_speed())
-    policy._update_speed_bias()
-    assert policy.speed_bias == pytest.approx(0.0, abs=1e-12)
-    off = MPCPolicy(EnvInterface(target_speed=2.0), MPCOptions(speed_integral_gain=None))
-    off.reset()
-    for _ in range(off._vx_window.maxlen):
-        off._vx_window.append(1.0)
-        off._ref_window.append(2.0)
-    off._time = 1.0
-    off._update_speed_bias()
-    assert off.speed_bias == 0.0
-    with pytest.raises(ValueError, match="speed_integral_gain"):
-        MPCOptions(speed_integral_gain=-1.0)
-    with pytest.raises(ValueError, match="speed_bias_limit"):
-        MPCOptions(speed_bias_limit=-0.1)
+    from hsddp_gym.planners.policies.mpc import SpeedOptions, SpeedReference
 
-
-def test_plans_are_fine_in_their_first_phases_and_coarse_beyond():
-    env = gym.make(ENV_ID)
-    obs, _ = env.reset(seed=506)
-    policy = MPCPolicy.from_env(env, options=MPCOptions(planner_dt=0.005, fine_dt=0.0025))
-    policy.reset()
-    policy(obs)
-    o = policy.options
-    problem = policy._problem
-    assert problem.n_phases > o.fine_phases
-    np.testing.assert_allclose(problem.phase_dt[:o.fine_phases], o.fine_dt, rtol=1e-9)
-    np.testing.assert_allclose(problem.phase_dt[o.fine_phases:], o.planner_dt, rtol=1e-9)
-    assert policy._heuristic_controls(problem).shape == (problem.n_knots, 4)
-    uniform = MPCPolicy.from_env(env, options=MPCOptions(planner_dt=0.005))
-    uniform.reset()
-    uniform(obs)
-    np.testing.assert_allclose(uniform._problem.phase_dt, o.planner_dt, rtol=1e-9)
-    assert uniform._problem.n_knots < problem.n_knots
-    with pytest.raises(ValueError, match="fine_dt"):
-        MPCOptions(fine_dt=0.01)  # coarser than planner_dt
-    with pytest.raises(ValueError, match="fine_dt"):
-        MPCOptions(planner_dt=0.005, fine_dt=0.002)  # does not divide it
-    with pytest.raises(ValueError, match="fine_phases"):
-        MPCOptions(fine_phases=0)
+    speed = SpeedReference(2.0, 60, SpeedOptions())
+    speed.observe(0.9)
+    for k in range(1, 60):  # a robot that follows the ramping reference exactly
+        speed.time = k * 0.005
+        speed.observe(speed.reference())
+    speed.update_bias()
+    assert speed.bias == pytest.approx(0.0, abs=1e-12)
+    off = SpeedReference(2.0, 60, SpeedOptions(integral_gain=None))
+    for _ in range(60):
+        off.observe(1.0)
+    off.time = 1.0
+    off.update_bias()
+    assert off.bias == 0.0
+    with pytest.raises(ValueError, match="integral_gain"):
+        MPCOptions().replace(speed_integral_gain=-1.0)
+    with pytest.raises(ValueError, match="bias_limit"):
+        MPCOptions().replace(speed_bias_limit=-0.1)
 
 
 def test_mpc_tracks_a_fast_target_speed():
@@ -360,7 +326,7 @@ def test_note_sent_action_replaces_the_action_the_predictions_use():
     policy(obs)
     sent = np.array([0.1, -0.2, 0.3, -0.4], dtype=np.float32)
     policy.note_sent_action(sent)
-    np.testing.assert_array_equal(policy._sent[-1], sent)
+    np.testing.assert_array_equal(policy.estimator.sent[-1], sent)
     with pytest.raises(ValueError, match="action"):
         policy.note_sent_action([0.0, np.nan, 0.0, 0.0])
     with pytest.raises(ValueError, match="action"):

@@ -4,7 +4,6 @@ acting from observations alone, plan tracking rules, the MPC's behaviour and fai
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import gymnasium as gym
@@ -279,12 +278,12 @@ def test_mpc_survives_planner_failures(monkeypatch):
         calls["n"] += 1
         raise RuntimeError("solver exploded")
 
-    monkeypatch.setattr(policy._solver, "solve", broken)
+    monkeypatch.setattr(policy.planner._solver, "solve", broken)
     for _ in range(12):
         obs, _, terminated, _, _ = env.step(policy(obs))
         assert not terminated
     assert calls["n"] >= 2 and policy.stats["planner_failures"] >= 2
-    assert policy.tracker is not None  # the last valid plan keeps acting
+    assert policy.law.plan is not None  # the last valid plan keeps acting
 
 
 def test_mpc_replans_from_scratch_with_the_first_plans_iterations(monkeypatch):
@@ -297,53 +296,49 @@ def test_mpc_replans_from_scratch_with_the_first_plans_iterations(monkeypatch):
     for _ in range(8):
         obs, *_ = env.step(policy(obs))
     assert set(policy.stats["iterations"][1:]) == {1}  # shifted plans: one iteration each
-    monkeypatch.setattr(policy, "_warm_start", lambda problem, x: None)
+    import hsddp_gym.core.rollout
+    import hsddp_gym.planners.policies.mpc.planner as planner_module
 
-    def diverged(problem):
+    monkeypatch.setattr(planner_module, "shift_plan", lambda *args: None)
+
+    def diverged(*args, **kwargs):
         raise RuntimeError("heuristic warm start diverged")
 
-    monkeypatch.setattr(policy, "_heuristic_controls", diverged)
+    monkeypatch.setattr(hsddp_gym.core.rollout, "rollout", diverged)
     n = len(policy.stats["iterations"])
     for _ in range(4):
         obs, _, terminated, _, _ = env.step(policy(obs))
         assert not terminated
     assert len(policy.stats["iterations"]) == n + 1 and policy.stats["planner_failures"] == 0
-    assert policy.stats["iterations"][-1] > policy.options.max_iterations
+    assert policy.stats["iterations"][-1] > policy.options.replan.iterations
 
 
 def test_mpc_counts_replans_stopped_by_the_time_budget():
     """A re-plan that hits ``time_budget`` uses its best iterate (any-time MPC) and is counted, not hidden."""
     env = make_env()
-    policy = MPCPolicy.from_env(env, options=MPCOptions(time_budget=1e-6))
+    policy = MPCPolicy.from_env(env, options=MPCOptions().replace(time_budget=1e-6))
     res = run_episode(env, policy, 0, max_steps=20)
     assert res.length == 20
     assert policy.stats["time_budget_stops"] >= 1
     assert policy.stats["time_budget_stops"] <= policy.stats["replans"]
     # an exception other than the solver's numerical ones is a bug and propagates
     policy.reset()
-    policy._solver.solve = lambda *a, **k: (_ for _ in ()).throw(KeyError("bug"))
+    policy.planner._solver.solve = lambda *a, **k: (_ for _ in ()).throw(KeyError("bug"))
     obs, _ = env.reset(seed=0)
     with pytest.raises(KeyError):
         policy(obs)
 
 
-def test_mpc_latency_delays_the_new_plan():
-    env = make_env()
-    policy = MPCPolicy.from_env(env, options=MPCOptions(latency_steps=2))
-    res = run_episode(env, policy, 1, max_steps=60)
-    assert not res.fell and policy.stats["replans"] >= 10
-
-
 def test_mpc_options_are_validated():
-    with pytest.raises(ValueError, match="replan_period"):
-        MPCOptions(replan_period=0.0)
-    with pytest.raises(ValueError, match="method"):
-        MPCOptions(method="ilqr")
+    with pytest.raises(ValueError, match="period"):
+        MPCOptions().replace(replan_period=0.0)
+    with pytest.raises(ValueError, match="no setting 'method'"):
+        MPCOptions().replace(method="ilqr")
     with pytest.raises(ValueError, match="durations"):
-        MPCOptions(durations=(0.1, 0.1))
+        MPCOptions().replace(durations=(0.1, 0.1))
     with pytest.raises(TypeError, match="options"):
         MPCPolicy(options={"horizon": 0.3})
-    assert dataclasses.replace(MPCOptions(), max_iterations=5).max_iterations == 5
+    assert MPCOptions().replace(max_iterations=5).replan.iterations == 5
 
 
 # ------------------------------------------------------------------------------------------ CLI

@@ -18,8 +18,6 @@ from hsddp_gym.learning.features import (
     FEATURES,
     QUEUE_SLOT_SIZE,
     build_inputs,
-    clock_from_params,
-    clock_params,
     make_gait_clock,
     queue_row,
 )
@@ -114,7 +112,9 @@ class MLPPolicy(Policy):
         self.config = config
         self.info = dict(info or {})
         if isinstance(clock, dict):
-            clock = clock_from_params(clock)
+            from hsddp_gym.planners.policies.mpc import GaitClock
+
+            clock = GaitClock.from_settings(clock)
         if config.features == "gait_clock":
             clock = clock if clock is not None else make_gait_clock(interface)
             self.clock = clock.copy()
@@ -173,10 +173,8 @@ class MLPPolicy(Policy):
     def act(self, obs: np.ndarray) -> np.ndarray:
         z = np.asarray(obs, dtype=np.float64)
         if self.clock is not None:
-            from hsddp_gym.planners.policies.mpc import update_gait_clock
-
             x, mode, _ = self._parse(obs)
-            update_gait_clock(self.clock, mode, x)
+            self.clock.observe(mode, x)
             z = np.concatenate([z, self.clock.features()])
             self.clock.tick()
         if self.config.action_queue:
@@ -195,7 +193,7 @@ class MLPPolicy(Policy):
         for i, (W, b) in enumerate(self.weights):
             arrays[f"W{i}"], arrays[f"b{i}"] = W, b
         meta = {"config": self.config.to_dict(), "n_layers": len(self.weights), "info": self.info,
-                "clock": clock_params(self.clock) if self.clock is not None else None,
+                "clock": self.clock.settings() if self.clock is not None else None,
                 "layout_exclude_current_positions": bool(self.interface.layout.exclude_current_positions)}
         arrays["meta"] = np.array(json.dumps(meta))
         return write_npz(path, **arrays)
@@ -366,11 +364,9 @@ def run_bc(dataset, out, seed: int = 0, config: BCConfig | None = None, demos: i
 
     clock = None
     if config.features == "gait_clock":
-        from hsddp_gym.planners.policies.mpc import MPCOptions
-
         pol_meta = meta.get("policy", {})
         opts = pol_meta.get("options") if isinstance(pol_meta, dict) and pol_meta.get("name") == "mpc" else None
-        clock = make_gait_clock(interface, MPCOptions.from_record(opts) if opts is not None else None)
+        clock = make_gait_clock(interface, opts)
     policy, hist = train_bc(data, config, interface, callback=cb, clock=clock)
     if loss_bar is not None:
         loss_bar.close()

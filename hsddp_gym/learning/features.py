@@ -20,48 +20,24 @@ QUEUE_SLOT_SIZE = NU + 1
 # ================================================================================================ features
 def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options=None):
     """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of an :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    built for ``interface`` with ``mpc_options``: an ``MPCOptions``, a dict of its fields (``MPCOptions(**d)``) or
-    None (default options)."""
-    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+    built for ``interface`` with ``mpc_options`` (an ``MPCOptions``, a record of one as a dict,
+    :meth:`~hsddp_gym.planners.policies.mpc.MPCOptions.from_record`, or None: the defaults): its gait's durations,
+    the control period and the clock's fields of its schedule options."""
+    from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+    from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions
 
-    o = mpc_options if isinstance(mpc_options, MPCOptions) else MPCOptions(**dict(mpc_options or {}))
-    return MPCPolicy(interface, o).clock.copy()
-
-
-_CLOCK_EXTRA = ("lost_stance_steps", "double_stance", "restep")
-"""Optional :class:`hsddp_gym.planners.policies.mpc.GaitClock` settings, saved (and passed back) only when the clock
-has them (a learner saved without one gets the clock's default: off)."""
-
-
-def clock_params(clock) -> dict:
-    """The settings of ``clock`` (a :class:`hsddp_gym.planners.policies.mpc.GaitClock`) as JSON-ready values, saved
-    with a learner that uses its features (:func:`clock_from_params` rebuilds the clock)."""
-    params = {"durations": list(clock.durations), "dt": clock.dt, "debounce_steps": clock.debounce_steps,
-              "min_flight": clock.min_flight}
-    params.update({k: getattr(clock, k) for k in _CLOCK_EXTRA if getattr(clock, k, None)})
-    return params
-
-
-def clock_from_params(params: dict):
-    """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of :func:`clock_params`' ``params``. A
-    ``"max_wait": None`` entry (in learners saved by hsddp_gym 0.1.0) is accepted and ignored; any other
-    ``max_wait`` is refused (the clock's flights always wait for their touchdown)."""
-    from hsddp_gym.planners.policies.mpc import GaitClock
-
-    if params.get("max_wait") is not None:
-        raise ValueError(f"the gait clock's max_wait setting is not supported, got {params['max_wait']!r}")
-    extra = {k: params[k] for k in _CLOCK_EXTRA if params.get(k)}
-    return GaitClock(tuple(params["durations"]), params["dt"], params["debounce_steps"], params["min_flight"],
-                     **extra)
+    o = MPCOptions.from_record(mpc_options)
+    durations = o.plan.durations if o.plan.durations is not None else PAPER_BOUNDING_DURATIONS
+    return GaitClock(durations, interface.control_dt, o.schedule)
 
 
 def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
     reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
     (exactly what :class:`MLPPolicy` does while acting, and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    with ``touchdown_height=None``: its late-landing rule reads the foot heights of its state estimate)."""
+    with ``touchdown_height=None``: its late-landing rule reads the foot heights of its state estimate,
+    :meth:`~hsddp_gym.planners.policies.mpc.GaitClock.observe`)."""
     from hsddp_gym.core.observation import DEFAULT_LAYOUT, state_from_observation
-    from hsddp_gym.planners.policies.mpc import update_gait_clock
 
     layout = layout if layout is not None else DEFAULT_LAYOUT
     clock = clock.copy()
@@ -69,7 +45,7 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     out = np.zeros((len(obs), clock.N_FEATURES))
     for t, o in enumerate(np.asarray(obs)):
         x, mode, _ = state_from_observation(o, layout)
-        update_gait_clock(clock, mode, x)
+        clock.observe(mode, x)
         out[t] = clock.features()
         clock.tick()
     return out

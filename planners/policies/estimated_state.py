@@ -46,7 +46,7 @@ class EstimationOptions:
         state_filter: filter the observed state (:class:`StateFilter`).
         latency_compensation: predict over the env's action delay.
         position_noise, velocity_noise, acceleration_noise, innovation_gate: the filter's noise model (None: the
-            MPC's, ``MPCOptions.filter_*``, so that one place sets them).
+            MPC's, ``MPCOptions().estimator``, so that one place sets them).
     """
 
     state_filter: bool = True
@@ -70,10 +70,9 @@ class EstimationOptions:
         """``(position, velocity, acceleration, innovation gate)`` in effect (the MPC's defaults for None)."""
         from hsddp_gym.planners.policies.mpc import MPCOptions
 
-        d = MPCOptions()
-        pairs = ((self.position_noise, d.filter_position_noise), (self.velocity_noise, d.filter_velocity_noise),
-                 (self.acceleration_noise, d.filter_acceleration_noise),
-                 (self.innovation_gate, d.filter_innovation_gate))
+        d = MPCOptions().estimator
+        pairs = ((self.position_noise, d.position_noise), (self.velocity_noise, d.velocity_noise),
+                 (self.acceleration_noise, d.acceleration_noise), (self.innovation_gate, d.innovation_gate))
         return tuple(float(default if v is None else v) for v, default in pairs)
 
 

@@ -1,0 +1,33 @@
+"""HS-DDP model-predictive control, split as MuJoCo MPC splits it.
+
+* :mod:`~hsddp_gym.planners.policies.mpc.agent`: :class:`MPCPolicy`, the agent: the loop that drives the parts below
+  at the control rate;
+* :mod:`~hsddp_gym.planners.policies.mpc.state`: the state estimator (filter, sensor bias, action delay, prediction
+  over the delay);
+* :mod:`~hsddp_gym.planners.policies.mpc.schedule` and :mod:`~hsddp_gym.planners.policies.mpc.clock`: the
+  contact-schedule estimator (the current and next contact phases from the state and the flags);
+* :mod:`~hsddp_gym.planners.policies.mpc.planner` and :mod:`~hsddp_gym.planners.policies.mpc.warm_start`: the planner
+  (HS-DDP re-plans, warm starts, restarts);
+* :mod:`~hsddp_gym.planners.policies.mpc.law`: the policy between re-plans (the latest plan's feedback law);
+* :mod:`~hsddp_gym.planners.policies.mpc.speed`, :mod:`~hsddp_gym.planners.policies.mpc.ground`: the speed reference
+  and the ground the plans stand on;
+* :mod:`~hsddp_gym.planners.policies.mpc.options`: :class:`MPCOptions`.
+"""
+
+from hsddp_gym.util.lazy import lazy_exports
+
+_EXPORTS = {  # module: the public names it defines
+    "agent": ("MPCPolicy",),
+    "clock": ("CYCLE", "DOUBLE_STANCE_PHASE", "GaitClock", "stance_elapsed"),
+    "ground": ("GroundModel", "env_terrain"),
+    "law": ("FeedbackLaw",),
+    "options": ("EstimatorOptions", "FAST_BOUNDING_DURATIONS", "MPCOptions", "PlanOptions", "ReplanOptions",
+                "ScheduleOptions", "SpeedOptions"),
+    "planner": ("MPCPlanner", "Plan"),
+    "schedule": ("ContactScheduleEstimator", "late_landing"),
+    "speed": ("SpeedReference",),
+    "state": ("StateEstimator",),
+    "warm_start": ("shift_plan",),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)

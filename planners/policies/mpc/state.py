@@ -1,0 +1,168 @@
+"""The MPC's state estimator: from an observation to the state its plans start from.
+
+Every control step :meth:`StateEstimator.update` takes the state the observation gives
+(:func:`~hsddp_gym.core.observation.state_from_observation`) and
+
+1. on a terrain without the trunk x in the observation, puts in the trunk x integrated from the measured forward
+   speed (:meth:`StateEstimator.trunk_x`);
+2. folds it into the estimate of a constant sensor bias of the trunk height and pitch from the feet on the ground
+   (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`; once calibrated, its height is where the model
+   puts the ground, :meth:`StateEstimator.model_ground`);
+3. re-estimates the executed action delay from the robot's response to the actions already sent
+   (:class:`~hsddp_gym.planners.policies.latency.DelayEstimator`);
+4. filters it with the contact model under the executed torque
+   (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`).
+
+:meth:`StateEstimator.predict` then steps the estimate over the action delay under the actions sent and not yet
+executed (latency compensation): the plan and its feedback law are for the state at which the action will act.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+
+from hsddp_gym.core.conventions import IZ, NQ, NU, Mode
+from hsddp_gym.core.model import CheetahModel
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, StateFilter
+from hsddp_gym.planners.policies.latency import DelayEstimator
+from hsddp_gym.planners.policies.mpc.options import EstimatorOptions
+
+PREDICTION_ERRORS = (ArithmeticError, ValueError, RuntimeError, np.linalg.LinAlgError)
+"""What a model step may raise on a state far from any the model can step: the prediction is then not used."""
+
+
+class StateEstimator:
+    """Filter, bias estimate, delay estimate and prediction over the delay (see the module docstring).
+
+    Args:
+        interface: the env's public settings (control period, torque limit, motor limits, layout, announced delay).
+        options: :class:`~hsddp_gym.planners.policies.mpc.options.EstimatorOptions`.
+        robot: the model whose kinematics the bias estimate uses.
+
+    Attributes:
+        announced_delay: the action delay the env announces [control steps].
+        action_delay: the delay compensated for: the announced one, or its online estimate (``delay_search``).
+        bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
+        delay_changes: how often the delay estimate moved since :meth:`reset`.
+    """
+
+    def __init__(self, interface: EnvInterface, options: EstimatorOptions, robot: CheetahModel) -> None:
+        if not isinstance(options, EstimatorOptions):
+            raise TypeError(f"options must be an EstimatorOptions, got {type(options).__name__}")
+        self.interface = interface
+        self.options = options
+        self.robot = robot
+        self.announced_delay = int(interface.action_delay_steps)
+        o = options
+        self._delay_estimator = DelayEstimator(self._predictor(), self.announced_delay, o.delay_search) \
+            if o.delay_search > 0 else None
+        self._prediction = self._predictor()
+        self._filter = StateFilter(self._predictor(), o.position_noise, o.velocity_noise, o.acceleration_noise,
+                                   o.innovation_gate, o.restart_steps)
+        self.bias = None if o.bias_memory is None else \
+            MeasurementBias(self.robot, self.interface.control_dt, o.bias_memory)
+
+    def _predictor(self) -> ContactModelPredictor:
+        i = self.interface
+        return ContactModelPredictor(i.control_dt, motor_speed_limits=i.motor_speed_limits,
+                                     torque_limit=i.torque_limit)
+
+    def reset(self, terrain=None) -> None:
+        """Start an episode on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, None: flat ground)."""
+        self.action_delay = self.announced_delay
+        history = self._delay_estimator.history if self._delay_estimator is not None else self.announced_delay + 1
+        if self._delay_estimator is not None:
+            self._delay_estimator.reset()
+        # the last actions returned (oldest first), as many as the largest delay considered + 1: with a delay d,
+        # sent[-1 - d] was executed over the last control period and the d after it are still to be executed (zeros
+        # before the first ones, as the env's delay queue)
+        self.sent = collections.deque((np.zeros(NU, dtype=np.float32) for _ in range(history)), maxlen=history)
+        self._last_observed: np.ndarray | None = None
+        self._filter.reset()
+        if self.bias is not None:
+            self.bias.reset()
+        self.terrain = terrain
+        for predictor in (self._prediction, self._filter.predictor,
+                          None if self._delay_estimator is None else self._delay_estimator.predictor):
+            if predictor is not None:
+                predictor.set_terrain(terrain)
+        if self.bias is not None:
+            self.bias.terrain = terrain
+        self._odometry: tuple[float, float] | None = None
+        self._first = True
+        self.delay_changes = 0
+
+    # ------------------------------------------------------------------ the estimate
+    def model_ground(self) -> float:
+        """The height [m] of the ground the model stands on, in the measurement's frame: the calibrated height bias
+        (where the feet on the ground put it), 0 before the calibration or without a bias estimate."""
+        bias = self.bias
+        return float(bias.bias[IZ]) if bias is not None and bias.calibrated else 0.0
+
+    def trunk_x(self, x_obs: np.ndarray) -> np.ndarray:
+        """On a terrain, without the trunk x in the observation: ``x_obs`` (14,) with its x set to the trapezoidal
+        integral of the measured forward speed since the first observation (at x = 0, the env's start up to its reset
+        noise). The MPC needs to know where it is on the terrain."""
+        if self.terrain is None or not self.interface.layout.exclude_current_positions:
+            return x_obs
+        vx = float(x_obs[NQ])
+        if self._odometry is None:
+            self._odometry = (0.0, vx)
+        else:
+            x0, v0 = self._odometry
+            self._odometry = (x0 + 0.5 * (v0 + vx) * self.interface.control_dt, vx)
+        x_obs = x_obs.copy()
+        x_obs[0] = self._odometry[0]
+        return x_obs
+
+    def update(self, x_obs: np.ndarray, mode: Mode) -> np.ndarray:
+        """The estimate (14,) from the observed state ``x_obs`` (14,) and contact ``mode`` (steps 1-4 of the module
+        docstring)."""
+        x_obs = self.trunk_x(x_obs)
+        if self.bias is not None:
+            self.bias.update(x_obs, mode)
+        ground = self.model_ground()
+        torque_limit = self.interface.torque_limit
+        if self._delay_estimator is not None:
+            if self._last_observed is not None:
+                torques = np.array(self.sent, dtype=np.float64) * torque_limit
+                delay = self._delay_estimator.update(self._last_observed, x_obs, torques, ground)
+                if delay != self.action_delay:
+                    self.delay_changes += 1
+                    self.action_delay = delay
+            self._last_observed = x_obs.copy()
+        executed = None if self._first else self.sent[-1 - self.action_delay].astype(np.float64) * torque_limit
+        self._first = False
+        return self._filter.update(x_obs, mode, executed, ground)
+
+    def predict(self, x: np.ndarray, mode: Mode) -> list[tuple[np.ndarray, Mode]] | None:
+        """The states (14,) and contact modes of the ``action_delay`` control steps after the estimate ``x`` (14,) in
+        contact ``mode``, under the actions sent and not yet executed, on :meth:`model_ground`: ``[(x_1, mode_1), ...]``
+        (empty without a delay); None when the model cannot step the state (:data:`PREDICTION_ERRORS`)."""
+        out = []
+        if not self.action_delay:
+            return out
+        ground = self.model_ground()
+        torque_limit = self.interface.torque_limit
+        try:
+            for a in list(self.sent)[len(self.sent) - self.action_delay:]:  # the actions still to be executed
+                x, mode = self._prediction.step(x, a.astype(np.float64) * torque_limit, mode, ground)
+                out.append((x, mode))
+        except PREDICTION_ERRORS:
+            return None
+        return out
+
+    # ------------------------------------------------------------------ the actions sent
+    def record_sent(self, action: np.ndarray) -> None:
+        """The normalized action (4,) just returned to the env."""
+        self.sent.append(action)
+
+    def replace_sent(self, action) -> None:
+        """The env was sent ``action`` (4,) in place of the last one returned (a learner's action, a noisy one)."""
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape != (NU,) or not np.all(np.isfinite(a)):
+            raise ValueError(f"action must be a finite vector of shape ({NU},), got {a!r}")
+        self.sent[-1] = a.copy()
