@@ -52,7 +52,7 @@ def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
 
     import hsddp_gym  # noqa: F401
     from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.policies.experts import bounding_expert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
@@ -67,7 +67,7 @@ def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
 
         t = time.perf_counter()
         sol = plan_bounding("al-reb", cycles=5).solution
-        return (PlanTrackingExpert(interface, solution=sol), {"state": sol.X[0]},
+        return (bounding_expert(interface, sol), {"state": sol.X[0]},
                 {"samples": "-", "train_time_s": time.perf_counter() - t, "train_time_note": "offline HS-DDP plan"})
     if name == "heuristic":
         return HeuristicPolicy(interface), None, {"samples": "-", "train_time_s": None}

@@ -1,7 +1,7 @@
 """How well the plan-tracking expert reproduces the 5-cycle ``al-reb`` HS-DDP plan in hsddp_gym/Bounding-v0.
 
 The plan (paper task 1, 1480 knots of 1 ms) is computed, the env is reset to its initial state
-(``options={"state": X[0]}``) and :class:`hsddp_gym.planners.policies.expert.PlanTrackingExpert` acts with the plan's
+(``options={"state": X[0]}``) and :func:`hsddp_gym.planners.policies.experts.bounding_expert` acts with the plan's
 feedback law at the env's control rate while the env's own contacts decide the touchdowns. Over the tracked part
 (until the touchdown that ends the plan) the state of the env is compared, step by step, with the plan's state
 at the cursor that produced the action. Printed and written to ``OUT/expert_tracking.json``: the maximum and
@@ -37,12 +37,13 @@ def main(argv=None) -> int:
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.policies.base import EnvInterface
+    from hsddp_gym.planners.policies.experts import bounding_expert
     from hsddp_gym.planners.tasks import plan_bounding
 
     sol = plan_bounding("al-reb", cycles=5).solution
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=args.steps)
-    expert = PlanTrackingExpert.from_env(env, solution=sol)
+    expert = bounding_expert(EnvInterface.from_env(env), sol)
     obs, info = env.reset(seed=0, options={"state": sol.X[0]})
     expert.reset()
     states, tracked, ret, fell = [], 0, 0.0, False

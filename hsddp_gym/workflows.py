@@ -122,13 +122,14 @@ def is_pronking_env(env) -> bool:
 
 
 def pronking_expert(env, cycles: int = 4):
-    """The pronking expert for ``env``: :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` tracking
+    """The pronking expert for ``env``: :func:`hsddp_gym.planners.policies.experts.pronking_expert` tracking
     ``plan_pronk(cycles, target_speed)`` (:mod:`hsddp_gym.planners.motions`, solved once per speed and process,
     about 0.2 s) periodically; the env starts at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies.pronking import PronkingExpert
+    from hsddp_gym.planners.policies import experts
+    from hsddp_gym.planners.policies.base import EnvInterface
 
     speed = float(getattr(env, "unwrapped", env).target_speed)
-    return PronkingExpert.from_env(env, solution=pronk_plan(speed, cycles))
+    return experts.pronking_expert(EnvInterface.from_env(env), pronk_plan(speed, cycles))
 
 
 _PRONK_PLANS: dict = {}
@@ -154,12 +155,13 @@ def is_backflip_env(env) -> bool:
 
 
 def backflip_expert(env):
-    """The backflip expert for ``env``: :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` tracking
+    """The backflip expert for ``env``: :func:`hsddp_gym.planners.policies.experts.backflip_expert` tracking
     :func:`backflip_plan` for the env's control period (solved once per process, about 3 s); the env starts at the
     plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies.backflip import BackflipExpert
+    from hsddp_gym.planners.policies import experts
+    from hsddp_gym.planners.policies.base import EnvInterface
 
-    return BackflipExpert.from_env(env, solution=backflip_plan(backflip_hold(env)))
+    return experts.backflip_expert(EnvInterface.from_env(env), backflip_plan(backflip_hold(env)))
 
 
 def backflip_hold(env) -> int:
@@ -190,12 +192,14 @@ def is_jump_env(env) -> bool:
 
 
 def jump_expert(env):
-    """The jump expert for ``env``: :class:`~hsddp_gym.planners.policies.jumps.JumpExpert` tracking
+    """The jump expert for ``env``: :func:`hsddp_gym.planners.policies.experts.jump_expert` tracking
     :func:`jump_plan` of the env's task for its control period (solved once per process, about 1 s); the env starts
     at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies.jumps import JumpExpert
+    from hsddp_gym.planners.policies import experts
+    from hsddp_gym.planners.policies.base import EnvInterface
 
-    return JumpExpert.from_env(env, solution=jump_plan(getattr(env, "unwrapped", env).task, backflip_hold(env)))
+    plan = jump_plan(getattr(env, "unwrapped", env).task, backflip_hold(env))
+    return experts.jump_expert(EnvInterface.from_env(env), plan)
 
 
 _JUMP_PLANS: dict = {}
@@ -221,13 +225,14 @@ def is_transition_env(env) -> bool:
 
 
 def transition_expert(env):
-    """The transition expert for ``env``: :class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`
+    """The transition expert for ``env``: :func:`hsddp_gym.planners.policies.experts.transition_expert`
     tracking :func:`transition_plan` of the env's task for its control period (solved once per process, about 1 s);
     the env starts at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies.transitions import TransitionExpert
+    from hsddp_gym.planners.policies import experts
+    from hsddp_gym.planners.policies.base import EnvInterface
 
     task = getattr(env, "unwrapped", env).task
-    return TransitionExpert.from_env(env, solution=transition_plan(task, backflip_hold(env)), task=task)
+    return experts.transition_expert(EnvInterface.from_env(env), transition_plan(task, backflip_hold(env)), task)
 
 
 _TRANSITION_PLANS: dict = {}
@@ -236,13 +241,13 @@ _TRANSITION_PLANS: dict = {}
 def transition_plan(motion: str, hold: int = 5):
     """The HS-DDP plan of the gait transition ``motion`` (``hsddp_gym.planners.motions.TRANSITIONS``) for a control
     held ``hold`` plan knots (:func:`hsddp_gym.planners.motions.plan_transition_held`, with the expert's cycles
-    ``hsddp_gym.planners.policies.transitions.PLAN_CYCLES``), cached per ``(motion, hold)``."""
+    ``hsddp_gym.planners.policies.experts.TRANSITION_PLAN_CYCLES``), cached per ``(motion, hold)``."""
     from hsddp_gym.planners.motions import plan_transition_held
-    from hsddp_gym.planners.policies.transitions import PLAN_CYCLES
+    from hsddp_gym.planners.policies.experts import TRANSITION_PLAN_CYCLES
 
     key = (str(motion), int(hold))
     if key not in _TRANSITION_PLANS:
-        _TRANSITION_PLANS[key] = plan_transition_held(key[0], key[1], cycles=PLAN_CYCLES[key[0]])
+        _TRANSITION_PLANS[key] = plan_transition_held(key[0], key[1], cycles=TRANSITION_PLAN_CYCLES[key[0]])
     return _TRANSITION_PLANS[key]
 
 
@@ -275,7 +280,7 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
     backflip task :func:`backflip_expert`, in the jump tasks :func:`jump_expert`; in ``hsddp_gym/Terrain-v0``
     ``mpc`` is the terrain-aware MPC, given each episode's terrain, as in its datasets, :func:`is_terrain_env`)."""
     from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+    from hsddp_gym.planners.policies.experts import bounding_expert
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
@@ -304,7 +309,7 @@ def make_policy(name: str, env, seed: int = 0, mpc_options=None):
         from hsddp_gym.planners.tasks import plan_bounding
 
         sol = plan_bounding("al-reb", cycles=5).solution
-        return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0]}
+        return bounding_expert(EnvInterface.from_env(env), sol), {"state": sol.X[0]}
     if name == "heuristic":
         return HeuristicPolicy.from_env(env), None
     return RandomPolicy.from_env(env, seed=seed), None

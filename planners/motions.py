@@ -958,7 +958,7 @@ def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
     its controls ``U`` by their means over the held knots
     (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`); ``hold = 1`` leaves the plan as solved. Its
     ``X`` is the solved trajectory. Used by the backflip expert
-    (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
+    (:func:`~hsddp_gym.planners.policies.experts.backflip_expert`)."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = backflip_problem()
@@ -970,7 +970,7 @@ def plan_jump_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int =
     """The plan of a jump (:data:`JUMPS`, :func:`plan_jump`'s problem, warm start and default options) for a
     controller that holds each control for ``hold`` knots, as :func:`plan_backflip_held`: the solved
     :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
-    Used by the jump expert (:class:`~hsddp_gym.planners.policies.jumps.JumpExpert`)."""
+    Used by the jump expert (:func:`~hsddp_gym.planners.policies.experts.jump_expert`)."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = jump_problem(motion, speed, cycles)
@@ -982,7 +982,7 @@ def plan_transition_held(motion: str, hold: int = 5, speed: float = 1.0, cycles:
     """The plan of a gait transition (:data:`TRANSITIONS`, :func:`plan_transition`'s problem, warm start and default
     options) for a controller that holds each control for ``hold`` knots, as :func:`plan_jump_held`: the solved
     :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
-    Used by the transition expert (:class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`)."""
+    Used by the transition expert (:func:`~hsddp_gym.planners.policies.experts.transition_expert`)."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = transition_problem(motion, speed, cycles)

@@ -161,7 +161,7 @@ def test_the_expert_flips_lands_and_stands():
         assert not terminated
         if truncated:
             break
-    assert info["success"] and policy.holding
+    assert info["success"] and policy.plan_over
     assert min_pitch < FULL_TURN and abs(info["qpos"][2] - FULL_TURN) < 0.1
     assert ret > 150.0  # the whole turn (20) and most of the hold's landing reward
 
@@ -178,7 +178,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
 
     meta = read_metadata(out)
     assert meta["dataset_id"] == "hsddp_gym/backflip/expert-v0" and meta["env_id"] == ENV_ID
-    assert meta["policy"]["class"].endswith("backflip.BackflipExpert")
+    assert meta["policy"]["configuration"].endswith("experts.backflip_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset("hsddp_gym/backflip/expert-v0")
         assert ds.total_episodes == 2 and ds.total_steps == 80

@@ -129,7 +129,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(task, tmp_path):
     meta = read_metadata(out)
     dataset_id = f"hsddp_gym/{task}/expert-v0"
     assert meta["dataset_id"] == dataset_id and meta["env_id"] == ENV_IDS[task]
-    assert meta["policy"]["class"].endswith("jumps.JumpExpert")
+    assert meta["policy"]["configuration"].endswith("experts.jump_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset(dataset_id)
         assert ds.total_episodes == 2 and ds.total_steps == 60
@@ -141,23 +141,26 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(task, tmp_path):
 
 
 def test_the_loop_arguments_are_checked_and_the_expert_loops_the_cycle_after_the_jump():
-    from hsddp_gym.planners.policies.jumps import LOOP_END, LOOP_PHASE
-    from hsddp_gym.planners.policies.tracking import ClearancePlanTracker
+    from hsddp_gym.planners.policies.experts import JUMP_LOOP
+    from hsddp_gym.planners.policies.touchdown import FootClearance
+    from hsddp_gym.planners.policies.tracking import PlanTracker
     from hsddp_gym.workflows import jump_plan
 
+    LOOP_PHASE, LOOP_END = JUMP_LOOP
     sol = jump_plan("gap_jump")
+    rule = FootClearance()
     with pytest.raises(ValueError, match="loop_end"):
-        ClearancePlanTracker.from_solution(sol, loop_phase=LOOP_PHASE, loop_end=LOOP_PHASE - 4)
+        PlanTracker.from_solution(sol, touchdown=rule, loop_phase=LOOP_PHASE, loop_end=LOOP_PHASE - 4)
     with pytest.raises(ValueError, match="loop_phase"):
-        ClearancePlanTracker.from_solution(sol, loop_phase=LOOP_PHASE + 1, loop_end=LOOP_END)
-    tracker = ClearancePlanTracker.from_solution(sol, loop_phase=LOOP_PHASE, loop_end=LOOP_END)
+        PlanTracker.from_solution(sol, touchdown=rule, loop_phase=LOOP_PHASE + 1, loop_end=LOOP_END)
+    tracker = PlanTracker.from_solution(sol, touchdown=rule, loop_phase=LOOP_PHASE, loop_end=LOOP_END)
     tracker.phase, tracker.local_time = LOOP_END - 1, 0.0
     tracker.advance(1.0)  # waits for the touchdown that ends the cycle
     assert tracker.phase == LOOP_END - 1 and tracker.loops == 0
     tracker.sync(tracker.modes[LOOP_END], None)  # no foot seen clear: not a touchdown
     assert tracker.phase == LOOP_END - 1
     x = sol.X[(sol.phase_start[LOOP_END - 1] + sol.phase_start[LOOP_END]) // 2].copy()  # mid-flight, feet clear
-    assert tracker.robot.foot_heights(x[:7]).min() >= 0.02
+    assert rule.robot.foot_heights(x[:7]).min() >= 0.02
     tracker.sync(tracker.modes[LOOP_END - 1], x)
     tracker.sync(tracker.modes[LOOP_END], x)
     assert tracker.phase == LOOP_PHASE and tracker.loops == 1 and not tracker.finished

@@ -15,7 +15,7 @@ from hsddp_gym import cli
 from hsddp_gym.core.conventions import Mode
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.evaluation import run_episode, summarize
-from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+from hsddp_gym.planners.policies.experts import bounding_expert
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.random_policy import RandomPolicy
@@ -82,7 +82,7 @@ def _build(name, interface, plan):
         return RandomPolicy(interface, seed=7), None
     if name == "mpc":
         return MPCPolicy(interface), None
-    return PlanTrackingExpert(interface, solution=plan), {"state": plan.X[0]}
+    return bounding_expert(interface, plan), {"state": plan.X[0]}
 
 
 @pytest.mark.parametrize("name", ALL_POLICIES)
@@ -229,7 +229,7 @@ def test_tracker_lift_off_follows_plan_time(plan):
 # ------------------------------------------------------------------------------------------ expert, MPC
 def test_expert_tracks_its_plan_in_the_env(plan):
     env = make_env(reset_noise_scale=0.0)
-    expert = PlanTrackingExpert.from_env(env, solution=plan)
+    expert = bounding_expert(EnvInterface.from_env(env), plan)
     steps = int(round(plan.times[-1] / env.unwrapped.dt))
     res = run_episode(env, expert, 0, options={"state": plan.X[0]}, max_steps=steps)
     assert not res.fell and res.length == steps
@@ -246,7 +246,7 @@ def test_expert_tracks_its_plan_in_the_env(plan):
 def test_expert_hands_over_to_its_fallback_after_the_plan(plan):
     env = make_env(reset_noise_scale=0.0)
     fallback = MPCPolicy.from_env(env)
-    expert = PlanTrackingExpert.from_env(env, solution=plan, fallback=fallback)
+    expert = bounding_expert(EnvInterface.from_env(env), plan, fallback=fallback)
     steps = int(round(plan.times[-1] / env.unwrapped.dt))
     res = run_episode(env, expert, 0, options={"state": plan.X[0]}, max_steps=steps + 120)
     assert expert.tracker.finished and fallback.stats["replans"] > 0

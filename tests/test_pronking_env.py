@@ -149,7 +149,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
 
     meta = read_metadata(out)
     assert meta["dataset_id"] == "hsddp_gym/pronking/expert-v0" and meta["env_id"] == ENV_ID
-    assert meta["policy"]["class"].endswith("pronking.PronkingExpert")
+    assert meta["policy"]["configuration"].endswith("experts.pronking_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset("hsddp_gym/pronking/expert-v0")
         assert ds.total_episodes == 2 and ds.total_steps == 80
@@ -168,7 +168,7 @@ def test_dagger_runs_a_tiny_iteration_labelled_by_the_pronking_expert(tmp_path):
     summary = run_dagger("expert", tmp_path / "dagger", config=config, eval_episodes=1, progress=False,
                          env_id=ENV_ID)
     assert summary["env_id"] == ENV_ID and summary["config"]["env_id"] == ENV_ID
-    assert summary["expert"]["class"].endswith("pronking.PronkingExpert")
+    assert summary["expert"]["configuration"].endswith("experts.pronking_expert")
     assert summary["expert_labels"] == len(load_dagger_data(tmp_path / "dagger")) <= 60
     assert [h["round"] for h in summary["history"]] == [0, 1] and summary["eval"]["episodes"] == 1
     with pytest.raises(ValueError, match="expert 'mpc'"):  # the MPC is a bounding controller

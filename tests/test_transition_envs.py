@@ -122,7 +122,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
     meta = read_metadata(out)
     dataset_id = f"hsddp_gym/{task}/expert-v0"
     assert meta["dataset_id"] == dataset_id and meta["env_id"] == ENV_IDS[task]
-    assert meta["policy"]["class"].endswith("transitions.TransitionExpert")
+    assert meta["policy"]["configuration"].endswith("experts.transition_expert")
     assert meta["policy"]["options"]["plan"]["motion"] == task
     with minari_root(out / "minari"):
         ds = minari.load_dataset(dataset_id)

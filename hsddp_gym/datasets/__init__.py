@@ -11,7 +11,7 @@ process); a tqdm bar counts finished episodes.
 
 Built-in policies (:data:`~hsddp_gym.datasets.recording.POLICIES`): ``mpc``
 (:class:`hsddp_gym.planners.policies.mpc.MPCPolicy`, options = ``MPCOptions`` fields), ``expert``
-(:class:`hsddp_gym.planners.policies.expert.PlanTrackingExpert` tracking the HS-DDP plan
+(:func:`hsddp_gym.planners.policies.experts.bounding_expert` tracking the HS-DDP plan
 ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as
 ``expert_plan.npz`` in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without*
 reset noise, so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's

@@ -206,8 +206,8 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
             ``bound_to_stop``).
         env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
             (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
-            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`), in ``hsddp_gym/Backflip-v0`` a
-            backflip plan (:class:`~hsddp_gym.planners.policies.backflip.BackflipExpert`); in
+            (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`), in ``hsddp_gym/Backflip-v0`` a
+            backflip plan (:func:`~hsddp_gym.planners.policies.experts.backflip_expert`); in
             ``hsddp_gym/Terrain-v0`` ``mpc`` is the terrain-aware MPC, given each episode's terrain (``MPCPolicy(...,
             terrain=env_terrain(env))``), and there is no ``expert``.
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).

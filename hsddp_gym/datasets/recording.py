@@ -33,21 +33,21 @@ EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
 """The expert's plan: ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
 EXPERT_PRONK_PLAN = {"motion": "pronk", "cycles": 4}
 """The pronking expert's plan in Pronking-v0: ``hsddp_gym.planners.motions.plan_pronk(4, target_speed)``, tracked
-periodically (:class:`hsddp_gym.planners.policies.pronking.PronkingExpert`)."""
+periodically (:func:`hsddp_gym.planners.policies.experts.pronking_expert`)."""
 EXPERT_BACKFLIP_PLAN = {"motion": "backflip", "hold": "control period / 1 ms (5 by default)"}
 """The backflip expert's plan in Backflip-v0: ``hsddp_gym.planners.motions.plan_backflip_held(hold)``, tracked then
-held (:class:`hsddp_gym.planners.policies.backflip.BackflipExpert`)."""
+held (:func:`hsddp_gym.planners.policies.experts.backflip_expert`)."""
 EXPERT_JUMP_PLAN = {"motion": "gap_jump or box_jump", "speed": 1.0, "cycles": 2,
                     "hold": "control period / 1 ms (5 by default)"}
 """The jump expert's plan in GapJump-v0 / BoxJump-v0: ``hsddp_gym.planners.motions.plan_jump_held(motion, hold)``,
-tracked, then its cycle after the jump looped (:class:`hsddp_gym.planners.policies.jumps.JumpExpert`)."""
+tracked, then its cycle after the jump looped (:func:`hsddp_gym.planners.policies.experts.jump_expert`)."""
 EXPERT_TRANSITION_PLAN = {"motion": "stand_to_bound, bound_pronk_bound or bound_to_stop", "speed": 1.0,
-                          "cycles": "hsddp_gym.planners.policies.transitions.PLAN_CYCLES[motion]",
+                          "cycles": "hsddp_gym.planners.policies.experts.TRANSITION_PLAN_CYCLES[motion]",
                           "hold": "control period / 1 ms (5 by default)"}
 """The transition expert's plan in StandToBound-v0 / BoundPronkBound-v0 / BoundToStop-v0:
-``hsddp_gym.planners.motions.plan_transition_held(motion, hold, cycles=PLAN_CYCLES[motion])``, tracked, then its
-bounding cycle looped or its last posture held
-(:class:`hsddp_gym.planners.policies.transitions.TransitionExpert`)."""
+``hsddp_gym.planners.motions.plan_transition_held(motion, hold, cycles=TRANSITION_PLAN_CYCLES[motion])``, tracked,
+then its bounding cycle looped or its last posture held
+(:func:`hsddp_gym.planners.policies.experts.transition_expert`)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -87,12 +87,12 @@ class PolicySpec:
         options: ``MPCOptions`` fields for ``mpc`` (JSON-serializable values); unused otherwise.
         plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
             ``expert`` only.
-        env_id: the env the expert's plan is for (None: Bounding-v0): in ``hsddp_gym/Pronking-v0`` the expert
-            is :class:`~hsddp_gym.planners.policies.pronking.PronkingExpert` of a pronk plan, in
-            ``hsddp_gym/Backflip-v0`` :class:`~hsddp_gym.planners.policies.backflip.BackflipExpert` of a backflip
-            plan (no reset options), in the jumps' and the gait transitions' envs their task's plan tracker
-            (:class:`~hsddp_gym.planners.policies.jumps.JumpExpert`,
-            :class:`~hsddp_gym.planners.policies.transitions.TransitionExpert`); in ``hsddp_gym/Terrain-v0``
+        env_id: the env the expert's plan is for (None: Bounding-v0, the bounding expert): in
+            ``hsddp_gym/Pronking-v0`` the expert is :func:`~hsddp_gym.planners.policies.experts.pronking_expert` of a
+            pronk plan, in ``hsddp_gym/Backflip-v0`` :func:`~hsddp_gym.planners.policies.experts.backflip_expert` of
+            a backflip plan (no reset options), in the jumps' and the gait transitions' envs their task's expert
+            (:func:`~hsddp_gym.planners.policies.experts.jump_expert`,
+            :func:`~hsddp_gym.planners.policies.experts.transition_expert`); in ``hsddp_gym/Terrain-v0``
             ``mpc`` is the terrain-aware MPC (the episode's terrain as privileged information, :data:`MPC_ENVS`).
     """
 
@@ -112,7 +112,8 @@ class PolicySpec:
 
     def __call__(self, env, episode_seed: int):
         """``(policy, reset_options)`` for an episode of ``env`` seeded ``episode_seed``."""
-        from hsddp_gym.planners.policies.expert import PlanTrackingExpert
+        from hsddp_gym.planners.policies import experts
+        from hsddp_gym.planners.policies.base import EnvInterface
         from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
         from hsddp_gym.planners.policies.random_policy import RandomPolicy
 
@@ -121,26 +122,18 @@ class PolicySpec:
 
             terrain = env_terrain(env) if check_env_id(self.env_id) == TERRAIN_ENV_ID else None
             return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options)), terrain=terrain), None
-        if self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
-            from hsddp_gym.planners.policies.pronking import PronkingExpert
-
-            return PronkingExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
-        if self.name == "expert" and check_env_id(self.env_id) == BACKFLIP_ENV_ID:
-            from hsddp_gym.planners.policies.backflip import BackflipExpert
-
-            return BackflipExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
-        if self.name == "expert" and check_env_id(self.env_id) in JUMP_ENV_IDS:
-            from hsddp_gym.planners.policies.jumps import JumpExpert
-
-            return JumpExpert.from_env(env, solution=_load_plan(str(self.plan_path))), None
-        if self.name == "expert" and check_env_id(self.env_id) in TRANSITION_ENV_IDS:
-            from hsddp_gym.planners.policies.transitions import TransitionExpert
-
-            return TransitionExpert.from_env(env, solution=_load_plan(str(self.plan_path)),
-                                             task=TRANSITION_ENV_IDS[self.env_id]), None
         if self.name == "expert":
-            sol = _load_plan(str(self.plan_path))
-            return PlanTrackingExpert.from_env(env, solution=sol), {"state": sol.X[0].copy()}
+            interface, sol = EnvInterface.from_env(env), _load_plan(str(self.plan_path))
+            env_id = check_env_id(self.env_id)
+            if env_id == PRONKING_ENV_ID:
+                return experts.pronking_expert(interface, sol), None
+            if env_id == BACKFLIP_ENV_ID:
+                return experts.backflip_expert(interface, sol), None
+            if env_id in JUMP_ENV_IDS:
+                return experts.jump_expert(interface, sol), None
+            if env_id in TRANSITION_ENV_IDS:
+                return experts.transition_expert(interface, sol, TRANSITION_ENV_IDS[env_id]), None
+            return experts.bounding_expert(interface, sol), {"state": sol.X[0].copy()}
         if self.name == "heuristic":
             return HeuristicPolicy.from_env(env), None
         return RandomPolicy.from_env(env, seed=int(episode_seed)), None
@@ -149,7 +142,7 @@ class PolicySpec:
         """JSON description (name and the full options in effect)."""
         policies = "hsddp_gym.planners.policies"
         d = {"name": self.name, "class": {"mpc": f"{policies}.mpc.MPCPolicy",
-                                          "expert": f"{policies}.expert.PlanTrackingExpert",
+                                          "expert": f"{policies}.tracking_policy.PlanTrackingPolicy",
                                           "heuristic": f"{policies}.heuristic.HeuristicPolicy",
                                           "random": f"{policies}.random_policy.RandomPolicy"}[self.name]}
         if self.name == "mpc":
@@ -160,37 +153,39 @@ class PolicySpec:
                 d["terrain"] = ("env_terrain(env): the episode's terrain (privileged information), read at every "
                                 "reset")
         elif self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
-            d["class"] = f"{policies}.pronking.PronkingExpert"
+            d["configuration"] = f"{policies}.experts.pronking_expert"
             d["options"] = {"plan": dict(EXPERT_PRONK_PLAN), "plan_file": "expert_plan.npz",
                             "tracking": "periodic: after the plan's last touchdown the cursor returns to phase 2",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert" and check_env_id(self.env_id) == BACKFLIP_ENV_ID:
-            d["class"] = f"{policies}.backflip.BackflipExpert"
+            d["configuration"] = f"{policies}.experts.backflip_expert"
             d["options"] = {"plan": dict(EXPERT_BACKFLIP_PLAN), "plan_file": "expert_plan.npz",
                             "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
                                         "clear; after the plan a joint PD on its last posture",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert" and check_env_id(self.env_id) in JUMP_ENV_IDS:
-            d["class"] = f"{policies}.jumps.JumpExpert"
+            d["configuration"] = f"{policies}.experts.jump_expert"
             d["options"] = {"plan": {**EXPERT_JUMP_PLAN, "motion": JUMP_ENV_IDS[self.env_id]},
                             "plan_file": "expert_plan.npz",
                             "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
                                         "clear; after the plan its first cycle after the jump, looped",
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert" and check_env_id(self.env_id) in TRANSITION_ENV_IDS:
-            from hsddp_gym.planners.policies.transitions import LOOPS, PLAN_CYCLES
+            from hsddp_gym.planners.policies.experts import TRANSITION_LOOPS, TRANSITION_PLAN_CYCLES
 
             task = TRANSITION_ENV_IDS[self.env_id]
-            after = ("its last control plus a joint PD to its last knot's joint angles" if LOOPS[task][0] is None
-                     else f"its bounding cycle (phases {LOOPS[task][0]}-{LOOPS[task][1] - 1}), looped")
-            d["class"] = f"{policies}.transitions.TransitionExpert"
-            d["options"] = {"plan": {**EXPERT_TRANSITION_PLAN, "motion": task, "cycles": PLAN_CYCLES[task]},
+            loop = TRANSITION_LOOPS[task]
+            after = ("its last control plus a joint PD to its last knot's joint angles" if loop[0] is None
+                     else f"its bounding cycle (phases {loop[0]}-{loop[1] - 1}), looped")
+            d["configuration"] = f"{policies}.experts.transition_expert"
+            d["options"] = {"plan": {**EXPERT_TRANSITION_PLAN, "motion": task, "cycles": TRANSITION_PLAN_CYCLES[task]},
                             "plan_file": "expert_plan.npz",
                             "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen clear "
                                         "(2 cm, or half the plan's lowest landing-foot peak if lower); after the plan "
                                         + after,
                             "reset_options": "none (the env starts at the plan's start, with reset noise)"}
         elif self.name == "expert":
+            d["configuration"] = f"{policies}.experts.bounding_expert"
             d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
                             "reset_options": "{'state': plan.X[0]} (no reset noise)",
                             "fallback_after_plan": "hsddp_gym.planners.policies.mpc.MPCPolicy (default options)"}
@@ -223,7 +218,7 @@ def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0
     and return its summary."""
     if check_env_id(env_id) in (BACKFLIP_ENV_ID, *JUMP_ENV_IDS, *TRANSITION_ENV_IDS):
         from hsddp_gym.planners.motions import plan_backflip_held, plan_jump_held, plan_transition_held
-        from hsddp_gym.planners.policies.transitions import PLAN_CYCLES
+        from hsddp_gym.planners.policies.experts import TRANSITION_PLAN_CYCLES
 
         if env_id == BACKFLIP_ENV_ID:
             sol = plan_backflip_held(hold)
@@ -231,7 +226,7 @@ def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0
             sol = plan_jump_held(JUMP_ENV_IDS[env_id], hold)
         else:
             task = TRANSITION_ENV_IDS[env_id]
-            sol = plan_transition_held(task, hold, cycles=PLAN_CYCLES[task])
+            sol = plan_transition_held(task, hold, cycles=TRANSITION_PLAN_CYCLES[task])
         sol.save(path)
         return {"status": sol.status, "converged": bool(sol.converged), "al_iterations": int(sol.al_iterations),
                 "ddp_iterations": int(sol.ddp_iterations), "switching_violation": float(sol.switching_violation),
@@ -284,7 +279,7 @@ def capture_plan_controls():
     used in the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot) and the torques (4,) [N m] its law gave
     (``"u"``).
 
-    The trackers of :class:`~hsddp_gym.planners.policies.expert.PlanTrackingExpert` and
+    The trackers of :class:`~hsddp_gym.planners.policies.tracking_policy.PlanTrackingPolicy` and
     :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`
     advance their cursor right after computing the control, so the knot cannot be read afterwards; this
     wraps the method (class level, restored on exit) for the duration of one episode in this process.

@@ -58,7 +58,7 @@ class DAggerConfig:
         env_id: the env of the rollouts, the learner's interface and the evaluations, one of
             :data:`hsddp_gym.datasets.recording.DATASET_ENVS` (None: Bounding-v0). ``hsddp_gym/Pronking-v0``
             takes no ``conditions`` and no ``estimator`` (both are Bounding-v0's); its expert is the pronk plan
-            tracker (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`, ``PolicySpec("expert",
+            tracker (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`, ``PolicySpec("expert",
             env_id=...)``).
     """
 
@@ -331,7 +331,7 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         workers: processes for each round's rollouts (the result does not depend on it).
         env_id: the env (None: ``config.env_id``, else the env of ``dataset``'s metadata, else Bounding-v0); in
             ``hsddp_gym/Pronking-v0`` the expert must be ``"expert"``: the pronk plan tracker
-            (:class:`~hsddp_gym.planners.policies.pronking.PronkingExpert`, its plan solved at the env's target speed).
+            (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`, its plan solved at the env's target speed).
     """
     from hsddp_gym.datasets.recording import (
         ENV_ID,

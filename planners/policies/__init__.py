@@ -17,13 +17,11 @@ period, torque limit, observation layout) given at construction (``Policy.from_e
 from hsddp_gym.util.lazy import lazy_exports
 
 _EXPORTS = {  # module: the public names it defines
-    "backflip": ("BackflipExpert", "FlipPlanTracker",),
     "base": ("EnvInterface", "Policy",),
     "contact_consistency": ("PushingTorques",),
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
     "evaluation": ("EpisodeResult", "run_episode", "summarize",),
-    "expert": ("PlanTrackingExpert",),
-    "jumps": ("JumpExpert",),
+    "experts": ("backflip_expert", "bounding_expert", "jump_expert", "pronking_expert", "transition_expert",),
     "heuristic": (
         "ContactEventBoundingController", "ContactEventGains", "HeuristicBoundingController", "HeuristicGains",
         "HeuristicPolicy",
@@ -32,8 +30,9 @@ _EXPORTS = {  # module: the public names it defines
         "DOUBLE_STANCE_PHASE", "FAST_BOUNDING_DURATIONS", "GaitClock", "MPCOptions", "MPCPolicy",
     ),
     "random_policy": ("RandomPolicy",),
-    "pronking": ("PeriodicPlanTracker", "PronkingExpert",),
-    "tracking": ("ClearancePlanTracker", "HeldPlanExpert", "PlanTracker", "tracking_error",),
+    "touchdown": ("ContactFlags", "FootClearance", "SeenAirborne", "TouchdownRule", "plan_clearance",),
+    "tracking": ("PlanTracker", "tracking_error",),
+    "tracking_policy": ("HandOver", "HoldPosture", "PlanTrackingPolicy", "RepeatCycle",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -9,13 +9,18 @@ phase's step) and a cursor in plan time. The control at the cursor is the plan's
 **Synchronization rule** (the robot, not the schedule, decides touchdowns):
 
 * *Early touchdown*: when a foot is on the ground that the plan's current phase has in the air and the next
-  phase has on the ground, the cursor jumps to the start of the next phase.
+  phase has on the ground, the cursor jumps to the start of the next phase, if the tracker's touchdown rule counts
+  that foot's flag (:mod:`hsddp_gym.planners.policies.touchdown`; the default :class:`ContactFlags` counts every
+  flag).
 * *Late touchdown*: the cursor never leaves a phase that ends in a touchdown before that touchdown is seen;
   it waits on the phase's last knot (its feedback law keeps acting).
 * *Lift-off* follows plan time: the plan's own controls lift the foot, so a stance phase ends on schedule
   even if the foot still reads as touching (resting feet are flagged as in contact).
 * *End*: the plan is :attr:`~PlanTracker.finished` when the touchdown that ends its last phase is seen (a
   plan ending in flight), or when plan time runs out (a plan ending in stance).
+* *Cycle* (``loop_phase``): the tracker never finishes; when the cursor would enter phase ``loop_end`` (None: the
+  end of the plan) it returns to the start of phase ``loop_phase`` instead (a phase of the same mode), so that the
+  cycle ``loop_phase .. loop_end - 1`` of a plan that goes on in a steady gait is played periodically.
 """
 
 from __future__ import annotations
@@ -23,13 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from hsddp_gym.core.conventions import NQ, Mode
-from hsddp_gym.core.model import CheetahModel
-from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.planners.policies.touchdown import ContactFlags, TouchdownRule
 from hsddp_gym.util.validation import check_int, check_positive
-
-TOUCHDOWN_CLEARANCE = 0.02
-""":class:`ClearancePlanTracker`: a touchdown counts only for a foot seen at least this high [m] during the current
-phase."""
 
 
 class PlanTracker:
@@ -43,9 +43,13 @@ class PlanTracker:
         modes: ``(n,)`` phase modes.
         phase_dt: ``(n,)`` step of each phase [s].
         next_mode: mode after the last phase.
+        touchdown: which flagged touchdowns count (None: :class:`ContactFlags`, every flag).
+        loop_phase: None (the plan finishes) or the phase the cursor returns to (module docstring, *Cycle*).
+        loop_end: the phase whose start sends the cursor back to ``loop_phase`` (None: the end of the plan).
     """
 
-    def __init__(self, X, U, K, phase_start, modes, phase_dt, next_mode) -> None:
+    def __init__(self, X, U, K, phase_start, modes, phase_dt, next_mode, touchdown: TouchdownRule | None = None,
+                 loop_phase: int | None = None, loop_end: int | None = None) -> None:
         self.X = np.asarray(X, dtype=np.float64)
         self.U = np.asarray(U, dtype=np.float64)
         self.K = np.asarray(K, dtype=np.float64)
@@ -54,19 +58,40 @@ class PlanTracker:
         self.phase_dt = np.asarray(phase_dt, dtype=np.float64)
         self.n_phases = len(self.modes)
         self.next_modes = self.modes[1:] + (Mode(next_mode),)
+        if touchdown is not None and not isinstance(touchdown, TouchdownRule):
+            raise TypeError(f"touchdown must be a TouchdownRule or None, got {type(touchdown).__name__}")
+        self.touchdown = touchdown if touchdown is not None else ContactFlags()
+        self.loop_phase, self.loop_end = self._check_loop(loop_phase, loop_end)
         self.phase = 0
         self.local_time = 0.0
         """Time since the start of the cursor's phase [s]."""
         self.finished = False
+        self.loops = 0
+        """How many times the cursor returned to ``loop_phase``."""
+        self._seen = [False, False]  # per foot: the touchdown rule's evidence during phase _phase_seen
+        self._phase_seen = 0
+
+    def _check_loop(self, loop_phase, loop_end) -> tuple[int | None, int | None]:
+        loop_phase = None if loop_phase is None else check_int(loop_phase, "loop_phase", minimum=0)
+        loop_end = None if loop_end is None else check_int(loop_end, "loop_end", minimum=1)
+        if loop_end is not None and (loop_phase is None or not loop_phase < loop_end < self.n_phases):
+            raise ValueError(f"loop_end must index a phase after loop_phase ({loop_phase!r}) and before "
+                             f"{self.n_phases}, got {loop_end!r}")
+        end_mode = self.next_modes[-1] if loop_end is None else self.modes[loop_end]
+        if loop_phase is not None and (loop_phase >= self.n_phases or self.modes[loop_phase] != end_mode):
+            raise ValueError(f"loop_phase must index a phase in [0, {self.n_phases - 1}] of the mode "
+                             f"{end_mode.name} the loop ends in, got {loop_phase!r}")
+        return loop_phase, loop_end
 
     @classmethod
-    def from_solution(cls, solution, problem=None) -> PlanTracker:
+    def from_solution(cls, solution, problem=None, touchdown: TouchdownRule | None = None,
+                      loop_phase: int | None = None, loop_end: int | None = None) -> PlanTracker:
         """Tracker of a :class:`~hsddp_gym.planners.optimizer.solution.Solution` (phase steps from ``problem`` when
-        given, else ``durations / knots``)."""
+        given, else ``durations / knots``); the other arguments are the constructor's."""
         knots = np.diff(solution.phase_start)
         phase_dt = problem.phase_dt if problem is not None else solution.schedule.durations / knots
         return cls(solution.X, solution.U, solution.K, solution.phase_start, solution.schedule.modes, phase_dt,
-                   solution.schedule.final_mode)
+                   solution.schedule.final_mode, touchdown, loop_phase, loop_end)
 
     # ------------------------------------------------------------------ cursor
     @property
@@ -86,41 +111,67 @@ class PlanTracker:
         before, after = self.modes[i], self.next_modes[i]
         return any(after.in_contact(f) and not before.in_contact(f) for f in (0, 1))
 
-    def sync(self, mode: Mode) -> None:
-        """Apply the synchronization rule for the contact ``mode`` observed now."""
+    def _phase_length(self, i: int) -> float:
+        return (self.phase_start[i + 1] - self.phase_start[i]) * self.phase_dt[i]
+
+    def sync(self, mode: Mode, x: np.ndarray | None = None) -> None:
+        """Apply the synchronization rule (module docstring) for the contact ``mode`` observed now and the observed
+        state ``x (14,)`` (None: not given; only rules that look at the state need it)."""
+        if self.finished:
+            return
+        if self.phase != self._phase_seen:
+            self._phase_seen = self.phase
+            self._seen = [False, False]
+        for f, shown in enumerate(self.touchdown.evidence(mode, x)):
+            if shown:
+                self._seen[f] = True
         i = self.phase
         plan_mode = self.modes[i]
-        if mode == plan_mode or self.finished:
-            return
-        early = [f for f in (0, 1) if mode.in_contact(f) and not plan_mode.in_contact(f)]
-        if early and all(self.next_modes[i].in_contact(f) for f in early):
-            if i + 1 < self.n_phases:
-                self.phase = i + 1
-                self.local_time = 0.0
-            else:  # the touchdown that ends the plan: hand over (the cursor stays on the last knot)
-                self.finished = True
+        if mode != plan_mode:
+            late = self.touchdown.late_fraction
+            late = late is not None and self.local_time >= late * self._phase_length(i)
+            early = [f for f in (0, 1) if mode.in_contact(f) and not plan_mode.in_contact(f)
+                     and (self._seen[f] or late)]
+            if early and all(self.next_modes[i].in_contact(f) for f in early):
+                if i + 1 < self.n_phases:
+                    self.phase = i + 1
+                    self.local_time = 0.0
+                else:  # the touchdown that ends the plan: hand over (the cursor stays on the last knot)
+                    self.finished = True
+        self._loop()
 
     def advance(self, dt: float) -> None:
-        """Move the cursor by ``dt`` seconds of plan time (waiting before touchdowns)."""
+        """Move the cursor by ``dt`` seconds of plan time (waiting before touchdowns, returning to ``loop_phase`` at
+        the end of the cycle when it is set)."""
         dt = check_positive(dt, "dt")
         while dt > 0 and not self.finished:
             i = self.phase
-            length = (self.phase_start[i + 1] - self.phase_start[i]) * self.phase_dt[i]
+            length = self._phase_length(i)
             remaining = length - self.local_time
             if dt < remaining - 1e-12:
                 self.local_time += dt
-                return
+                break
             if self._ends_in_touchdown(i):
                 # wait on the last knot for the touchdown
                 self.local_time = max(self.local_time, length - 0.5 * self.phase_dt[i])
-                return
+                break
             dt -= remaining
             if i + 1 >= self.n_phases:
                 self.local_time = length - 0.5 * self.phase_dt[i]
                 self.finished = True
-                return
+                break
             self.phase = i + 1
             self.local_time = 0.0
+        self._loop()
+
+    def _loop(self) -> None:
+        if self.loop_phase is None:
+            return
+        if self.finished or (self.loop_end is not None and self.phase == self.loop_end):
+            self.finished = False
+            self.phase = self.loop_phase
+            self.local_time = 0.0
+            self.loops += 1
 
     # ------------------------------------------------------------------ control
     def control(self, x: np.ndarray) -> np.ndarray:
@@ -143,158 +194,4 @@ def tracking_error(x: np.ndarray, x_nominal: np.ndarray) -> float:
     return float(np.linalg.norm(d))
 
 
-class ClearancePlanTracker(PlanTracker):
-    """A :class:`PlanTracker` whose touchdowns count only for feet seen clear of the ground, optionally looping.
-
-    A foot that has just pushed off is still flagged as touching for a moment (the flag says the ground pushed the
-    foot during the last 1 ms step), and a take-off can leave a foot skimming the ground for a few ms; a flight would
-    read either as an early touchdown and jump to the next stance. A touchdown therefore counts only for a foot seen
-    at least ``clearance`` above ``z = 0`` during the current phase (its height from the observed state by the
-    robot's kinematics; the observation has no world x, so on a terrain the heights are above the start's ground).
-    Lift-offs follow plan time, late touchdowns wait on the phase's last knot, as :class:`PlanTracker`'s rule.
-
-    With ``loop_phase`` the tracker never finishes: when the cursor would enter phase ``loop_end`` (None: at the end
-    of the plan) it returns to the start of phase ``loop_phase`` instead (a phase of the same mode), so that the
-    cycle ``loop_phase .. loop_end - 1`` of a plan that goes on in a steady gait is played periodically.
-
-    The arguments are :class:`PlanTracker`'s, plus:
-
-    Args:
-        robot: the kinematics for the feet's heights (None: the default model).
-        clearance: :data:`TOUCHDOWN_CLEARANCE` [m].
-        loop_phase: None (finish at the end of the plan) or the phase the cursor returns to.
-        loop_end: the phase whose start sends the cursor back to ``loop_phase`` (None: the end of the plan).
-    """
-
-    def __init__(self, X, U, K, phase_start, modes, phase_dt, next_mode, robot: CheetahModel | None = None,
-                 clearance: float = TOUCHDOWN_CLEARANCE, loop_phase: int | None = None,
-                 loop_end: int | None = None) -> None:
-        super().__init__(X, U, K, phase_start, modes, phase_dt, next_mode)
-        self.robot = robot if robot is not None else CheetahModel()
-        self.clearance = check_positive(clearance, "clearance")
-        self.loop_phase = None if loop_phase is None else check_int(loop_phase, "loop_phase", minimum=0)
-        self.loop_end = None if loop_end is None else check_int(loop_end, "loop_end", minimum=1)
-        if self.loop_end is not None and (self.loop_phase is None or not self.loop_phase < self.loop_end
-                                          < self.n_phases):
-            raise ValueError(f"loop_end must index a phase after loop_phase ({loop_phase!r}) and before "
-                             f"{self.n_phases}, got {loop_end!r}")
-        end_mode = self.next_modes[-1] if self.loop_end is None else self.modes[self.loop_end]
-        if self.loop_phase is not None and (self.loop_phase >= self.n_phases
-                                            or self.modes[self.loop_phase] != end_mode):
-            raise ValueError(f"loop_phase must index a phase in [0, {self.n_phases - 1}] of the mode "
-                             f"{end_mode.name} the loop ends in, got {loop_phase!r}")
-        self.loops = 0
-        """How many times the cursor returned to ``loop_phase``."""
-        self._clear = [False, False]
-        self._phase_seen = 0
-
-    @classmethod
-    def from_solution(cls, solution, problem=None, robot: CheetahModel | None = None,
-                      clearance: float = TOUCHDOWN_CLEARANCE, loop_phase: int | None = None,
-                      loop_end: int | None = None):
-        knots = np.diff(solution.phase_start)
-        phase_dt = problem.phase_dt if problem is not None else solution.schedule.durations / knots
-        return cls(solution.X, solution.U, solution.K, solution.phase_start, solution.schedule.modes, phase_dt,
-                   solution.schedule.final_mode, robot, clearance, loop_phase, loop_end)
-
-    def _loop(self) -> None:
-        if self.loop_phase is None:
-            return
-        if self.finished or (self.loop_end is not None and self.phase == self.loop_end):
-            self.finished = False
-            self.phase = self.loop_phase
-            self.local_time = 0.0
-            self.loops += 1
-
-    def sync(self, mode: Mode, x: np.ndarray | None = None) -> None:
-        """Apply the synchronization rule for the observed contact ``mode`` and state ``x (14,)`` (class docstring);
-        without ``x`` no foot is seen clear, so no early touchdown counts."""
-        if self.finished:
-            return
-        if self.phase != self._phase_seen:
-            self._phase_seen = self.phase
-            self._clear = [False, False]
-        if x is not None:
-            heights = self.robot.foot_heights(np.asarray(x, dtype=np.float64)[:NQ])
-            for f in (0, 1):
-                if heights[f] >= self.clearance:
-                    self._clear[f] = True
-        i = self.phase
-        plan_mode = self.modes[i]
-        if mode != plan_mode:
-            early = [f for f in (0, 1) if mode.in_contact(f) and not plan_mode.in_contact(f) and self._clear[f]]
-            if early and all(self.next_modes[i].in_contact(f) for f in early):
-                if i + 1 < self.n_phases:
-                    self.phase = i + 1
-                    self.local_time = 0.0
-                else:
-                    self.finished = True
-        self._loop()
-
-    def advance(self, dt: float) -> None:
-        """Move the cursor by ``dt`` seconds of plan time (waiting before touchdowns, looping at the end if
-        ``loop_phase`` is set)."""
-        super().advance(dt)
-        self._loop()
-
-
-class HeldPlanExpert(Policy):
-    """The base of the experts that track one HS-DDP plan solved for a held control (the backflip's, the jumps'):
-    ``u = U_k + K_k (x - X_k)`` (paper eq. 8, eps = 0) with a :class:`ClearancePlanTracker`, from observations only.
-    While the plan lasts it is tracked; afterwards (:attr:`holding`) :meth:`after_plan` acts (subclasses: a posture
-    hold, a looped cycle never gets there).
-
-    Args:
-        solution: the plan, a :class:`~hsddp_gym.planners.optimizer.solution.Solution` (its gains for the env's
-            control period); the env should start at its ``X[0]``.
-        loop_phase: the tracker's ``loop_phase`` (None: the plan finishes).
-        loop_end: the tracker's ``loop_end`` (None: the loop starts at the end of the plan).
-    """
-
-    plan_name = "plan"
-
-    def __init__(self, interface: EnvInterface = EnvInterface(), solution=None, loop_phase: int | None = None,
-                 loop_end: int | None = None) -> None:
-        super().__init__(interface)
-        if solution is None:
-            raise ValueError(f"solution must be a Solution (the {self.plan_name} to track)")
-        self.solution = solution
-        self.loop_phase = loop_phase
-        self.loop_end = loop_end
-        self._robot = CheetahModel()
-        self._duration = float(np.sum(solution.schedule.durations))
-        self.tracker: ClearancePlanTracker | None = None
-        self.errors: list[float] = []
-        """Per control step while tracking: :func:`tracking_error`."""
-        self.reset()
-
-    def reset(self) -> None:
-        self.tracker = ClearancePlanTracker.from_solution(self.solution, robot=self._robot,
-                                                          loop_phase=self.loop_phase, loop_end=self.loop_end)
-        self.errors = []
-
-    @property
-    def holding(self) -> bool:
-        """The plan has run out (never with ``loop_phase``)."""
-        if self.loop_phase is not None:
-            return False
-        return self.tracker.finished or self.tracker.time >= self._duration - 1e-9
-
-    def after_plan(self, x: np.ndarray) -> np.ndarray:
-        """Torques (4,) once the plan has run out, for the observed state ``x (14,)``."""
-        raise NotImplementedError
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        x, mode, _ = self._parse(obs)
-        self.tracker.sync(mode, x)
-        if self.holding:
-            u = self.after_plan(x)
-        else:
-            x_nom, _ = self.tracker.nominal()
-            self.errors.append(tracking_error(x, x_nom))
-            u = self.tracker.control(x)
-            self.tracker.advance(self.interface.control_dt)
-        return self.interface.action_from_torque(u)
-
-
-__all__ = ["TOUCHDOWN_CLEARANCE", "PlanTracker", "tracking_error", "ClearancePlanTracker", "HeldPlanExpert"]
+__all__ = ["PlanTracker", "tracking_error"]
