@@ -1,38 +1,16 @@
 """Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
 
-Gymnasium wrappers and env arguments (:mod:`hsddp_gym.envs.perturbations.wrappers`), and one registry,
-:data:`CONDITIONS` (:mod:`hsddp_gym.envs.perturbations.conditions`), that names the conditions of the robustness
-benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few more:
+* :mod:`~hsddp_gym.envs.perturbations.wrappers`: the Gymnasium wrappers: observation noise and bias
+  (:class:`ObservationNoise`, :class:`ObservationBias`), latency (:class:`ActionDelay`), pushes at random times or
+  by contact phase (:class:`RandomPush`, :class:`PhasePush`), a contact model of the MuJoCo twin drawn per episode
+  (:class:`RandomContactModel`); each draws from its own generator seeded from the episode seed, so an episode's
+  perturbation is a function of its seed alone;
+* :mod:`~hsddp_gym.envs.perturbations.conditions`: one registry, :data:`CONDITIONS`, of named conditions (env
+  arguments such as ``friction`` and ``trunk_mass_scale`` plus those wrappers): the robustness benchmark's
+  (:data:`SUITE`, ``experiments/robustness.py``), the contact models (:data:`CONTACT_CONDITIONS`) and the conditions
+  of a real robot (:data:`HARDWARE_CONDITIONS`).
 
-* :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
-  flags and the gait clock stay clean);
-* :class:`ObservationBias`: a constant offset on named observed positions and velocities (a sensor bias), fixed
-  or drawn per episode;
-* :class:`ActionDelay`: every action is executed ``steps`` control steps after the policy returned it (the
-  first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
-  policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it), which may differ from the
-  executed one (``announced``), and the executed delay may be drawn per episode (``jitter``);
-* :class:`RandomPush`: one push (or ``count``) per episode at a random time, a random trunk-velocity change
-  ``[dvx, dvz, dpitch_rate]`` (a :class:`PushDistribution`) applied through the env's documented ``push`` reset
-  option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
-* :class:`PhasePush`: one such push at the first control step in flight (or in stance) after a random time,
-  through the env's ``apply_push``;
-* model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
-  simulated trunk is heavier or lighter than the model every policy uses);
-* contact models the policies were not built on (:class:`ContactCondition`, always in the MuJoCo twin): a corner
-  of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS` (``contact_<corner>``), or :class:`RandomContactModel`, a
-  :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` drawn per episode from the episode seed (``contact_family``).
-  They are extra conditions, not in :data:`SUITE`;
-* conditions a real robot has (:class:`HardwareCondition`, :data:`HARDWARE_CONDITIONS`): a latency other than the
-  announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
-
-**Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
-(a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
-policy and of the env's own reset noise; ``reset()`` without a seed continues the generator (seeded from
-the env's ``np_random`` on first use).
-
-Every name above is importable from ``hsddp_gym.envs.perturbations`` itself (lazily; the wrappers are defined in
-:mod:`~hsddp_gym.envs.perturbations.wrappers`, the registry in :mod:`~hsddp_gym.envs.perturbations.conditions`).
+Every public name of both modules is importable from ``hsddp_gym.envs.perturbations`` itself (lazily).
 
 Example::
 
