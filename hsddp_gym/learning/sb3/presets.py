@@ -13,9 +13,9 @@ import numpy as np
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0")
-"""The envs :func:`train_sb3` trains in (``env_id``): Bounding-v0 (the default), the pronking task Pronking-v0, the
-backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no compiled vector env and no
-robustness conditions."""
+"""The envs :func:`~hsddp_gym.learning.sb3.training.train_sb3` trains in (``env_id``): Bounding-v0 (the default), the
+pronking task Pronking-v0, the backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no
+compiled vector env and no robustness conditions."""
 ALGOS = ("ppo", "sac")
 
 PPO_HYPERPARAMS: dict = {
@@ -160,7 +160,8 @@ PPO on the PyBullet locomotion tasks sets it: the exploration noise is a linear 
 hidden features, its weights drawn anew every 4 steps, and ``log_std_init`` -2. With SB3's default white Gaussian
 noise the parallel preset's mean action bounds differently from the draws it was trained with (its mean action
 fell where its draws did not; docs/results/what-did-not-work.md); with gSDE the mean action is sound. SB3 redraws
-the weights every 4 steps of its rollouts; :class:`SB3ModelPolicy`'s own draws every 4 steps of the episode."""
+the weights every 4 steps of its rollouts; :class:`~hsddp_gym.learning.sb3.runs.SB3ModelPolicy`'s own draws every 4
+steps of the episode."""
 
 
 #: The help of the RL options both front-ends offer (``hsddp-gym train`` and ``experiments/train_rl.py``).

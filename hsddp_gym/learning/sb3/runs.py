@@ -174,8 +174,8 @@ class SB3ModelPolicy(Policy):
 
 def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,
                         checkpoint: str = "final", noise_scale: float = 1.0) -> SB3ModelPolicy:
-    """The policy of a :func:`train_sb3` run in ``run_dir``, read without unpickling: the model is rebuilt
-    from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
+    """The policy of a :func:`~hsddp_gym.learning.sb3.training.train_sb3` run in ``run_dir``, read without unpickling:
+    the model is rebuilt from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
     (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
 
     Args:

@@ -144,7 +144,8 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
             (:class:`hsddp_gym.envs.vector.BoundingVectorEnv` through :mod:`hsddp_gym.learning.vector_sb3`, one
             ``train.monitor.csv`` for all) instead of a ``DummyVecEnv`` of single envs; the evaluation env stays
             a single env. Same transitions up to round-off (``tests/test_vector_env.py``).
-        preset: the RL-Zoo hyperparameter set (:data:`PRESETS`; default ``"hopper"``, a terminating task).
+        preset: the RL-Zoo hyperparameter set (:data:`~hsddp_gym.learning.sb3.presets.PRESETS`; default
+            ``"hopper"``, a terminating task).
         eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
             ``max(steps // 10, 1000)``; 0: none).
         final_eval_episodes: after training, evaluate the saved policy with the comparison protocol
