@@ -1,5 +1,5 @@
 """The contact-model family of the MuJoCo twin (envs/mujoco_twin.py: ContactModel, CONTACT_CORNERS) and its
-perturbation conditions (envs/perturbations.py: contact_family, contact_<corner>); skipped without mujoco."""
+perturbation conditions (envs/perturbations/conditions.py: contact_family, contact_<corner>); skipped without mujoco."""
 
 from __future__ import annotations
 

@@ -188,7 +188,7 @@ def test_relative_and_function_level_imports_are_seen(tmp_path):
 
 
 @pytest.mark.parametrize("package", ["hsddp_gym.planners.policies", "hsddp_gym.datasets", "hsddp_gym.learning",
-                                     "hsddp_gym.envs"])
+                                     "hsddp_gym.learning.sb3", "hsddp_gym.envs", "hsddp_gym.envs.perturbations"])
 def test_lazy_reexports_resolve_to_their_defining_modules(package):
     import importlib
 

@@ -11,9 +11,11 @@ from pathlib import Path
 
 import pytest
 
-from hsddp_gym.reports import figures, markers, tables
+from hsddp_gym.reports import figures, markers
 from hsddp_gym.reports.generate import check
 from hsddp_gym.reports.store import Store, read_record, record_id, write_record
+from hsddp_gym.reports.tables.registry import TABLES, render
+from hsddp_gym.reports.tables.robustness import robustness_pushes, wilson_interval
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,9 +49,9 @@ def test_every_table_id_in_the_pages_is_known_and_every_table_is_published():
     used = set()
     for path in markers.markdown_files(ROOT):
         for tid in markers.block_ids(path.read_text()):
-            assert tid in tables.TABLES, f"{path.relative_to(ROOT)}: unknown results table {tid!r}"
+            assert tid in TABLES, f"{path.relative_to(ROOT)}: unknown results table {tid!r}"
             used.add(tid)
-    assert set(tables.TABLES) <= used, f"tables published nowhere: {sorted(set(tables.TABLES) - used)}"
+    assert set(TABLES) <= used, f"tables published nowhere: {sorted(set(TABLES) - used)}"
 
 
 class _LoggingStore(Store):
@@ -66,8 +68,8 @@ class _LoggingStore(Store):
 
 def _records_read_by_tables_and_figures() -> set[str]:
     store = _LoggingStore(ROOT)
-    for tid in tables.TABLES:
-        tables.render(store, tid)
+    for tid in TABLES:
+        render(store, tid)
     return store.read | set(figures.FIGURES)
 
 
@@ -169,7 +171,7 @@ def test_an_unclosed_marker_is_an_error_naming_the_line():
     expected = "x\n<!-- results: a/b -->\nnew a/b\n<!-- /results -->\ny\n"
     assert markers.render_text(text, lambda tid: f"new {tid}") == expected
     with pytest.raises(KeyError, match="unknown results table"):
-        tables.render(Store(ROOT), "no/such")
+        render(Store(ROOT), "no/such")
 
 
 def test_without_option_drops_the_option_and_its_values():
@@ -182,14 +184,14 @@ def test_without_option_drops_the_option_and_its_values():
 
 
 def test_the_wilson_interval_matches_known_values_and_refuses_bad_counts():
-    lo, hi = tables.wilson_interval(0, 100)
+    lo, hi = wilson_interval(0, 100)
     assert lo == 0.0 and hi == pytest.approx(0.0370, abs=1e-4)
-    lo, hi = tables.wilson_interval(5, 100)
+    lo, hi = wilson_interval(5, 100)
     assert (lo, hi) == (pytest.approx(0.0215, abs=1e-4), pytest.approx(0.1118, abs=1e-4))
-    assert tables.wilson_interval(20, 20)[1] == 1.0
+    assert wilson_interval(20, 20)[1] == 1.0
     for k, n in ((1, 0), (-1, 10), (11, 10)):
         with pytest.raises(ValueError, match="k <= n"):
-            tables.wilson_interval(k, n)
+            wilson_interval(k, n)
 
 
 def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
@@ -203,7 +205,7 @@ def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
                         "heuristic": {"push": cell([125, 130]), "push_x3": cell([139])}}}
     write_record(tmp_path / "results" / "robustness" / "pushes.json", data, "a test record",
                  command="python experiments/robustness.py --record results/robustness/pushes.json")
-    text = tables.robustness_pushes(Store(tmp_path))
+    text = robustness_pushes(Store(tmp_path))
     rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
             for line in text.splitlines() if line.startswith("| ")}
     # push: the first block has the MPC's one fall and none of the heuristic's; the second, the heuristic's two
@@ -215,4 +217,4 @@ def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
     write_record(tmp_path / "results" / "robustness" / "pushes.json", data, "a test record",
                  command="python experiments/robustness.py --record results/robustness/pushes.json")
     with pytest.raises(ValueError, match="missing \\['heuristic'\\]"):
-        tables.robustness_pushes(Store(tmp_path))
+        robustness_pushes(Store(tmp_path))

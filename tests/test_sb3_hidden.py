@@ -41,12 +41,13 @@ def test_hidden_sizes_reach_every_network_and_the_loader(tmp_path, capsys, exper
 
 
 def test_linear_learning_rate_falls_to_zero_over_the_run(tmp_path, capsys, experiment):
-    from hsddp_gym.learning.sb3 import _model_kwargs, train_sb3
+    from hsddp_gym.learning.sb3 import train_sb3
+    from hsddp_gym.learning.sb3.presets import model_kwargs
 
     hp = hyperparameters("ppo", {"learning_rate": "lin_3e-4"}, "parallel")
-    schedule = _model_kwargs(hp)["learning_rate"]
+    schedule = model_kwargs(hp)["learning_rate"]
     assert schedule(1.0) == pytest.approx(3e-4) and schedule(0.25) == pytest.approx(7.5e-5) and schedule(0.0) == 0
-    assert _model_kwargs(hyperparameters("ppo", {"learning_rate": 1e-4}, "parallel"))["learning_rate"] == 1e-4
+    assert model_kwargs(hyperparameters("ppo", {"learning_rate": 1e-4}, "parallel"))["learning_rate"] == 1e-4
     for bad in ("lin_", "lin_x", "lin_-1", "fast", 0, -1e-3, float("nan"), True):
         with pytest.raises(ValueError, match="learning_rate"):
             hyperparameters("ppo", {"learning_rate": bad}, "parallel")

@@ -448,7 +448,8 @@ def test_train_condition_perturbs_the_training_robots_only(tmp_path):
     before anything is written."""
     pytest.importorskip("stable_baselines3")
     from hsddp_gym.envs.perturbations import ObservationNoise, RandomPush
-    from hsddp_gym.learning.sb3 import _make_venv, check_train_condition, train_sb3
+    from hsddp_gym.learning.sb3 import check_train_condition, train_sb3
+    from hsddp_gym.learning.sb3.training import _make_venv
 
     push_x3 = check_train_condition("push_x3", vector_env=True)
     venv = _make_venv(3, 0, {}, None, None, vector_env=True, condition=push_x3)

@@ -55,10 +55,10 @@ _EXPORTS = {  # module: the public names it defines
     "demonstrations": ("Demonstrations", "load_demonstrations",),
     "features": ("FEATURES", "build_inputs", "gait_clock_features", "make_gait_clock",),
     "reporting": ("evaluate_policy_episodes", "plot_curve",),
-    "sb3": (
-        "ALGOS", "ENV_ID", "SB3ModelPolicy", "TrainResult", "as_sb3_policy", "hyperparameters",
-        "load_trained_policy", "save_vecnormalize_npz", "train_sb3", "write_curves",
-    ),
+    "sb3.adapter": ("as_sb3_policy",),
+    "sb3.presets": ("ALGOS", "ENV_ID", "hyperparameters",),
+    "sb3.runs": ("SB3ModelPolicy", "load_trained_policy", "write_curves",),
+    "sb3.training": ("TrainResult", "save_vecnormalize_npz", "train_sb3",),
     "vector_sb3": ("make_sb3_vec_env",),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

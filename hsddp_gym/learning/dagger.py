@@ -84,7 +84,7 @@ class DAggerConfig:
             raise ValueError(f"env_id {self.env_id!r} takes no conditions and no estimator (they are {ENV_ID}'s), got "
                              f"conditions={list(self.conditions)!r}, estimator={self.estimator!r}")
         if self.conditions:
-            from hsddp_gym.envs.perturbations import check_conditions
+            from hsddp_gym.envs.perturbations.conditions import check_conditions
 
             object.__setattr__(self, "conditions", check_conditions(list(self.conditions), "conditions"))
         elif not isinstance(self.conditions, (tuple, list)):
@@ -142,7 +142,7 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     :meth:`observation_for_inner`. Returns ``(obs (T, d), expert actions (T, 4), sent actions (T, 4), return, expert
     acts)``."""
     from hsddp_gym.datasets.recording import inform_sent_action
-    from hsddp_gym.envs.perturbations import true_observation
+    from hsddp_gym.envs.perturbations.wrappers import true_observation
 
     obs, _ = env.reset(seed=int(seed), options=options)
     expert.reset()

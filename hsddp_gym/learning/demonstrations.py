@@ -206,7 +206,7 @@ def _action_delays(metadata: dict) -> list[int] | int | None:
         return None
     names = metadata.get("episode_conditions")
     if names is not None:
-        from hsddp_gym.envs.perturbations import get_condition
+        from hsddp_gym.envs.perturbations.conditions import get_condition
 
         definitions = (metadata.get("conditions") or {}).get("definitions") or {}
         return [int(definitions[c]["action_delay"]) if c in definitions else int(get_condition(c).action_delay)

@@ -80,9 +80,9 @@ def rl_curves(data: dict, out_dir) -> list[Path]:
 def robustness(store, out_dir) -> list[Path]:
     """``robustness.png``: fall rate and speed error per condition of the suite (the columns of the
     ``robustness/suite`` table)."""
-    from hsddp_gym.reports.tables import SUITE_LABELS, _suite_columns
+    from hsddp_gym.reports.tables.robustness import SUITE_LABELS, suite_columns
 
-    conds, columns, _ = _suite_columns(store)
+    conds, columns, _ = suite_columns(store)
     results = {SUITE_LABELS.get(k, k): v for k, v in columns.items()}
     path = Path(out_dir) / "robustness.png"
     plotting.plot_robustness(results, conds, path)
@@ -189,10 +189,10 @@ POLICY_LABELS = {"mpc": "HS-DDP MPC", "heuristic": "contact-event heuristic"}
 def generality(data: dict, out_dir) -> list[Path]:
     """``generality.png``: falls of 20 per condition, the MPC beside the heuristic, over the suite and the
     conditions the MPC was not built on (a ``robustness/generality`` record; the groups of its table)."""
-    from hsddp_gym.reports.tables import _generality_groups
+    from hsddp_gym.reports.tables.robustness import generality_groups
 
     conds = list(data["conditions"])
-    order = [c for _, members in _generality_groups() for c in members if c in conds]
+    order = [c for _, members in generality_groups() for c in members if c in conds]
     order += [c for c in conds if c not in order]
     res = data["results"]
     policies = [p for p in ("mpc", "heuristic") if p in res]
@@ -220,7 +220,7 @@ def generality(data: dict, out_dir) -> list[Path]:
 def pushes(data: dict, out_dir) -> list[Path]:
     """``pushes.png``: the fall rate under each push law with its 95 % Wilson interval, the MPC beside the heuristic
     (a ``robustness/pushes`` record)."""
-    from hsddp_gym.reports.tables import wilson_interval
+    from hsddp_gym.reports.tables.robustness import wilson_interval
 
     conds = list(data["conditions"])
     res = data["results"]

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hsddp_gym.reports import markers, tables
+from hsddp_gym.reports import markers
 from hsddp_gym.reports.store import Store
+from hsddp_gym.reports.tables.registry import render as render_table
 from hsddp_gym.util.io import atomic_path
 
 
@@ -17,7 +18,7 @@ def rendered(root) -> dict[Path, tuple[str, str]]:
 
     def render(table_id: str) -> str:
         if table_id not in cache:
-            cache[table_id] = tables.render(store, table_id)
+            cache[table_id] = render_table(store, table_id)
         return cache[table_id]
 
     out = {}

@@ -18,6 +18,7 @@ Solves are deterministic: the same inputs give bit-identical outputs.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -55,6 +56,22 @@ class _Traj:
         self.X_pre = self._X_pre[:n_phases]
         self.U = self._U[:n_knots]
         self.GRF = self._GRF[:n_knots]
+
+
+@dataclasses.dataclass
+class LoopState:
+    """Where a solve stands: what the outer (augmented-Lagrangian) loop and its DDP iterations share."""
+
+    al_iteration: int = 0
+    """The outer iteration in progress (0-based)."""
+    ddp_iterations: int = 0
+    """Accepted DDP steps so far, over all outer iterations."""
+    mu: float = 0.0
+    """The backward pass's regularization: grown after a failed backward pass or line search, shrunk after a step."""
+    status: str = "running"
+    """``"running"`` until a stop: ``"time_limit"``, ``"iteration_limit"``, ``"diverged"`` or ``"gains_failed"``."""
+    step_gains: bool = False
+    """Whether the workspace's gains ``K``, ``k_ff`` are the backward pass that made the last accepted step."""
 
 
 class Workspace:
@@ -288,17 +305,16 @@ class HSDDP:
             where = f": X[{k}] is not finite ({problem.describe_knot(k)})" if k is not None else ""
             raise ValueError("the warm start (U_init" + (", X_init, K_init" if K_init is not None else "")
                              + f") produces a diverging rollout{where}")
-        # step_gains: ws.K / ws.k_ff are the backward pass that made the last accepted step (refresh_gains False)
-        state = {"al": 0, "ddp": 0, "mu": 0.0, "status": "running", "step_gains": False}
+        state = LoopState()
 
         def record(event, costs: CostBreakdown, step=0.0, expected=0.0):
             tr = ws.nominal
             g = objective.switching_values(tr.X_pre)
             tau, min_fz, fric = constraint_metrics(problem, tr.U, tr.GRF)
-            r = IterationRecord(al_iteration=state["al"], ddp_iteration=state["ddp"], objective=costs.total,
-                                cost=costs.task, al=costs.al, barrier=costs.barrier,
+            r = IterationRecord(al_iteration=state.al_iteration, ddp_iteration=state.ddp_iterations,
+                                objective=costs.total, cost=costs.task, al=costs.al, barrier=costs.barrier,
                                 switching_violation=float(np.sum(g * g)), max_torque_violation=tau,
-                                min_normal_grf=min_fz, max_friction_violation=fric, step=step, mu=state["mu"],
+                                min_normal_grf=min_fz, max_friction_violation=fric, step=step, mu=state.mu,
                                 expected=expected, wall_time=time.perf_counter() - t0, event=event)
             for cb in callbacks:
                 cb(r)
@@ -312,20 +328,20 @@ class HSDDP:
         record("init", costs)
         converged = False
         for al_iter in range(opt.max_al_iterations):
-            state["al"] = al_iter
+            state.al_iteration = al_iter
             costs = self._evaluate(objective, ws.nominal, cs)
             if al_iter > 0:
                 record("al_update", costs)
             costs = self._ddp(problem, objective, cs, costs, state, record, timings, t0)
             g = objective.switching_values(ws.nominal.X_pre)
             viol = float(np.sum(g * g))
-            if state["status"] in ("time_limit", "iteration_limit", "diverged"):
+            if state.status in ("time_limit", "iteration_limit", "diverged"):
                 break
-            if opt.max_total_ddp_iterations is not None and state["ddp"] >= opt.max_total_ddp_iterations:
-                state["status"] = "iteration_limit"
+            if opt.max_total_ddp_iterations is not None and state.ddp_iterations >= opt.max_total_ddp_iterations:
+                state.status = "iteration_limit"
                 break
             if opt.time_limit is not None and time.perf_counter() - t0 > opt.time_limit:
-                state["status"] = "time_limit"
+                state.status = "time_limit"
                 break
             max_g = float(np.max(np.abs(g), initial=0.0))
             if not opt.use_al or (viol <= opt.al_tolerance and (opt.al_max_abs_tolerance is None
@@ -341,12 +357,12 @@ class HSDDP:
             cs.delta_grf = max(opt.delta_min, cs.delta_grf * opt.delta_factor)
             cs.eps_torque *= opt.eps_growth
             cs.eps_grf *= opt.eps_growth
-        status = "converged" if converged else (state["status"] if state["status"] != "running"
+        status = "converged" if converged else (state.status if state.status != "running"
                                                 else "al_iteration_limit")
-        if opt.refresh_gains or not state["step_gains"]:
+        if opt.refresh_gains or not state.step_gains:
             # gains consistent with the final trajectory: one more linearization + backward pass (no step)
             self._backward_at_nominal(problem, objective, cs, state, timings)
-        if state["status"] == "gains_failed":
+        if state.status == "gains_failed":
             status, converged = "gains_failed", False
         tr = ws.nominal
         final = self._evaluate(objective, tr, cs)
@@ -359,9 +375,9 @@ class HSDDP:
                         k_ff=ws.k_ff.copy(), modes=problem.modes.copy(), phase_start=problem.phase_start.copy(),
                         schedule=problem.schedule, dt=problem.dt, switching=g, multipliers=cs.lam.copy(),
                         sigma=cs.sigma, cost=final.task, objective=final.total, status=status, converged=converged,
-                        al_iterations=state["al"] + 1, ddp_iterations=state["ddp"], solve_time=solve_time,
-                        log=logger.records, timings=timings, options=opt, V_x0=ws.V_x[0].copy(),
-                        V_xx0=ws.V_xx[0].copy())
+                        al_iterations=state.al_iteration + 1, ddp_iterations=state.ddp_iterations,
+                        solve_time=solve_time, log=logger.records, timings=timings, options=opt,
+                        V_x0=ws.V_x[0].copy(), V_xx0=ws.V_xx[0].copy())
 
     # ------------------------------------------------------------------ internals
     @staticmethod
@@ -400,9 +416,9 @@ class HSDDP:
         timings["backward"] += time.perf_counter() - t
         return out
 
-    def _backward_at_nominal(self, problem, objective, cs, state, timings):
+    def _backward_at_nominal(self, problem, objective, cs, state: LoopState, timings):
         self._linearize(problem, objective, cs, timings)
-        mu = state["mu"]
+        mu = state.mu
         for _ in range(60):
             ok, _, _, _ = self._backward(problem, mu, timings)
             if ok:
@@ -410,30 +426,31 @@ class HSDDP:
             mu = max(self.options.mu_min, mu * self.options.mu_growth)
         self._ws.K[:] = 0.0
         self._ws.k_ff[:] = 0.0
-        state["status"] = "gains_failed"
+        state.status = "gains_failed"
 
-    def _ddp(self, problem, objective, cs, costs, state, record, timings, t0):
+    def _ddp(self, problem, objective, cs, costs, state: LoopState, record, timings, t0):
         opt = self.options
         ws = self._ws
         for _ in range(opt.max_ddp_iterations):
             if opt.time_limit is not None and time.perf_counter() - t0 > opt.time_limit:
-                state["status"] = "time_limit"
+                state.status = "time_limit"
                 return costs
-            if opt.max_total_ddp_iterations is not None and state["ddp"] >= opt.max_total_ddp_iterations:
-                state["status"] = "iteration_limit"
+            if opt.max_total_ddp_iterations is not None and state.ddp_iterations >= opt.max_total_ddp_iterations:
+                state.status = "iteration_limit"
                 return costs
             self._linearize(problem, objective, cs, timings)
             # the last iteration allowed needs no linearization of its step unless the gains are refreshed there
-            last = opt.max_total_ddp_iterations is not None and state["ddp"] + 1 >= opt.max_total_ddp_iterations
+            last = (opt.max_total_ddp_iterations is not None
+                    and state.ddp_iterations + 1 >= opt.max_total_ddp_iterations)
             speculate = opt.refresh_gains or not last
             accepted = False
             while not accepted:
-                state["step_gains"] = False
-                ok, _, dV1, dV2 = self._backward(problem, state["mu"], timings)
+                state.step_gains = False
+                ok, _, dV1, dV2 = self._backward(problem, state.mu, timings)
                 if not ok:
-                    state["mu"] = max(opt.mu_min, state["mu"] * opt.mu_growth)
-                    if state["mu"] > opt.mu_max:
-                        state["status"] = "diverged"
+                    state.mu = max(opt.mu_min, state.mu * opt.mu_growth)
+                    if state.mu > opt.mu_max:
+                        state.status = "diverged"
                         return costs
                     continue
                 if dV1 > -1e-12 * max(1.0, abs(costs.total)):
@@ -461,9 +478,9 @@ class HSDDP:
                     eps *= opt.step_factor
                 timings["line_search"] += time.perf_counter() - t
                 if new_costs is None:
-                    state["mu"] = max(opt.mu_min, state["mu"] * opt.mu_growth)
-                    if state["mu"] > opt.mu_max:
-                        state["status"] = "diverged"
+                    state.mu = max(opt.mu_min, state.mu * opt.mu_growth)
+                    if state.mu > opt.mu_max:
+                        state.status = "diverged"
                         return costs
                     continue
                 accepted = True
@@ -473,11 +490,11 @@ class HSDDP:
                 ws.lin, ws.lin_candidate = ws.lin_candidate, ws.lin
             ws.lin_valid = cand_linearized
             costs = new_costs
-            state["step_gains"] = True
-            state["mu"] = state["mu"] / opt.mu_growth
-            if state["mu"] < opt.mu_min:
-                state["mu"] = 0.0
-            state["ddp"] += 1
+            state.step_gains = True
+            state.mu = state.mu / opt.mu_growth
+            if state.mu < opt.mu_min:
+                state.mu = 0.0
+            state.ddp_iterations += 1
             record("ddp", costs, step=eps, expected=float(-(eps * dV1 + 0.5 * eps * eps * dV2)))
             if decrease < opt.ddp_tolerance:
                 return costs

@@ -1,7 +1,5 @@
-"""Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
-
-Gymnasium wrappers and env arguments, and one registry, :data:`CONDITIONS`, that names the conditions of the
-robustness benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few more:
+"""The Gymnasium wrappers that perturb ``hsddp_gym/Bounding-v0`` (the named conditions that combine them:
+:mod:`hsddp_gym.envs.perturbations.conditions`):
 
 * :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
   flags and the gait clock stay clean);
@@ -16,25 +14,14 @@ robustness benchmark (:data:`SUITE`, ``experiments/robustness.py``) and a few mo
   option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
 * :class:`PhasePush`: one such push at the first control step in flight (or in stance) after a random time,
   through the env's ``apply_push``;
-* model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
-  simulated trunk is heavier or lighter than the model every policy uses);
-* contact models the policies were not built on (:class:`ContactCondition`, always in the MuJoCo twin): a corner
-  of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS` (``contact_<corner>``), or :class:`RandomContactModel`, a
-  :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` drawn per episode from the episode seed (``contact_family``).
-  They are extra conditions, not in :data:`SUITE`;
-* conditions a real robot has (:class:`HardwareCondition`, :data:`HARDWARE_CONDITIONS`): a latency other than the
-  announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
+* :class:`RandomContactModel`: a contact model of the MuJoCo twin drawn per episode;
+* what the wrappers of an env add and did: :func:`wrapper_info_keys`, :func:`episode_perturbation`, and the
+  observation of the true state, :func:`true_observation`.
 
 **Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
 (a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
 policy and of the env's own reset noise; ``reset()`` without a seed continues the generator (seeded from
 the env's ``np_random`` on first use).
-
-Example::
-
-    from hsddp_gym.envs.perturbations import make_env
-    env = make_env("push")                    # gym.make("hsddp_gym/Bounding-v0") + RandomPush
-    obs, info = env.reset(seed=3)             # info["push"]: the push of this episode
 """
 
 from __future__ import annotations
@@ -44,19 +31,12 @@ import copy
 import dataclasses
 import math
 import numbers
-from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
 
 from hsddp_gym.core.conventions import NQ, NU, Q_NAMES, X_NAMES
 from hsddp_gym.util.validation import check_int, check_positive
-
-ENV_ID = "hsddp_gym/Bounding-v0"
-SIMULATORS = {"bounding": "hsddp_gym/Bounding-v0", "mujoco": "hsddp_gym/BoundingMuJoCo-v0",
-              "kkt": "hsddp_gym/BoundingKKT-v0"}
-"""The simulators a condition runs in (``Condition.make(simulator=...)``): the exact-LCP env (default), its MuJoCo
-twin (soft contacts; the optional extra ``mujoco``) and the planner's own hybrid model (pinned feet)."""
 
 
 def episode_generator(seed, salt: int, current: np.random.Generator | None, env_rng) -> np.random.Generator:
@@ -501,274 +481,6 @@ class RandomContactModel(gym.Wrapper):
         return obs, dict(info, contact_model=self.last_contact_model.as_dict())
 
 
-# ------------------------------------------------------------------------------------------------ registry
-@dataclasses.dataclass(frozen=True)
-class Condition:
-    """A named test condition: env arguments plus wrappers.
-
-    Attributes:
-        name: the registry key. description: one line for tables.
-        env_kwargs: arguments of ``gym.make("hsddp_gym/Bounding-v0", ...)`` (reset noise, friction, trunk mass,
-            target speed).
-        observation_noise: ``(position_std, velocity_std)`` of :class:`ObservationNoise`, or None.
-        action_delay: control steps of :class:`ActionDelay` (0: none).
-        push: the keyword arguments of :class:`RandomPush` (``{}``: its defaults), or None (no push).
-    """
-
-    name: str
-    description: str
-    env_kwargs: dict = dataclasses.field(default_factory=dict)
-    observation_noise: tuple | None = None
-    action_delay: int = 0
-    push: dict | None = None
-
-    SIMULATOR: ClassVar[str | None] = None
-    """The simulator the condition always runs in (None: any, the one asked for)."""
-
-    def simulator_for(self, requested: str = "bounding") -> str:
-        """The simulator the condition runs in when ``requested`` is asked for: ``requested``, or the condition's
-        own (:attr:`SIMULATOR`) if it has one (``experiments/robustness.py --simulator`` asks for one)."""
-        return self.SIMULATOR or requested
-
-    def make(self, simulator: str | None = None, **make_kwargs) -> gym.Env:
-        """``gym.make`` the env of ``simulator`` (a key of :data:`SIMULATORS`; None: the condition's own,
-        :attr:`SIMULATOR`, or ``"bounding"``) with :attr:`env_kwargs` (``make_kwargs`` may add others, e.g.
-        ``render_mode``, ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it. A condition with
-        its own simulator raises ``ValueError`` for another one."""
-        import hsddp_gym  # noqa: F401  (registers the env)
-
-        if simulator is None:
-            simulator = self.simulator_for("bounding")
-        if simulator not in SIMULATORS:
-            raise ValueError(f"simulator must be one of {sorted(SIMULATORS)}, got {simulator!r}")
-        if self.SIMULATOR is not None and simulator != self.SIMULATOR:
-            raise ValueError(f"condition {self.name!r} runs in the {self.SIMULATOR!r} simulator only, got "
-                             f"simulator={simulator!r}")
-        both = sorted(set(make_kwargs) & set(self.env_kwargs))
-        if both:
-            raise ValueError(f"condition {self.name!r} sets {both} itself; do not pass them to make()")
-        env = gym.make(SIMULATORS[simulator], **self.env_kwargs, **make_kwargs)
-        if self.push is not None:
-            env = RandomPush(env, **self.push)
-        env = self._wrap_inner(env)
-        env = self._wrap_delay(env)
-        if self.observation_noise is not None:
-            env = ObservationNoise(env, *self.observation_noise)
-        return self._wrap(env)
-
-    def _wrap_inner(self, env: gym.Env) -> gym.Env:
-        """Wrappers right above the pushes (a subclass's own)."""
-        return env
-
-    def _wrap_delay(self, env: gym.Env) -> gym.Env:
-        return ActionDelay(env, self.action_delay) if self.action_delay else env
-
-    def _wrap(self, env: gym.Env) -> gym.Env:
-        """The outermost wrappers (a subclass's own)."""
-        return env
-
-    @property
-    def announced_delay(self) -> int:
-        """The action delay [control steps] a policy is told (``EnvInterface.from_env(env).action_delay_steps``):
-        :attr:`action_delay` here; a :class:`HardwareCondition` may announce another one."""
-        return self.action_delay
-
-    @property
-    def acts_through_env_arguments(self) -> bool:
-        """True when the condition is env arguments and pushes only (no observation noise, no latency): what the
-        compiled vector env can run without wrappers."""
-        return self.observation_noise is None and not self.action_delay
-
-    def as_dict(self) -> dict:
-        """A JSON-serializable description."""
-        return dataclasses.asdict(self)
-
-
-@dataclasses.dataclass(frozen=True)
-class ContactCondition(Condition):
-    """A condition of the contact model, run in the MuJoCo twin whatever simulator is asked for
-    (:attr:`SIMULATOR` ``"mujoco"``): a fixed model through :attr:`env_kwargs` (``{"contact_model":
-    ContactModel(...)}``, e.g. a corner of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`), or with
-    :attr:`family` a model drawn per episode from the episode seed (:class:`RandomContactModel`).
-
-    Attributes:
-        family: draw the contact model per episode (:class:`RandomContactModel`, the outermost wrapper).
-    """
-
-    family: bool = False
-    SIMULATOR: ClassVar[str | None] = "mujoco"
-
-    def _wrap(self, env: gym.Env) -> gym.Env:
-        return RandomContactModel(env) if self.family else env
-
-    @property
-    def acts_through_env_arguments(self) -> bool:
-        """False: the compiled vector env (exact LCP) has no MuJoCo contact model."""
-        return False
-
-
-@dataclasses.dataclass(frozen=True)
-class HardwareCondition(Condition):
-    """A condition a real robot has and the policies are not told about exactly: a latency other than the announced
-    one, a constant sensor bias, or a push timed by the contact phase. Extra conditions, not in :data:`SUITE`; the
-    compiled vector env cannot run them (:attr:`acts_through_env_arguments` is False).
-
-    Attributes:
-        announced_action_delay: the delay [control steps] :class:`ActionDelay` announces (None: the executed one,
-            :attr:`action_delay`).
-        delay_jitter: per-episode executed delay uniform in ``action_delay +- delay_jitter`` (:class:`ActionDelay`'s
-            ``jitter``).
-        observation_bias: the keyword arguments of :class:`ObservationBias` (``bias``, ``random_bias``), or None.
-        phase_push: the keyword arguments of :class:`PhasePush` (``phase``, ``time_range``, ``max_delta_v``), or
-            None.
-    """
-
-    announced_action_delay: int | None = None
-    delay_jitter: int = 0
-    observation_bias: dict | None = None
-    phase_push: dict | None = None
-
-    @property
-    def announced_delay(self) -> int:
-        return self.action_delay if self.announced_action_delay is None else self.announced_action_delay
-
-    def _wrap_inner(self, env: gym.Env) -> gym.Env:
-        return env if self.phase_push is None else PhasePush(env, **self.phase_push)
-
-    def _wrap_delay(self, env: gym.Env) -> gym.Env:
-        if not (self.action_delay or self.announced_action_delay or self.delay_jitter):
-            return env
-        return ActionDelay(env, self.action_delay, announced=self.announced_action_delay, jitter=self.delay_jitter)
-
-    def _wrap(self, env: gym.Env) -> gym.Env:
-        return env if self.observation_bias is None else ObservationBias(env, **self.observation_bias)
-
-    @property
-    def acts_through_env_arguments(self) -> bool:
-        """False: the compiled vector env has no latency, observation or phase-timed-push wrappers."""
-        return False
-
-
-SENSOR_BIAS = {"pitch": 0.03, "dx": 0.05, "z": -0.02}
-"""The fixed bias of ``sensor_bias`` (:class:`ObservationBias`'s ``bias``): +0.03 rad pitch (nose-down), +0.05 m/s
-forward velocity, -0.02 m trunk height."""
-SENSOR_BIAS_RANGE = {"z": 0.02, "pitch": 0.03, "hip_front": 0.02, "knee_front": 0.02, "hip_back": 0.02,
-                     "knee_back": 0.02, "dx": 0.05, "dz": 0.05}
-"""The half-widths of ``sensor_bias_random`` (:class:`ObservationBias`'s ``random_bias``): each episode a bias
-uniform in +-0.02 m height, +-0.03 rad pitch, +-0.02 rad on each joint angle, +-0.05 m/s on the trunk's forward and
-vertical velocities (the rates are unbiased)."""
-SENSOR_BIAS_X2 = {name: 2.0 * value for name, value in SENSOR_BIAS.items()}
-"""The fixed bias of ``sensor_bias_x2``: :data:`SENSOR_BIAS` twice over, +0.06 rad pitch, +0.1 m/s forward velocity,
--0.04 m trunk height."""
-PHASE_PUSH_DELTA_V = (1.0, 1.0, 7.0)
-"""``max_delta_v`` of ``push_flight`` and ``push_stance``: ``U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)``, larger than
-``push``'s (0.8, 0.8, 5.0)."""
-
-
-def _hardware_conditions() -> tuple:
-    h = HardwareCondition
-    return (
-        h("delay_5ms_announced_0ms", "actions executed 1 control step (5 ms) late, no delay announced",
-          action_delay=1, announced_action_delay=0),
-        h("delay_10ms_announced_5ms", "actions executed 2 control steps (10 ms) late, 1 step (5 ms) announced",
-          action_delay=2, announced_action_delay=1),
-        h("delay_5ms_announced_10ms", "actions executed 1 control step (5 ms) late, 2 steps (10 ms) announced",
-          action_delay=1, announced_action_delay=2),
-        h("delay_15ms_announced_10ms", "actions executed 3 control steps (15 ms) late, 2 steps (10 ms) announced",
-          action_delay=3, announced_action_delay=2),
-        h("delay_jitter", "10 ms announced; each episode executes 5, 10 or 15 ms (uniform, from the episode seed)",
-          action_delay=2, delay_jitter=1),
-        h("sensor_bias", "constant observation bias: +0.03 rad pitch, +0.05 m/s forward velocity, -0.02 m height",
-          observation_bias={"bias": dict(SENSOR_BIAS)}),
-        h("sensor_bias_random", "observation bias drawn per episode: U(+-0.02 m) height, U(+-0.03 rad) pitch, "
-          "U(+-0.02 rad) joints, U(+-0.05 m/s) vx and vz", observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}),
-        h("sensor_bias_x2", "constant observation bias twice sensor_bias's: +0.06 rad pitch, +0.1 m/s forward "
-          "velocity, -0.04 m height", observation_bias={"bias": dict(SENSOR_BIAS_X2)}),
-        h("noise_bias_latency", "observation noise as obs_noise, a bias drawn as sensor_bias_random's and actions "
-          "executed 2 control steps (10 ms) late with 1 step (5 ms) announced, together", observation_noise=(0.01, 0.1),
-          action_delay=2, announced_action_delay=1, observation_bias={"random_bias": dict(SENSOR_BIAS_RANGE)}),
-        h("push_flight", "one push at the first flight step (no foot in contact) after t ~ U(1, 4) s, "
-          "dv ~ U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)",
-          phase_push={"phase": "flight", "max_delta_v": PHASE_PUSH_DELTA_V}),
-        h("push_stance", "one push at the first stance step (a foot in contact) after t ~ U(1, 4) s, "
-          "dv ~ U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)",
-          phase_push={"phase": "stance", "max_delta_v": PHASE_PUSH_DELTA_V}),
-    )
-
-
-def _conditions(*conds: Condition) -> dict:
-    return {c.name: c for c in conds}
-
-
-def _corner_conditions() -> tuple:
-    from hsddp_gym.envs.mujoco_twin import CONTACT_CORNERS
-
-    what = {"softest": "solref (20 ms, 0.5): the softest, least damped contact",
-            "stiffest": "solref (2 ms, 1): the stiffest contact",
-            "pyramidal": "pyramidal friction cone", "large_feet": "20 mm foot spheres (they roll)",
-            "low_friction": "friction mu = 0.4 (model: 0.6)", "coarse_step": "5/3 ms MuJoCo step (3 per action)"}
-    return tuple(ContactCondition(f"contact_{name}", f"MuJoCo twin, contact corner {name}: {what[name]}",
-                                  {"contact_model": model}) for name, model in CONTACT_CORNERS.items())
-
-
-CONDITIONS: dict[str, Condition] = _conditions(
-    Condition("default", "default env (reset noise 0.01)"),
-    Condition("reset_noise_x4", "reset noise x4 (reset_noise_scale=0.04)", {"reset_noise_scale": 0.04}),
-    Condition("obs_noise", "observation noise: sigma 0.01 on positions, 0.1 on velocities",
-              observation_noise=(0.01, 0.1)),
-    Condition("delay_5ms", "actions executed 1 control step (5 ms) late", action_delay=1),
-    Condition("delay_10ms", "actions executed 2 control steps (10 ms) late", action_delay=2),
-    Condition("push", "random push: t ~ U(1, 4) s, dv ~ U(+-0.8 m/s, +-0.8 m/s, +-5 rad/s)", push={}),
-    Condition("push_x3", "three random pushes, one in each second of 1-4 s, each dv as in push",
-              push={"count": 3}),
-    Condition("friction_0.4", "friction mu = 0.4 (model: 0.6)", {"friction": 0.4}),
-    Condition("mass_+15", "trunk mass +15 % (env only)", {"trunk_mass_scale": 1.15}),
-    Condition("mass_-15", "trunk mass -15 % (env only)", {"trunk_mass_scale": 0.85}),
-    Condition("speed_0.5", "target speed 0.5 m/s", {"target_speed": 0.5}),
-    Condition("speed_1.25", "target speed 1.25 m/s", {"target_speed": 1.25}),
-    Condition("speed_1.5", "target speed 1.5 m/s", {"target_speed": 1.5}),
-    Condition("speed_2.0", "target speed 2.0 m/s", {"target_speed": 2.0}),
-    ContactCondition("contact_family", "MuJoCo twin, a contact model drawn per episode from the family "
-                     "(ContactModel.sample, seeded by the episode seed)", family=True),
-    *_corner_conditions(),
-    *_hardware_conditions(),
-)
-"""Every named condition: the robustness benchmark's (:data:`SUITE`), ``push_x3`` (three pushes an episode: a
-harder test, and a training condition that gives a learner's rollouts three push recoveries each), the contact
-conditions (:data:`CONTACT_CONDITIONS`, in the MuJoCo twin) and the hardware ones (:data:`HARDWARE_CONDITIONS`)."""
-CONTACT_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, ContactCondition))
-"""The contact-model conditions: ``contact_family`` and one ``contact_<corner>`` per corner of
-:data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`; not in :data:`SUITE`."""
-HARDWARE_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, HardwareCondition))
-"""The conditions of a real robot (:class:`HardwareCondition`): latencies other than the announced one
-(``delay_<executed>_announced_<announced>``, ``delay_jitter``), sensor biases (``sensor_bias``,
-``sensor_bias_random``, ``sensor_bias_x2``), phase-timed pushes (``push_flight``, ``push_stance``) and noise, a bias and
-a wrongly announced latency together (``noise_bias_latency``); not in :data:`SUITE`."""
-SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS
-                               and name not in HARDWARE_CONDITIONS)
-"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, the contact
-conditions and the hardware ones, target speeds 0.5 and 1.5 m/s included): the default of
-``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
-
-
-def get_condition(name: str) -> Condition:
-    """The :class:`Condition` called ``name`` (ValueError naming the known ones otherwise)."""
-    if not isinstance(name, str) or name not in CONDITIONS:
-        raise ValueError(f"condition must be one of {list(CONDITIONS)}, got {name!r}")
-    return CONDITIONS[name]
-
-
-def check_conditions(names, argument: str = "conditions") -> tuple[str, ...]:
-    """``names`` (a non-empty sequence of :data:`CONDITIONS` names, repeats allowed) as a tuple; ``ValueError``
-    naming ``argument`` and the allowed names otherwise."""
-    if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
-        raise ValueError(f"{argument} must be a non-empty list of condition names, got {names!r}")
-    bad = [n for n in names if not isinstance(n, str) or n not in CONDITIONS]
-    if bad:
-        raise ValueError(f"{argument}: unknown condition(s) {bad}; allowed: {list(CONDITIONS)}")
-    return tuple(names)
-
-
 def wrapper_info_keys(env: gym.Env) -> frozenset:
     """The ``info`` keys the wrappers of ``env`` add to the unwrapped env's (their ``INFO_KEYS``): the keys a
     recorder drops to keep the env's own per-step schema (``push`` appears at reset only)."""
@@ -807,10 +519,3 @@ def true_observation(env: gym.Env) -> np.ndarray:
 
     u = env.unwrapped
     return build_observation(u.state, u.contact, u.time, u.gait_period, u.observation_layout)
-
-
-def make_env(condition: str | Condition, **make_kwargs) -> gym.Env:
-    """The env of a condition (a name of :data:`CONDITIONS` or a :class:`Condition`), see :meth:`Condition.make`."""
-    if isinstance(condition, Condition):
-        return condition.make(**make_kwargs)
-    return get_condition(condition).make(**make_kwargs)

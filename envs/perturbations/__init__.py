@@ -1,0 +1,37 @@
+"""Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
+
+* :mod:`~hsddp_gym.envs.perturbations.wrappers`: the Gymnasium wrappers: observation noise and bias
+  (:class:`ObservationNoise`, :class:`ObservationBias`), latency (:class:`ActionDelay`), pushes at random times or
+  by contact phase (:class:`RandomPush`, :class:`PhasePush`), a contact model of the MuJoCo twin drawn per episode
+  (:class:`RandomContactModel`); each draws from its own generator seeded from the episode seed, so an episode's
+  perturbation is a function of its seed alone;
+* :mod:`~hsddp_gym.envs.perturbations.conditions`: one registry, :data:`CONDITIONS`, of named conditions (env
+  arguments such as ``friction`` and ``trunk_mass_scale`` plus those wrappers): the robustness benchmark's
+  (:data:`SUITE`, ``experiments/robustness.py``), the contact models (:data:`CONTACT_CONDITIONS`) and the conditions
+  of a real robot (:data:`HARDWARE_CONDITIONS`).
+
+Every public name of both modules is importable from ``hsddp_gym.envs.perturbations`` itself (lazily).
+
+Example::
+
+    from hsddp_gym.envs.perturbations import make_env
+    env = make_env("push")                    # gym.make("hsddp_gym/Bounding-v0") + RandomPush
+    obs, info = env.reset(seed=3)             # info["push"]: the push of this episode
+"""
+
+from hsddp_gym.util.lazy import lazy_exports
+
+_EXPORTS = {  # module: the public names it defines
+    "conditions": (
+        "CONDITIONS", "CONTACT_CONDITIONS", "ENV_ID", "HARDWARE_CONDITIONS", "PHASE_PUSH_DELTA_V", "SENSOR_BIAS",
+        "SENSOR_BIAS_RANGE", "SENSOR_BIAS_X2", "SIMULATORS", "SUITE", "Condition", "ContactCondition",
+        "HardwareCondition", "check_conditions", "get_condition", "make_env",
+    ),
+    "wrappers": (
+        "CONTACT_SALT", "PUSH_PHASES", "PUSH_SALT", "ActionDelay", "ObservationBias", "ObservationNoise", "PhasePush",
+        "PushDistribution", "RandomContactModel", "RandomPush", "episode_generator", "episode_perturbation",
+        "observation_entries", "true_observation", "wrapper_info_keys",
+    ),
+}
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)
