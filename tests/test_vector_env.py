@@ -18,6 +18,8 @@ from hsddp_gym.core.contact import ContactSimulator
 from hsddp_gym.core.contact_lcp import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.envs import vector
+from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.envs.vector import INFO_KEYS, BoundingVectorEnv
 
 ENV_ID = "hsddp_gym/Bounding-v0"
@@ -361,6 +363,23 @@ def test_same_step_autoreset_reports_the_final_observation():
     assert np.array_equal(info["final_obs"][0], last)
     assert info["final_info"]["x_position"][0] == last_info["x_position"]
     assert np.array_equal(obs[0], env.reset()[0])  # already reset, with the generator's next noise
+
+
+def test_the_env_parameter_vector_holds_each_setting_at_its_slot():
+    env = BoundingEnv(frame_skip=4, target_speed=1.7, tracking_sigma=0.3, forward_reward_weight=2.5,
+                      ctrl_cost_weight=0.07, healthy_reward=0.9, terminate_when_unhealthy=False,
+                      healthy_z_range=(0.11, 0.45), healthy_pitch_range=(-0.6, 0.7), gait_period=0.25)
+    p = vector.env_params(env)
+    assert p.shape == (vector.N_ENV_PARAMS,)
+    expected = {vector.EP_DT: 0.004, vector.EP_TARGET_SPEED: 1.7, vector.EP_TRACKING_SIGMA: 0.3,
+                vector.EP_FORWARD_WEIGHT: 2.5, vector.EP_CTRL_WEIGHT: 0.07, vector.EP_HEALTHY_WEIGHT: 0.9,
+                vector.EP_TERMINATE_UNHEALTHY: 0.0, vector.EP_Z_LOW: 0.11, vector.EP_Z_HIGH: 0.45,
+                vector.EP_PITCH_LOW: -0.6, vector.EP_PITCH_HIGH: 0.7, vector.EP_GAIT_PERIOD: 0.25}
+    assert sorted(expected) == list(range(vector.N_ENV_PARAMS))
+    for slot, value in expected.items():
+        assert p[slot] == pytest.approx(value, rel=1e-15), slot
+    with pytest.raises(TypeError, match="env must be a BoundingEnv, got dict"):
+        vector.env_params({})
 
 
 def test_arguments_and_inputs_are_checked():

@@ -117,10 +117,11 @@ def _sources_digest(modules) -> str:
     return digest.hexdigest()
 
 
-KERNEL_SOURCES = _sources_digest((batch_model, batch_lcp, batch_projection, batch_terrain, contact_lcp, contact,
-                                  conventions))
-"""Digest of the sources the step is compiled from besides this file (the functions it calls, the constants it
-reads): a constant of the compiled step, so part of its numba cache key."""
+KERNEL_MODULES = (batch_model, batch_lcp, batch_projection, batch_terrain, contact_lcp, contact, conventions)
+"""The modules the step is compiled from besides this one: the functions it calls, the constants it reads."""
+KERNEL_SOURCES = _sources_digest(KERNEL_MODULES)
+"""Digest of the sources of :data:`KERNEL_MODULES`: a constant of the compiled step, so part of its numba cache
+key."""
 
 _step_jit = numba.njit(cache=True, error_model="numpy")
 """The step's compile options: :data:`~hsddp_gym.core.batch_model.kernel_jit`'s, cached on disk."""

@@ -132,6 +132,18 @@ def terrain_candidate(p, pts, foot, fjx_all, fjz_all, fn, fpos, fa):
 
 
 @kernel_jit
+def _append_row(foot, nx, nz, cx, cz, nt, tfoot, taxis, tdir, tval):
+    """Projection row ``nt`` (returns ``nt + 1``): foot ``foot`` onto the line through ``(cx, cz)`` with the unit normal
+    ``(nx, nz)`` (axis 2: ``n . foot = n . c``)."""
+    tfoot[nt] = foot
+    taxis[nt] = 2
+    tdir[nt, 0] = nx
+    tdir[nt, 1] = nz
+    tval[nt] = nx * cx + nz * cz
+    return nt + 1
+
+
+@kernel_jit
 def terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir, tval):
     """The position projection's rows on a terrain (``pts`` the kinematics after ``q += h v``); returns their number.
     Each row is ``d . foot = target`` with a unit direction ``d`` (``taxis`` 2): a sticking foot keeps its position
@@ -189,12 +201,7 @@ def terrain_rows(p, pts, ncand, cfoot, states, fn, fpos, fa, tfoot, taxis, tdir,
                 if target > tval[row] + POSITION_TOLERANCE:
                     tval[row] = target
                 continue
-            tfoot[nt] = foot
-            taxis[nt] = 2
-            tdir[nt, 0] = nx
-            tdir[nt, 1] = nz
-            tval[nt] = nx * cx + nz * cz
-            nt += 1
+            nt = _append_row(foot, nx, nz, cx, cz, nt, tfoot, taxis, tdir, tval)
     return nt
 
 
@@ -226,12 +233,7 @@ def terrain_corner_rows(p, pts, nt, tfoot, taxis, tdir, tval, res, residual):
                         residual = max(residual, abs(res[a]))
         if rows_f >= 2 or same:
             continue
-        tfoot[nt] = foot
-        taxis[nt] = 2
-        tdir[nt, 0] = nx
-        tdir[nt, 1] = nz
-        tval[nt] = nx * cx + nz * cz
         res[nt] = -phi
         residual = max(residual, -phi)
-        nt += 1
+        nt = _append_row(foot, nx, nz, cx, cz, nt, tfoot, taxis, tdir, tval)
     return nt, residual
