@@ -106,3 +106,12 @@ def test_the_contact_kernels_cache_key_covers_every_module_it_is_compiled_from()
     assert modules <= allowed
     for step in steps:
         assert batch_contact.KERNEL_SOURCES in [cell.cell_contents for cell in step.py_func.__closure__]
+
+
+def test_compile_step_checks_its_arguments():
+    from hsddp_gym.core.batch_contact import compile_step
+
+    with pytest.raises(TypeError, match="on_terrain must be a bool, got int"):
+        compile_step(1, "step")
+    with pytest.raises(ValueError, match="name must be a Python identifier, got 'a step'"):
+        compile_step(False, "a step")

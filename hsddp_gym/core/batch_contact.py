@@ -30,9 +30,9 @@ per batch and has the simulator's step written out in line. About 88 % of the 1 
 are in flight (no foot within reach), so the flight step is what costs (see :mod:`hsddp_gym.core.batch_model`). No
 fast-math flag, not even fused multiply-adds: the same seed gives the same episode on CPUs with and without FMA.
 
-numba's cache: the kernel's functions in the other modules are not cached on their own (:data:`kernel_jit
-<hsddp_gym.core.batch_model.kernel_jit>`); they are compiled into the step that calls them, whose cache entry's key
-holds a digest of every source the step is compiled from (:data:`KERNEL_SOURCES`), so an edit of any of them
+numba's cache: the kernel's functions in the other modules are not cached on their own
+(:data:`~hsddp_gym.core.batch_model.kernel_jit`); they are compiled into the step that calls them, whose cache entry's
+key holds a digest of every source the step is compiled from (:data:`KERNEL_SOURCES`), so an edit of any of them
 recompiles it (numba itself checks only the step's own file).
 
 Arrays: ``x (N, 14)`` states, ``u (N, 4)`` joint torques, ``states (N, 2)`` int64 foot states
@@ -131,6 +131,10 @@ def compile_step(on_terrain: bool, name: str):
     """The batch step compiled for the flat ground (``on_terrain=False``) or a terrain's surface (True), named
     ``name`` (numba's cache files carry it): one source, the terrain's code paths pruned from the flat ground's
     function at compile time. See :func:`step_batch` and :func:`step_batch_terrain` for the arguments."""
+    if not isinstance(on_terrain, bool):
+        raise TypeError(f"on_terrain must be a bool, got {type(on_terrain).__name__}")
+    if not (isinstance(name, str) and name.isidentifier()):
+        raise ValueError(f"name must be a Python identifier, got {name!r}")
     sources = KERNEL_SOURCES
 
     def step(p, x_batch, u_batch, n, active, states_batch, contact_batch, impulse_batch, sim_time, heights,

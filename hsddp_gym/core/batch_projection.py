@@ -1,6 +1,6 @@
 """The energy and momentum projection of a flight step in the contact kernel (:mod:`hsddp_gym.core.batch_contact`),
-compiled with numba: :meth:`ContactSimulator._finish_consistent <hsddp_gym.core.contact.ContactSimulator>`'s free
-flight, written out.
+compiled with numba: the free flight of :class:`~hsddp_gym.core.contact.ContactSimulator`'s energy-consistent step
+(``_finish_consistent``, ``_project_flight``), written out.
 
 In free flight the step's velocity ``v+`` is moved to the nearest point (mass metric) with the centroidal momentum
 of the step's start plus gravity's impulse (:func:`momentum_target`, taken before the step) and with the allowed
