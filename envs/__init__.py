@@ -1,6 +1,7 @@
 """Installed as ``hsddp_gym.envs``: Gymnasium environments for the planar Mini Cheetah.
 
-* :mod:`hsddp_gym.core.contact`: the state-based contact simulator (time-stepping, exact planar Coulomb LCP).
+* :mod:`hsddp_gym.core.contact`: the state-based contact simulator (time-stepping; its exact planar Coulomb LCP in
+  :mod:`hsddp_gym.core.contact_lcp`).
 * :mod:`hsddp_gym.envs.bounding`: ``BoundingEnv``, registered as ``hsddp_gym/Bounding-v0`` by ``import hsddp_gym``.
 * :mod:`hsddp_gym.envs.vector`: ``BoundingVectorEnv``, N robots in one compiled call, the ``vector_entry_point`` of
   ``hsddp_gym/Bounding-v0`` (``gym.make_vec``).

@@ -220,7 +220,7 @@ class BoundingEnv(gym.Env):
     flight the centroidal momentum changes by gravity's impulse only and, with zero torque, the energy is kept
     (both to round-off, at any joint rate). The env
     steps it through the vector env's compiled kernel
-    (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, equal to the reference
+    (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`, equal to the reference
     ``ContactSimulator`` to round-off), so ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
     gives bit-identical transitions; the kernel is compiled once per machine (about a minute, announced on
     stderr, cached on disk).
@@ -347,11 +347,11 @@ class BoundingEnv(gym.Env):
         """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it.
 
         The energy-consistent scheme (the default) steps through the compiled kernel of the vector env
-        (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`, one robot), so that this env and
+        (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`, one robot), so that this env and
         :class:`~hsddp_gym.envs.vector.BoundingVectorEnv` give bit-identical transitions; the legacy scheme is
         :class:`~hsddp_gym.core.contact.ContactSimulator` (Python). ``contact_erp`` acts on the legacy scheme only."""
         if energy_consistent:
-            from hsddp_gym.core.batch_contact import CompiledContactSimulator  # numba: imported on first use
+            from hsddp_gym.core.compiled_contact import CompiledContactSimulator  # numba: imported on first use
 
             return CompiledContactSimulator(self.robot, timestep=self.sim_timestep, friction=friction,
                                             gravity=gravity, motor_speed_limits=motor_speed_limits,

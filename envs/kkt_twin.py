@@ -41,7 +41,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.contact import SEPARATE, STICK, SimulatorQueries, motor_torques
+from hsddp_gym.core.contact import SimulatorQueries, motor_torques
+from hsddp_gym.core.contact_lcp import SEPARATE, STICK
 from hsddp_gym.core.conventions import FEET, NGRF, NQ, NX, Mode
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.model import CheetahModel

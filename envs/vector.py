@@ -15,7 +15,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from hsddp_gym.core import batch_contact
-from hsddp_gym.core.contact import SEPARATE
+from hsddp_gym.core.batch_model import kernel_params, model_cache
+from hsddp_gym.core.contact_lcp import SEPARATE
 from hsddp_gym.core.conventions import IPITCH, IZ, NGRF, NQ, NU, NX
 from hsddp_gym.core.observation import RESET_CONTACT_HEIGHT, ObservationLayout
 from hsddp_gym.envs.bounding import _MAX_PENETRATION_AT_RESET, DEFAULT_MAX_EPISODE_STEPS, BoundingEnv, pop_due_pushes
@@ -29,6 +30,43 @@ INFO_KEYS = ("x_position", "x_velocity", "reward_forward", "reward_ctrl", "rewar
              "grf", "qpos", "qvel", "time", "invalid_state")
 """The batched ``info`` keys (each with its ``_key`` mask): the single env's keys, one row per robot."""
 _MASK_KEYS = tuple("_" + key for key in INFO_KEYS)
+
+# ------------------------------------------------------------------------------ the env parameter vector
+EP_DT = 0  # the control period [s]
+EP_TARGET_SPEED = 1  # [m/s]
+EP_TRACKING_SIGMA = 2  # the forward reward's width [m/s]
+EP_FORWARD_WEIGHT = 3
+EP_CTRL_WEIGHT = 4
+EP_HEALTHY_WEIGHT = 5
+EP_TERMINATE_UNHEALTHY = 6  # 1.0: a fall ends the episode, 0.0: it does not
+EP_Z_LOW = 7  # healthy_z_range (open interval) [m]
+EP_Z_HIGH = 8
+EP_PITCH_LOW = 9  # healthy_pitch_range (open interval) [rad]
+EP_PITCH_HIGH = 10
+EP_GAIT_PERIOD = 11  # the observation's phase clock [s]
+N_ENV_PARAMS = 12
+"""Length of the env parameter vector (:func:`env_params`): the single env's reward and termination settings, read by
+the compiled step's bookkeeping at the ``EP_*`` slots."""
+
+
+def env_params(env: BoundingEnv) -> np.ndarray:
+    """The env parameter vector (N_ENV_PARAMS,) of a :class:`~hsddp_gym.envs.bounding.BoundingEnv` (its control
+    period, reward weights, healthy ranges, gait period) at the ``EP_*`` slots."""
+    if not isinstance(env, BoundingEnv):
+        raise TypeError(f"env must be a BoundingEnv, got {type(env).__name__}")
+    p = np.zeros(N_ENV_PARAMS)
+    p[EP_DT] = env.dt
+    p[EP_TARGET_SPEED] = env.target_speed
+    p[EP_TRACKING_SIGMA] = env.tracking_sigma
+    p[EP_FORWARD_WEIGHT] = env.forward_reward_weight
+    p[EP_CTRL_WEIGHT] = env.ctrl_cost_weight
+    p[EP_HEALTHY_WEIGHT] = env.healthy_reward_weight
+    p[EP_TERMINATE_UNHEALTHY] = float(env.terminate_when_unhealthy)
+    p[EP_Z_LOW], p[EP_Z_HIGH] = env.healthy_z_range
+    p[EP_PITCH_LOW], p[EP_PITCH_HIGH] = env.healthy_pitch_range
+    p[EP_GAIT_PERIOD] = env.gait_period
+    return p
+
 
 
 @numba.njit(cache=True)
@@ -57,10 +95,10 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
     the episode bookkeeping of every robot: ``elapsed (N,)`` steps (+1 if stepped), ``truncated (N,)`` (a stepped
     robot at ``max_steps``; ``max_steps`` < 0: no limit), ``done (N,)`` = stepped and (terminated or truncated).
 
-    ``env_p`` = ``[dt, target_speed, tracking_sigma, forward_w, ctrl_w, healthy_w, terminate_when_unhealthy,
-    zlo, zhi, plo, phi, gait_period]``; ``bounds (14,)`` the valid-state bounds; ``low``, ``high`` the float32
-    observation box; ``values (N, 4)`` the clipped actions. Returns the number of robots done."""
-    dt = env_p[0]
+    ``env_p`` (N_ENV_PARAMS,) the env parameter vector (:func:`env_params`); ``bounds (14,)`` the valid-state bounds;
+    ``low``, ``high`` the float32 observation box; ``values (N, 4)`` the clipped actions. Returns the number of
+    robots done."""
+    dt = env_p[EP_DT]
     n_done = 0
     for r in range(x.shape[0]):
         truncated[r] = False
@@ -84,20 +122,23 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
             grf[r, i] = impulse[r, i] / dt
         xv = (xr[0] - x_before[r]) / dt
         x_velocity[r] = xv
-        healthy = ok and env_p[7] < xr[IZ] < env_p[8] and env_p[9] < xr[IPITCH] < env_p[10]
+        healthy = (ok and env_p[EP_Z_LOW] < xr[IZ] < env_p[EP_Z_HIGH]
+                   and env_p[EP_PITCH_LOW] < xr[IPITCH] < env_p[EP_PITCH_HIGH])
         a = values[r]
-        ctrl = -env_p[4] * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
-        d = (xv - env_p[1]) / env_p[2]
-        fwd = env_p[3] * math.exp(-(d * d)) if ok else 0.0  # d * d: the single env's arithmetic, exactly
-        alive = env_p[5] if healthy else 0.0
+        ctrl = -env_p[EP_CTRL_WEIGHT] * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2] + a[3] * a[3])
+        d = (xv - env_p[EP_TARGET_SPEED]) / env_p[EP_TRACKING_SIGMA]
+        # d * d: the single env's arithmetic, exactly
+        fwd = env_p[EP_FORWARD_WEIGHT] * math.exp(-(d * d)) if ok else 0.0
+        alive = env_p[EP_HEALTHY_WEIGHT] if healthy else 0.0
         rewards3[r, 0] = fwd
         rewards3[r, 1] = ctrl
         rewards3[r, 2] = alive
         reward[r] = fwd + ctrl + alive
-        terminated[r] = (not ok) or (env_p[6] != 0.0 and not healthy)
+        terminated[r] = (not ok) or (env_p[EP_TERMINATE_UNHEALTHY] != 0.0 and not healthy)
         done[r] = terminated[r] or truncated[r]
         n_done += done[r]
-        _fill_obs(obs[r], xr, contact[r, 0], contact[r, 1], (t0[r] + sim_time[r]) / env_p[11], low, high, skip)
+        cycles = (t0[r] + sim_time[r]) / env_p[EP_GAIT_PERIOD]
+        _fill_obs(obs[r], xr, contact[r, 0], contact[r, 1], cycles, low, high, skip)
     return n_done
 
 
@@ -263,11 +304,8 @@ class BoundingVectorEnv(VectorEnv):
         self.dt = template.dt
 
         batch_contact.warm_up()
-        self._p = batch_contact.kernel_params(template.sim)
-        self._env_p = np.array([template.dt, template.target_speed, template.tracking_sigma,
-                                template.forward_reward_weight, template.ctrl_cost_weight,
-                                template.healthy_reward_weight, float(template.terminate_when_unhealthy),
-                                *template.healthy_z_range, *template.healthy_pitch_range, template.gait_period])
+        self._p = kernel_params(template.sim)
+        self._env_p = env_params(template)
         self._bounds = template._state_bounds.copy()
         self._low, self._high = (b.astype(np.float32) for b in template.observation_layout.bounds())
         self._skip = template.observation_layout.skipped_qpos
@@ -285,7 +323,7 @@ class BoundingVectorEnv(VectorEnv):
         """Per robot ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]`` since creation
         (:data:`hsddp_gym.core.batch_contact.COUNTER_NAMES`)."""
         self._scratch = batch_contact.kernel_scratch()
-        self._model_cache = batch_contact.model_cache(n)
+        self._model_cache = model_cache(n)
         self._obs = np.zeros((n, template.observation_layout.size), dtype=np.float32)
         self._reward = np.zeros(n)
         self._terminated = np.zeros(n, dtype=np.bool_)

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.contact import POSITION_TOLERANCE, STICK, ContactSimulator
+from hsddp_gym.core.contact import POSITION_TOLERANCE, ContactSimulator
+from hsddp_gym.core.contact_lcp import STICK
 
 
 def test_newton_remainder_bound_bounds_the_foot_kinematics_remainder():

@@ -2,7 +2,7 @@
 each also run with the legacy scheme (``energy_consistent=False``) to show what the test catches. The
 energy-consistent claims are checked on both implementations of the scheme: the reference
 :class:`ContactSimulator` (Python, Pinocchio) and the compiled kernel the env steps through
-(:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`)."""
+(:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pinocchio as pin
 import pytest
 from test_env_contact import pd_hold  # noqa: E402  (the tests folder is on sys.path)
 
-from hsddp_gym.core.batch_contact import CompiledContactSimulator
+from hsddp_gym.core.compiled_contact import CompiledContactSimulator
 from hsddp_gym.core.conventions import BACK, FRONT
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.envs.bounding import DEFAULT_MOTOR_SPEED_LIMITS, RESET_VELOCITY_BOUNDS, BoundingEnv
@@ -296,18 +296,18 @@ def test_env_energy_with_zero_action_from_accepted_reset_states():
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4])
 def test_spd_solver_of_the_position_projection(n):
-    from hsddp_gym.core.contact import _solve_spd
+    from hsddp_gym.core.contact_lcp import solve_spd
 
     rng = np.random.default_rng(n)
     for _ in range(200):
         J = rng.standard_normal((n, 7))
         S = J @ J.T + 1e-3 * np.eye(n)
         r = rng.standard_normal(n)
-        z = np.array(_solve_spd(S.tolist(), r.tolist()))
+        z = np.array(solve_spd(S.tolist(), r.tolist()))
         np.testing.assert_allclose(S @ z, r, atol=1e-9)
     if n > 1:
         singular = np.ones((n, n))
-        assert _solve_spd(singular.tolist(), [1.0] * n) is None
+        assert solve_spd(singular.tolist(), [1.0] * n) is None
 
 
 def test_no_blow_up_from_accepted_reset_states():

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import hsddp_gym
-from hsddp_gym.core.batch_contact import CompiledContactSimulator
-from hsddp_gym.core.contact import SLIDE_NEG, SLIDE_POS, STICK
+from hsddp_gym.core.compiled_contact import CompiledContactSimulator
+from hsddp_gym.core.contact_lcp import SLIDE_NEG, SLIDE_POS, STICK
 from hsddp_gym.core.conventions import BACK, FEET, FRONT, IX, IZ, NQ, grf_slice
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.references import paper_initial_state

@@ -11,10 +11,15 @@ import pinocchio as pin
 import pytest
 
 import hsddp_gym  # noqa: F401  (registers the env)
-from hsddp_gym.core import batch_contact as bc
-from hsddp_gym.core.contact import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK, ContactSimulator
+from hsddp_gym.core import batch_model as bm
+from hsddp_gym.core.batch_contact import kernel_scratch, run_one
+from hsddp_gym.core.compiled_contact import CompiledContactSimulator
+from hsddp_gym.core.contact import ContactSimulator
+from hsddp_gym.core.contact_lcp import SEPARATE, SLIDE_NEG, SLIDE_POS, STICK
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.params import DEFAULT_PARAMS
+from hsddp_gym.envs import vector
+from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.envs.vector import INFO_KEYS, BoundingVectorEnv
 
 ENV_ID = "hsddp_gym/Bounding-v0"
@@ -48,31 +53,31 @@ def _sims():
 @pytest.mark.parametrize("which", [0, 1])
 def test_kernel_model_matches_pinocchio_at_random_states(which):
     sim = _sims()[which]
-    p = bc.kernel_params(sim)
-    sc = bc.kernel_scratch()
+    p = bm.kernel_params(sim)
+    sc = kernel_scratch()
     model, data = sim.model, sim.data
     rng = np.random.default_rng(which)
     for _ in range(40):
         q = rng.uniform(-2.0, 2.0, 7)
         v = rng.uniform(-20.0, 20.0, 7)
-        bc.kinematics(p, q, sc.pts)
-        bc.mass_matrix(p, sc.pts, sc.M)
+        bm.kinematics(p, q, sc.pts)
+        bm.mass_matrix(p, sc.pts, sc.M)
         assert np.max(np.abs(sc.M - pin.crba(model, data, q))) < TOL
-        bc.bias(p, sc.pts, v, sc.bvec)
+        bm.bias(p, sc.pts, v, sc.bvec)
         assert np.max(np.abs(sc.bvec - pin.nonLinearEffects(model, data, q, v))) < TOL * 10  # |b| ~ 1e3
         pin.computeJointJacobians(model, data, q)
         pin.framesForwardKinematics(model, data, q)
         for foot, fid in enumerate(sim.robot.foot_frame_ids):
             J = pin.getFrameJacobian(model, data, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
-            bc.point_jacobian(sc.pts, 5 + foot, sc.jx, sc.jz)
+            bm.point_jacobian(sc.pts, 5 + foot, sc.jx, sc.jz)
             assert np.max(np.abs(J[0] - sc.jx)) < TOL and np.max(np.abs(J[2] - sc.jz)) < TOL
             pos = data.oMf[fid].translation
-            assert abs(pos[0] - sc.pts[bc._FOOT_POINT[foot], 0]) < TOL
-            assert abs(pos[2] - sc.pts[bc._FOOT_POINT[foot], 1]) < TOL
-        bc.centroidal_rows(sc.M, sc.P)
+            assert abs(pos[0] - sc.pts[bm.FOOT_POINT[foot], 0]) < TOL
+            assert abs(pos[2] - sc.pts[bm.FOOT_POINT[foot], 1]) < TOL
+        bm.centroidal_rows(sc.M, sc.P)
         assert np.max(np.abs(sc.P - pin.computeCentroidalMap(model, data, q)[[0, 2, 4]])) < TOL
         pin.computeMechanicalEnergy(model, data, q, v)
-        energy = bc.mechanical_energy(p, np.concatenate([q, v]), sc)
+        energy = bm.mechanical_energy(p, np.concatenate([q, v]), sc)
         assert abs(energy - data.kinetic_energy - data.potential_energy) < TOL * (1.0 + abs(energy))
 
 
@@ -117,11 +122,11 @@ def test_kernel_step_matches_contact_simulator_in_every_contact_combination(whic
     to 1e-11 relative to the state's size (see STEP_TOL), 97 % to 1e-12. The env's CompiledContactSimulator (the
     same kernel, one robot) equals the kernel bit for bit."""
     sim = _sims()[which]
-    p = bc.kernel_params(sim)
-    sc = bc.kernel_scratch()
-    compiled = bc.CompiledContactSimulator(sim.robot, friction=sim.mu, gravity=sim.gravity,
+    p = bm.kernel_params(sim)
+    sc = kernel_scratch()
+    compiled = CompiledContactSimulator(sim.robot, friction=sim.mu, gravity=sim.gravity,
                                            motor_speed_limits=sim.motor_speed_limits, torque_limit=sim.torque_limit)
-    assert np.array_equal(bc.kernel_params(compiled), p)
+    assert np.array_equal(bm.kernel_params(compiled), p)
     seen = {}
     errors = []
     for x, u, prev in _contact_states(sim, np.random.default_rng(10 + which), 250):
@@ -134,7 +139,7 @@ def test_kernel_step_matches_contact_simulator_in_every_contact_combination(whic
             contact = np.zeros(2, dtype=np.bool_)
             total = np.zeros(4)
             counters = np.zeros(4, dtype=np.int64)
-            bc.run_one(p, xs, u, n, states, contact, total, sc, counters)
+            run_one(p, xs, u, n, states, contact, total, sc, counters)
             compiled.set_state(x)
             compiled.states[:] = prev
             assert np.array_equal(compiled.run(u, n), total) and np.array_equal(compiled.x, xs)
@@ -157,8 +162,8 @@ def test_kernel_step_matches_contact_simulator_in_every_contact_combination(whic
 def test_kernel_energy_projection_paths_match():
     """Energy projections in flight (momentum-keeping) and in contact (scaling) are exercised and equal."""
     sim = ContactSimulator(motor_speed_limits=(36.0, 50.0))
-    p = bc.kernel_params(sim)
-    sc = bc.kernel_scratch()
+    p = bm.kernel_params(sim)
+    sc = kernel_scratch()
     rng = np.random.default_rng(3)
     projected = np.zeros(4, dtype=np.int64)
     for x, u, prev in _contact_states(sim, rng, 120):
@@ -168,11 +173,11 @@ def test_kernel_energy_projection_paths_match():
         sim.states[:] = prev
         sim.run(u, 5)
         xs, states = x.copy(), np.array(prev, dtype=np.int64)
-        bc.run_one(p, xs, u, 5, states, np.zeros(2, dtype=np.bool_), np.zeros(4), sc, projected)
+        run_one(p, xs, u, 5, states, np.zeros(2, dtype=np.bool_), np.zeros(4), sc, projected)
         assert _close(xs, sim.x) < STEP_TOL
     assert projected[1] == sim.energy_projections > 0
     assert projected[2] == sim.momentum_fallbacks and projected[3] == sim.energy_deficits
-    compiled = bc.CompiledContactSimulator(motor_speed_limits=(36.0, 50.0))  # counts with the kernel's counters
+    compiled = CompiledContactSimulator(motor_speed_limits=(36.0, 50.0))  # counts with the kernel's counters
     for x, u, prev in _contact_states(sim, np.random.default_rng(3), 120):
         compiled.set_state(x)
         compiled.states[:] = prev
@@ -218,7 +223,7 @@ def _compare(out_v, rows):
 
 def test_single_env_steps_through_the_compiled_kernel():
     """The default scheme runs the vector env's compiled code (one robot); the legacy scheme stays Python."""
-    assert isinstance(gym.make(ENV_ID).unwrapped.sim, bc.CompiledContactSimulator)
+    assert isinstance(gym.make(ENV_ID).unwrapped.sim, CompiledContactSimulator)
     legacy = gym.make(ENV_ID, energy_consistent=False).unwrapped.sim
     assert type(legacy) is ContactSimulator and not legacy.energy_consistent
 
@@ -358,6 +363,23 @@ def test_same_step_autoreset_reports_the_final_observation():
     assert np.array_equal(info["final_obs"][0], last)
     assert info["final_info"]["x_position"][0] == last_info["x_position"]
     assert np.array_equal(obs[0], env.reset()[0])  # already reset, with the generator's next noise
+
+
+def test_the_env_parameter_vector_holds_each_setting_at_its_slot():
+    env = BoundingEnv(frame_skip=4, target_speed=1.7, tracking_sigma=0.3, forward_reward_weight=2.5,
+                      ctrl_cost_weight=0.07, healthy_reward=0.9, terminate_when_unhealthy=False,
+                      healthy_z_range=(0.11, 0.45), healthy_pitch_range=(-0.6, 0.7), gait_period=0.25)
+    p = vector.env_params(env)
+    assert p.shape == (vector.N_ENV_PARAMS,)
+    expected = {vector.EP_DT: 0.004, vector.EP_TARGET_SPEED: 1.7, vector.EP_TRACKING_SIGMA: 0.3,
+                vector.EP_FORWARD_WEIGHT: 2.5, vector.EP_CTRL_WEIGHT: 0.07, vector.EP_HEALTHY_WEIGHT: 0.9,
+                vector.EP_TERMINATE_UNHEALTHY: 0.0, vector.EP_Z_LOW: 0.11, vector.EP_Z_HIGH: 0.45,
+                vector.EP_PITCH_LOW: -0.6, vector.EP_PITCH_HIGH: 0.7, vector.EP_GAIT_PERIOD: 0.25}
+    assert sorted(expected) == list(range(vector.N_ENV_PARAMS))
+    for slot, value in expected.items():
+        assert p[slot] == pytest.approx(value, rel=1e-15), slot
+    with pytest.raises(TypeError, match="env must be a BoundingEnv, got dict"):
+        vector.env_params({})
 
 
 def test_arguments_and_inputs_are_checked():

@@ -2,7 +2,7 @@
 
 * :class:`ContactModelPredictor` integrates the nominal robot with the state-based contact model
   (:class:`~hsddp_gym.core.contact.ContactSimulator`'s scheme: impacts, friction, lift-offs; stepped by the
-  compiled kernel, :class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`) over a few control steps
+  compiled kernel, :class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`) over a few control steps
   under known torques.
 * :meth:`ContactModelPredictor.predict` over the actions already sent but not yet executed gives the state at
   the moment a new action will act: the MPC's latency compensation.
@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from hsddp_gym.core.batch_contact import CompiledContactSimulator
+from hsddp_gym.core.compiled_contact import CompiledContactSimulator
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
@@ -32,7 +32,7 @@ class ContactModelPredictor:
     :class:`~hsddp_gym.core.contact.ContactSimulator` (rigid bodies, inelastic impacts, Coulomb friction with the
     nominal ``mu``, lift-offs decided by the contact LCP, the motors' torque-speed limit), the physics the policy
     believes in. It knows nothing of the env's actual friction, masses or pushes. Stepped by the compiled kernel
-    (:class:`~hsddp_gym.core.batch_contact.CompiledContactSimulator`: 24 us per 5 ms control step against 190 us
+    (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`: 24 us per 5 ms control step against 190 us
     for the Python reference, the same states to 1e-12; the state filter predicts every control step).
 
     Args:

@@ -1,0 +1,159 @@
+"""One robot through the compiled contact kernel: :class:`CompiledContactSimulator`, the
+:class:`~hsddp_gym.core.contact.ContactSimulator` whose :meth:`~CompiledContactSimulator.run` is one call of
+:func:`~hsddp_gym.core.batch_contact.step_batch` (or :func:`~hsddp_gym.core.batch_contact.step_batch_terrain` on a
+terrain) on a batch of one."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hsddp_gym.core.batch_contact import kernel_scratch, step_batch, step_batch_terrain, warm_up
+from hsddp_gym.core.batch_model import kernel_params, model_cache
+from hsddp_gym.core.contact import ContactSimulator
+from hsddp_gym.core.conventions import NQ, NX
+from hsddp_gym.core.terrain import check_terrain
+
+
+def _counter_property(index: int, name: str) -> property:
+    def get(self) -> int:
+        return int(self._counters_b[0, index])
+
+    def set_(self, value) -> None:
+        self._counters_b[0, index] = value
+
+    return property(get, set_, doc=f"``{name}`` of :class:`ContactSimulator`, counted by the kernel.")
+
+
+class CompiledContactSimulator(ContactSimulator):
+    """:class:`ContactSimulator`'s energy-consistent scheme stepped by the compiled kernel: :meth:`run` is one
+    :func:`~hsddp_gym.core.batch_contact.step_batch` call on a batch of one robot, the same compiled code the vector
+    env (:mod:`hsddp_gym.envs.vector`) runs for N robots, so a single env and the vector env produce bit-identical
+    states from the same inputs. ``hsddp_gym/Bounding-v0`` uses it for ``energy_consistent=True``;
+    :class:`ContactSimulator` stays the readable reference (the MPC's predictor,
+    :class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`, uses this one); the two agree to
+    round-off (``tests/test_vector_env.py``: 1e-11 relative, median 4e-16).
+
+    Same arguments as :class:`ContactSimulator` without ``erp`` and ``energy_consistent`` (the legacy scheme is
+    not compiled), and the same attributes, with these differences: ``x`` (with its views ``q``, ``v``),
+    ``states`` (an int64 array (2,)), ``contact``, ``time`` and the counters live in the kernel's batch-of-one
+    arrays (assigning to them writes into those); ``impulse`` holds the impulses summed over the last
+    :meth:`run` call (the last step's for ``run(u, 1)``), which is also what :meth:`run` returns (an array, reused
+    by the next call); ``projection_residual`` is not tracked (stays 0). :meth:`foot_heights_fast` returns the
+    kernel's foot heights of the state the last :meth:`run` left (Pinocchio's after :meth:`set_state`; pushes
+    change only ``v``). ``_tau`` holds the torques the motors applied in the last step, as in
+    :class:`ContactSimulator`. :meth:`energy` and the other queries are Pinocchio's, as in :class:`ContactSimulator`.
+    ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain` or None, :meth:`set_terrain`): stepped by
+    :func:`~hsddp_gym.core.batch_contact.step_batch_terrain` (compiled on first use), the feet's heights above its
+    surface. The kernel is compiled once per machine (:func:`~hsddp_gym.core.batch_contact.warm_up`, announced on
+    stderr) when the first one is built.
+    """
+
+    lcp_fallbacks = _counter_property(0, "lcp_fallbacks")
+    energy_projections = _counter_property(1, "energy_projections")
+    momentum_fallbacks = _counter_property(2, "momentum_fallbacks")
+    energy_deficits = _counter_property(3, "energy_deficits")
+
+    def __init__(self, robot=None, timestep: float = 1e-3, friction: float | None = None,
+                 gravity: float | None = None, motor_speed_limits=None, torque_limit: float | None = None,
+                 terrain=None) -> None:
+        # batch-of-one arrays the kernel works in (created before ContactSimulator.__init__ assigns through
+        # the properties below)
+        self._xb = np.zeros((1, NX))
+        self._ub = np.zeros((1, 4))
+        self._states_b = np.zeros((1, 2), dtype=np.int64)
+        self._contact_b = np.zeros((1, 2), dtype=np.bool_)
+        self._total_b = np.zeros((1, 4))
+        self._time_b = np.zeros(1)
+        self._heights_b = np.zeros((1, 2))
+        self._counters_b = np.zeros((1, 4), dtype=np.int64)
+        self._cache_b = model_cache(1)
+        self._active = np.ones(1, dtype=np.bool_)
+        self._heights_valid = False
+        super().__init__(robot, timestep=timestep, friction=friction, gravity=gravity,
+                         motor_speed_limits=motor_speed_limits, torque_limit=torque_limit, energy_consistent=True)
+        self.terrain = check_terrain(terrain)
+        self._p = kernel_params(self)
+        self._sc = kernel_scratch()
+        self._link_views()
+        warm_up()
+
+    def _link_views(self) -> None:
+        """The attributes that are views of the batch-of-one arrays (again after a copy, which copies views
+        as separate arrays)."""
+        self.x = self._xb[0]
+        self.q = self.x[:NQ]
+        self.v = self.x[NQ:]
+        self.contact = self._contact_b[0]
+        self._total = self._total_b[0]
+        self._u = self._ub[0]
+        self._tau = self._sc.tau  # the applied torques of the last step (the kernel's), as ContactSimulator's
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._link_views()
+
+    # state kept in the kernel's arrays
+    @property
+    def time(self) -> float:
+        """Simulated time since :meth:`set_state` [s] (accumulated ``+= h`` per step by the kernel)."""
+        return float(self._time_b[0])
+
+    @time.setter
+    def time(self, value: float) -> None:
+        self._time_b[0] = value
+
+    @property
+    def states(self) -> np.ndarray:
+        """Per-foot contact state of the last step, int64 (2,) (a view: writes set the LCP's first guess)."""
+        return self._states_b[0]
+
+    @states.setter
+    def states(self, value) -> None:
+        self._states_b[0] = value
+
+    @property
+    def impulse(self) -> np.ndarray:
+        """Ground impulses summed over the last :meth:`run` call [N s], grf layout (4,)."""
+        return self._total_b[0]
+
+    @impulse.setter
+    def impulse(self, value) -> None:
+        self._total_b[0] = value
+
+    def set_state(self, x: np.ndarray) -> None:
+        """Set the state ``x`` (14,), reset the clock, contact states and impulses."""
+        super().set_state(x)
+        self._heights_valid = False
+
+    def set_terrain(self, terrain) -> None:
+        """Simulate on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, or None: the flat ground) from now
+        on: the kernel's parameters get its surface (:func:`~hsddp_gym.core.batch_model.kernel_params`)."""
+        self.terrain = check_terrain(terrain)
+        self._p = kernel_params(self)
+        self._heights_valid = False
+
+    def foot_heights_fast(self) -> tuple[float, float]:
+        """Foot heights ``(front, back)`` above the ground (with a terrain: above its surface under each foot): the
+        kernel's after a :meth:`run`, Pinocchio's after :meth:`set_state`."""
+        if self._heights_valid:
+            h = self._heights_b[0]
+            return float(h[0]), float(h[1])
+        if self.terrain is not None:
+            h = self.foot_heights()
+            return float(h[0]), float(h[1])
+        return super().foot_heights_fast()
+
+    def run(self, u: np.ndarray, n: int) -> np.ndarray:
+        """``n`` steps with constant commanded joint torques ``u`` (4,) (unchecked: the env validates), in one
+        compiled call.
+
+        Returns:
+            The summed ground impulses over the ``n`` steps, grf layout (4,) [N s] (an array reused by the next
+            call).
+        """
+        self._u[:] = u
+        kernel = step_batch if self.terrain is None else step_batch_terrain
+        kernel(self._p, self._xb, self._ub, n, self._active, self._states_b, self._contact_b, self._total_b,
+               self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
+        self._heights_valid = True
+        return self._total
