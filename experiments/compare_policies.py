@@ -2,7 +2,7 @@
 
 Protocol: ``--episodes`` (default 10) episodes seeded 0, 1, ..., default env (reset noise 0.01, 1000-step
 limit), deterministic actions, via ``hsddp_gym.learning.reporting.evaluate_policy_episodes`` (which runs
-``hsddp_gym.planners.policies.evaluation.run_episode``). The plan-tracking expert is reset to its plan's initial state
+``hsddp_gym.rollout.episodes.run_episode``). The plan-tracking expert is reset to its plan's initial state
 (``options={"state": plan.X[0]}``: no reset noise, so its episodes are identical whatever the seed).
 
 Policies: ``mpc`` (HS-DDP MPC, default options), ``expert`` (tracks the 5-cycle al-reb plan), ``heuristic``,

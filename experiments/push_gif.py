@@ -26,9 +26,9 @@ def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode
     from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
     from hsddp_gym.planners.policies.mpc import MPCPolicy
+    from hsddp_gym.rollout.episodes import run_episode
 
     env = gym.make("hsddp_gym/Bounding-v0")
     if policy_name == "heuristic":

@@ -60,7 +60,7 @@ def run_one(task: tuple) -> dict:
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.rollout.episodes import run_episode
 
     name, dv, seed, push_time, steps, mpc_options = task
     env = gym.make("hsddp_gym/Bounding-v0")

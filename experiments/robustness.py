@@ -133,7 +133,7 @@ def _make_bare_policy(kind: str, spec: dict, env, interface):
 def run_one(task: tuple) -> dict:
     """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None, simulator)``."""
     from hsddp_gym.envs.perturbations import HardwareCondition, episode_perturbation, get_condition
-    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.rollout.episodes import run_episode
 
     label, spec, condition, seed, max_steps, simulator = task
     cond = get_condition(condition)

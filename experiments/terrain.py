@@ -90,7 +90,7 @@ def run_block(name: str, seeds, quiet: bool = False, make=None, label: str | Non
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
-    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.rollout.episodes import run_episode
 
     env = gym.make(TERRAIN)
     policy = make(env) if make is not None else make_policy(name, env)

@@ -34,13 +34,13 @@ POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 
 
 def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
-    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes; for the
+    """Summary (:func:`hsddp_gym.rollout.episodes.summarize`) of ``episodes`` seeded episodes; for the
     planner's model also its friction demand: ``friction_over_mu`` (fraction of control steps in which a pinned
     foot needed ``|f_x| > mu f_z``) and ``max_friction_ratio`` (the largest ``|f_x| / f_z``)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the ids)
-    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+    from hsddp_gym.rollout.episodes import run_episode, summarize
 
     class FrictionDemand(gym.Wrapper):
         """Counts the control steps whose ``info["friction_ratio"]`` exceeds the env's ``mu``."""

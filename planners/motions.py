@@ -53,7 +53,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 import time
 
 import numpy as np
@@ -64,6 +63,20 @@ from hsddp_gym.core.params import RobotParams
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.rollout import Trajectory, rollout
 from hsddp_gym.core.schedule import BOUNDING_CYCLE, PAPER_BOUNDING_DURATIONS, ModeSchedule
+from hsddp_gym.core.task_constants import (
+    BOX_HEIGHT,
+    GAP_WIDTH,
+    JUMPS,
+    PRONK_DURATIONS,
+    PRONK_HEIGHT,
+    SPEED_RANGE,
+    STAND_DURATION,
+    STAND_HEIGHT,
+    STOP_DURATION,
+    TRANSITIONS,
+    check_speed,
+    jump_terrain,
+)
 from hsddp_gym.core.terrain import Terrain, check_terrain
 from hsddp_gym.planners.optimizer.callbacks import Callback
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
@@ -74,24 +87,8 @@ from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, H
 from hsddp_gym.planners.tasks import PlanResult, check_warm_start
 from hsddp_gym.util.validation import check_array, check_int
 
-MOTIONS = ("pronk", "stand_to_bound", "bound_pronk_bound", "bound_to_stop", "gap_jump", "box_jump", "backflip")
+MOTIONS = ("pronk", *TRANSITIONS, *JUMPS, "backflip")
 """The motions of this module (``experiments/motions.py --motion``)."""
-TRANSITIONS = MOTIONS[1:4]
-"""The motions of :func:`plan_transition`."""
-
-SPEED_RANGE = (0.5, 1.5)
-"""Target speeds [m/s] the motions are planned and tested for."""
-
-PRONK_DURATIONS = (0.10, 0.08)
-"""Double stance and flight of a pronk cycle [s]."""
-PRONK_HEIGHT = 0.26
-"""Trunk height of the pronk's lift-off and touchdown postures [m] (the bound's postures: 0.255-0.272 m)."""
-STAND_HEIGHT = 0.26
-"""Trunk height of the standing posture [m]."""
-STAND_DURATION = 0.25
-"""The double stance that starts from rest (stand to bound) [s]."""
-STOP_DURATION = 0.40
-"""The double stance that ends at rest (bound to stop) [s]."""
 
 STOP_TERMINAL_WEIGHTS = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 10, 10, 10, 5, 5, 5, 5], dtype=float)
 """``Q_f (14,)`` of the double stance that ends the stop: the bound's position and posture weights, and every velocity
@@ -104,21 +101,11 @@ bent forward (<= -0.3 rad, 17 deg short of straight) nor folded onto the thigh (
 thigh between 34 deg forward and 115 deg backward of the trunk's vertical. The bound's reference postures
 (0.63-1.10 rad hips, -2.36 to -1.51 rad knees) and the paper's initial state (knee -2.20 rad) lie inside."""
 
-JUMPS = ("gap_jump", "box_jump")
-"""The jumps of :func:`plan_jump`: over a gap, onto a box, from a bound and bounding on."""
-GAP_WIDTH = 0.3
-"""Width of the gap of ``"gap_jump"`` [m]."""
-BOX_HEIGHT = 0.1
-"""Height of the box of ``"box_jump"`` [m]."""
-BOX_LENGTH = 3.0
-"""Length of the box of ``"box_jump"`` [m] (longer than the bounding on it)."""
 JUMP_FLIGHT = 0.25
 """The jump: the flight after the take-off back stance [s] (the bound's: 0.072 s)."""
 JUMP_SPEED_FACTOR = 1.3
 """The jump's cycle (take-off back stance, jump flight, front stance, flight) has the references of a bound this many
 times faster (a longer jump)."""
-JUMP_EDGE_LEAD = 0.05
-"""The terrain's near edge this far ahead of the trunk's expected x at the take-off back stance's start [m]."""
 LANDING_MARGIN = 0.05
 """Foot placement references around a jump's edges [m]: the last landings before it ``margin`` (front foot) and
 ``2 margin`` (back foot) short of the near edge, the first after it ``2 margin`` (front) and ``margin`` (back)
@@ -280,13 +267,6 @@ def _durations(durations) -> tuple[float, float]:
     return float(d[0]), float(d[1])
 
 
-def _check_speed(speed) -> float:
-    lo, hi = SPEED_RANGE
-    if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not lo <= float(speed) <= hi:
-        raise ValueError(f"speed must be a number in [{lo}, {hi}] m/s, got {speed!r}")
-    return float(speed)
-
-
 # --------------------------------------------------------------------------------------------------- phases
 def _weight(params: RobotParams) -> float:
     return params.total_mass * params.gravity
@@ -369,7 +349,7 @@ def pronk_problem(cycles: int = 4, speed: float = 1.0, durations=PRONK_DURATIONS
     hips, moving at ``speed``; the first stance lasts ``T_s / 2``), ending with the last flight's touchdown on both
     feet. Returns the problem and its phases."""
     cycles = check_int(cycles, "cycles", minimum=1)
-    speed = _check_speed(speed)
+    speed = check_speed(speed)
     t_s, t_f = _durations(durations)
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
@@ -388,7 +368,7 @@ def transition_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamic
     its phases."""
     if motion not in TRANSITIONS:
         raise ValueError(f"motion must be one of {TRANSITIONS}, got {motion!r}")
-    speed = _check_speed(speed)
+    speed = check_speed(speed)
     cycles = check_int(cycles, "cycles", minimum=1)
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
@@ -449,30 +429,13 @@ def _raised(phase: MotionPhase, dz: float) -> MotionPhase:
     return dataclasses.replace(phase, x_final=x_f)
 
 
-def jump_terrain(motion: str, speed: float = 1.0, cycles: int = 2) -> Terrain:
-    """The terrain of a jump (:data:`JUMPS`) after ``cycles`` bounding cycles at ``speed`` [m/s] from the paper's
-    initial state (x = 0): its near edge :data:`JUMP_EDGE_LEAD` ahead of where the trunk is, at ``speed``, when the
-    take-off back stance starts (``t = 4 cycles`` bound phases); ``"gap_jump"``: a gap of :data:`GAP_WIDTH`;
-    ``"box_jump"``: a box of :data:`BOX_HEIGHT`, its near edge :data:`GAP_WIDTH` / 2 further (the middle of where
-    the gap would be), :data:`BOX_LENGTH` long."""
-    if motion not in JUMPS:
-        raise ValueError(f"motion must be one of {JUMPS}, got {motion!r}")
-    speed = _check_speed(speed)
-    cycles = check_int(cycles, "cycles", minimum=1)
-    near = speed * cycles * sum(PAPER_BOUNDING_DURATIONS) + JUMP_EDGE_LEAD
-    if motion == "gap_jump":
-        return Terrain.gap(near, near + GAP_WIDTH)
-    edge = near + GAP_WIDTH / 2.0
-    return Terrain.box(edge, edge + BOX_LENGTH, BOX_HEIGHT)
-
-
 def jump_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamics: HybridDynamics | None = None
                  ) -> tuple[HybridProblem, list[MotionPhase]]:
     """The problem of a jump (see :func:`plan_jump` for the schedules, references and terrain). Returns the problem
     and its phases; the terrain is ``problem.terrain``."""
     if motion not in JUMPS:
         raise ValueError(f"motion must be one of {JUMPS}, got {motion!r}")
-    speed = _check_speed(speed)
+    speed = check_speed(speed)
     cycles = check_int(cycles, "cycles", minimum=1)
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params

@@ -147,11 +147,11 @@ def test_zero_torque_never_succeeds():
 
 
 def test_the_expert_flips_lands_and_stands():
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make(ENV_ID)
-    policy, options = make_policy("expert", env)
-    assert options is None
+    policy = make_policy("expert", env)
+    assert policy.reset_options is None
     obs, info = env.reset(seed=9999)
     min_pitch, ret = 0.0, 0.0
     while True:

@@ -16,8 +16,9 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
 from hsddp_gym.datasets.collection import collect_episodes
 from hsddp_gym.datasets.generation import generate_dataset, partial_dir
-from hsddp_gym.datasets.recording import DECISION_SCHEMA, GAIN_KEY, NONDETERMINISTIC_INFOS, PolicySpec
+from hsddp_gym.datasets.recording import DECISION_SCHEMA, GAIN_KEY, NONDETERMINISTIC_INFOS
 from hsddp_gym.datasets.storage import load_minari, load_npz, minari_root, read_metadata
+from hsddp_gym.rollout.policies import PolicySpec
 
 STEPS = 50
 EPISODES = 3

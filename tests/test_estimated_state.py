@@ -15,8 +15,8 @@ from hsddp_gym.core.observation import state_from_observation
 from hsddp_gym.envs.perturbations import ActionDelay, make_env
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy, EstimationOptions
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import hsddp_gym
-from hsddp_gym.envs.jumps import JumpEnv, jump_env_terrain
+from hsddp_gym.core.task_constants import jump_terrain
+from hsddp_gym.envs.jumps import JumpEnv
 
 ENV_IDS = {"gap_jump": "hsddp_gym/GapJump-v0", "box_jump": "hsddp_gym/BoxJump-v0"}
 
@@ -22,15 +23,8 @@ def test_registered_with_a_time_limit_and_the_task(task):
     assert spec.vector_entry_point is None
     env = gym.make(ENV_IDS[task])
     assert isinstance(env.unwrapped, JumpEnv) and env.unwrapped.task == task
-    assert env.unwrapped.terrain == jump_env_terrain(task)
+    assert env.unwrapped.terrain == jump_terrain(task)
     assert gym.spec(ENV_IDS[task].replace("-v0", "MuJoCo-v0")).entry_point == "hsddp_gym.envs.jumps:MuJoCoJumpEnv"
-
-
-@pytest.mark.parametrize("task", sorted(ENV_IDS))
-def test_terrain_is_the_planners(task):
-    from hsddp_gym.planners import motions
-
-    assert jump_env_terrain(task) == motions.jump_terrain(task)
 
 
 @pytest.mark.parametrize("task", sorted(ENV_IDS))
@@ -96,11 +90,11 @@ def test_zero_torque_never_succeeds(task):
 
 @pytest.mark.parametrize("task", sorted(ENV_IDS))
 def test_the_expert_jumps_lands_and_bounds_on(task):
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make(ENV_IDS[task])
-    policy, options = make_policy("expert", env)
-    assert options is None
+    policy = make_policy("expert", env)
+    assert policy.reset_options is None
     obs, info = env.reset(seed=9999)
     ret = 0.0
     while True:
@@ -143,9 +137,10 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(task, tmp_path):
 def test_the_loop_arguments_are_checked_and_the_expert_loops_the_cycle_after_the_jump():
     from hsddp_gym.planners.policies.jumps import LOOP_END, LOOP_PHASE
     from hsddp_gym.planners.policies.tracking import ClearancePlanTracker
-    from hsddp_gym.workflows import jump_plan
+    from hsddp_gym.registry import TASKS
+    from hsddp_gym.rollout.plans import task_plan
 
-    sol = jump_plan("gap_jump")
+    sol = task_plan(TASKS["gap_jump"], hold=5)
     with pytest.raises(ValueError, match="loop_end"):
         ClearancePlanTracker.from_solution(sol, loop_phase=LOOP_PHASE, loop_end=LOOP_PHASE - 4)
     with pytest.raises(ValueError, match="loop_phase"):

@@ -12,8 +12,8 @@ from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NQ, NX, Mode, mode_from_
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.planners.policies import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.estimation import MeasurementBias
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 BIASED_SEED = 9787
 """A seed on which the MPC with the paper's weights that takes the biased measurement as it is and re-plans only

@@ -13,8 +13,8 @@ from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 from hsddp_gym.planners.policies import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.estimation import ContactModelPredictor, StateFilter
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import GaitClock, late_landing, update_gait_clock
+from hsddp_gym.rollout.episodes import run_episode
 
 STIFF_SEED = 40011
 """A seed on which the MPC without the late-landing rule falls within 1 s in the stiffest corner (at 0.91 s) and the

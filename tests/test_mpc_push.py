@@ -11,8 +11,8 @@ import pytest
 
 import hsddp_gym  # noqa: F401
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 GRID_5MS_NO_INTEGRAL = {"planner_dt": 0.005, "speed_integral_gain": None, "max_iterations": 3,
                         "feedback_iterations": None}

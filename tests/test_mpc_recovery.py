@@ -13,8 +13,8 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, Mode
 from hsddp_gym.core.references import paper_initial_state
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions, MPCPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 RESTEP_SEED = 30027
 """``push_flight``: a nose-down kick of 6.8 rad/s just after the front foot's lift-off. The back hip rises out of

@@ -16,9 +16,9 @@ from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.references import end_of_mode_reference
 from hsddp_gym.envs.perturbations import make_env
 from hsddp_gym.planners.optimizer.problem import HybridProblem
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 PUSHED_SEED = 531
 """A push-condition seed (push at 1.43 s: -0.44 m/s forward, +0.33 m/s up, a nose-up kick of -4.9 rad/s) after which

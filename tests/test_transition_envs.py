@@ -94,10 +94,10 @@ def _episode(env, policy, seed):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_expert_succeeds_and_zero_torque_never_does(task):
-    from hsddp_gym.workflows import transition_expert
+    from hsddp_gym.rollout.plans import make_expert
 
     env = gym.make(ENV_IDS[task])
-    expert = transition_expert(env)
+    expert = make_expert(env)
     expert.reset()
     info, fell = _episode(env, expert, 9700)
     assert not fell and info["success"]

@@ -21,7 +21,6 @@ _EXPORTS = {  # module: the public names it defines
     "base": ("EnvInterface", "Policy",),
     "contact_consistency": ("PushingTorques",),
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
-    "evaluation": ("EpisodeResult", "run_episode", "summarize",),
     "expert": ("PlanTrackingExpert",),
     "jumps": ("JumpExpert",),
     "heuristic": (
