@@ -215,4 +215,4 @@ def test_robustness_benchmark_runs_estimated_twins(tmp_path):
     assert set(rec["skipped"]) == {"ppo@s0"} and set(rec["results"]) == {"heuristic"}
     env = make_env("default")
     with pytest.raises(ValueError, match="estimator"):
-        robustness.make_policy({"kind": "mpc", "estimator": True}, env)
+        robustness.benchmark_policy({"kind": "mpc", "estimator": True}, env)

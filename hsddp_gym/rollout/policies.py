@@ -182,6 +182,8 @@ def make_policy(spec, env=None, seed: int = 0, interface=None):
             decides the expert and whether the MPC is given the terrain) or a :class:`PolicySpec` (its ``env_id``
             decides them).
         env: the env the policy acts in (a trained policy's own env when None; needed by every other policy).
+            A trained policy's directory with a ``summary.json`` is checked to be a finished run of its kind
+            (:func:`parse_policy_spec`); one without is loaded from its weights alone.
         seed: the random policy's seed.
         interface: build the policy for this :class:`~hsddp_gym.planners.policies.base.EnvInterface` instead of
             ``env``'s (e.g. the env without its action delay, behind the MPC's perception); not for the expert.
@@ -217,7 +219,8 @@ def _learned(spec: PolicySpec, env, interface):
     from hsddp_gym.util.extras import require
 
     kind, _, paths = spec.name.partition(":")
-    runs = [parse_policy_spec(f"{kind}:{p}", "policy")[1] for p in paths.split(",")]
+    runs = [parse_policy_spec(f"{kind}:{p}", "policy")[1] if (Path(p) / "summary.json").exists() else Path(p)
+            for p in paths.split(",")]  # a directory with only its weights (no training summary) loads as it is
     require(required_modules(spec.name), f"the policy {spec.name}")
     loader = resolve(LEARNED_LOADERS[kind])
     if kind in ("bc", "dagger"):  # behind the MPC's perception if trained behind it
