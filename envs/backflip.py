@@ -22,14 +22,13 @@ import gymnasium as gym
 import numpy as np
 
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IVX, IVZ, IZ, NQ
+from hsddp_gym.core.task_constants import STAND_HEIGHT
 from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.envs.mujoco_twin import MuJoCoBoundingEnv
 from hsddp_gym.util.validation import check_in_range, check_positive
 
 FULL_TURN = -2.0 * math.pi
 """The pitch of a completed backflip [rad]: one full turn nose-up (nose-up is negative pitch)."""
-STAND_HEIGHT = 0.26
-"""Trunk height of the standing start [m] (``hsddp_gym.planners.motions.STAND_HEIGHT``)."""
 EPISODE_DURATION = 2.0
 """Episode length [s]: the flip and its landing (1.05 s in the plan), then a hold; the default observation clock
 period."""

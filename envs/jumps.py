@@ -10,9 +10,9 @@ with a seeded noise) and the reset options are the base class's; the task fixes 
 (progress across the obstacle, then upright on the far side), adds a fall (a foot in the gap), sets the observation
 clock's period to the episode (2 s) and adds a success flag to ``info`` (:meth:`JumpTask.success`).
 
-Envs do not import the planners (the package's layers), so :func:`jump_env_terrain` repeats the planner's terrain
-(``hsddp_gym.planners.motions.jump_terrain(task)``, 1 m/s, two cycles before the jump); ``tests/test_jump_envs.py``
-checks that they agree.
+The terrain is the jump plan's (:func:`hsddp_gym.core.task_constants.jump_terrain`, at 1 m/s after
+:data:`~hsddp_gym.core.task_constants.JUMP_APPROACH_CYCLES` bounding cycles), the obstacle's constants
+(:data:`~hsddp_gym.core.task_constants.GAP_WIDTH`, ``BOX_HEIGHT``, ``BOX_LENGTH``) the planners' too.
 """
 
 from __future__ import annotations
@@ -22,25 +22,12 @@ import math
 import numpy as np
 
 from hsddp_gym.core.conventions import IPITCH, IX, IZ, NQ
-from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
-from hsddp_gym.core.terrain import Terrain
+from hsddp_gym.core.task_constants import JUMPS as TASKS
+from hsddp_gym.core.task_constants import jump_terrain
 from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.envs.mujoco_twin import MuJoCoBoundingEnv
 from hsddp_gym.util.validation import check_in_range, check_positive
 
-TASKS = ("gap_jump", "box_jump")
-"""The jump tasks (``task=``): over a gap, onto a box."""
-GAP_WIDTH = 0.3
-"""Width of the gap [m] (``hsddp_gym.planners.motions.GAP_WIDTH``)."""
-BOX_HEIGHT = 0.1
-"""Height of the box [m] (``hsddp_gym.planners.motions.BOX_HEIGHT``)."""
-BOX_LENGTH = 3.0
-"""Length of the box [m] (``hsddp_gym.planners.motions.BOX_LENGTH``)."""
-EDGE_LEAD = 0.05
-"""The near edge this far ahead of the trunk's expected x when the jump's take-off starts [m]
-(``hsddp_gym.planners.motions.JUMP_EDGE_LEAD``)."""
-APPROACH_CYCLES = 2
-"""Bounding cycles at 1 m/s before the jump (the plan's)."""
 EPISODE_DURATION = 2.0
 """Episode length [s]: the approach and the jump (1.0 s in the plan), two cycles on the far side (0.66 s) and a
 third of a second more; the default observation clock period."""
@@ -64,23 +51,12 @@ UPRIGHT_PITCH_SIGMA = 0.3
 """Width [rad] of the upright term's pitch factor ``exp(-(pitch / sigma)^2)``."""
 
 
-def jump_env_terrain(task: str) -> Terrain:
-    """The terrain of ``task`` (:data:`TASKS`), where the jump plan has it (``jump_terrain(task)`` of
-    :mod:`hsddp_gym.planners.motions` at 1 m/s, two cycles): the near edge ``2 T_cycle + 0.05`` m ahead of the
-    start; ``"gap_jump"`` a gap of :data:`GAP_WIDTH`, ``"box_jump"`` a box of :data:`BOX_HEIGHT` from
-    :data:`GAP_WIDTH` / 2 further, :data:`BOX_LENGTH` long."""
-    if task not in TASKS:
-        raise ValueError(f"task must be one of {TASKS}, got {task!r}")
-    near = 1.0 * APPROACH_CYCLES * sum(PAPER_BOUNDING_DURATIONS) + EDGE_LEAD
-    if task == "gap_jump":
-        return Terrain.gap(near, near + GAP_WIDTH)
-    edge = near + GAP_WIDTH / 2.0
-    return Terrain.box(edge, edge + BOX_LENGTH, BOX_HEIGHT)
+
 
 
 def far_edge(task: str) -> float:
     """The x [m] past which the robot is across: the gap's far rim, the box's near edge."""
-    terrain = jump_env_terrain(task)
+    terrain = jump_terrain(task)
     return float(terrain.edges[1] if task == "gap_jump" else terrain.edges[0])
 
 
@@ -115,7 +91,7 @@ class JumpTask:
         self._reset_task(0.0)
         super().__init__(forward_reward_weight=forward_reward_weight, healthy_reward=healthy_reward,
                          gait_period=check_in_range(gait_period, 0.05, 60.0, "gait_period"),
-                         terrain=jump_env_terrain(task), **kwargs)
+                         terrain=jump_terrain(task), **kwargs)
 
     def _reset_task(self, x0: float) -> None:
         self._x0 = float(x0)
@@ -209,7 +185,7 @@ class JumpEnv(JumpTask, BoundingEnv):
     ## Description
     The robot, physics, action space, observation layout, info and reset options of
     :class:`~hsddp_gym.envs.bounding.BoundingEnv` (``hsddp_gym/Bounding-v0``) on a fixed terrain
-    (:func:`jump_env_terrain`), with the jump task (:class:`JumpTask`): ``task="gap_jump"``
+    (:func:`~hsddp_gym.core.task_constants.jump_terrain`), with the jump task (:class:`JumpTask`): ``task="gap_jump"``
     (``hsddp_gym/GapJump-v0``) puts a 0.3 m gap 0.66 m ahead of the start, ``task="box_jump"``
     (``hsddp_gym/BoxJump-v0``) a 0.1 m high, 3 m long box 0.79 m ahead. The robot starts bounding at 0.9 m/s and is
     rewarded for getting across and then for being upright on the far side. The HS-DDP jumps
@@ -271,7 +247,7 @@ class MuJoCoJumpEnv(JumpTask, MuJoCoBoundingEnv):
     (its contact-model arguments too; needs the extra ``mujoco``)."""
 
 
-__all__ = ["TASKS", "GAP_WIDTH", "BOX_HEIGHT", "BOX_LENGTH", "EDGE_LEAD", "APPROACH_CYCLES", "EPISODE_DURATION",
+__all__ = ["TASKS", "EPISODE_DURATION",
            "GAP_FOOT_DEPTH", "SUCCESS_BEYOND", "SUCCESS_MIN_HEIGHT", "SUCCESS_MAX_PITCH", "HOLD_STEPS",
-           "DEFAULT_CROSSING_REWARD", "DEFAULT_UPRIGHT_REWARD", "UPRIGHT_PITCH_SIGMA", "jump_env_terrain", "far_edge",
+           "DEFAULT_CROSSING_REWARD", "DEFAULT_UPRIGHT_REWARD", "UPRIGHT_PITCH_SIGMA", "far_edge",
            "JumpTask", "JumpEnv", "MuJoCoJumpEnv"]

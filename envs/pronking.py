@@ -20,19 +20,14 @@ import math
 import numpy as np
 
 from hsddp_gym.core.conventions import BACK, FRONT, NQ
+from hsddp_gym.core.task_constants import PRONK_DURATIONS, PRONK_HEIGHT
+from hsddp_gym.core.task_constants import SPEED_RANGE as PRONK_SPEED_RANGE
 from hsddp_gym.envs.bounding import BoundingEnv, _check_bool
 from hsddp_gym.envs.mujoco_twin import MuJoCoBoundingEnv
 from hsddp_gym.util.validation import check_positive
 
-PRONK_DURATIONS = (0.10, 0.08)
-"""Double stance and flight of the pronk's cycle [s] (``hsddp_gym.planners.motions.PRONK_DURATIONS``)."""
 PRONK_PERIOD = sum(PRONK_DURATIONS)
 """The pronk's cycle, 0.18 s: the default period of the observation's gait clock."""
-PRONK_HEIGHT = 0.26
-"""Trunk height of the pronk's postures [m] (``hsddp_gym.planners.motions.PRONK_HEIGHT``)."""
-PRONK_SPEED_RANGE = (0.5, 1.5)
-"""Target speeds [m/s] of the task (``hsddp_gym.planners.motions.SPEED_RANGE``: the speeds the pronk is planned
-for)."""
 DEFAULT_CONTACT_MATCH_REWARD = 0.5
 """Weight of the contact-matching term: paid on a healthy step whose two contact flags are equal."""
 SUCCESS_SPEED_TOLERANCE = 0.2

@@ -26,22 +26,23 @@ import numpy as np
 
 from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IVX, IVZ, IX, IZ, NQ
 from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
+from hsddp_gym.core.task_constants import PRONK_DURATIONS, STAND_DURATION, STOP_DURATION
+from hsddp_gym.core.task_constants import TRANSITION_MAX_EPISODE_STEPS as MAX_EPISODE_STEPS
+from hsddp_gym.core.task_constants import TRANSITIONS as TASKS
 from hsddp_gym.envs.backflip import MAX_RESET_NOISE, BackflipTask, backflip_start_state
 from hsddp_gym.envs.bounding import BoundingEnv
 from hsddp_gym.envs.mujoco_twin import MuJoCoBoundingEnv
 from hsddp_gym.util.validation import check_in_range, check_positive
 
-TASKS = ("stand_to_bound", "bound_pronk_bound", "bound_to_stop")
-"""The transition tasks (``task=``), the plans of ``hsddp_gym.planners.motions.plan_transition``."""
 TARGET_SPEED = 1.0
 """The bounding speed of the plans [m/s]."""
 _BS, _FL, _FS, _DS = (False, True), (False, False), (True, False), (True, True)  # (front, back) on the ground
 _BOUND = tuple(zip((_BS, _FL, _FS, _FL), PAPER_BOUNDING_DURATIONS))
-_PRONK = ((_DS, 0.10), (_FL, 0.08))
+_PRONK = tuple(zip((_DS, _FL), PRONK_DURATIONS))
 SCHEDULES = {
-    "stand_to_bound": ((_DS, 0.25),) + _BOUND * 2,
+    "stand_to_bound": ((_DS, STAND_DURATION),) + _BOUND * 2,
     "bound_pronk_bound": _BOUND * 2 + _PRONK * 2 + ((_DS, 0.05),) + _BOUND * 2,
-    "bound_to_stop": _BOUND * 2 + ((_DS, 0.40),),
+    "bound_to_stop": _BOUND * 2 + ((_DS, STOP_DURATION),),
 }
 """Per task, the plan's phases ``((front_down, back_down), duration [s])`` (``transition_problem(task, 1.0, 2)``:
 stand to bound ``DS(250 ms) (BS FL FS FL) x 2``; bound, pronk, bound ``(BS FL FS FL) x 2 (DS FL) x 2 DS(50 ms)
@@ -57,8 +58,6 @@ speeds the plan's phases end at (stand to bound: from rest to 0.4 m/s by the end
 EPISODE_DURATIONS = {"stand_to_bound": 1.5, "bound_pronk_bound": 2.0, "bound_to_stop": 1.5}
 """Episode length per task [s]: the plan (0.84 s, 1.59 s, 0.99 s) and a hold of at least 0.4 s (bounding on at
 1 m/s, standing at rest); the default observation clock period."""
-MAX_EPISODE_STEPS = {"stand_to_bound": 300, "bound_pronk_bound": 400, "bound_to_stop": 300}
-"""Episode length per task in 5 ms control steps (the registered ``TimeLimit``)."""
 WINDOW_STEPS = 60
 """Success: the window, the last this many control steps (0.3 s, one bounding cycle), judged as a gait."""
 SPEED_TOLERANCE = 0.3

@@ -1,5 +1,6 @@
 """The backflip task (``hsddp_gym/Backflip-v0``): the HS-DDP backflip expert, BC (and DAgger) on unseen seeds, and the
-expert in the MuJoCo twin: ``experiments/tasks.py --task backflip`` (the task-generic script, shared with the jumps).
+expert in the MuJoCo twin: ``experiments/tasks.py --task backflip`` (the task evaluation of
+:mod:`hsddp_gym.benchmarks.tasks`, shared with the jumps).
 
 Each policy plays ``--episodes`` episodes seeded ``--seed, --seed + 1, ...`` (default 9600-9619, seeds no dataset
 uses) of the default task (400 steps = 2 s, reset noise 0.01); per episode the return, a fall, the lowest pitch, the
@@ -18,18 +19,11 @@ be Backflip-v0's), evaluated with their final weights.
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import tasks  # noqa: E402  (experiments/tasks.py, the task-generic script)
-
-BACKFLIP = tasks.TASKS["backflip"].env_id
-BACKFLIP_MUJOCO = tasks.TASKS["backflip"].twin_id
+from hsddp_gym.benchmarks.tasks import task_evaluation_main
 
 
 def main(argv=None) -> int:
-    return tasks.main(argv, task="backflip")
+    return task_evaluation_main(argv, __doc__, task="backflip")
 
 
 if __name__ == "__main__":

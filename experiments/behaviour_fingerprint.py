@@ -33,9 +33,9 @@ def fingerprint(mpc_seeds: int = 10, progress: bool = True) -> dict:
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode
     from hsddp_gym.planners.policies.mpc import MPCPolicy
     from hsddp_gym.planners.tasks import PLAN_METHODS, plan_bounding, run_sto
+    from hsddp_gym.rollout.episodes import run_episode
 
     out = {}
     for method in PLAN_METHODS:

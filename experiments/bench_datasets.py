@@ -28,7 +28,7 @@ from pathlib import Path
 
 from hsddp_gym.datasets.collection import collect_episodes
 from hsddp_gym.datasets.generation import generate_dataset
-from hsddp_gym.datasets.recording import PolicySpec
+from hsddp_gym.rollout.policies import PolicySpec
 
 
 def startup_time(policy: str, workers: int, backend: str = "local") -> float:

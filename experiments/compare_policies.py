@@ -2,7 +2,7 @@
 
 Protocol: ``--episodes`` (default 10) episodes seeded 0, 1, ..., default env (reset noise 0.01, 1000-step
 limit), deterministic actions, via ``hsddp_gym.learning.reporting.evaluate_policy_episodes`` (which runs
-``hsddp_gym.planners.policies.evaluation.run_episode``). The plan-tracking expert is reset to its plan's initial state
+``hsddp_gym.rollout.episodes.run_episode``). The plan-tracking expert is reset to its plan's initial state
 (``options={"state": plan.X[0]}``: no reset noise, so its episodes are identical whatever the seed).
 
 Policies: ``mpc`` (HS-DDP MPC, default options), ``expert`` (tracks the 5-cycle al-reb plan), ``heuristic``,
@@ -29,71 +29,18 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from hsddp_gym.benchmarks.comparison import TRAINED, build
 from hsddp_gym.learning.reporting import curve_band, mean_ci95
 from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import atomic_path, write_json
 
 POLICIES = ("mpc", "expert", "heuristic", "random", "bc", "dagger", "ppo", "sac")
-TRAINED = {"bc": ("policy.npz", "summary.json"), "dagger": ("policy.npz", "summary.json"),
-           "ppo": ("model.zip", "summary.json"), "sac": ("model.zip", "summary.json")}
-
-
-def build(name: str, run_dir: Path | None, rl_actions: str = "deterministic",
-          rl_checkpoint: str = "final"):
-    """``(policy, reset_options, info)`` or raise FileNotFoundError for a missing trained model."""
-    import gymnasium as gym
-
-    import hsddp_gym  # noqa: F401
-    from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.experts import bounding_expert
-    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-    from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-    env = gym.make("hsddp_gym/Bounding-v0")  # only its public settings are read (the default env)
-    interface = EnvInterface.from_env(env)
-    if name == "mpc":
-        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-        return MPCPolicy(interface, MPCOptions()), None, {"samples": "-", "train_time_s": None}
-    if name == "expert":
-        from hsddp_gym.planners.tasks import plan_bounding
-
-        t = time.perf_counter()
-        sol = plan_bounding("al-reb", cycles=5).solution
-        return (bounding_expert(interface, sol), {"state": sol.X[0]},
-                {"samples": "-", "train_time_s": time.perf_counter() - t, "train_time_note": "offline HS-DDP plan"})
-    if name == "heuristic":
-        return HeuristicPolicy(interface), None, {"samples": "-", "train_time_s": None}
-    if name == "random":
-        return RandomPolicy(interface, seed=0), None, {"samples": "-", "train_time_s": None}
-    missing = [f for f in TRAINED[name] if run_dir is None or not (run_dir / f).exists()]
-    if missing:
-        raise FileNotFoundError(f"{name}: missing {', '.join(missing)} in {run_dir}")
-    summary = json.loads((run_dir / "summary.json").read_text())
-    if name in ("bc", "dagger"):
-        from hsddp_gym.learning.ensemble import load_mlp_learner
-
-        policy = load_mlp_learner(run_dir, interface)  # behind the MPC's perception if trained behind it
-        if name == "bc":
-            count, unit = summary["transitions"], f"transitions ({summary['demonstrations']} demos, " \
-                                                  f"{summary.get('dataset_policy')})"
-        else:
-            count, unit = summary["expert_labels"], f"expert labels ({summary['expert']['name']} expert)"
-    else:
-        from hsddp_gym.learning.sb3 import load_trained_policy
-
-        policy = load_trained_policy(run_dir, env, deterministic=rl_actions == "deterministic",
-                                     checkpoint=rl_checkpoint)
-        count, unit = summary["steps"], "env steps"
-    return policy, None, {"samples": f"{count:,} {unit}", "samples_count": int(count), "samples_unit": unit,
-                          "train_time_s": summary.get("wall_time_s"), "summary": summary}
 
 
 def expand_runs(name: str, paths) -> list[Path]:
@@ -314,9 +261,8 @@ def main(argv: list[str] | None = None) -> int:
         t = time.perf_counter()
         evals, infos = [], []
         for d in dirs:
-            policy, options, info = build(kind_of(name), d, args.rl_actions, args.rl_checkpoint)
-            evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps,
-                                                  reset_options=options))
+            policy, info = build(kind_of(name), d, args.rl_actions, args.rl_checkpoint)
+            evals.append(evaluate_policy_episodes(policy, args.episodes, 0, max_episode_steps=args.max_episode_steps))
             infos.append(info)
         row = aggregate(name, evals, infos)
         row["eval_wall_s"] = time.perf_counter() - t

@@ -37,29 +37,30 @@ def main(argv=None) -> int:
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.experts import bounding_expert
-    from hsddp_gym.planners.tasks import plan_bounding
+    from hsddp_gym.rollout.episodes import Returns, run_episode
+    from hsddp_gym.rollout.policies import make_policy
 
-    sol = plan_bounding("al-reb", cycles=5).solution
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=args.steps)
-    expert = bounding_expert(EnvInterface.from_env(env), sol)
-    obs, info = env.reset(seed=0, options={"state": sol.X[0]})
-    expert.reset()
-    states, tracked, ret, fell = [], 0, 0.0, False
-    for _ in range(args.steps):
-        x = np.concatenate([info["qpos"], info["qvel"]])
-        before = len(expert.nominal_states)
-        obs, reward, terminated, truncated, info = env.step(expert(obs))
-        ret += float(reward)
-        if len(expert.nominal_states) > before:  # this action came from the plan
-            states.append(x)
-            tracked += 1
-        if terminated:
-            fell = True
-            break
-        if truncated:
-            break
+    expert = make_policy("expert", env)  # starts at its plan's first state (expert.reset_options)
+    sol = expert.solution
+
+    class Tracked:
+        """The env's state before each action that came from the plan."""
+
+        def __init__(self):
+            self.states = []
+
+        def on_reset(self, env, obs, info):
+            self.x, self.before = np.concatenate([info["qpos"], info["qvel"]]), len(expert.nominal_states)
+
+        def on_step(self, env, action, obs, reward, terminated, truncated, info):
+            if len(expert.nominal_states) > self.before:  # this action came from the plan
+                self.states.append(self.x)
+            self.on_reset(env, obs, info)
+
+    seen, returns = Tracked(), Returns()
+    res = run_episode(env, expert, 0, max_steps=args.steps, observers=(seen, returns))
+    states, tracked, ret, fell = seen.states, len(seen.states), returns.total, res.fell
     env.close()
     X_env, X_nom = np.array(states), np.array(expert.nominal_states)
     d = X_env - X_nom

@@ -68,9 +68,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from hsddp_gym.util.io import atomic_path, write_json  # noqa: E402
+from hsddp_gym.util.io import atomic_path, write_json
 
 TRAIN_PERTURBATIONS = ("default", "reset_noise_x4", "obs_noise", "delay_5ms", "delay_10ms", "push", "friction_0.4",
                        "mass_+15", "mass_-15")
@@ -426,7 +424,7 @@ def main(argv: list[str] | None = None) -> int:
                 shutil.rmtree(out / sub, ignore_errors=True)
     write_json(sfile, settings)
 
-    from robustness import run_benchmark  # experiments/robustness.py
+    from hsddp_gym.benchmarks.robustness import run_benchmark
 
     command = " ".join(["python", *sys.argv]) if argv is None else "python experiments/imitation_robustness.py " + \
         " ".join(argv)

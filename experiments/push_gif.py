@@ -26,15 +26,11 @@ def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode
-    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-    from hsddp_gym.planners.policies.mpc import MPCPolicy
+    from hsddp_gym.rollout.episodes import run_episode
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make("hsddp_gym/Bounding-v0")
-    if policy_name == "heuristic":
-        policy = HeuristicPolicy.from_env(env)
-    else:
-        policy = MPCPolicy.from_env(env)
+    policy = make_policy("heuristic" if policy_name == "heuristic" else "mpc", env)
     res = run_episode(env, policy, seed, options={"push": push}, max_steps=steps)
     dt = env.unwrapped.dt
     env.close()

@@ -22,99 +22,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from hsddp_gym.benchmarks.pushes import DEFAULT_PUSHES, POLICIES, markdown, push_label, push_policy, run_grid, run_one
 from hsddp_gym.envs.bounding import DEFAULT_FRAME_SKIP, DEFAULT_SIM_TIMESTEP
 from hsddp_gym.util.io import atomic_path, write_json
-from hsddp_gym.util.parallel import add_backend_arguments, check_backend, run_parallel
+from hsddp_gym.util.parallel import add_backend_arguments, check_backend
 
-DEFAULT_PUSHES = [
-    (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (-1.5, 0.0, 0.0), (1.5, 0.0, 0.0), (3.0, 0.0, 0.0),
-    (0.0, -1.0, 0.0), (0.0, -1.5, 0.0), (0.0, -2.5, 0.0),
-    (0.0, 0.0, 6.0), (0.0, 0.0, -6.0), (0.0, 0.0, 8.0), (0.0, 0.0, -10.0), (0.0, 0.0, 10.0),
-]
-
-
-POLICIES = ("mpc", "mpc-options", "heuristic", "random")
-"""``mpc``: the MPC with its default options; ``mpc-options``: ``MPCOptions(**OPTIONS)`` from ``--mpc-options``
-(ablations); ``heuristic``: the contact-event heuristic; ``random``: uniform actions."""
-
-
-def make_policy(name: str, env, mpc_options: dict | None = None):
-    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-    from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-    from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-    if name == "mpc-options":
-        return MPCPolicy.from_env(env, options=MPCOptions(**(mpc_options or {})))
-    factories = {"mpc": MPCPolicy, "heuristic": HeuristicPolicy, "random": RandomPolicy}
-    if name not in factories:
-        raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
-    return factories[name].from_env(env)
-
-
-def push_label(dv) -> str:
-    return "[" + ", ".join(f"{v:+g}" for v in dv) + "]"
-
-
-def run_one(task: tuple) -> dict:
-    """One pushed episode: ``task = (policy name, push (3,), seed, push time [s], steps, mpc_options)``."""
-    import gymnasium as gym
-
-    import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode
-
-    name, dv, seed, push_time, steps, mpc_options = task
-    env = gym.make("hsddp_gym/Bounding-v0")
-    try:
-        policy = make_policy(name, env, mpc_options)
-        res = run_episode(env, policy, seed, options={"push": {"delta_v": list(dv), "time": push_time}},
-                          max_steps=steps)
-        stats = getattr(policy, "stats", {})
-        return {"seed": seed, "push_time_s": push_time, "fell": bool(res.fell),
-                "fall_time_s": res.length * env.unwrapped.dt if res.fell else None,
-                "planner_failures": int(stats.get("planner_failures", 0))}
-    finally:
-        env.close()
-
-
-def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: int, workers: int = 1,
-             progress: bool = True, mpc_options: dict | None = None, backend: str = "local",
-             address: str | None = None) -> dict:
-    """``{policy: {push label: {"delta_v", "falls", "episodes", "runs": [per episode]}}}`` (``mpc_options``: the
-    fields of the ``mpc-options`` policy; ``backend``/``address``: :func:`hsddp_gym.util.parallel.run_parallel`)."""
-    tasks = [(name, tuple(dv), seed, float(t), steps, mpc_options) for name in policies for dv in pushes
-             for t in push_times for seed in range(first_seed, first_seed + seeds)]
-    from tqdm import tqdm
-
-    with tqdm(total=len(tasks), desc="pushed episodes", disable=not progress) as bar:
-        runs = run_parallel(run_one, tasks, workers=workers, backend=backend, address=address,
-                            on_result=lambda i, r: bar.update(1))
-    results: dict = {name: {} for name in policies}
-    for task, run in zip(tasks, runs):
-        cell = results[task[0]].setdefault(push_label(task[1]), {"delta_v": list(task[1]), "runs": []})
-        cell["runs"].append(run)
-    for name in policies:
-        for label, cell in results[name].items():
-            cell["episodes"] = len(cell["runs"])
-            cell["falls"] = sum(r["fell"] for r in cell["runs"])
-            if progress:
-                print(f"{name:<13} push {label:<18} falls {cell['falls']}/{cell['episodes']}", flush=True)
-    return results
-
-
-def markdown(results: dict, push_times, steps: int, dt: float) -> str:
-    policies = list(results)
-    labels = list(results[policies[0]])
-    times = ", ".join(f"{t:g}" for t in push_times)
-    lines = [f"Falls / episodes after a push at t = {times} s ({steps} steps = {steps * dt:g} s per episode)",
-             "", "| push [dvx, dvz, dpitch_rate] | " + " | ".join(policies) + " |",
-             "|---|" + "---|" * len(policies)]
-    for label in labels:
-        cells = [f"{results[p][label]['falls']}/{results[p][label]['episodes']}" for p in policies]
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    totals = [f"{sum(c['falls'] for c in results[p].values())}/{sum(c['episodes'] for c in results[p].values())}"
-              for p in policies]
-    lines.append("| total | " + " | ".join(totals) + " |")
-    return "\n".join(lines) + "\n"
+__all__ = ["DEFAULT_PUSHES", "POLICIES", "markdown", "push_label", "push_policy", "run_grid", "run_one", "main"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -129,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=500,
                    help="control steps per episode, push included (default: %(default)s = 2.5 s)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
-                   help='MPCOptions fields of the mpc-options policy as a JSON object, e.g. '
+                   help='settings of the mpc-options policy by their flat names (MPCOptions.replace) as JSON, e.g. '
                         '\'{"planner_dt": 0.005, "speed_integral_gain": null}\' (default: none)')
     p.add_argument("--workers", type=int, default=1,
                    help="parallel worker processes (or the CPUs of the local Ray instance); the results do not "
@@ -158,9 +71,11 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             mpc_options = json.loads(args.mpc_options)
-            MPCOptions(**mpc_options)
+            if not isinstance(mpc_options, dict):
+                raise ValueError("not a JSON object")
+            MPCOptions().replace(**mpc_options)
         except (ValueError, TypeError) as exc:
-            p.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
+            p.error(f"--mpc-options must be a JSON object of MPC settings by their flat names: {exc}")
     if "mpc-options" in args.policies and mpc_options is None:
         p.error("the mpc-options policy needs --mpc-options")
     pushes = [tuple(v) for v in args.push] if args.push else DEFAULT_PUSHES

@@ -5,7 +5,7 @@ wrappers, every random draw seeded from the episode seed) reset with ``seed``, r
 time limit (5 s) or a fall. Policies:
 
 * ``mpc``: ``MPCPolicy`` with the default ``MPCOptions()`` (it reads the env's action delay, if any, from
-  ``EnvInterface.from_env``); ``mpc-options``: ``MPCOptions(**json)`` from ``--mpc-options`` (ablations; give
+  ``EnvInterface.from_env``); ``mpc-options``: ``MPCOptions().replace(**json)`` from ``--mpc-options`` (ablations; give
   ``--label`` to name it);
 * ``heuristic``: the contact-event heuristic; ``random``;
 * learned ones, ``--learned NAME=DIR`` (NAME ``bc`` / ``dagger``: ``DIR/policy.npz``; ``ppo`` / ``sac``:
@@ -69,189 +69,24 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
+from hsddp_gym.benchmarks.robustness import (
+    BUILTIN,
+    EVAL_FIRST_SEED,
+    LEARNED,
+    benchmark_policy,
+    combine,
+    markdown,
+    run_benchmark,
+    run_one,
+    summarize_cell,
+)
 from hsddp_gym.reports.store import machine_info, write_record
 from hsddp_gym.util.io import atomic_path, write_json
-from hsddp_gym.util.parallel import add_backend_arguments, check_backend, run_parallel
+from hsddp_gym.util.parallel import add_backend_arguments, check_backend
 from hsddp_gym.viz.plotting import plot_robustness
 
-BUILTIN = ("mpc", "mpc-options", "heuristic", "random")
-LEARNED = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
-EVAL_FIRST_SEED = 7000
-
-
-def make_policy(spec: dict, env):
-    """The policy described by ``spec`` (``{"kind": ..., "mpc_options": {...}, "dir": ..., "estimator": bool}``, or
-    ``"dirs": [...]`` for a bc/dagger ensemble) for ``env``; with ``estimator`` the policy, built for the env without
-    its delay, acts behind :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (the MPC's
-    state filter and latency compensation)."""
-    from hsddp_gym.planners.policies.base import EnvInterface
-
-    kind = spec["kind"]
-    interface = EnvInterface.from_env(env)
-    if kind in ("bc", "dagger"):  # a network or a mean-action ensemble, behind the estimator if trained behind it
-        from hsddp_gym.learning.ensemble import load_mlp_learner
-        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
-
-        policy = load_mlp_learner(spec.get("dirs") or spec["dir"], interface)
-        if not spec.get("estimator") or isinstance(policy, EstimatedStatePolicy):
-            return policy
-        return EstimatedStatePolicy.around(policy.with_interface, interface)
-    if spec.get("estimator"):
-        from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
-
-        if kind in ("mpc", "mpc-options"):
-            raise ValueError("estimator: the MPC filters and predicts itself (MPCOptions.state_filter, "
-                             "latency_compensation); wrap other policies")
-        return EstimatedStatePolicy.around(lambda i: _make_bare_policy(kind, spec, env, i), interface)
-    return _make_bare_policy(kind, spec, env, interface)
-
-
-def _make_bare_policy(kind: str, spec: dict, env, interface):
-    if kind in ("mpc", "mpc-options"):
-        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
-
-        return MPCPolicy(interface, MPCOptions(**(spec.get("mpc_options") or {})))
-    if kind == "heuristic":
-        from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-
-        return HeuristicPolicy(interface)
-    if kind == "random":
-        from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-        return RandomPolicy(interface, seed=0)
-    if kind in ("ppo", "sac"):
-        from hsddp_gym.learning.sb3 import load_trained_policy
-
-        policy = load_trained_policy(spec["dir"], env, checkpoint=spec.get("checkpoint", "final"))
-        policy.interface = interface  # the model reads observations only; the interface says which env it acts for
-        return policy
-    raise ValueError(f"policy kind must be one of {BUILTIN + tuple(LEARNED)}, got {kind!r}")
-
-
-def run_one(task: tuple) -> dict:
-    """One episode: ``task = (label, policy spec, condition name, seed, max_steps or None, simulator)``."""
-    from hsddp_gym.envs.perturbations import HardwareCondition, episode_perturbation, get_condition
-    from hsddp_gym.planners.policies.evaluation import run_episode
-
-    label, spec, condition, seed, max_steps, simulator = task
-    cond = get_condition(condition)
-    env = cond.make(simulator=cond.simulator_for(simulator))
-    try:
-        policy = make_policy(spec, env)
-        res = run_episode(env, policy, seed, max_steps=max_steps)
-        stats = res.policy_stats or {}
-        solve_ms = stats.get("solve_ms") or []
-        run = {"seed": int(seed), "return": res.episode_return, "fell": bool(res.fell), "length": res.length,
-               "fall_time_s": res.simulated_time if res.fell else None, "speed": res.forward_speed,
-               "wall_time_s": res.wall_time, "simulated_time_s": res.simulated_time,
-               "replans": int(stats.get("replans", 0)), "planner_failures": int(stats.get("planner_failures", 0)),
-               "mean_replan_ms": float(np.mean(solve_ms)) if solve_ms else None,
-               "target_speed": float(env.unwrapped.target_speed)}
-        if isinstance(cond, HardwareCondition):  # the delay, bias or phase-timed push of this episode
-            run["perturbation"] = episode_perturbation(env)
-        if cond.SIMULATOR is not None:  # a contact condition: the simulator and the model of this episode
-            run["simulator"] = cond.SIMULATOR
-            run["contact_model"] = env.unwrapped.contact_model.as_dict()
-        return run
-    finally:
-        env.close()
-
-
-def summarize_cell(runs: list[dict]) -> dict:
-    alive = [r for r in runs if not r["fell"]]
-    target = runs[0]["target_speed"]
-    speed = float(np.mean([r["speed"] for r in alive])) if alive else None
-    ms = [r["mean_replan_ms"] for r in runs if r["mean_replan_ms"] is not None]
-    return {"episodes": len(runs), "falls": sum(r["fell"] for r in runs),
-            "fall_seeds": [r["seed"] for r in runs if r["fell"]],
-            "mean_return": float(np.mean([r["return"] for r in runs])),
-            "std_return": float(np.std([r["return"] for r in runs])),
-            "mean_speed": speed, "target_speed": target,
-            "speed_error": None if speed is None else (speed - target) / target,
-            "real_time_factor": sum(r["simulated_time_s"] for r in runs) / max(sum(r["wall_time_s"] for r in runs),
-                                                                              1e-12),
-            "planner_failures": sum(r["planner_failures"] for r in runs),
-            "mean_replan_ms": float(np.mean(ms)) if ms else None,
-            "mean_fall_time_s": float(np.mean([r["fall_time_s"] for r in runs if r["fell"]]))
-            if len(alive) < len(runs) else None}
-
-
-def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True,
-                  backend: str = "local", address: str | None = None, simulator: str = "bounding") -> dict:
-    """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``; the episodes run on
-    :func:`hsddp_gym.util.parallel.run_parallel` (``backend`` "local" or "ray", ``address`` a Ray cluster) in
-    ``simulator`` (a key of ``hsddp_gym.envs.perturbations.SIMULATORS``)."""
-    from tqdm import tqdm
-
-    tasks = [(label, spec, c, s, max_steps, simulator) for c in conditions for label, spec in policies.items()
-             for s in seeds]
-    with tqdm(total=len(tasks), desc="episodes", disable=not progress, smoothing=0.05) as bar:
-        runs = run_parallel(run_one, tasks, workers=workers, backend=backend, address=address,
-                            on_result=lambda i, r: bar.update(1))
-    out: dict = {label: {} for label in policies}
-    for task, run in zip(tasks, runs):
-        out[task[0]].setdefault(task[2], []).append(run)
-    return {label: {c: {**summarize_cell(r), "runs": r} for c, r in cells.items()} for label, cells in out.items()}
-
-
-def markdown(results: dict, conditions) -> str:
-    from hsddp_gym.envs.perturbations import get_condition
-
-    labels = list(results)
-    lines = ["Falls / episodes, mean return, mean speed of the episodes that did not fall (error to the target), "
-             "real-time factor", "",
-             "| condition | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
-    for c in conditions:
-        cells = []
-        for label in labels:
-            s = results[label][c]
-            speed = "-" if s["mean_speed"] is None else f"{s['mean_speed']:.2f} m/s ({100 * s['speed_error']:+.0f} %)"
-            cells.append(f"**{s['falls']}/{s['episodes']}**, {s['mean_return']:.0f}, {speed}, "
-                         f"RTF {s['real_time_factor']:.1f}")
-        lines.append(f"| {c}: {get_condition(c).description} | " + " | ".join(cells) + " |")
-    totals = [f"{sum(results[lb][c]['falls'] for c in conditions)}/"
-              f"{sum(results[lb][c]['episodes'] for c in conditions)}" for lb in labels]
-    lines.append("| total falls | " + " | ".join(totals) + " |")
-    contact = [c for c in conditions if get_condition(c).SIMULATOR is not None]
-    if contact:
-        lines += ["", "Contact models (MuJoCo twin): falls / episodes, mean time to fall of the episodes that fell [s]",
-                  "", "| condition | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
-        for c in contact:
-            cells = []
-            for label in labels:
-                s = results[label][c]
-                t = s.get("mean_fall_time_s")
-                cells.append(f"**{s['falls']}/{s['episodes']}**" + ("" if t is None else f", {t:.2f} s"))
-            lines.append(f"| {c} | " + " | ".join(cells) + " |")
-        c_totals = [f"{sum(results[lb][c]['falls'] for c in contact)}/"
-                    f"{sum(results[lb][c]['episodes'] for c in contact)}" for lb in labels]
-        lines.append("| contact falls | " + " | ".join(c_totals) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def combine(paths, out: Path) -> dict:
-    """One table from several ``robustness.json`` files (e.g. a baseline, the current default, ablations): every
-    policy of every file, labelled ``NAME`` or, when two files hold the same name, ``NAME@DIRNAME``; only the
-    conditions common to all. Writes ``OUT/robustness.md``, ``.png`` and ``.json``."""
-    loaded = [(Path(p), json.loads(Path(p).read_text())) for p in paths]
-    names = [name for _, d in loaded for name in d["results"]]
-    results, sources = {}, {}
-    for path, d in loaded:
-        for name, cells in d["results"].items():
-            label = name if names.count(name) == 1 else f"{name}@{path.parent.name}"
-            results[label] = cells
-            sources[label] = {"file": str(path), "command": d.get("command"), "seeds": d.get("seeds")}
-    common = [c for c in loaded[0][1]["conditions"] if all(c in cells for cells in results.values())]
-    write_json(out / "robustness.json", {"command": " ".join(["python", *sys.argv]), "sources": sources,
-                                         "conditions": loaded[0][1]["conditions"], "results": results})
-    table = markdown(results, common)
-    with atomic_path(out / "robustness.md") as tmp:
-        tmp.write_text(table)
-    plot_robustness(results, common, out / "robustness.png")
-    print(table)
-    return results
+__all__ = ["BUILTIN", "EVAL_FIRST_SEED", "LEARNED", "benchmark_policy", "combine", "markdown", "run_benchmark",
+           "run_one", "summarize_cell", "main"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -262,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--policies", nargs="*", default=["mpc", "heuristic"], choices=BUILTIN,
                    help="built-in policies; '--policies' alone runs none (only --learned ones) (default: %(default)s)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
-                   help="MPCOptions fields of the mpc-options policy as a JSON object (ablations)")
+                   help="the mpc-options policy's settings by their flat names (MPCOptions.replace) as JSON (ablations)")
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
     p.add_argument("--learned", action="append", default=[], metavar="NAME=DIR",
                    help=f"a trained policy, NAME one of {list(LEARNED)}, or NAME@TAG to run several of a kind (e.g. "
@@ -345,9 +180,11 @@ def main(argv: list[str] | None = None) -> int:
 
             try:
                 opts = json.loads(args.mpc_options)
-                MPCOptions(**opts)
+                if not isinstance(opts, dict):
+                    raise ValueError("not a JSON object")
+                MPCOptions().replace(**opts)
             except (ValueError, TypeError) as exc:
-                p.error(f"--mpc-options must be a JSON object of MPCOptions fields: {exc}")
+                p.error(f"--mpc-options must be a JSON object of MPC settings by their flat names: {exc}")
             policies[args.label] = {"kind": "mpc-options", "mpc_options": opts}
         else:
             policies[name] = {"kind": name}

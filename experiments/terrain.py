@@ -68,19 +68,16 @@ def _fixed(value: float, digits: int) -> float:
 
 
 def make_policy(name: str, env):
-    """The policy ``name`` (:data:`POLICIES`) for ``env``."""
-    from hsddp_gym.planners.policies import HeuristicPolicy, MPCOptions, MPCPolicy
-    from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.mpc import env_terrain
+    """The policy ``name`` (:data:`POLICIES`) for ``env``: ``mpc-terrain`` the terrain-aware MPC (the MPC of the
+    Terrain-v0 task), ``mpc`` the flat-ground one, ``heuristic``."""
+    from hsddp_gym.rollout.policies import PolicySpec
+    from hsddp_gym.rollout.policies import make_policy as make
 
-    interface = EnvInterface.from_env(env)
+    if name not in POLICIES:
+        raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
     if name == "mpc-terrain":
-        return MPCPolicy(interface, MPCOptions(), terrain=env_terrain(env))
-    if name == "mpc":
-        return MPCPolicy(interface, MPCOptions())
-    if name == "heuristic":
-        return HeuristicPolicy(interface)
-    raise ValueError(f"policy must be one of {list(POLICIES)}, got {name!r}")
+        return make(PolicySpec("mpc", env_id=TERRAIN), env)
+    return make(PolicySpec(name), env)
 
 
 def run_block(name: str, seeds, quiet: bool = False, make=None, label: str | None = None) -> dict:
@@ -90,7 +87,7 @@ def run_block(name: str, seeds, quiet: bool = False, make=None, label: str | Non
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
-    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.rollout.episodes import run_episode
 
     env = gym.make(TERRAIN)
     policy = make(env) if make is not None else make_policy(name, env)
@@ -137,7 +134,7 @@ def _train_summary(parser, flag: str, run: str, algo: str) -> dict:
 def learner_rows(bc, dagger, seeds, quiet: bool = False) -> list[dict]:
     """The terrain-aware MPC and the learners (``bc`` / ``dagger``: run directories with their ``summary.json``)
     on ``seeds``: one row each, the learners' with their samples and training time."""
-    from hsddp_gym.workflows import load_policy
+    from hsddp_gym.rollout.policies import make_policy as load_policy
 
     rows = [run_block("mpc-terrain", seeds, quiet)]
     for algo, runs in (("bc", bc), ("dagger", dagger)):

@@ -16,7 +16,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from tqdm import tqdm
@@ -33,14 +32,14 @@ MUJOCO = "MuJoCo (BoundingMuJoCo-v0)"
 POLICIES = ("mpc", "heuristic", "bc", "dagger", "ppo", "sac")
 
 
-def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, options) -> dict:
-    """Summary (:func:`hsddp_gym.planners.policies.evaluation.summarize`) of ``episodes`` seeded episodes; for the
+def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None) -> dict:
+    """Summary (:func:`hsddp_gym.rollout.episodes.summarize`) of ``episodes`` seeded episodes; for the
     planner's model also its friction demand: ``friction_over_mu`` (fraction of control steps in which a pinned
     foot needed ``|f_x| > mu f_z``) and ``max_friction_ratio`` (the largest ``|f_x| / f_z``)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the ids)
-    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+    from hsddp_gym.rollout.episodes import run_episode, summarize
 
     class FrictionDemand(gym.Wrapper):
         """Counts the control steps whose ``info["friction_ratio"]`` exceeds the env's ``mu``."""
@@ -61,7 +60,7 @@ def evaluate(policy, env_id: str, episodes: int, max_episode_steps: int | None, 
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = FrictionDemand(gym.make(env_id, **limit))
     try:
-        summary = summarize([run_episode(env, policy, i, options=options) for i in range(episodes)])
+        summary = summarize([run_episode(env, policy, i) for i in range(episodes)])
     finally:
         env.close()
     if env.steps:
@@ -85,8 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     machine = machine_info()
     if args.episodes < 1:
         p.error(f"--episodes must be >= 1, got {args.episodes}")
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from compare_policies import build  # the same policy construction as the one-env comparison
+    from hsddp_gym.benchmarks.comparison import build  # the same policy construction as the one-env comparison
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -95,13 +93,12 @@ def main(argv: list[str] | None = None) -> int:
     for name, label in tqdm(jobs, desc="policy x simulator"):
         run_dir = getattr(args, name, None) if name in POLICIES[2:] else None
         try:
-            policy, options, _ = build(name, Path(run_dir) if run_dir else None)
+            policy, _ = build(name, Path(run_dir) if run_dir else None)
         except FileNotFoundError as exc:
             if f"{name}: skipped" not in " ".join(notes):
                 notes.append(f"{name}: skipped ({exc})")
             continue
-        rows.setdefault(name, {})[label] = evaluate(policy, ENVS[label], args.episodes, args.max_episode_steps,
-                                                    options)
+        rows.setdefault(name, {})[label] = evaluate(policy, ENVS[label], args.episodes, args.max_episode_steps)
     lines = ["| policy | " + " | ".join(ENVS) + " | kept in MuJoCo |", "|---" * (len(ENVS) + 2) + "|"]
     for name, by_env in rows.items():
         cells = []

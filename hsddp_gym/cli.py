@@ -11,11 +11,13 @@ import contextlib
 import sys
 from pathlib import Path
 
+from hsddp_gym.registry import DATASET_ENVS, MPC_ENVS
+from hsddp_gym.rollout.policies import POLICIES, parse_policy_spec, required_modules
 from hsddp_gym.util.extras import MissingExtraError, require
 from hsddp_gym.util.io import write_json
 from hsddp_gym.util.parallel import add_backend_arguments, check_backend
 from hsddp_gym.util.validation import UsageError, check_output_dir
-from hsddp_gym.workflows import ROLLOUT_ENVS, parse_policy_spec, required_modules, run_rollouts, write_plan_outputs
+from hsddp_gym.workflows import ROLLOUT_ENVS, run_rollouts, write_plan_outputs
 
 
 def _number(kind, low: float, high: float = float("inf"), low_open: bool = False, what: str = ""):
@@ -233,11 +235,7 @@ def cmd_demo(args) -> int:
 
 # ----------------------------------------------------------------------------------------------- dataset, train
 # (demonstration datasets and learning baselines: hsddp_gym.datasets, hsddp_gym.learning, hsddp_gym.learning.sb3)
-DATASET_POLICIES = ("mpc", "expert", "heuristic", "random")
-DATASET_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0",
-                "hsddp_gym/BoxJump-v0", "hsddp_gym/Terrain-v0", "hsddp_gym/StandToBound-v0",
-                "hsddp_gym/BoundPronkBound-v0", "hsddp_gym/BoundToStop-v0")
-MPC_ENVS = (DATASET_ENVS[0], "hsddp_gym/Terrain-v0")  # their expert is the MPC (in Terrain-v0 the terrain-aware one)
+DATASET_POLICIES = POLICIES
 TRAIN_ALGOS = ("bc", "dagger", "ppo", "sac")
 
 

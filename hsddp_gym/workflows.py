@@ -4,6 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hsddp_gym.rollout.policies import (
+    LEARNED_POLICIES,
+    POLICIES,
+    PolicySpec,
+    make_policy,
+    parse_policy_spec,
+    required_modules,
+)
 from hsddp_gym.util.io import write_json
 
 
@@ -46,61 +54,8 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 
 
 # ----------------------------------------------------------------------------------------------- rollout
-ROLLOUT_POLICIES = ("mpc", "expert", "heuristic", "random")
+ROLLOUT_POLICIES = POLICIES
 ROLLOUT_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/BoundingMuJoCo-v0")
-LEARNED_POLICIES = ("bc", "dagger", "sb3", "ppo", "sac")
-"""Prefixes of learned policies, ``KIND:DIR`` with ``DIR`` the ``--out`` of ``hsddp-gym train``: ``bc`` and
-``dagger`` load its ``policy.npz`` (an :class:`~hsddp_gym.learning.bc.MLPPolicy`, NumPy inference, no torch),
-``sb3`` (or ``ppo`` / ``sac``) its ``model.zip`` + ``vecnormalize.npz`` (needs stable-baselines3)."""
-_POLICY_ALLOWED = ("mpc, expert, heuristic, random, or bc:DIR, dagger:DIR, sb3:DIR (also ppo:DIR, sac:DIR) with "
-                   "DIR the --out of `hsddp-gym train`")
-_RUN_FILES = {"bc": "policy.npz", "dagger": "policy.npz", "ppo": "model.zip", "sac": "model.zip"}
-_KIND_ALGOS = {"bc": ("bc", "dagger"), "dagger": ("bc", "dagger"), "sb3": ("ppo", "sac"), "ppo": ("ppo",),
-               "sac": ("sac",)}
-
-
-def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None]:
-    """``(kind, run_dir)`` of a policy name: one of :data:`ROLLOUT_POLICIES` (``run_dir`` None) or
-    ``KIND:DIR`` with ``KIND`` in :data:`LEARNED_POLICIES` and ``DIR`` a finished ``hsddp-gym train`` run of
-    a matching algorithm (``sb3`` matches ppo and sac, ``bc`` and ``dagger`` both MLP runs).
-
-    Raises:
-        UsageError (a ValueError naming ``name``): an unknown name, a missing or unfinished run directory,
-        or a run of another algorithm.
-    """
-    import json
-
-    from hsddp_gym.util.validation import UsageError
-
-    if not isinstance(spec, str):
-        raise UsageError(name, f"{spec!r} is not a policy name", _POLICY_ALLOWED)
-    if spec in ROLLOUT_POLICIES:
-        return spec, None
-    kind, sep, path = spec.partition(":")
-    if not sep or kind not in LEARNED_POLICIES or not path:
-        raise UsageError(name, f"unknown policy {spec!r}", _POLICY_ALLOWED)
-    run = Path(path)
-    summary_file = run / "summary.json"
-    if not summary_file.is_file():
-        problem = "does not exist" if not run.exists() else "has no summary.json (not a finished training run)"
-        raise UsageError(name, f"{kind}:{path}: {str(run)!r} {problem}", _POLICY_ALLOWED)
-    try:
-        algo = json.loads(summary_file.read_text()).get("algo")
-    except (ValueError, AttributeError):
-        algo = None
-    if algo not in _KIND_ALGOS[kind]:
-        raise UsageError(name, f"{kind}:{path}: the run in {str(run)!r} is a {algo!r} run",
-                         f"{kind}: runs of {' or '.join(_KIND_ALGOS[kind])}")
-    if not (run / _RUN_FILES[algo]).is_file():
-        raise UsageError(name, f"{kind}:{path}: {str(run / _RUN_FILES[algo])!r} is missing",
-                         f"a finished `hsddp-gym train --algo {algo}` run directory")
-    return kind, run
-
-
-def required_modules(policy: str) -> list[str]:
-    """The optional packages a policy name needs (see :func:`hsddp_gym.util.extras.require`)."""
-    kind = policy.partition(":")[0]
-    return ["stable_baselines3", "torch"] if kind in ("sb3", "ppo", "sac") else []
 
 
 def load_policy(spec: str, env=None):
@@ -110,209 +65,7 @@ def load_policy(spec: str, env=None):
     if run is None:
         raise ValueError(f"spec must name a trained policy ({', '.join(f'{k}:DIR' for k in LEARNED_POLICIES)}), "
                          f"got {spec!r}; use make_policy for {spec!r}")
-    return make_policy(spec, env)[0]
-
-
-def is_pronking_env(env) -> bool:
-    """Whether ``env`` (wrapped or not) is an env of the pronking task (``hsddp_gym/Pronking-v0`` or its MuJoCo
-    twin)."""
-    from hsddp_gym.envs.pronking import PronkingTask
-
-    return isinstance(getattr(env, "unwrapped", env), PronkingTask)
-
-
-def pronking_expert(env, cycles: int = 4):
-    """The pronking expert for ``env``: :func:`hsddp_gym.planners.policies.experts.pronking_expert` tracking
-    ``plan_pronk(cycles, target_speed)`` (:mod:`hsddp_gym.planners.motions`, solved once per speed and process,
-    about 0.2 s) periodically; the env starts at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies import experts
-    from hsddp_gym.planners.policies.base import EnvInterface
-
-    speed = float(getattr(env, "unwrapped", env).target_speed)
-    return experts.pronking_expert(EnvInterface.from_env(env), pronk_plan(speed, cycles))
-
-
-_PRONK_PLANS: dict = {}
-
-
-def pronk_plan(speed: float = 1.0, cycles: int = 4):
-    """The HS-DDP pronk plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`) at ``speed`` [m/s],
-    cached per ``(speed, cycles)``."""
-    from hsddp_gym.planners.motions import plan_pronk
-
-    key = (float(speed), int(cycles))
-    if key not in _PRONK_PLANS:
-        _PRONK_PLANS[key] = plan_pronk(int(cycles), float(speed)).solution
-    return _PRONK_PLANS[key]
-
-
-def is_backflip_env(env) -> bool:
-    """Whether ``env`` (wrapped or not) is an env of the backflip task (``hsddp_gym/Backflip-v0`` or its MuJoCo
-    twin)."""
-    from hsddp_gym.envs.backflip import BackflipTask
-
-    return isinstance(getattr(env, "unwrapped", env), BackflipTask)
-
-
-def backflip_expert(env):
-    """The backflip expert for ``env``: :func:`hsddp_gym.planners.policies.experts.backflip_expert` tracking
-    :func:`backflip_plan` for the env's control period (solved once per process, about 3 s); the env starts at the
-    plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies import experts
-    from hsddp_gym.planners.policies.base import EnvInterface
-
-    return experts.backflip_expert(EnvInterface.from_env(env), backflip_plan(backflip_hold(env)))
-
-
-def backflip_hold(env) -> int:
-    """Plan knots (1 ms) per control period of ``env``: the ``hold`` of :func:`backflip_plan`."""
-    return max(1, int(float(getattr(env, "unwrapped", env).dt) / 1e-3 + 0.5))
-
-
-_BACKFLIP_PLANS: dict = {}
-
-
-def backflip_plan(hold: int = 5):
-    """The HS-DDP backflip plan for a control held ``hold`` plan knots
-    (:func:`hsddp_gym.planners.motions.plan_backflip_held`), cached per ``hold``."""
-    from hsddp_gym.planners.motions import plan_backflip_held
-
-    key = int(hold)
-    if key not in _BACKFLIP_PLANS:
-        _BACKFLIP_PLANS[key] = plan_backflip_held(key)
-    return _BACKFLIP_PLANS[key]
-
-
-def is_jump_env(env) -> bool:
-    """Whether ``env`` (wrapped or not) is an env of a jump task (``hsddp_gym/GapJump-v0``, ``hsddp_gym/BoxJump-v0``
-    or their MuJoCo twins)."""
-    from hsddp_gym.envs.jumps import JumpTask
-
-    return isinstance(getattr(env, "unwrapped", env), JumpTask)
-
-
-def jump_expert(env):
-    """The jump expert for ``env``: :func:`hsddp_gym.planners.policies.experts.jump_expert` tracking
-    :func:`jump_plan` of the env's task for its control period (solved once per process, about 1 s); the env starts
-    at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies import experts
-    from hsddp_gym.planners.policies.base import EnvInterface
-
-    plan = jump_plan(getattr(env, "unwrapped", env).task, backflip_hold(env))
-    return experts.jump_expert(EnvInterface.from_env(env), plan)
-
-
-_JUMP_PLANS: dict = {}
-
-
-def jump_plan(motion: str, hold: int = 5):
-    """The HS-DDP jump plan of ``motion`` (``"gap_jump"`` or ``"box_jump"``) for a control held ``hold`` plan knots
-    (:func:`hsddp_gym.planners.motions.plan_jump_held`), cached per ``(motion, hold)``."""
-    from hsddp_gym.planners.motions import plan_jump_held
-
-    key = (str(motion), int(hold))
-    if key not in _JUMP_PLANS:
-        _JUMP_PLANS[key] = plan_jump_held(key[0], key[1])
-    return _JUMP_PLANS[key]
-
-
-def is_transition_env(env) -> bool:
-    """Whether ``env`` (wrapped or not) is an env of a gait-transition task (``hsddp_gym/StandToBound-v0``,
-    ``hsddp_gym/BoundPronkBound-v0``, ``hsddp_gym/BoundToStop-v0`` or their MuJoCo twins)."""
-    from hsddp_gym.envs.transitions import TransitionTask
-
-    return isinstance(getattr(env, "unwrapped", env), TransitionTask)
-
-
-def transition_expert(env):
-    """The transition expert for ``env``: :func:`hsddp_gym.planners.policies.experts.transition_expert`
-    tracking :func:`transition_plan` of the env's task for its control period (solved once per process, about 1 s);
-    the env starts at the plan's start, so no reset options are needed."""
-    from hsddp_gym.planners.policies import experts
-    from hsddp_gym.planners.policies.base import EnvInterface
-
-    task = getattr(env, "unwrapped", env).task
-    return experts.transition_expert(EnvInterface.from_env(env), transition_plan(task, backflip_hold(env)), task)
-
-
-_TRANSITION_PLANS: dict = {}
-
-
-def transition_plan(motion: str, hold: int = 5):
-    """The HS-DDP plan of the gait transition ``motion`` (``hsddp_gym.planners.motions.TRANSITIONS``) for a control
-    held ``hold`` plan knots (:func:`hsddp_gym.planners.motions.plan_transition_held`, with the expert's cycles
-    ``hsddp_gym.planners.policies.experts.TRANSITION_PLAN_CYCLES``), cached per ``(motion, hold)``."""
-    from hsddp_gym.planners.motions import plan_transition_held
-    from hsddp_gym.planners.policies.experts import TRANSITION_PLAN_CYCLES
-
-    key = (str(motion), int(hold))
-    if key not in _TRANSITION_PLANS:
-        _TRANSITION_PLANS[key] = plan_transition_held(key[0], key[1], cycles=TRANSITION_PLAN_CYCLES[key[0]])
-    return _TRANSITION_PLANS[key]
-
-
-def is_terrain_env(env) -> bool:
-    """Whether ``env`` is ``hsddp_gym/Terrain-v0`` (by its spec), whose ``mpc`` is the terrain-aware MPC
-    (``MPCPolicy(..., terrain=env_terrain(env))``, as in :class:`hsddp_gym.datasets.recording.PolicySpec`)."""
-    from hsddp_gym.datasets.recording import TERRAIN_ENV_ID
-
-    spec = getattr(env, "spec", None)
-    return getattr(spec, "id", None) == TERRAIN_ENV_ID
-
-
-def task_expert(env):
-    """The plan-tracking expert of ``env``'s task (pronking, backflip, a jump), or None for Bounding-v0's."""
-    if is_pronking_env(env):
-        return pronking_expert(env)
-    if is_backflip_env(env):
-        return backflip_expert(env)
-    if is_jump_env(env):
-        return jump_expert(env)
-    if is_transition_env(env):
-        return transition_expert(env)
-    return None
-
-
-def make_policy(name: str, env, seed: int = 0, mpc_options=None):
-    """A policy for ``env`` by name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
-    ``bc:DIR`` / ``dagger:DIR`` / ``sb3:DIR``, see :func:`parse_policy_spec`) and the reset options it needs
-    (the expert starts from its plan's initial state; in the pronking task it is :func:`pronking_expert`, in the
-    backflip task :func:`backflip_expert`, in the jump tasks :func:`jump_expert`; in ``hsddp_gym/Terrain-v0``
-    ``mpc`` is the terrain-aware MPC, given each episode's terrain, as in its datasets, :func:`is_terrain_env`)."""
-    from hsddp_gym.planners.policies.base import EnvInterface
-    from hsddp_gym.planners.policies.experts import bounding_expert
-    from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-    from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-    kind, run = parse_policy_spec(name, "policy")
-    if run is not None:
-        if kind in ("bc", "dagger"):
-            from hsddp_gym.learning.ensemble import load_mlp_learner
-
-            interface = EnvInterface.from_env(env) if env is not None else EnvInterface()
-            return load_mlp_learner(run, interface), None  # behind the MPC's perception if trained behind it
-        from hsddp_gym.util.extras import require
-
-        require(required_modules(name), f"the policy {name}")
-        from hsddp_gym.learning.sb3 import load_trained_policy
-
-        return load_trained_policy(run, env), None
-    if name == "mpc":
-        from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, env_terrain
-
-        terrain = env_terrain(env) if is_terrain_env(env) else None
-        return MPCPolicy.from_env(env, options=mpc_options or MPCOptions(), terrain=terrain), None
-    if name == "expert":
-        expert = task_expert(env)
-        if expert is not None:
-            return expert, None
-        from hsddp_gym.planners.tasks import plan_bounding
-
-        sol = plan_bounding("al-reb", cycles=5).solution
-        return bounding_expert(EnvInterface.from_env(env), sol), {"state": sol.X[0]}
-    if name == "heuristic":
-        return HeuristicPolicy.from_env(env), None
-    return RandomPolicy.from_env(env, seed=seed), None
+    return make_policy(spec, env)
 
 
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
@@ -328,7 +81,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     from tqdm import tqdm
 
     import hsddp_gym  # noqa: F401  (registers the env)
-    from hsddp_gym.planners.policies.evaluation import run_episode, summarize
+    from hsddp_gym.rollout.episodes import run_episode, summarize
     from hsddp_gym.util.extras import require
     from hsddp_gym.util.validation import check_output_dir
 
@@ -345,10 +98,9 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    policy, options = make_policy(policy_name, env, seed, mpc_options=mpc_options)
-    if push is not None:
-        options = dict(options or {})
-        options["push"] = push  # {"delta_v": (3,), "time": t}
+    spec = policy_name if mpc_options is None else PolicySpec(policy_name, options=mpc_options)
+    policy = make_policy(spec, env, seed)
+    options = None if push is None else {"push": push}  # {"delta_v": (3,), "time": t}
     results = []
     for i in tqdm(range(episodes), desc=f"{policy_name} episodes", disable=quiet):
         results.append(run_episode(env, policy, seed + i, options=options, render=video and i == 0))

@@ -147,11 +147,11 @@ def test_zero_torque_never_succeeds():
 
 
 def test_the_expert_flips_lands_and_stands():
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make(ENV_ID)
-    policy, options = make_policy("expert", env)
-    assert options is None
+    policy = make_policy("expert", env)
+    assert policy.reset_options is None
     obs, info = env.reset(seed=9999)
     min_pitch, ret = 0.0, 0.0
     while True:
@@ -178,7 +178,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
 
     meta = read_metadata(out)
     assert meta["dataset_id"] == "hsddp_gym/backflip/expert-v0" and meta["env_id"] == ENV_ID
-    assert meta["policy"]["configuration"].endswith("experts.backflip_expert")
+    assert meta["policy"]["class"].endswith("experts.backflip_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset("hsddp_gym/backflip/expert-v0")
         assert ds.total_episodes == 2 and ds.total_steps == 80

@@ -242,7 +242,7 @@ def test_rollout_of_a_trained_bc_policy(dataset, tmp_path, capsys):
     env = gym.make("hsddp_gym/Bounding-v0", max_episode_steps=8)
     policy = load_policy(f"bc:{run_dir}", env)
     assert isinstance(policy, MLPPolicy)
-    from hsddp_gym.planners.policies.evaluation import run_episode
+    from hsddp_gym.rollout.episodes import run_episode
 
     ep = run_episode(env, policy, 0)
     np.testing.assert_array_equal(np.load(out / "episode0.npz")["actions"], ep.actions)

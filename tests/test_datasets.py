@@ -16,8 +16,9 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
 from hsddp_gym.datasets.collection import collect_episodes
 from hsddp_gym.datasets.generation import generate_dataset, partial_dir
-from hsddp_gym.datasets.recording import DECISION_SCHEMA, GAIN_KEY, NONDETERMINISTIC_INFOS, PolicySpec
+from hsddp_gym.datasets.recording import DECISION_SCHEMA, GAIN_KEY, NONDETERMINISTIC_INFOS
 from hsddp_gym.datasets.storage import load_minari, load_npz, minari_root, read_metadata
+from hsddp_gym.rollout.policies import PolicySpec
 
 STEPS = 50
 EPISODES = 3
@@ -162,14 +163,14 @@ class _Exploding:
 
 
 def exploding_factory(env, seed):
-    return _Exploding(after=3 if seed == 1 else 10_000), None
+    return _Exploding(after=3 if seed == 1 else 10_000)
 
 
 def flaky_factory(env, seed):
     """Explodes on the episode seeded $HSDDP_TEST_EXPLODE_SEED (read in the worker: spawned workers inherit
     the environment), plays zeros otherwise: an interrupted run, then a rerun with the same settings."""
     bad = os.environ.get("HSDDP_TEST_EXPLODE_SEED")
-    return _Exploding(after=3 if bad is not None and int(bad) == seed else 10_000), None
+    return _Exploding(after=3 if bad is not None and int(bad) == seed else 10_000)
 
 
 @pytest.mark.parametrize("workers", [1, 2])

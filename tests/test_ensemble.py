@@ -115,8 +115,8 @@ def test_the_robustness_benchmark_runs_an_ensemble_of_comma_separated_runs(tmp_p
     assert rec["policies"]["bc@ens"] == {"kind": "bc", "dirs": dirs}
     assert set(rec["results"]) == {"bc@ens", "bc@one", "bc@ens+est"}
     env = make_env("default")
-    assert isinstance(rob.make_policy({"kind": "bc", "dirs": dirs}, env), EnsemblePolicy)
-    assert isinstance(rob.make_policy({"kind": "bc", "dirs": dirs, "estimator": True}, env), EstimatedStatePolicy)
+    assert isinstance(rob.benchmark_policy({"kind": "bc", "dirs": dirs}, env), EnsemblePolicy)
+    assert isinstance(rob.benchmark_policy({"kind": "bc", "dirs": dirs, "estimator": True}, env), EstimatedStatePolicy)
     env.close()
     with pytest.raises(SystemExit):  # only bc/dagger learners average
         rob.main(["--out", str(out), "--policies", "--learned", f"ppo@ens={','.join(dirs)}", "--quiet"])
@@ -144,11 +144,11 @@ def test_every_loader_of_a_learner_trained_behind_the_estimator_puts_it_behind_o
     single = load_mlp_learner(str(behind), interface)
     assert isinstance(single, EstimatedStatePolicy) and type(single.inner) is MLPPolicy
     env = make_env("default")
-    compared, _, info = experiment("compare_policies").build("dagger", behind)
+    compared, info = experiment("compare_policies").build("dagger", behind)
     assert isinstance(compared, EstimatedStatePolicy) and info["samples"].startswith("10 expert labels")
     assert type(experiment("compare_policies").build("dagger", plain)[0]) is MLPPolicy
     assert isinstance(load_policy(f"dagger:{behind}", env), EstimatedStatePolicy)
-    assert isinstance(experiment("robustness").make_policy({"kind": "dagger", "dir": str(behind)}, env),
+    assert isinstance(experiment("robustness").benchmark_policy({"kind": "dagger", "dir": str(behind)}, env),
                       EstimatedStatePolicy)
     bare = MLPPolicy.load(behind / "policy.npz", interface)
     for obs in observations(20):  # exact observations, no delay: the estimator passes them through

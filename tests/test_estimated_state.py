@@ -15,8 +15,8 @@ from hsddp_gym.core.observation import state_from_observation
 from hsddp_gym.envs.perturbations import ActionDelay, make_env
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy, EstimationOptions
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
+from hsddp_gym.rollout.episodes import run_episode
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 
@@ -215,4 +215,4 @@ def test_robustness_benchmark_runs_estimated_twins(tmp_path):
     assert set(rec["skipped"]) == {"ppo@s0"} and set(rec["results"]) == {"heuristic"}
     env = make_env("default")
     with pytest.raises(ValueError, match="estimator"):
-        robustness.make_policy({"kind": "mpc", "estimator": True}, env)
+        robustness.benchmark_policy({"kind": "mpc", "estimator": True}, env)

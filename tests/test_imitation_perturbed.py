@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from hsddp_gym.datasets.collection import collect_episodes, episode_conditions
-from hsddp_gym.datasets.recording import PolicySpec, inform_sent_action
+from hsddp_gym.datasets.recording import inform_sent_action
 from hsddp_gym.envs.perturbations import check_conditions, make_env, true_observation, wrapper_info_keys
+from hsddp_gym.rollout.policies import PolicySpec
 
 
 def test_true_observation_is_the_env_observation_without_its_noise():
@@ -137,11 +138,11 @@ def test_dagger_behind_the_estimator_stores_what_the_learner_sees(tmp_path):
     res = train_dagger(PolicySpec("heuristic"), cfg, progress=False)
     assert res.policy.info["estimator"] is True
     # a learner trained behind the estimator acts behind it wherever it is loaded by name
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     res.policy.save(tmp_path / "policy.npz")
     (tmp_path / "summary.json").write_text(json.dumps({"algo": "dagger"}))
-    loaded, _ = make_policy(f"dagger:{tmp_path}", make_env("delay_5ms"))
+    loaded = make_policy(f"dagger:{tmp_path}", make_env("delay_5ms"))
     assert isinstance(loaded, EstimatedStatePolicy) and loaded.delay == 1
     assert loaded.inner.interface.action_delay_steps == 0
     env = make_env("delay_10ms", max_episode_steps=40)

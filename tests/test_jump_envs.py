@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import hsddp_gym
-from hsddp_gym.envs.jumps import JumpEnv, jump_env_terrain
+from hsddp_gym.core.task_constants import jump_terrain
+from hsddp_gym.envs.jumps import JumpEnv
 
 ENV_IDS = {"gap_jump": "hsddp_gym/GapJump-v0", "box_jump": "hsddp_gym/BoxJump-v0"}
 
@@ -22,15 +23,8 @@ def test_registered_with_a_time_limit_and_the_task(task):
     assert spec.vector_entry_point is None
     env = gym.make(ENV_IDS[task])
     assert isinstance(env.unwrapped, JumpEnv) and env.unwrapped.task == task
-    assert env.unwrapped.terrain == jump_env_terrain(task)
+    assert env.unwrapped.terrain == jump_terrain(task)
     assert gym.spec(ENV_IDS[task].replace("-v0", "MuJoCo-v0")).entry_point == "hsddp_gym.envs.jumps:MuJoCoJumpEnv"
-
-
-@pytest.mark.parametrize("task", sorted(ENV_IDS))
-def test_terrain_is_the_planners(task):
-    from hsddp_gym.planners import motions
-
-    assert jump_env_terrain(task) == motions.jump_terrain(task)
 
 
 @pytest.mark.parametrize("task", sorted(ENV_IDS))
@@ -96,11 +90,11 @@ def test_zero_torque_never_succeeds(task):
 
 @pytest.mark.parametrize("task", sorted(ENV_IDS))
 def test_the_expert_jumps_lands_and_bounds_on(task):
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make(ENV_IDS[task])
-    policy, options = make_policy("expert", env)
-    assert options is None
+    policy = make_policy("expert", env)
+    assert policy.reset_options is None
     obs, info = env.reset(seed=9999)
     ret = 0.0
     while True:
@@ -129,7 +123,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(task, tmp_path):
     meta = read_metadata(out)
     dataset_id = f"hsddp_gym/{task}/expert-v0"
     assert meta["dataset_id"] == dataset_id and meta["env_id"] == ENV_IDS[task]
-    assert meta["policy"]["configuration"].endswith("experts.jump_expert")
+    assert meta["policy"]["class"].endswith("experts.jump_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset(dataset_id)
         assert ds.total_episodes == 2 and ds.total_steps == 60
@@ -144,10 +138,11 @@ def test_the_loop_arguments_are_checked_and_the_expert_loops_the_cycle_after_the
     from hsddp_gym.planners.policies.experts import JUMP_LOOP
     from hsddp_gym.planners.policies.touchdown import FootClearance
     from hsddp_gym.planners.policies.tracking import PlanTracker
-    from hsddp_gym.workflows import jump_plan
+    from hsddp_gym.registry import TASKS
+    from hsddp_gym.rollout.plans import task_plan
 
     LOOP_PHASE, LOOP_END = JUMP_LOOP
-    sol = jump_plan("gap_jump")
+    sol = task_plan(TASKS["gap_jump"], hold=5)
     rule = FootClearance()
     with pytest.raises(ValueError, match="loop_end"):
         PlanTracker.from_solution(sol, touchdown=rule, loop_phase=LOOP_PHASE, loop_end=LOOP_PHASE - 4)

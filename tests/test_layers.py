@@ -1,6 +1,6 @@
 """The package's import graph, built from the source with ``ast``: no cycles, and imports only point down the layers
-(docs/architecture.md): util <- core <- {optimizer, viz, envs}; optimizer <- policies <- tasks;
-everything <- datasets <- learning <- workflows <- cli."""
+(docs/architecture.md): util <- core <- {optimizer, viz, envs, registry}; optimizer <- policies <- tasks;
+everything <- rollout <- datasets <- learning <- workflows <- cli; learning <- reports <- benchmarks."""
 
 from __future__ import annotations
 
@@ -33,23 +33,29 @@ ROOMS = {  # module-name prefix -> room (the longest matching prefix wins)
     "hsddp_gym.workflows": "workflows",
     "hsddp_gym.cli": "cli",
     "hsddp_gym.reports": "reports",
+    "hsddp_gym.registry": "registry",
+    "hsddp_gym.rollout": "rollout",
+    "hsddp_gym.benchmarks": "benchmarks",
 }
 _BELOW = {
-    "root": set(),
+    "root": {"registry", "core"},  # registers the registry's envs (the registry and core's task constants: pure Python)
     "planners": set(),
     "util": set(),
     "core": {"util"},
+    "registry": {"core"},
     "viz": {"util", "core"},
     "optimizer": {"util", "core"},
     "envs": {"util", "core", "viz"},
     "policies": {"util", "core", "optimizer"},
     "tasks": {"util", "core", "optimizer", "policies"},
-    "datasets": {"util", "core", "viz", "optimizer", "policies", "tasks", "envs"},
+    "rollout": {"util", "core", "viz", "optimizer", "policies", "tasks", "envs", "registry"},
 }
+_BELOW["datasets"] = _BELOW["rollout"] | {"rollout"}
 _BELOW["learning"] = _BELOW["datasets"] | {"datasets"}
 _BELOW["workflows"] = _BELOW["learning"] | {"learning"}
 _BELOW["cli"] = _BELOW["workflows"] | {"workflows"}
 _BELOW["reports"] = _BELOW["learning"] | {"learning"}  # tables and figures from the results store
+_BELOW["benchmarks"] = _BELOW["reports"] | {"reports"}  # the experiments' shared evaluations
 ALLOWED = {room: below | {room, "root"} for room, below in _BELOW.items()}
 """Rooms each room may import (``root``, the registering ``hsddp_gym/__init__``, imports nothing and may be
 imported by anyone)."""

@@ -11,13 +11,13 @@ import pytest
 import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
 from hsddp_gym.datasets.generation import generate_dataset
-from hsddp_gym.datasets.recording import PolicySpec
 from hsddp_gym.learning.bc import BCConfig, MLPPolicy, train_bc
 from hsddp_gym.learning.dagger import DAggerConfig, dagger_rollout, train_dagger
 from hsddp_gym.learning.demonstrations import load_demonstrations
 from hsddp_gym.learning.sb3 import as_sb3_policy
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 from hsddp_gym.planners.policies.random_policy import RandomPolicy
+from hsddp_gym.rollout.policies import PolicySpec
 
 torch = pytest.importorskip("torch")
 torch.set_num_threads(1)

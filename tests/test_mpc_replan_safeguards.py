@@ -15,9 +15,9 @@ from hsddp_gym.core.conventions import BACK, FRONT, IZ, NQ, Mode
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.references import end_of_mode_reference
 from hsddp_gym.planners.optimizer.problem import HybridProblem
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, shift_plan
+from hsddp_gym.rollout.episodes import run_episode
 
 
 @pytest.mark.parametrize("mode, foot", [(Mode.BACK_STANCE, None), (Mode.FRONT_STANCE, None), (Mode.FLIGHT, FRONT),

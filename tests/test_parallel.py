@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from hsddp_gym.datasets.generation import generate_dataset
-from hsddp_gym.datasets.recording import NONDETERMINISTIC_INFOS, PolicySpec
+from hsddp_gym.datasets.recording import NONDETERMINISTIC_INFOS
+from hsddp_gym.rollout.policies import PolicySpec
 from hsddp_gym.util.parallel import check_backend, run_parallel
 
 TESTS = str(Path(__file__).resolve().parent)

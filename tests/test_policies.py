@@ -14,13 +14,13 @@ import hsddp_gym  # noqa: F401
 from hsddp_gym import cli
 from hsddp_gym.core.conventions import Mode
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.evaluation import run_episode, summarize
 from hsddp_gym.planners.policies.experts import bounding_expert
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.random_policy import RandomPolicy
 from hsddp_gym.planners.policies.tracking import PlanTracker
 from hsddp_gym.planners.tasks import plan_bounding
+from hsddp_gym.rollout.episodes import run_episode, summarize
 
 
 @pytest.fixture(scope="module")

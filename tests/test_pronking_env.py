@@ -11,10 +11,6 @@ import pytest
 
 import hsddp_gym
 from hsddp_gym.envs.pronking import (
-    PRONK_DURATIONS,
-    PRONK_HEIGHT,
-    PRONK_PERIOD,
-    PRONK_SPEED_RANGE,
     PronkingEnv,
     contact_match_fraction,
     pronk_start_state,
@@ -57,11 +53,9 @@ def test_same_seed_same_trajectory_and_different_seed_differs(tools):
     assert not np.array_equal(a[0], c[0])
 
 
-def test_constants_and_start_state_match_the_pronk_planner():
+def test_start_state_is_the_pronk_planners():
     from hsddp_gym.planners import motions
 
-    assert PRONK_DURATIONS == motions.PRONK_DURATIONS and PRONK_HEIGHT == motions.PRONK_HEIGHT
-    assert PRONK_SPEED_RANGE == motions.SPEED_RANGE and PRONK_PERIOD == pytest.approx(sum(motions.PRONK_DURATIONS))
     robot = PronkingEnv().robot
     for speed in (0.5, 1.0, 1.5):
         x0 = motions.pronk_problem(1, speed)[0].x0
@@ -117,11 +111,11 @@ def test_success_criterion():
 
 
 def test_the_expert_pronks_for_a_second():
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     env = gym.make(ENV_ID, max_episode_steps=200)  # 1 s, about 5.5 pronk cycles
-    policy, options = make_policy("expert", env)
-    assert options is None
+    policy = make_policy("expert", env)
+    assert policy.reset_options is None
     obs, _ = env.reset(seed=9999)
     contacts, speeds, both_air = [], [], 0
     for _ in range(200):
@@ -149,7 +143,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
 
     meta = read_metadata(out)
     assert meta["dataset_id"] == "hsddp_gym/pronking/expert-v0" and meta["env_id"] == ENV_ID
-    assert meta["policy"]["configuration"].endswith("experts.pronking_expert")
+    assert meta["policy"]["class"].endswith("experts.pronking_expert")
     with minari_root(out / "minari"):
         ds = minari.load_dataset("hsddp_gym/pronking/expert-v0")
         assert ds.total_episodes == 2 and ds.total_steps == 80
@@ -168,7 +162,7 @@ def test_dagger_runs_a_tiny_iteration_labelled_by_the_pronking_expert(tmp_path):
     summary = run_dagger("expert", tmp_path / "dagger", config=config, eval_episodes=1, progress=False,
                          env_id=ENV_ID)
     assert summary["env_id"] == ENV_ID and summary["config"]["env_id"] == ENV_ID
-    assert summary["expert"]["configuration"].endswith("experts.pronking_expert")
+    assert summary["expert"]["class"].endswith("experts.pronking_expert")
     assert summary["expert_labels"] == len(load_dagger_data(tmp_path / "dagger")) <= 60
     assert [h["round"] for h in summary["history"]] == [0, 1] and summary["eval"]["episodes"] == 1
     with pytest.raises(ValueError, match="expert 'mpc'"):  # the MPC is a bounding controller

@@ -19,8 +19,8 @@ from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.policies import MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.estimation import MeasurementBias, project_onto_contacts, terrain_clearance
-from hsddp_gym.planners.policies.evaluation import run_episode
 from hsddp_gym.planners.policies.mpc import GaitClock, ScheduleOptions, env_terrain, late_landing
+from hsddp_gym.rollout.episodes import run_episode
 
 TERRAIN_ENV = "hsddp_gym/Terrain-v0"
 DRIFT_SEED = 9812
@@ -243,7 +243,7 @@ def test_a_small_terrain_dataset_is_recorded_by_the_terrain_aware_mpc(terrain_en
 
 
 def test_make_policy_mpc_in_terrain_v0_is_the_terrain_aware_mpc(terrain_env):
-    from hsddp_gym.workflows import make_policy
+    from hsddp_gym.rollout.policies import make_policy
 
     policy, options = make_policy("mpc", terrain_env)
     assert options is None
@@ -251,7 +251,7 @@ def test_make_policy_mpc_in_terrain_v0_is_the_terrain_aware_mpc(terrain_env):
     policy.reset()
     assert policy.terrain is terrain_env.unwrapped.terrain and not policy.terrain.is_flat
     flat_env = gym.make("hsddp_gym/Bounding-v0")
-    policy, _ = make_policy("mpc", flat_env)
+    policy = make_policy("mpc", flat_env)
     flat_env.reset(seed=0)
     policy.reset()
     assert policy.terrain is None

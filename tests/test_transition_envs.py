@@ -94,10 +94,10 @@ def _episode(env, policy, seed):
 
 @pytest.mark.parametrize("task", TASKS)
 def test_expert_succeeds_and_zero_torque_never_does(task):
-    from hsddp_gym.workflows import transition_expert
+    from hsddp_gym.rollout.plans import make_expert
 
     env = gym.make(ENV_IDS[task])
-    expert = transition_expert(env)
+    expert = make_expert(env)
     expert.reset()
     info, fell = _episode(env, expert, 9700)
     assert not fell and info["success"]
@@ -122,7 +122,7 @@ def test_a_small_expert_dataset_writes_and_loads_with_minari(tmp_path):
     meta = read_metadata(out)
     dataset_id = f"hsddp_gym/{task}/expert-v0"
     assert meta["dataset_id"] == dataset_id and meta["env_id"] == ENV_IDS[task]
-    assert meta["policy"]["configuration"].endswith("experts.transition_expert")
+    assert meta["policy"]["class"].endswith("experts.transition_expert")
     assert meta["policy"]["options"]["plan"]["motion"] == task
     with minari_root(out / "minari"):
         ds = minari.load_dataset(dataset_id)

@@ -3,19 +3,22 @@
 Generation
 ----------
 :func:`generate_dataset` runs ``episodes`` episodes of a policy, episode ``i`` reset with seed ``seed + i``
-and played by a *fresh* policy built for it (:class:`PolicySpec`, or any picklable factory
-``factory(env, episode_seed) -> (policy, reset_options)``), so an episode depends only on its seed: the same
+and played by a *fresh* policy built for it (:class:`~hsddp_gym.rollout.policies.PolicySpec`, or any picklable
+factory ``factory(env, episode_seed) -> policy``, the policy's ``reset_options`` attribute its episodes' reset
+options), so an episode depends only on its seed: the same
 ``seed`` and ``episodes`` give identical arrays whatever the number of worker processes. Workers are
 ``spawn``-started processes (:class:`concurrent.futures.ProcessPoolExecutor`; ``workers=1`` runs in this
 process); a tqdm bar counts finished episodes.
 
-Built-in policies (:data:`~hsddp_gym.datasets.recording.POLICIES`): ``mpc``
+Built-in policies (:data:`~hsddp_gym.rollout.policies.POLICIES`, built by
+:func:`~hsddp_gym.rollout.policies.make_policy`): ``mpc``
 (:class:`hsddp_gym.planners.policies.mpc.MPCPolicy`, options = ``MPCOptions`` fields), ``expert``
 (:func:`hsddp_gym.planners.policies.experts.bounding_expert` tracking the HS-DDP plan
 ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as
 ``expert_plan.npz`` in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without*
 reset noise, so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's
-1.48 s the default MPC takes over), ``heuristic`` (:class:`hsddp_gym.planners.policies.heuristic.HeuristicPolicy`)
+1.48 s the default MPC takes over; in the other tasks' envs the task's plan tracker, ``Task.expert`` of the task
+registry :mod:`hsddp_gym.registry`), ``heuristic`` (:class:`hsddp_gym.planners.policies.heuristic.HeuristicPolicy`)
 and ``random`` (:class:`hsddp_gym.planners.policies.random_policy.RandomPolicy` seeded with the episode seed).
 
 DART noise injection (``action_noise > 0``, Laskey et al. 2017): the executed actions are the policy's plus
@@ -88,9 +91,8 @@ _EXPORTS = {  # module: the public names it defines
         "mean_random_return", "partial_dir",
     ),
     "recording": (
-        "DecisionRecorder", "ENV_ID", "EXPERT_PLAN", "Episode", "GAIN_KEY", "NOISE_STREAM", "NONDETERMINISTIC_INFOS",
-        "POLICIES", "PolicySpec", "capture_plan_controls", "inform_sent_action", "record_episode",
-        "solve_expert_plan",
+        "DecisionRecorder", "ENV_ID", "Episode", "GAIN_KEY", "NOISE_STREAM", "NONDETERMINISTIC_INFOS",
+        "capture_plan_controls", "check_env_id", "inform_sent_action", "record_episode", "solve_expert_plan",
     ),
     "storage": (
         "FlatDataset", "default_dataset_id", "episodes_to_arrays", "load_minari", "load_npz", "minari_root",

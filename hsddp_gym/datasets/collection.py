@@ -79,8 +79,8 @@ def run_episode_task(task: EpisodeTask) -> Episode:
     """Worker entry point (top level, spawn-safe): a fresh env and policy, one recorded episode."""
     env = make_env(task.env_kwargs, task.max_episode_steps, task.condition, task.env_id)
     try:
-        policy, options = task.policy_factory(env, task.seed)
-        return record_episode(env, policy, task.seed, options, index=task.index, include_gains=task.include_gains,
+        policy = task.policy_factory(env, task.seed)
+        return record_episode(env, policy, task.seed, index=task.index, include_gains=task.include_gains,
                               action_noise=task.action_noise, privileged=task.condition is not None)
     finally:
         env.close()
@@ -124,8 +124,9 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
     """Record ``episodes`` episodes (episode ``i`` seeded ``seed + i``) with ``workers`` workers.
 
     Args:
-        policy_factory: picklable ``(env, episode_seed) -> (policy, reset_options or None)`` (e.g. a
-            :class:`PolicySpec`); called once per episode, in the worker.
+        policy_factory: picklable ``(env, episode_seed) -> policy`` (e.g. a
+            :class:`~hsddp_gym.rollout.policies.PolicySpec`; the policy's ``reset_options`` attribute, when it has
+            one, gives the episode's reset options); called once per episode, in the worker.
         workers: with ``backend="local"``, 1 runs in this process and more use ``spawn``-started worker
             processes (one BLAS/OpenMP thread each); with ``"ray"``, the CPUs of the local Ray instance.
         backend: where the episodes run (:func:`hsddp_gym.util.parallel.run_parallel`): ``"local"`` or ``"ray"``.

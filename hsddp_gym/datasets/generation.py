@@ -13,14 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.datasets.collection import checkpoint_path, collect_episodes, make_env
-from hsddp_gym.datasets.recording import (
-    ENV_ID,
-    NONDETERMINISTIC_INFOS,
-    TERRAIN_ENV_ID,
-    PolicySpec,
-    check_env_id,
-    solve_expert_plan,
-)
+from hsddp_gym.datasets.recording import ENV_ID, NONDETERMINISTIC_INFOS, check_env_id, solve_expert_plan
 from hsddp_gym.datasets.storage import (
     check_dataset_id,
     check_target,
@@ -29,6 +22,7 @@ from hsddp_gym.datasets.storage import (
     parent_dir,
     write_dataset,
 )
+from hsddp_gym.rollout.policies import PolicySpec, task_policy_spec
 from hsddp_gym.util.io import json_default, write_json
 from hsddp_gym.util.parallel import check_backend
 from hsddp_gym.util.validation import check_positive
@@ -258,11 +252,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     partial = partial_dir(out)
     plan_file = partial / "expert_plan.npz"
     if isinstance(policy, str):
-        if policy == "expert":
-            spec = PolicySpec("expert", plan_path=str(plan_file), env_id=None if env_id == ENV_ID else env_id)
-        else:
-            spec = PolicySpec(policy, options=dict(policy_options or {}),
-                              env_id=TERRAIN_ENV_ID if policy == "mpc" and env_id == TERRAIN_ENV_ID else None)
+        spec = task_policy_spec(policy, env_id, policy_options, plan_path=str(plan_file))
     else:
         spec = policy
     name = policy_name or (spec.name if isinstance(spec, PolicySpec) else type(spec).__name__)

@@ -4,50 +4,16 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import functools
 import time
 
 import numpy as np
 
 from hsddp_gym.core.conventions import NU, NX
+from hsddp_gym.registry import DATASET_ENVS, TASKS, task_of_env_id
 from hsddp_gym.util.validation import check_positive
 
-ENV_ID = "hsddp_gym/Bounding-v0"
-PRONKING_ENV_ID = "hsddp_gym/Pronking-v0"
-BACKFLIP_ENV_ID = "hsddp_gym/Backflip-v0"
-JUMP_ENV_IDS = {"hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump"}
-"""The jump tasks' envs and their motions (``hsddp_gym.planners.motions.JUMPS``)."""
-TRANSITION_ENV_IDS = {"hsddp_gym/StandToBound-v0": "stand_to_bound",
-                      "hsddp_gym/BoundPronkBound-v0": "bound_pronk_bound", "hsddp_gym/BoundToStop-v0": "bound_to_stop"}
-"""The gait-transition tasks' envs and their tasks (``hsddp_gym.planners.motions.TRANSITIONS``)."""
-TERRAIN_ENV_ID = "hsddp_gym/Terrain-v0"
-"""Bounding-v0 on a seeded random terrain per episode: its ``mpc`` is the terrain-aware MPC (:data:`MPC_ENVS`)."""
-DATASET_ENVS = (ENV_ID, PRONKING_ENV_ID, BACKFLIP_ENV_ID, *JUMP_ENV_IDS, TERRAIN_ENV_ID, *TRANSITION_ENV_IDS)
-"""The envs datasets are recorded in (``generate_dataset(env_id=...)``, ``hsddp-gym dataset --env``)."""
-MPC_ENVS = (ENV_ID, TERRAIN_ENV_ID)
-"""The envs whose expert is the MPC (``mpc``; the others' is their task's plan tracker, ``expert``). In
-``hsddp_gym/Terrain-v0`` the MPC is given each episode's terrain: ``MPCPolicy(EnvInterface.from_env(env),
-options, terrain=env_terrain(env))`` (:func:`hsddp_gym.planners.policies.mpc.env_terrain`, read at every reset)."""
-POLICIES = ("mpc", "expert", "heuristic", "random")
-EXPERT_PLAN = {"method": "al-reb", "cycles": 5}
-"""The expert's plan: ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5)`` (paper task 1, 1 m/s)."""
-EXPERT_PRONK_PLAN = {"motion": "pronk", "cycles": 4}
-"""The pronking expert's plan in Pronking-v0: ``hsddp_gym.planners.motions.plan_pronk(4, target_speed)``, tracked
-periodically (:func:`hsddp_gym.planners.policies.experts.pronking_expert`)."""
-EXPERT_BACKFLIP_PLAN = {"motion": "backflip", "hold": "control period / 1 ms (5 by default)"}
-"""The backflip expert's plan in Backflip-v0: ``hsddp_gym.planners.motions.plan_backflip_held(hold)``, tracked then
-held (:func:`hsddp_gym.planners.policies.experts.backflip_expert`)."""
-EXPERT_JUMP_PLAN = {"motion": "gap_jump or box_jump", "speed": 1.0, "cycles": 2,
-                    "hold": "control period / 1 ms (5 by default)"}
-"""The jump expert's plan in GapJump-v0 / BoxJump-v0: ``hsddp_gym.planners.motions.plan_jump_held(motion, hold)``,
-tracked, then its cycle after the jump looped (:func:`hsddp_gym.planners.policies.experts.jump_expert`)."""
-EXPERT_TRANSITION_PLAN = {"motion": "stand_to_bound, bound_pronk_bound or bound_to_stop", "speed": 1.0,
-                          "cycles": "hsddp_gym.planners.policies.experts.TRANSITION_PLAN_CYCLES[motion]",
-                          "hold": "control period / 1 ms (5 by default)"}
-"""The transition expert's plan in StandToBound-v0 / BoundPronkBound-v0 / BoundToStop-v0:
-``hsddp_gym.planners.motions.plan_transition_held(motion, hold, cycles=TRANSITION_PLAN_CYCLES[motion])``, tracked,
-then its bounding cycle looped or its last posture held
-(:func:`hsddp_gym.planners.policies.experts.transition_expert`)."""
+ENV_ID = TASKS["bounding"].env_id
+"""The default env of datasets (Bounding-v0)."""
 NOISE_STREAM = 7919
 """First entry of the seed sequence of the DART action noise (``[NOISE_STREAM, episode seed]``)."""
 NONDETERMINISTIC_INFOS = ("solve_ms",)
@@ -77,172 +43,16 @@ def check_env_id(env_id) -> str:
     return str(env_id)
 
 
-# ================================================================================================ policies
-@dataclasses.dataclass(frozen=True)
-class PolicySpec:
-    """A picklable recipe for the policy of one episode (the default ``policy_factory``).
-
-    Args:
-        name: one of :data:`POLICIES`.
-        options: ``MPCOptions`` fields for ``mpc`` (JSON-serializable values); unused otherwise.
-        plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`);
-            ``expert`` only.
-        env_id: the env the expert's plan is for (None: Bounding-v0, the bounding expert): in
-            ``hsddp_gym/Pronking-v0`` the expert is :func:`~hsddp_gym.planners.policies.experts.pronking_expert` of a
-            pronk plan, in ``hsddp_gym/Backflip-v0`` :func:`~hsddp_gym.planners.policies.experts.backflip_expert` of
-            a backflip plan (no reset options), in the jumps' and the gait transitions' envs their task's expert
-            (:func:`~hsddp_gym.planners.policies.experts.jump_expert`,
-            :func:`~hsddp_gym.planners.policies.experts.transition_expert`); in ``hsddp_gym/Terrain-v0``
-            ``mpc`` is the terrain-aware MPC (the episode's terrain as privileged information, :data:`MPC_ENVS`).
-    """
-
-    name: str
-    options: dict = dataclasses.field(default_factory=dict)
-    plan_path: str | None = None
-    env_id: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.name not in POLICIES:
-            raise ValueError(f"policy name must be one of {POLICIES}, got {self.name!r}")
-        if self.name == "expert" and self.plan_path is None:
-            raise ValueError("the expert policy needs plan_path (its plan, saved with Solution.save)")
-        if self.name == "expert" and check_env_id(self.env_id) == TERRAIN_ENV_ID:
-            raise ValueError(f"in {TERRAIN_ENV_ID} the expert is 'mpc' (the terrain-aware MPC), not a plan tracker")
-        check_env_id(self.env_id)
-
-    def __call__(self, env, episode_seed: int):
-        """``(policy, reset_options)`` for an episode of ``env`` seeded ``episode_seed``."""
-        from hsddp_gym.planners.policies import experts
-        from hsddp_gym.planners.policies.base import EnvInterface
-        from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
-        from hsddp_gym.planners.policies.random_policy import RandomPolicy
-
-        if self.name == "mpc":
-            from hsddp_gym.planners.policies.mpc import MPCOptions, MPCPolicy, env_terrain
-
-            terrain = env_terrain(env) if check_env_id(self.env_id) == TERRAIN_ENV_ID else None
-            return MPCPolicy.from_env(env, options=MPCOptions(**_mpc_options(self.options)), terrain=terrain), None
-        if self.name == "expert":
-            interface, sol = EnvInterface.from_env(env), _load_plan(str(self.plan_path))
-            env_id = check_env_id(self.env_id)
-            if env_id == PRONKING_ENV_ID:
-                return experts.pronking_expert(interface, sol), None
-            if env_id == BACKFLIP_ENV_ID:
-                return experts.backflip_expert(interface, sol), None
-            if env_id in JUMP_ENV_IDS:
-                return experts.jump_expert(interface, sol), None
-            if env_id in TRANSITION_ENV_IDS:
-                return experts.transition_expert(interface, sol, TRANSITION_ENV_IDS[env_id]), None
-            return experts.bounding_expert(interface, sol), {"state": sol.X[0].copy()}
-        if self.name == "heuristic":
-            return HeuristicPolicy.from_env(env), None
-        return RandomPolicy.from_env(env, seed=int(episode_seed)), None
-
-    def describe(self) -> dict:
-        """JSON description (name and the full options in effect)."""
-        policies = "hsddp_gym.planners.policies"
-        d = {"name": self.name, "class": {"mpc": f"{policies}.mpc.MPCPolicy",
-                                          "expert": f"{policies}.tracking_policy.PlanTrackingPolicy",
-                                          "heuristic": f"{policies}.heuristic.HeuristicPolicy",
-                                          "random": f"{policies}.random_policy.RandomPolicy"}[self.name]}
-        if self.name == "mpc":
-            from hsddp_gym.planners.policies.mpc import MPCOptions
-
-            d["options"] = dataclasses.asdict(MPCOptions(**_mpc_options(self.options)))
-            if check_env_id(self.env_id) == TERRAIN_ENV_ID:
-                d["terrain"] = ("env_terrain(env): the episode's terrain (privileged information), read at every "
-                                "reset")
-        elif self.name == "expert" and check_env_id(self.env_id) == PRONKING_ENV_ID:
-            d["configuration"] = f"{policies}.experts.pronking_expert"
-            d["options"] = {"plan": dict(EXPERT_PRONK_PLAN), "plan_file": "expert_plan.npz",
-                            "tracking": "periodic: after the plan's last touchdown the cursor returns to phase 2",
-                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
-        elif self.name == "expert" and check_env_id(self.env_id) == BACKFLIP_ENV_ID:
-            d["configuration"] = f"{policies}.experts.backflip_expert"
-            d["options"] = {"plan": dict(EXPERT_BACKFLIP_PLAN), "plan_file": "expert_plan.npz",
-                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
-                                        "clear; after the plan a joint PD on its last posture",
-                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
-        elif self.name == "expert" and check_env_id(self.env_id) in JUMP_ENV_IDS:
-            d["configuration"] = f"{policies}.experts.jump_expert"
-            d["options"] = {"plan": {**EXPERT_JUMP_PLAN, "motion": JUMP_ENV_IDS[self.env_id]},
-                            "plan_file": "expert_plan.npz",
-                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen 2 cm "
-                                        "clear; after the plan its first cycle after the jump, looped",
-                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
-        elif self.name == "expert" and check_env_id(self.env_id) in TRANSITION_ENV_IDS:
-            from hsddp_gym.planners.policies.experts import TRANSITION_LOOPS, TRANSITION_PLAN_CYCLES
-
-            task = TRANSITION_ENV_IDS[self.env_id]
-            loop = TRANSITION_LOOPS[task]
-            after = ("its last control plus a joint PD to its last knot's joint angles" if loop[0] is None
-                     else f"its bounding cycle (phases {loop[0]}-{loop[1] - 1}), looped")
-            d["configuration"] = f"{policies}.experts.transition_expert"
-            d["options"] = {"plan": {**EXPERT_TRANSITION_PLAN, "motion": task, "cycles": TRANSITION_PLAN_CYCLES[task]},
-                            "plan_file": "expert_plan.npz",
-                            "tracking": "the plan's held-input feedback law, touchdowns counted for feet seen clear "
-                                        "(2 cm, or half the plan's lowest landing-foot peak if lower); after the plan "
-                                        + after,
-                            "reset_options": "none (the env starts at the plan's start, with reset noise)"}
-        elif self.name == "expert":
-            d["configuration"] = f"{policies}.experts.bounding_expert"
-            d["options"] = {"plan": dict(EXPERT_PLAN), "plan_file": "expert_plan.npz",
-                            "reset_options": "{'state': plan.X[0]} (no reset noise)",
-                            "fallback_after_plan": "hsddp_gym.planners.policies.mpc.MPCPolicy (default options)"}
-        elif self.name == "random":
-            d["options"] = {"seed": "episode seed"}
-        else:
-            d["options"] = {}
-        return d
-
-
-def _mpc_options(options: dict) -> dict:
-    opts = dict(options)
-    if opts.get("durations") is not None:
-        opts["durations"] = tuple(opts["durations"])
-    return opts
-
-
-@functools.lru_cache(maxsize=4)
-def _load_plan(path: str):
-    from hsddp_gym.planners.optimizer.solution import Solution
-
-    return Solution.load(path)
-
-
 def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0, hold: int = 5) -> dict:
-    """Solve the expert's plan (:data:`EXPERT_PLAN`; in Pronking-v0 :data:`EXPERT_PRONK_PLAN` at ``target_speed``
-    [m/s]; in Backflip-v0 :data:`EXPERT_BACKFLIP_PLAN`, in GapJump-v0 / BoxJump-v0 :data:`EXPERT_JUMP_PLAN`, in the
-    gait transitions' envs :data:`EXPERT_TRANSITION_PLAN`, for a control held ``hold`` plan knots), save it to
-    ``path``
-    and return its summary."""
-    if check_env_id(env_id) in (BACKFLIP_ENV_ID, *JUMP_ENV_IDS, *TRANSITION_ENV_IDS):
-        from hsddp_gym.planners.motions import plan_backflip_held, plan_jump_held, plan_transition_held
-        from hsddp_gym.planners.policies.experts import TRANSITION_PLAN_CYCLES
+    """Solve the plan of the expert of ``env_id``'s task (``Task.plan`` of the task registry: for a control held
+    ``hold`` plan knots, at ``target_speed`` [m/s] where the plan reads them, ``Task.plan_inputs``), save it to
+    ``path`` and return its summary (:func:`hsddp_gym.rollout.plans.plan_summary`)."""
+    from hsddp_gym.rollout.plans import plan_summary, task_plan
 
-        if env_id == BACKFLIP_ENV_ID:
-            sol = plan_backflip_held(hold)
-        elif env_id in JUMP_ENV_IDS:
-            sol = plan_jump_held(JUMP_ENV_IDS[env_id], hold)
-        else:
-            task = TRANSITION_ENV_IDS[env_id]
-            sol = plan_transition_held(task, hold, cycles=TRANSITION_PLAN_CYCLES[task])
-        sol.save(path)
-        return {"status": sol.status, "converged": bool(sol.converged), "al_iterations": int(sol.al_iterations),
-                "ddp_iterations": int(sol.ddp_iterations), "switching_violation": float(sol.switching_violation),
-                "cost": float(sol.cost), "solve_time_s": float(sol.solve_time), "hold": int(hold)}
-    if check_env_id(env_id) == PRONKING_ENV_ID:
-        from hsddp_gym.planners.motions import plan_pronk
-
-        result = plan_pronk(EXPERT_PRONK_PLAN["cycles"], float(target_speed))
-    else:
-        from hsddp_gym.planners.tasks import plan_bounding
-
-        result = plan_bounding(EXPERT_PLAN["method"], cycles=EXPERT_PLAN["cycles"])
-    result.solution.save(path)
-    keep = ("status", "converged", "al_iterations", "ddp_iterations", "switching_violation", "cost",
-            "avg_forward_speed", "solve_time_s")
-    return {k: result.summary[k] for k in keep if k in result.summary}
+    task = task_of_env_id(check_env_id(env_id))
+    inputs = {k: {"hold": hold, "speed": target_speed}[k] for k in task.plan_inputs}
+    task_plan(task, **inputs).save(path)
+    return plan_summary(task, **inputs)
 
 
 # ================================================================================================ episodes
@@ -398,9 +208,67 @@ def _check_info(info: dict, schema: dict, step: int) -> None:
             raise ValueError(f"env info[{k!r}] changed shape at step {step}: {shape} -> {np.asarray(info[k]).shape}")
 
 
+class _RecordingPolicy:
+    """What the episode loop plays while recording: the policy through its :class:`DecisionRecorder` (on the true
+    state with ``privileged``), with DART noise on the sent action."""
+
+    def __init__(self, policy, env, slot: dict, include_gains: bool, noise_rng, action_noise: float,
+                 privileged: bool) -> None:
+        self.policy, self.env, self.slot, self.include_gains = policy, env, slot, include_gains
+        self.noise_rng, self.action_noise, self.privileged = noise_rng, action_noise, privileged
+        self.reset_options = getattr(policy, "reset_options", None)
+        self.rec, self.decision = None, None
+
+    def reset(self) -> None:
+        if hasattr(self.policy, "reset"):
+            self.policy.reset()
+        torque_limit = float(getattr(self.env.unwrapped, "torque_limit", 1.0))
+        self.rec = DecisionRecorder(self.policy, torque_limit, self.include_gains)
+
+    def __call__(self, obs) -> np.ndarray:
+        from hsddp_gym.envs.perturbations import true_observation
+
+        action, decision = self.rec.act(true_observation(self.env) if self.privileged else obs, self.slot)
+        if self.noise_rng is not None:
+            decision = {**decision, "expert_action": action.copy()}
+            action = np.clip(action + self.action_noise * self.noise_rng.standard_normal(action.shape), -1.0,
+                             1.0).astype(np.float32)
+            if self.privileged:
+                inform_sent_action(self.policy, action)
+        self.decision = decision
+        return action
+
+
+class _EpisodeRows:
+    """Observer of the recorded episode: the observations, actions, rewards, flags and ``infos`` rows (the env's
+    ``info`` without the wrappers' keys, and the decision behind each action)."""
+
+    def __init__(self, actor: _RecordingPolicy, drop) -> None:
+        self.actor, self.drop = actor, drop
+
+    def _env_info(self, info: dict) -> dict:
+        return {k: v for k, v in info.items() if k not in self.drop} if self.drop else info
+
+    def on_reset(self, env, obs, info) -> None:
+        self.info = self._env_info(info)
+        self.schema = _info_schema(self.info)
+        self.observations, self.actions, self.rewards, self.terms, self.truncs, self.rows = [obs], [], [], [], [], []
+
+    def on_step(self, env, action, obs, reward, terminated, truncated, info) -> None:
+        self.rows.append({**self.info, **self.actor.decision})
+        self.info = self._env_info(info)
+        _check_info(self.info, self.schema, len(self.actions))
+        self.observations.append(obs)
+        self.actions.append(action)
+        self.rewards.append(float(reward))
+        self.terms.append(bool(terminated))
+        self.truncs.append(bool(truncated))
+
+
 def record_episode(env, policy, seed: int, options: dict | None = None, index: int = 0,
                    include_gains: bool = False, action_noise: float = 0.0, privileged: bool = False) -> Episode:
-    """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)``.
+    """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)`` (the policy's
+    ``reset_options`` added, :func:`hsddp_gym.rollout.episodes.run_episode`).
 
     ``policy`` is any callable ``obs -> action`` with an optional ``reset()``; planner statistics and the
     tracked plan knot are recorded when it has them (see the module docstring).
@@ -419,56 +287,28 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     The keys wrappers add to ``info`` (``push``, ``executed_action``:
     :func:`~hsddp_gym.envs.perturbations.wrapper_info_keys`) are not recorded, so the schema stays the env's.
     """
-    from hsddp_gym.envs.perturbations import true_observation, wrapper_info_keys
+    from hsddp_gym.envs.perturbations import wrapper_info_keys
+    from hsddp_gym.rollout.episodes import run_episode
 
     action_noise = check_positive(action_noise, "action_noise", allow_zero=True)
     if not isinstance(privileged, (bool, np.bool_)):
         raise TypeError(f"privileged must be a bool, got {type(privileged).__name__}")
-    drop = wrapper_info_keys(env)
-
-    def env_info(i: dict) -> dict:
-        return {k: v for k, v in i.items() if k not in drop} if drop else i
-
     noise_rng = np.random.default_rng([NOISE_STREAM, int(seed)]) if action_noise > 0 else None
     t0 = time.perf_counter()
-    obs, info = env.reset(seed=int(seed), options=options)
-    info = env_info(info)
-    if hasattr(policy, "reset"):
-        policy.reset()
-    schema = _info_schema(info)
-    torque_limit = float(getattr(env.unwrapped, "torque_limit", 1.0))
-    rec = DecisionRecorder(policy, torque_limit, include_gains)
-    observations, actions, rewards, terms, truncs, rows = [obs], [], [], [], [], []
     with capture_plan_controls() as slot:
-        while True:
-            action, decision = rec.act(true_observation(env) if privileged else obs, slot)
-            if noise_rng is not None:
-                decision = {**decision, "expert_action": action.copy()}
-                action = np.clip(action + action_noise * noise_rng.standard_normal(action.shape), -1.0,
-                                 1.0).astype(np.float32)
-                if privileged:
-                    inform_sent_action(policy, action)
-            rows.append({**info, **decision})
-            obs, reward, terminated, truncated, info = env.step(action)
-            info = env_info(info)
-            _check_info(info, schema, len(actions))
-            observations.append(obs)
-            actions.append(action)
-            rewards.append(float(reward))
-            terms.append(bool(terminated))
-            truncs.append(bool(truncated))
-            if terminated or truncated:
-                break
-    final = rec.final()
+        actor = _RecordingPolicy(policy, env, slot, include_gains, noise_rng, action_noise, privileged)
+        rows = _EpisodeRows(actor, wrapper_info_keys(env))
+        run_episode(env, actor, seed, options=options, observers=(rows,))
+    final = actor.rec.final()
     if noise_rng is not None:
-        final["expert_action"] = rows[-1]["expert_action"].copy()
-    rows.append({**info, **final})
-    infos = {k: np.stack([np.asarray(r[k]) for r in rows]) for k in rows[0]}
+        final["expert_action"] = rows.rows[-1]["expert_action"].copy()
+    rows.rows.append({**rows.info, **final})
+    infos = {k: np.stack([np.asarray(r[k]) for r in rows.rows]) for k in rows.rows[0]}
     if noise_rng is not None:
         infos["expert_action"] = infos["expert_action"].astype(np.float32)
     for k, (shape, dtype) in DECISION_SCHEMA.items():
-        infos[k] = infos[k].astype(dtype, copy=False).reshape(len(rows), *shape)
-    return Episode(index=int(index), seed=int(seed), observations=np.asarray(observations, dtype=np.float32),
-                   actions=np.asarray(actions, dtype=np.float32), rewards=np.asarray(rewards, dtype=np.float64),
-                   terminations=np.asarray(terms, dtype=bool), truncations=np.asarray(truncs, dtype=bool),
-                   infos=infos, wall_time=time.perf_counter() - t0)
+        infos[k] = infos[k].astype(dtype, copy=False).reshape(len(rows.rows), *shape)
+    return Episode(index=int(index), seed=int(seed), observations=np.asarray(rows.observations, dtype=np.float32),
+                   actions=np.asarray(rows.actions, dtype=np.float32),
+                   rewards=np.asarray(rows.rewards, dtype=np.float64), terminations=np.asarray(rows.terms, dtype=bool),
+                   truncations=np.asarray(rows.truncs, dtype=bool), infos=infos, wall_time=time.perf_counter() - t0)

@@ -127,6 +127,50 @@ class DAggerResult:
     wall_time_s: float
 
 
+class DAggerMixture:
+    """What a relabelling rollout plays (:func:`dagger_rollout`): at every step the expert labels the true state, the
+    learner acts on what it sees, and the action sent is the expert's with probability ``beta`` (the learner's
+    otherwise) plus Gaussian noise; keeps the seen observations, the labels and the sent actions."""
+
+    def __init__(self, env, learner, expert, beta: float, rng: np.random.Generator, noise: float,
+                 perception) -> None:
+        self.env, self.learner, self.expert, self.beta, self.rng = env, learner, expert, beta, rng
+        self.noise, self.perception = noise, perception
+        self.reset_options = getattr(expert, "reset_options", None)
+        self.O, self.A, self.S, self.n_expert = [], [], [], 0
+
+    def reset(self) -> None:
+        self.expert.reset()
+        if self.learner is not None:
+            self.learner.reset()
+        if self.perception is not None:
+            self.perception.reset()
+        self.O, self.A, self.S, self.n_expert = [], [], [], 0
+
+    def __call__(self, obs) -> np.ndarray:
+        from hsddp_gym.datasets.recording import inform_sent_action
+        from hsddp_gym.envs.perturbations.wrappers import true_observation
+
+        label = np.asarray(self.expert(true_observation(self.env)), dtype=np.float32)
+        seen = self.perception.observation_for_inner(obs) if self.perception is not None else obs
+        self.O.append(np.asarray(seen, dtype=np.float32))
+        self.A.append(label)
+        own = np.asarray(self.learner(seen), dtype=np.float32) if self.learner is not None else None
+        use_expert = self.learner is None or self.rng.random() < self.beta
+        self.n_expert += int(use_expert)
+        action = label if use_expert else own
+        if self.noise > 0:
+            action = np.clip(action + self.noise * self.rng.standard_normal(action.shape), -1.0,
+                             1.0).astype(np.float32)
+        inform_sent_action(self.expert, action)
+        if self.learner is not None:
+            inform_sent_action(self.learner, action)
+        if self.perception is not None:
+            self.perception.record_sent(action)
+        self.S.append(action)
+        return action
+
+
 def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.Generator,
                    options: dict | None = None, noise: float = 0.0, max_steps: int | None = None,
                    perception=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
@@ -139,40 +183,16 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     clock, latency queue) follows the episode whichever policy's action is sent, and it is told the action sent too.
     ``perception``: an :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` through which the
     learner sees (``DAggerConfig.estimator``): the learner acts on, and the rollout stores, its
-    :meth:`observation_for_inner`. Returns ``(obs (T, d), expert actions (T, 4), sent actions (T, 4), return, expert
-    acts)``."""
-    from hsddp_gym.datasets.recording import inform_sent_action
-    from hsddp_gym.envs.perturbations.wrappers import true_observation
+    :meth:`observation_for_inner`. The episode starts from ``options`` and the expert's ``reset_options``
+    (:func:`hsddp_gym.rollout.episodes.run_episode`). Returns ``(obs (T, d), expert actions (T, 4), sent actions
+    (T, 4), return, expert acts)``."""
+    from hsddp_gym.rollout.episodes import Returns, run_episode
 
-    obs, _ = env.reset(seed=int(seed), options=options)
-    expert.reset()
-    if learner is not None:
-        learner.reset()
-    if perception is not None:
-        perception.reset()
-    O, A, S, ret, n_expert = [], [], [], 0.0, 0
-    while True:
-        label = np.asarray(expert(true_observation(env)), dtype=np.float32)
-        seen = perception.observation_for_inner(obs) if perception is not None else obs
-        O.append(np.asarray(seen, dtype=np.float32))
-        A.append(label)
-        own = np.asarray(learner(seen), dtype=np.float32) if learner is not None else None
-        use_expert = learner is None or rng.random() < beta
-        n_expert += int(use_expert)
-        action = label if use_expert else own
-        if noise > 0:
-            action = np.clip(action + noise * rng.standard_normal(action.shape), -1.0, 1.0).astype(np.float32)
-        inform_sent_action(expert, action)
-        if learner is not None:
-            inform_sent_action(learner, action)
-        if perception is not None:
-            perception.record_sent(action)
-        S.append(action)
-        obs, reward, terminated, truncated, _ = env.step(action)
-        ret += float(reward)
-        if terminated or truncated or (max_steps is not None and len(O) >= int(max_steps)):
-            break
-    return np.array(O), np.array(A), np.array(S, dtype=np.float32), ret, n_expert
+    mixture = DAggerMixture(env, learner, expert, beta, rng, noise, perception)
+    ret = Returns()
+    run_episode(env, mixture, seed, options=options, max_steps=max_steps, observers=(ret,))
+    return (np.array(mixture.O), np.array(mixture.A), np.array(mixture.S, dtype=np.float32), ret.total,
+            mixture.n_expert)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -215,9 +235,9 @@ def run_rollout_task(task: RolloutTask) -> tuple:
         if cfg.estimator:
             perception = EstimatedStatePolicy(learner if learner is not None else Policy(interface),
                                               EnvInterface.from_env(env))
-        expert, options = task.expert_factory(env, task.seed)
+        expert = task.expert_factory(env, task.seed)
         O, A, S, ret, ne = dagger_rollout(env, learner, expert, cfg.beta(r), task.seed,
-                                          np.random.default_rng([cfg.seed, r, task.j]), options,
+                                          np.random.default_rng([cfg.seed, r, task.j]),
                                           noise=float(cfg.rollout_noise) if r > 0 else 0.0,
                                           max_steps=cfg.rollout_steps if r > 0 else None, perception=perception)
         delay = EnvInterface.from_env(env).action_delay_steps
@@ -233,8 +253,9 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
     """DAgger with any expert (see the module docstring).
 
     Args:
-        expert_factory: ``(env, episode_seed) -> (expert Policy, reset_options or None)``, e.g.
-            :class:`hsddp_gym.datasets.recording.PolicySpec`; one expert is built per rollout.
+        expert_factory: ``(env, episode_seed) -> expert Policy`` (its ``reset_options`` attribute, when it has one,
+            starts the rollouts), e.g. :class:`hsddp_gym.rollout.policies.PolicySpec`; one expert is built per
+            rollout.
         initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
         evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
         clock: the gait clock of ``gait_clock`` features (default: the default MPC's, :func:`make_gait_clock`).
@@ -333,14 +354,9 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
             ``hsddp_gym/Pronking-v0`` the expert must be ``"expert"``: the pronk plan tracker
             (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`, its plan solved at the env's target speed).
     """
-    from hsddp_gym.datasets.recording import (
-        ENV_ID,
-        MPC_ENVS,
-        TERRAIN_ENV_ID,
-        PolicySpec,
-        check_env_id,
-        solve_expert_plan,
-    )
+    from hsddp_gym.datasets.recording import ENV_ID, check_env_id, solve_expert_plan
+    from hsddp_gym.registry import task_of_env_id
+    from hsddp_gym.rollout.policies import task_policy_spec
     from hsddp_gym.util.extras import require
     from hsddp_gym.util.io import write_json
 
@@ -355,10 +371,11 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     env_id = check_env_id(given[0] if given else None)
     if any(check_env_id(e) != env_id for e in given):
         raise ValueError(f"env_id: the env given, config.env_id and the dataset's env differ: {given}")
-    if env_id not in MPC_ENVS and expert != "expert":
+    task = task_of_env_id(env_id)
+    if task.dataset_expert != "mpc" and expert != "expert":
         raise ValueError(f"expert {expert!r} is a {ENV_ID} controller; in {env_id} the expert is 'expert' (the "
                          "task's plan tracker)")
-    if env_id == TERRAIN_ENV_ID and expert == "expert":
+    if task.expert is None and expert == "expert":
         raise ValueError(f"in {env_id} the expert is 'mpc' (the terrain-aware MPC), not a plan tracker")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -369,12 +386,8 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     plan = None
     if expert == "expert":
         plan = solve_expert_plan(out / "expert_plan.npz", env_id, float(env_kwargs.get("target_speed", 1.0)))
-        spec = PolicySpec("expert", plan_path=str(out / "expert_plan.npz"),
-                          env_id=None if env_id == ENV_ID else env_id)
         files.append("expert_plan.npz")
-    else:
-        spec = PolicySpec(expert, options=dict(mpc_options or {}),
-                          env_id=TERRAIN_ENV_ID if expert == "mpc" and env_id == TERRAIN_ENV_ID else None)
+    spec = task_policy_spec(expert, env_id, mpc_options, plan_path=str(out / "expert_plan.npz"))
     initial = load_demonstrations(dataset, episodes=demos, fmt=fmt) if dataset is not None else None
 
     def evaluate(p):

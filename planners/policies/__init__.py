@@ -20,7 +20,6 @@ _EXPORTS = {  # module: the public names it defines
     "base": ("EnvInterface", "Policy",),
     "contact_consistency": ("PushingTorques",),
     "estimated_state": ("EstimatedStatePolicy", "EstimationOptions",),
-    "evaluation": ("EpisodeResult", "run_episode", "summarize",),
     "experts": ("backflip_expert", "bounding_expert", "jump_expert", "pronking_expert", "transition_expert",),
     "heuristic": (
         "ContactEventBoundingController", "ContactEventGains", "HeuristicBoundingController", "HeuristicGains",

@@ -24,7 +24,7 @@ expert's MPC.
   from there starts every cycle 0.3 rad of joint error off the plan (twice the tracking error, and the trunk sagging
   to 0.15 m in the MuJoCo twin).
 * **Gait transitions** (:func:`transition_expert`; ``plan_transition_held``: 1 m/s,
-  :data:`TRANSITION_PLAN_CYCLES` cycles per gait segment): stand to bound plays its first cycle at 1 m/s
+  the task registry's cycles per gait segment): stand to bound plays its first cycle at 1 m/s
   periodically (phases 5-8 of a plan with a third cycle: looping the plan's last cycle, which ends on a terminal
   cost, falls within two loops); bound-pronk-bound its first bounding cycle after the pronk (phases 13-16), as the
   jumps' expert; bound to stop holds its last posture, as the backflip's (:data:`TRANSITION_LOOPS`). The pronk's
@@ -56,10 +56,6 @@ plan's last cycle (the back foot's touchdown that ends the looped cycle)."""
 TRANSITION_LOOPS = {"stand_to_bound": (5, 9), "bound_pronk_bound": (13, 17), "bound_to_stop": (None, None)}
 """Per gait transition, the transition expert's ``(loop_phase, loop_end)`` (``(None, None)``: the plan finishes,
 then its last posture is held)."""
-TRANSITION_PLAN_CYCLES = {"stand_to_bound": 3, "bound_pronk_bound": 2, "bound_to_stop": 2}
-"""Per gait transition, the plan's cycles per gait segment (``plan_transition_held(task, hold, cycles=...)``): stand
-to bound plans a third cycle at 1 m/s so that the looped cycle (phases 5-8) is not the plan's last (its schedule and
-speed profile are those of the two-cycle plan with its last cycle repeated, what the env rewards)."""
 
 
 def bounding_expert(interface: EnvInterface, solution, fallback: Policy | None = None) -> PlanTrackingPolicy:
@@ -97,9 +93,9 @@ def jump_expert(interface: EnvInterface, solution, loop_phase: int = JUMP_LOOP[0
 def transition_expert(interface: EnvInterface, solution, task: str, hold_kp: float = HOLD_KP,
                       hold_kd: float = HOLD_KD) -> PlanTrackingPolicy:
     """The gait-transition expert of ``task`` (one of :data:`TRANSITION_LOOPS`): a transition plan
-    (``hsddp_gym.planners.motions.plan_transition_held`` with ``hold`` = control period / 1 ms and
-    :data:`TRANSITION_PLAN_CYCLES`; the transition envs start at its ``X[0]``) tracked with touchdowns counted for
-    feet seen :func:`~hsddp_gym.planners.policies.touchdown.plan_clearance` clear, then its bounding cycle repeated or
+    (``hsddp_gym.planners.motions.plan_transition_held`` with ``hold`` = control period / 1 ms and the registry's
+    cycles, ``hsddp_gym.registry.TASKS[task].plan_kwargs``; the transition envs start at its ``X[0]``) tracked with
+    touchdowns counted for feet seen :func:`~hsddp_gym.planners.policies.touchdown.plan_clearance` clear, then its bounding cycle repeated or
     (bound to stop) its last posture held with the joint gains ``hold_kp``, ``hold_kd``."""
     if task not in TRANSITION_LOOPS:
         raise ValueError(f"task must be one of {tuple(TRANSITION_LOOPS)}, got {task!r}")
@@ -113,5 +109,5 @@ def transition_expert(interface: EnvInterface, solution, task: str, hold_kp: flo
                               after_plan=after)
 
 
-__all__ = ["PRONK_LOOP_PHASE", "JUMP_LOOP", "TRANSITION_LOOPS", "TRANSITION_PLAN_CYCLES", "bounding_expert",
+__all__ = ["PRONK_LOOP_PHASE", "JUMP_LOOP", "TRANSITION_LOOPS", "bounding_expert",
            "pronking_expert", "backflip_expert", "jump_expert", "transition_expert"]
