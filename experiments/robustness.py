@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--policies", nargs="*", default=["mpc", "heuristic"], choices=BUILTIN,
                    help="built-in policies; '--policies' alone runs none (only --learned ones) (default: %(default)s)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
-                   help="the mpc-options policy's settings by their flat names (MPCOptions.replace) as JSON (ablations)")
+                   help="the mpc-options policy's settings by their flat names (MPCOptions.replace), JSON (ablations)")
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
     p.add_argument("--learned", action="append", default=[], metavar="NAME=DIR",
                    help=f"a trained policy, NAME one of {list(LEARNED)}, or NAME@TAG to run several of a kind (e.g. "

@@ -95,8 +95,8 @@ def transition_expert(interface: EnvInterface, solution, task: str, hold_kp: flo
     """The gait-transition expert of ``task`` (one of :data:`TRANSITION_LOOPS`): a transition plan
     (``hsddp_gym.planners.motions.plan_transition_held`` with ``hold`` = control period / 1 ms and the registry's
     cycles, ``hsddp_gym.registry.TASKS[task].plan_kwargs``; the transition envs start at its ``X[0]``) tracked with
-    touchdowns counted for feet seen :func:`~hsddp_gym.planners.policies.touchdown.plan_clearance` clear, then its bounding cycle repeated or
-    (bound to stop) its last posture held with the joint gains ``hold_kp``, ``hold_kd``."""
+    touchdowns counted for feet seen :func:`~hsddp_gym.planners.policies.touchdown.plan_clearance` clear, then its
+    bounding cycle repeated or (bound to stop) its last posture held with the joint gains ``hold_kp``, ``hold_kd``."""
     if task not in TRANSITION_LOOPS:
         raise ValueError(f"task must be one of {tuple(TRANSITION_LOOPS)}, got {task!r}")
     if solution is None:
