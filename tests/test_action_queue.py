@@ -166,7 +166,7 @@ def test_bc_and_dagger_train_with_the_queue(delayed_dataset):
     env.close()
     dcfg = DAggerConfig(rounds=1, episodes_per_round=2, beta_decay=0.5, bc=dataclasses.replace(cfg, epochs=2),
                         max_episode_steps=15, conditions=("delay_10ms",))
-    res = train_dagger(lambda env, seed: (HeuristicPolicy(EnvInterface.from_env(env)), None), dcfg, initial=demos,
+    res = train_dagger(lambda env, seed: HeuristicPolicy(EnvInterface.from_env(env)), dcfg, initial=demos,
                        progress=False)
     assert res.data.action_delay is not None
     assert set(res.data.action_delay[res.data.episode >= 3].tolist()) == {2}
