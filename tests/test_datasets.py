@@ -310,11 +310,11 @@ def test_mpc_fields_and_feedback_law(tmp_path):
     out = tmp_path / "mpc"
     res = generate_dataset("mpc", 1, out, seed=0, max_episode_steps=10, include_gains=True, progress=False)
     meta = res.metadata
-    assert meta["policy"]["name"] == "mpc" and "replan_period" in meta["policy"]["options"]
+    assert meta["policy"]["name"] == "mpc" and "period" in meta["policy"]["options"]["replan"]
     ep = load_minari(out)[0]
     inf = ep.infos
     T = len(ep.actions)
-    period = round(meta["policy"]["options"]["replan_period"] / meta["control_dt"])
+    period = round(meta["policy"]["options"]["replan"]["period"] / meta["control_dt"])
     expected = np.zeros(T + 1, dtype=bool)
     expected[:T:period] = True
     np.testing.assert_array_equal(inf["replanned"], expected)

@@ -245,8 +245,8 @@ def test_a_small_terrain_dataset_is_recorded_by_the_terrain_aware_mpc(terrain_en
 def test_make_policy_mpc_in_terrain_v0_is_the_terrain_aware_mpc(terrain_env):
     from hsddp_gym.rollout.policies import make_policy
 
-    policy, options = make_policy("mpc", terrain_env)
-    assert options is None
+    policy = make_policy("mpc", terrain_env)
+    assert getattr(policy, "reset_options", None) is None
     terrain_env.reset(seed=11)
     policy.reset()
     assert policy.terrain is terrain_env.unwrapped.terrain and not policy.terrain.is_flat

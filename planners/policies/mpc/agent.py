@@ -95,21 +95,17 @@ class MPCPolicy(Policy):
         self.schedule.reset()
         self.speed.reset()
         self.law.plan = None
+        self.stats = self.planner.stats
+        """``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``time_budget_stops``,
+        ``restarts``, ``restarts_kept`` (:class:`~hsddp_gym.planners.policies.mpc.planner.MPCPlanner`'s own, the same
+        dict), ``delay_changes`` (the delay estimate's moves) and ``feedback_replans`` (feedback re-plans tried) since
+        :meth:`reset`: one live dict, updated in place."""
+        self.stats.update(delay_changes=0, feedback_replans=0)
         self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
         self._since_replan = np.inf
-        self._feedback_replans = 0
 
     # ------------------------------------------------------------------ what the components know
-    @property
-    def stats(self) -> dict:
-        """``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``time_budget_stops``,
-        ``restarts``, ``restarts_kept`` (:class:`~hsddp_gym.planners.policies.mpc.planner.MPCPlanner`),
-        ``delay_changes`` (the delay estimate's moves) and ``feedback_replans`` (feedback re-plans tried) since
-        :meth:`reset`."""
-        return {**self.planner.stats, "delay_changes": self.estimator.delay_changes,
-                "feedback_replans": self._feedback_replans}
-
     @property
     def last_solution(self):
         """The plan acted on (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`; None before the first)."""
@@ -124,6 +120,11 @@ class MPCPolicy(Policy):
     def terrain(self):
         """The terrain of the current episode (None: flat ground)."""
         return self.ground.terrain
+
+    @property
+    def announced_delay(self) -> int:
+        """The action delay the env announces [control steps] (``EnvInterface.action_delay_steps``)."""
+        return self.estimator.announced_delay
 
     @property
     def action_delay(self) -> int:
@@ -148,6 +149,7 @@ class MPCPolicy(Policy):
         controller."""
         x_obs, mode, _ = self._parse(obs)
         x_est = self.estimator.update(x_obs, mode)
+        self.stats["delay_changes"] = self.estimator.delay_changes
         self.speed.observe(float(x_est[NQ]))
         self.last_estimate = x_est
         self.schedule.observe(x_est, mode, self.estimator.bias)
@@ -170,7 +172,7 @@ class MPCPolicy(Policy):
             threshold = self.options.replan.feedback_threshold
             if threshold is not None and self._since_replan > 0.0 and self.law.saturates(u, threshold):
                 # far from the plan the feedback law alone would saturate the motors: plan again from here
-                self._feedback_replans += 1
+                self.stats["feedback_replans"] += 1
                 self._since_replan = 0.0
                 if self.replan(x, feedback=True):
                     u = self.law.control(x)
