@@ -1,4 +1,6 @@
-// MathJax 3 configuration for pymdownx.arithmatex (generic mode): the planner pages' equations.
+// MathJax 3 configuration for pymdownx.arithmatex (generic mode): the planner pages' equations, and a heading's
+// formula where the navigation shows the heading (its text is in an md-ellipsis span). MathJax itself is
+// javascripts/mathjax/tex-chtml.js, added to the site by mkdocs_hooks.py.
 window.MathJax = {
   tex: {
     inlineMath: [["\\(", "\\)"]],
@@ -8,6 +10,6 @@ window.MathJax = {
   },
   options: {
     ignoreHtmlClass: ".*|",
-    processHtmlClass: "arithmatex"
+    processHtmlClass: "arithmatex|md-ellipsis"
   }
 };
