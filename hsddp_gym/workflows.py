@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hsddp_gym.registry import ENV_TASKS, task_of_env
 from hsddp_gym.rollout.policies import (
     LEARNED_POLICIES,
     POLICIES,
@@ -55,7 +56,8 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 
 # ----------------------------------------------------------------------------------------------- rollout
 ROLLOUT_POLICIES = POLICIES
-ROLLOUT_ENVS = ("hsddp_gym/Bounding-v0", "hsddp_gym/BoundingMuJoCo-v0")
+ROLLOUT_ENVS = tuple(ENV_TASKS)
+"""The envs :func:`run_rollouts` runs in: every registered env (each task's env and its twins)."""
 
 
 def load_policy(spec: str, env=None):
@@ -71,12 +73,15 @@ def load_policy(spec: str, env=None):
 def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: bool = False,
                  env_kwargs: dict | None = None, push: list | None = None, quiet: bool = False,
                  max_episode_steps: int | None = None, mpc_options=None,
-                 env_id: str = "hsddp_gym/Bounding-v0") -> dict:
+                 env_id: str = "hsddp_gym/Bounding-v0", record: dict | None = None) -> dict:
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
-    ``max_episode_steps`` overrides the env's 1000-step time limit (None: keep it); ``mpc_options``: the MPC's
+    ``max_episode_steps`` overrides the env's registered time limit (None: keep it); ``mpc_options``: the MPC's
     :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (None: the defaults; for ``policy_name`` "mpc" only).
-    ``env_id``: ``hsddp_gym/Bounding-v0`` (the exact-LCP env) or ``hsddp_gym/BoundingMuJoCo-v0`` (its MuJoCo twin)."""
+    ``env_id``: any registered env (:data:`ROLLOUT_ENVS`: each task's env and its twins); the policy is built for
+    it (:func:`~hsddp_gym.rollout.policies.make_policy`: the task's expert, the terrain-aware MPC where the task's
+    MPC is) and its episodes start from the policy's ``reset_options``. ``record``: further entries of
+    ``summary.json`` (e.g. the CLI's ``transfer``)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -98,7 +103,8 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     env_kwargs = dict(env_kwargs or {})
     limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
     env = gym.make(env_id, render_mode="rgb_array" if video else None, **env_kwargs, **limit)
-    spec = policy_name if mpc_options is None else PolicySpec(policy_name, options=mpc_options)
+    spec = policy_name if mpc_options is None else PolicySpec(policy_name, options=mpc_options,
+                                                               env_id=task_of_env(env).env_id)
     policy = make_policy(spec, env, seed)
     options = None if push is None else {"push": push}  # {"delta_v": (3,), "time": t}
     results = []
@@ -107,6 +113,7 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     summary = summarize(results)
     summary.update(policy=policy_name, env_id=env_id, env_kwargs=env_kwargs, push=push, first_seed=seed,
                    max_episode_steps=env.spec.max_episode_steps)
+    summary.update(record or {})
     if mpc_options is not None:
         import dataclasses
 

@@ -17,6 +17,7 @@ import pytest
 from hsddp_gym import cli
 from hsddp_gym.datasets.generation import generate_dataset, partial_dir
 from hsddp_gym.datasets.storage import load_minari, load_npz, read_metadata, resolve_dataset_dir
+from hsddp_gym.registry import ENV_TASKS
 from hsddp_gym.util.validation import UsageError
 
 EPISODES = 2
@@ -38,13 +39,14 @@ def no_long_work(monkeypatch):
     import hsddp_gym.learning.sb3 as sb3
     import hsddp_gym.planners.tasks as tasks
     import hsddp_gym.workflows as workflows
+    from hsddp_gym.cli import rollout_command
 
     def reached(*args, **kwargs):
         raise AssertionError("long work started before the options were checked")
 
     for module, name in ((tasks, "plan_bounding"), (tasks, "run_sto"), (generation, "generate_dataset"),
                          (bc, "run_bc"), (dagger, "run_dagger"), (sb3, "train_sb3"), (workflows, "run_demo"),
-                         (cli, "run_rollouts"), (workflows, "run_rollouts")):
+                         (rollout_command, "run_rollouts"), (workflows, "run_rollouts")):
         monkeypatch.setattr(module, name, reached)
 
 
@@ -121,6 +123,16 @@ def _cases(tmp: Path, ds: Path) -> list[tuple[list[str], str]]:
         (["rollout", "--policy", "foo", "--out", out], "--policy"),
         (["rollout", "--policy", "bc:" + str(tmp / "missing"), "--out", out], "--policy"),
         (["rollout", "--policy", "sb3:" + str(ds), "--out", out], "--policy"),
+        (["rollout", "--env", "hsddp_gym/Terrain-v0", "--policy", "expert", "--out", out], "--policy"),
+        (["dataset", "--env", "hsddp_gym/Terrain-v0", "--policy", "expert", "--out", out], "--policy"),
+        (["rollout", "--transfer", "--out", out], "--transfer"),
+        # envs
+        (["rollout", "--env", "hsddp_gym/Terrain-v0", "--simulator", "mujoco", "--out", out], "--simulator"),
+        (["rollout", "--env", "hsddp_gym/BoundingKKT-v0", "--simulator", "mujoco", "--out", out], "--simulator"),
+        (["rollout", "--env", "hsddp_gym/StandToBound-v0", "--target-speed", "1.5", "--out", out], "--target-speed"),
+        (["rollout", "--env", "hsddp_gym/Pronking-v0", "--target-speed", "3", "--out", out], "--target-speed"),
+        (["rollout", "--env", "hsddp_gym/Backflip-v0", "--push", "3", "0", "0", "0", "--out", out], "--push"),
+        (["train", "--algo", "ppo", "--steps", "10", "--env", "hsddp_gym/Terrain-v0", "--out", out], "--env"),
     ]
 
 
@@ -170,6 +182,131 @@ def test_version_and_line_buffered_stdout(tmp_path):
     assert buffering.stdout.strip().splitlines()[-1] == "True"
 
 
+# ------------------------------------------------------------------------------------------ suggestions
+@pytest.mark.parametrize("argv,line", [
+    (["rollout", "--polcy", "mpc"], "error: unrecognized argument --polcy (did you mean --policy?); "
+                                    "see hsddp-gym rollout --help"),
+    (["rollout", "--qiet", "--zzzzzz=1"], "error: unrecognized arguments --qiet (did you mean --quiet?), --zzzzzz; "
+                                          "see hsddp-gym rollout --help"),
+    (["rolout"], "error: COMMAND: invalid choice 'rolout' (did you mean rollout?; allowed: "),
+    (["dataset", "--policy", "mcp", "--out", "x"], "error: --policy: invalid choice 'mcp' (did you mean mpc?; "
+                                                   "allowed: mpc, expert, heuristic, random); "
+                                                   "see hsddp-gym dataset --help"),
+    (["rollout", "--env", "Backflip-v0"], "error: --env: invalid choice 'Backflip-v0' (did you mean "
+                                          "hsddp_gym/Backflip-v0?; allowed: hsddp_gym/Bounding-v0, "),
+    (["train", "--algo", "bcc", "--out", "x"], "error: --algo: invalid choice 'bcc' (did you mean bc?; "),
+    (["dataset", "--condition", "pushh", "--out", "x"], "error: --condition: pushh (did you mean push?; allowed: "),
+    (["rollout", "--policy", "mcp"], "error: --policy: unknown policy 'mcp' (did you mean mpc?) (allowed: "),
+    (["rollout", "--policy", "bcc:runs/bc"], "error: --policy: unknown policy 'bcc:runs/bc' (did you mean "
+                                             "bc:runs/bc?) (allowed: "),
+])
+def test_mistakes_name_the_subcommands_help_and_the_closest_valid_word(argv, line, no_long_work, capsys):
+    rc, err = run(argv, capsys)
+    assert rc == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert err.startswith(line), err
+    help_of = "hsddp-gym --help" if argv[0] == "rolout" else f"hsddp-gym {argv[0]} --help"
+    assert err.rstrip().endswith(f"; see {help_of}"), err
+
+
+def test_the_parsing_mechanisms():
+    """The suggestion, the unrecognized-argument line and the options a user gave, each built directly."""
+    from hsddp_gym.cli.parsing import CommandParser, given_options, unrecognized_message
+    from hsddp_gym.util.validation import did_you_mean, parenthesized
+
+    assert did_you_mean("mcp", ["mpc", "expert"]) == "did you mean mpc?"
+    assert did_you_mean("zzzz", ["mpc", "expert"]) == ""
+    assert parenthesized("", "b") == " (b)" and parenthesized("", "") == ""
+    assert unrecognized_message(["--polcy", "mpc"], ["--policy"]) == "unrecognized argument --polcy (did you mean " \
+                                                                    "--policy?)"
+    assert unrecognized_message(["stray"], ["--policy"]) == "unrecognized argument stray"
+    p = CommandParser(prog="hsddp-gym x")
+    p.add_argument("--epochs", type=int, default=50)
+    p.add_argument("--flag", action="store_true")
+    p.add_argument("--name", default="a")
+    assert given_options(p, ["--epochs", "50"]) == {"epochs"}  # given at its default value: still given
+    assert given_options(p, ["--flag", "--name=b"]) == {"flag", "name"}
+    args = p.parse_args(["--epochs", "50"])
+    assert args.given == {"epochs"} and args.epochs == 50 and args.name == "a"  # the defaults are restored
+
+
+def test_train_refuses_every_option_an_algorithm_does_not_use(tmp_path, no_long_work, capsys):
+    """Each option of ``train`` given with each --algo that does not use it (even at its default value): one line
+    naming the option and the algorithms that use it."""
+    import argparse
+
+    from hsddp_gym.cli.train_command import ALGOS, OPTION_ALGOS
+
+    parser = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["train"]
+    actions = {a.option_strings[0]: a for a in parser._actions}
+    values = {"--condition": ["push"], "--hidden": ["8"], "--curve": ["1"], "--gain-noise": ["0.01", "0.1"]}
+    checked = 0
+    for option, algos in OPTION_ALGOS.items():
+        action = actions[option]
+        value = [] if action.nargs == 0 else values.get(option, [str(action.choices[0])] if action.choices
+                                                        else [str(action.default or 1)])
+        for algo in sorted(set(ALGOS) - set(algos)):
+            rc, err = run(["train", "--algo", algo, option, *value, "--out", str(tmp_path / "o")], capsys)
+            assert_one_line_error(rc, err, f"{option}: given with --algo {algo}")
+            assert f"--algo {algos[0]}" in err
+            checked += 1
+    assert checked >= 60
+
+
+# ------------------------------------------------------------------------------------------ every env
+@pytest.mark.parametrize("env_id", ENV_TASKS)
+def test_rollout_runs_in_every_registered_env(env_id, tmp_path, capsys):
+    out = tmp_path / "r"
+    assert cli.main(["rollout", "--env", env_id, "--policy", "random", "--episodes", "1", "--max-episode-steps", "5",
+                     "--out", str(out), "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["env_id"] == env_id and s["mean_episode_length"] == 5 and "transfer" not in s
+    capsys.readouterr()
+
+
+def test_rollout_episodes_start_where_the_expert_says(tmp_path):
+    """The expert of Bounding-v0 run in its MuJoCo twin: built by the one factory, its episode starts at its
+    ``reset_options`` (its plan's first state)."""
+    import gymnasium as gym
+
+    from hsddp_gym.rollout.policies import make_policy
+
+    out = tmp_path / "expert"
+    twin = "hsddp_gym/BoundingMuJoCo-v0"
+    assert cli.main(["rollout", "--env", twin, "--policy", "expert", "--episodes", "1", "--max-episode-steps", "3",
+                     "--out", str(out), "--quiet"]) == 0
+    env = gym.make(twin)
+    start = make_policy("expert", env).reset_options["state"]
+    np.testing.assert_array_equal(np.load(out / "episode0.npz")["states"][0], start)
+    env.close()
+
+
+def _fake_run(tmp: Path, env_id: str) -> Path:
+    """A finished-looking bc run trained in ``env_id`` (its weights are never read: the env check comes first)."""
+    run_dir = tmp / f"bc_{env_id.split('/')[-1]}"
+    run_dir.mkdir()
+    (run_dir / "summary.json").write_text(json.dumps({"algo": "bc", "env_id": env_id}))
+    (run_dir / "policy.npz").write_bytes(b"")
+    return run_dir
+
+
+def test_a_trained_policy_is_refused_in_another_env(tmp_path, no_long_work, capsys):
+    run_dir = _fake_run(tmp_path, "hsddp_gym/Backflip-v0")
+    out = str(tmp_path / "o")
+    rc, err = run(["rollout", "--policy", f"bc:{run_dir}", "--env", "hsddp_gym/Bounding-v0", "--out", out], capsys)
+    assert_one_line_error(rc, err, "--env: hsddp_gym/Bounding-v0, but --policy bc:")
+    assert "trained in hsddp_gym/Backflip-v0" in err and "--transfer" in err
+    rc, err = run(["rollout", "--policy", f"bc:{run_dir}", "--simulator", "mujoco", "--out", out], capsys)
+    assert_one_line_error(rc, err, "--simulator: hsddp_gym/BackflipMuJoCo-v0, but --policy bc:")
+    assert "its MuJoCo twin" in err
+    from hsddp_gym.cli.env_choices import relation, trained_env_id
+
+    assert trained_env_id(run_dir) == "hsddp_gym/Backflip-v0"
+    (run_dir / "summary.json").write_text(json.dumps({"algo": "bc"}))  # a run from before the field
+    assert trained_env_id(run_dir) == "hsddp_gym/Bounding-v0"
+    assert relation("hsddp_gym/Bounding-v0", "hsddp_gym/BoundingKKT-v0") == "its KKT twin"
+    assert relation("hsddp_gym/Bounding-v0", "hsddp_gym/Pronking-v0") == "the env of another task (pronking)"
+
+
 # ------------------------------------------------------------------------------------------ Python API
 def test_dataset_paths_resolve_to_the_dataset_directory(dataset, tmp_path):
     for inner in (dataset / "minari", dataset / "episodes.npz", dataset / "metadata.json",
@@ -184,6 +321,21 @@ def test_dataset_paths_resolve_to_the_dataset_directory(dataset, tmp_path):
     (tmp_path / "other").mkdir()
     with pytest.raises(ValueError, match="not a dataset directory"):
         load_minari(tmp_path / "other")
+
+
+def test_the_dataset_loaders_fail_alike(tmp_path):
+    """A missing path or a folder without a dataset: load_npz and load_minari raise the same UsageError, naming the
+    argument, the path, the files a dataset folder holds and the command that writes one."""
+    (tmp_path / "other").mkdir()
+    for path in (tmp_path / "nope", tmp_path / "other"):
+        errors = []
+        for load in (load_npz, load_minari):
+            with pytest.raises(UsageError) as caught:
+                load(path)
+            errors.append(str(caught.value))
+        assert errors[0] == errors[1], errors
+        assert errors[0].startswith(f"path: {str(path)!r}")
+        assert "metadata.json, episodes.npz and minari/" in errors[0] and "hsddp-gym dataset --out DIR" in errors[0]
 
 
 def test_generate_dataset_refuses_a_bad_id_before_recording(tmp_path, monkeypatch):
@@ -247,6 +399,23 @@ def test_rollout_of_a_trained_bc_policy(dataset, tmp_path, capsys):
     ep = run_episode(env, policy, 0)
     np.testing.assert_array_equal(np.load(out / "episode0.npz")["actions"], ep.actions)
     env.close()
+    capsys.readouterr()
+    assert summary["env_id"] == "hsddp_gym/Bounding-v0"  # the env it was trained in
+    # another env: refused, or transferred on purpose (a note on stderr, a record in the summary)
+    twin = ["--env", "hsddp_gym/BoundingMuJoCo-v0"]
+    rc, err = run([*argv, *twin], capsys)
+    assert_one_line_error(rc, err, "--env: hsddp_gym/BoundingMuJoCo-v0, but --policy bc:")
+    assert cli.main([*argv, *twin, "--transfer"]) == 0
+    err = capsys.readouterr().err
+    assert "note: --transfer: " in err and "trained in hsddp_gym/Bounding-v0" in err and "its MuJoCo twin" in err
+    assert json.loads((out / "summary.json").read_text())["transfer"] == {
+        "trained_env_id": "hsddp_gym/Bounding-v0", "env_id": "hsddp_gym/BoundingMuJoCo-v0",
+        "relation": "its MuJoCo twin"}
+    # without --env a trained policy runs in its own env
+    summary_file = run_dir / "summary.json"
+    summary_file.write_text(json.dumps({**json.loads(summary_file.read_text()), "env_id": "hsddp_gym/Pronking-v0"}))
+    assert cli.main(argv) == 0
+    assert json.loads((out / "summary.json").read_text())["env_id"] == "hsddp_gym/Pronking-v0"
     capsys.readouterr()
     # dagger:DIR accepts a BC run (both are MLP policies); sb3:DIR refuses it
     assert load_policy(f"dagger:{run_dir}").__class__ is MLPPolicy

@@ -398,17 +398,3 @@ def test_cli_demo_plans_with_hsddp_and_runs_the_mpc(tmp_path):
     assert mpc["policy"] == "mpc" and mpc["replans"] > 0 and mpc["mean_episode_length"] == 20
     for name in ("motion.png", "states.png", "convergence.png", "solution.npz", "mpc/summary.json"):
         assert (out / name).exists(), name
-
-
-def test_every_cli_option_has_help():
-    import argparse
-
-    parser = cli.build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    assert set(sub.choices) >= {"demo", "plan", "rollout", "sto", "dataset", "train"}
-    for command, p in sub.choices.items():
-        assert p.description, command
-        for action in p._actions:
-            if isinstance(action, argparse._HelpAction):
-                continue
-            assert action.help and len(action.help) > 10, (command, action.option_strings)

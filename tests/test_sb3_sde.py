@@ -107,7 +107,8 @@ def test_the_cli_sets_the_learning_rate_and_the_initial_noise_of_rl_runs(tmp_pat
     hp = json.loads((out / "summary.json").read_text())["hyperparameters"]
     assert hp["learning_rate"] == "lin_2e-4" and hp["policy_kwargs"]["log_std_init"] == -1.5
     bc = cli.build_parser().parse_args(["train", "--algo", "bc", "--dataset", "d", "--out", "x", "--lr", "5e-4"])
-    assert bc.lr == 5e-4 and cli._bc_lr(cli.build_parser().parse_args(["train", "--algo", "bc", "--out", "x"])) == 1e-3
+    default = cli.build_parser().parse_args(["train", "--algo", "bc", "--out", "x"])
+    assert bc.lr == 5e-4 and cli.train_command._bc_lr(default) == 1e-3
     for argv, message in ((["--algo", "ppo", "--steps", "5", "--log-std-init", "nan"], "error: --log-std-init: "),
                           (["--algo", "sac", "--steps", "5", "--log-std-init", "-1"], "error: --log-std-init: given"),
                           (["--algo", "bc", "--dataset", "d", "--lr", "lin_1e-3"], "error: --lr: lin_1e-3"),

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from hsddp_gym.datasets.recording import ENV_ID, Episode
+from hsddp_gym.registry import TASKS, task_of_env_id
 from hsddp_gym.util.io import json_default, read_npz, write_json, write_npz
 
 
@@ -33,18 +34,11 @@ def minari_root(path):
 
 
 def default_dataset_id(policy_name: str, env_id: str | None = None) -> str:
-    """``hsddp_gym/bounding/<policy>-v0`` (``env_id`` None or Bounding-v0), ``hsddp_gym/pronking/<policy>-v0``
-    (``hsddp_gym/Pronking-v0``), ``hsddp_gym/backflip/<policy>-v0`` (``hsddp_gym/Backflip-v0``),
-    ``hsddp_gym/gap_jump/<policy>-v0`` (``hsddp_gym/GapJump-v0``), ``hsddp_gym/box_jump/<policy>-v0``
-    (``hsddp_gym/BoxJump-v0``), ``hsddp_gym/terrain/<policy>-v0`` (``hsddp_gym/Terrain-v0``),
-    ``hsddp_gym/stand_to_bound/<policy>-v0``, ``hsddp_gym/bound_pronk_bound/<policy>-v0`` and
-    ``hsddp_gym/bound_to_stop/<policy>-v0`` (the gait transitions' envs)."""
-    task = {"hsddp_gym/Pronking-v0": "pronking", "hsddp_gym/Backflip-v0": "backflip",
-            "hsddp_gym/GapJump-v0": "gap_jump", "hsddp_gym/BoxJump-v0": "box_jump",
-            "hsddp_gym/Terrain-v0": "terrain", "hsddp_gym/StandToBound-v0": "stand_to_bound",
-            "hsddp_gym/BoundPronkBound-v0": "bound_pronk_bound",
-            "hsddp_gym/BoundToStop-v0": "bound_to_stop"}.get(env_id, "bounding")
-    return f"hsddp_gym/{task}/{policy_name}-v0"
+    """``hsddp_gym/<task>/<policy>-v0`` with ``<task>`` the name of ``env_id``'s task in the registry
+    (:data:`hsddp_gym.registry.TASKS`; ``env_id`` None: Bounding-v0's, ``bounding``), e.g.
+    ``hsddp_gym/pronking/expert-v0`` for ``hsddp_gym/Pronking-v0``; ``ValueError`` for an env of no task."""
+    task = TASKS["bounding"] if env_id is None else task_of_env_id(env_id)
+    return f"hsddp_gym/{task.name}/{policy_name}-v0"
 
 
 def episodes_to_arrays(episodes: list[Episode]) -> dict:
@@ -163,8 +157,8 @@ def package_version() -> str:
 # ================================================================================================ loading
 DATASET_FILES = ("metadata.json", "episodes.npz", "minari")
 """What a dataset directory written by :func:`write_dataset` holds."""
-_DATASET_ALLOWED = "a dataset directory written by `hsddp-gym dataset` / generate_dataset (with metadata.json, " \
-                   "episodes.npz and minari/)"
+_DATASET_ALLOWED = ("a dataset directory holding metadata.json, episodes.npz and minari/, written by `hsddp-gym "
+                    "dataset --out DIR` or hsddp_gym.datasets.generate_dataset")
 
 
 def resolve_dataset_dir(path, name: str = "path") -> Path:
@@ -212,7 +206,12 @@ def read_metadata(path) -> dict:
 def load_minari(path, dataset_id: str | None = None):
     """``minari.load_dataset`` of the dataset in directory ``path`` (``MINARI_DATASETS_PATH`` is set to
     ``path/minari`` for the call only; the returned dataset keeps reading from there). ``path`` may also
-    name the dataset's ``minari/`` folder (see :func:`resolve_dataset_dir`)."""
+    name the dataset's ``minari/`` folder (see :func:`resolve_dataset_dir`).
+
+    Raises:
+        UsageError (a ValueError naming ``path``): ``path`` does not exist or is no dataset directory, as
+        :func:`load_npz`.
+    """
     from hsddp_gym.util.extras import require
 
     require(["minari", "h5py"], "load_minari")
@@ -264,9 +263,15 @@ class FlatDataset:
 
 
 def load_npz(path) -> FlatDataset:
-    """Read ``episodes.npz`` (``path`` is the dataset directory or the file itself); never unpickles."""
+    """Read ``episodes.npz`` (``path`` is the dataset directory, one of its parts, see :func:`resolve_dataset_dir`,
+    or an ``episodes.npz`` file itself); never unpickles.
+
+    Raises:
+        UsageError (a ValueError naming ``path``): ``path`` does not exist or is no dataset directory, as
+        :func:`load_minari`.
+    """
     path = Path(path)
-    d = read_npz(resolve_dataset_dir(path) / "episodes.npz" if path.is_dir() else path)
+    d = read_npz(path if path.is_file() and path.suffix == ".npz" else resolve_dataset_dir(path) / "episodes.npz")
     infos = {k[len("infos/"):]: v for k, v in d.items() if k.startswith("infos/")}
     return FlatDataset(observations=d["observations"], actions=d["actions"], rewards=d["rewards"],
                        terminations=d["terminations"], truncations=d["truncations"],

@@ -54,7 +54,7 @@ def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None
     """
     import json
 
-    from hsddp_gym.util.validation import UsageError
+    from hsddp_gym.util.validation import UsageError, did_you_mean, parenthesized
 
     if not isinstance(spec, str):
         raise UsageError(name, f"{spec!r} is not a policy name", _POLICY_ALLOWED)
@@ -62,7 +62,8 @@ def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None
         return spec, None
     kind, sep, path = spec.partition(":")
     if not sep or kind not in LEARNED_POLICIES or not path:
-        raise UsageError(name, f"unknown policy {spec!r}", _POLICY_ALLOWED)
+        known = [*POLICIES, *(f"{k}:{path}" for k in LEARNED_POLICIES if path)]
+        raise UsageError(name, f"unknown policy {spec!r}" + parenthesized(did_you_mean(spec, known)), _POLICY_ALLOWED)
     run = Path(path)
     summary_file = run / "summary.json"
     if not summary_file.is_file():

@@ -96,6 +96,21 @@ def check_in_range(value, lo: float, hi: float, name: str) -> float:
     return value
 
 
+def did_you_mean(value: str, candidates) -> str:
+    """``"did you mean X?"`` with ``X`` the candidate closest to ``value`` (:func:`difflib.get_close_matches`), or
+    ``""`` when none is close: the one wording of the command line's suggestions."""
+    import difflib
+
+    close = difflib.get_close_matches(str(value), [str(c) for c in candidates], n=1)
+    return f"did you mean {close[0]}?" if close else ""
+
+
+def parenthesized(*parts: str) -> str:
+    """``" (a; b)"`` of the non-empty ``parts``, ``""`` when all are empty."""
+    kept = [p for p in parts if p]
+    return f" ({'; '.join(kept)})" if kept else ""
+
+
 class UsageError(ValueError):
     """A user's mistake in one option or argument, caught before any long work starts.
 
