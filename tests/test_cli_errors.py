@@ -467,3 +467,12 @@ def test_train_says_when_curve_png_cannot_be_drawn(monkeypatch, tmp_path, capsys
     err = capsys.readouterr().err
     assert "matplotlib is not installed, so curve.png will not be drawn" in err and "'viz'" not in err
     assert "hsddp_gym[viz]" in err
+
+
+@pytest.mark.parametrize("command", [["dataset", "--policy", "expert", "--episodes", "1"],
+                                     ["train", "--algo", "dagger"]])
+def test_a_target_speed_for_a_task_that_fixes_its_own_is_one_line_naming_it(command, tmp_path, capsys):
+    argv = [*command, "--env", "hsddp_gym/StandToBound-v0", "--target-speed", "1.2", "--out", str(tmp_path / "x")]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: --target-speed") and "takes no target speed" in err and not (tmp_path / "x").exists()

@@ -29,6 +29,8 @@ def cmd_dataset(args) -> int:
                          f"--condition with --env {DATASET_ENVS[0]} only (the conditions perturb Bounding-v0)")
     env_choices.check_policy_exists(args.policy, args.env, trained=False)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
+    if env_kwargs:
+        env_choices.check_env_settings(args.env, env_kwargs, None, None)
     if args.address is not None and args.backend != "ray":
         raise UsageError("--address", f"{args.address!r} without --backend ray", "only with --backend ray")
     if args.backend == "ray":

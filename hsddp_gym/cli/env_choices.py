@@ -87,3 +87,34 @@ def env_list_text() -> str:
     """The registered envs for help texts: the tasks' envs, then their twins."""
     twins = [e.env_id for task in TASKS.values() for e in task.twins.values()]
     return f"the tasks' envs {', '.join(t.env_id for t in TASKS.values())} and their twins {', '.join(twins)}"
+
+
+def check_env_settings(env_id: str, env_kwargs: dict, push, max_episode_steps) -> None:
+    """Build the env once with ``--target-speed`` and ``--max-episode-steps``: UsageError naming
+    ``--target-speed`` when the env refuses it, or ``--push`` for a push outside the episode or not finite."""
+    import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401  (registers the envs)
+
+    limit = {} if max_episode_steps is None else {"max_episode_steps": int(max_episode_steps)}
+    try:
+        env = gym.make(env_id, **env_kwargs, **limit)
+    except (TypeError, ValueError) as exc:
+        if not env_kwargs:
+            raise
+        speed = env_kwargs["target_speed"]
+        if isinstance(exc, TypeError):  # the task fixes its target speed
+            raise UsageError("--target-speed", f"{speed} with --env {env_id}, which takes no target speed",
+                             f"no --target-speed with --env {env_id}") from None
+        raise UsageError("--target-speed", f"{speed} with --env {env_id}: {exc}",
+                         f"a target speed {env_id} takes") from None
+    duration = env.spec.max_episode_steps * float(env.unwrapped.dt)
+    env.close()
+    if push is None:
+        return
+    t = push[0]
+    if not 0.0 <= t < duration:
+        raise UsageError("--push", f"T = {t} s", f"a push time 0 <= T < {duration:g} s, the episode length")
+    for label, v in zip(("DVX", "DVZ", "DPITCH"), push[1:]):
+        if not abs(v) < 1e300:
+            raise UsageError("--push", f"{label} = {v}", "finite velocity changes [m/s, m/s, rad/s]")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from hsddp_gym.cli import parsing
+from hsddp_gym.cli import env_choices, parsing
 from hsddp_gym.cli.env_choices import DEFAULT_ENV
 from hsddp_gym.registry import DATASET_ENVS, MPC_ENVS, TASKS, task_of_env_id
 from hsddp_gym.util.extras import require
@@ -203,6 +203,8 @@ def cmd_train(args) -> int:
                   f"{EXTRAS['matplotlib'][1]}", file=sys.stderr)
     out = Path(args.out)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
+    if env_kwargs and getattr(args, "env", None):
+        env_choices.check_env_settings(args.env, env_kwargs, None, None)
     if args.algo in ("ppo", "sac"):
         from hsddp_gym.learning.sb3 import train_sb3
 
