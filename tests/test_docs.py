@@ -2,8 +2,9 @@
 
 * Every ```python block runs as written, every command line of a ```bash block parses with its program's own
   argument parser, and the two set-up commands install every extra a command can ask for.
-* A walkthrough (Getting started's Quickstart sections) runs top to bottom as written: its python blocks and its
-  ``hsddp-gym`` commands, in the page's order, in one fresh folder.
+* A walkthrough (Getting started's Quickstart sections, the tutorials' Step sections) runs top to bottom as written:
+  its python blocks and its ``hsddp-gym`` commands, in the page's order, in one fresh folder; a tutorial at its
+  smoke size (:data:`SMOKE_SIZES`: the same steps with smaller sizes).
 * The site builds with ``mkdocs build --strict`` (broken links and anchors fail it), renders every documented
   module, loads no script, stylesheet or font from another host, and shows its formulas rendered in a browser.
 
@@ -57,8 +58,37 @@ def fenced_blocks(text: str, language: str) -> list[str]:
     return [body for _, lang, body in sections_and_blocks(text) if lang == language]
 
 
-WALKTHROUGHS = {"docs/getting-started.md": "Quickstart"}
+WALKTHROUGHS = {"docs/getting-started.md": "Quickstart", "docs/tutorials/train-from-demonstrations.md": "Step",
+                "docs/tutorials/mpc-on-your-task.md": "Step"}
 """Pages whose sections with a heading that starts with the given word run top to bottom as one walkthrough."""
+
+SMOKE_SIZES = {
+    "docs/tutorials/train-from-demonstrations.md": {
+        "--episodes 24 --seed 1000": "--episodes 2 --max-episode-steps 60 --seed 1000",
+        "--rounds 2 --episodes-per-round 8": "--rounds 1 --episodes-per-round 1 --max-episode-steps 60",
+        "seeds = range(9500, 9520)": "seeds = range(9500, 9502)",
+    },
+    "docs/tutorials/mpc-on-your-task.md": {
+        "STEPS = 1000": "STEPS = 60",
+        "--episodes 5 --out runs/mpc_fast": "--episodes 1 --max-episode-steps 60 --out runs/mpc_fast",
+        "SEEDS = range(5)": "SEEDS = range(1)",
+    },
+}
+"""A walkthrough's smoke size: ``{page: {text as written: text the test runs instead}}``. The page gives the full
+size a reader runs (minutes); the test runs every step at the smoke size (seconds). Every text must occur in its
+page, so a substitution cannot silently stop applying."""
+
+
+def smoke_size(page: str, text: str) -> str:
+    """``text`` (the page ``page``) with its :data:`SMOKE_SIZES` substitutions made.
+
+    Raises:
+        AssertionError: a substitution whose text is not in the page.
+    """
+    for written, smoke in SMOKE_SIZES.get(page, {}).items():
+        assert written in text, f"{page}: the smoke-size substitution {written!r} no longer occurs in the page"
+        text = text.replace(written, smoke)
+    return text
 
 
 def in_walkthrough(page: str, section: str) -> bool:
@@ -259,10 +289,24 @@ def test_the_walkthrough_is_read_in_the_pages_order():
                                                      ("python", "b\n")]
 
 
+def test_smoke_sizes_apply_and_a_stale_one_is_caught():
+    for page, substitutions in SMOKE_SIZES.items():
+        assert page in WALKTHROUGHS
+        smoke = smoke_size(page, PAGES[page])
+        assert all(written not in smoke or written in substitutions.values() for written in substitutions)
+    SMOKE_SIZES["<test page>"] = {"--episodes 24": "--episodes 2"}
+    try:
+        assert smoke_size("<test page>", "hsddp-gym dataset --episodes 24") == "hsddp-gym dataset --episodes 2"
+        with pytest.raises(AssertionError, match="no longer occurs"):
+            smoke_size("<test page>", "hsddp-gym dataset --episodes 48")
+    finally:
+        del SMOKE_SIZES["<test page>"]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("page", sorted(WALKTHROUGHS))
 def test_the_walkthrough_runs_top_to_bottom_in_a_fresh_folder(tmp_path, page):
-    steps = walkthrough_steps(PAGES[page], WALKTHROUGHS[page])
+    steps = walkthrough_steps(smoke_size(page, PAGES[page]), WALKTHROUGHS[page])
     assert sum(kind == "python" for kind, _ in steps) >= 3 and any(kind == "command" for kind, _ in steps)
     failed = run_walkthrough(steps, tmp_path)
     if failed is not None:

@@ -290,7 +290,9 @@ def tasks_summary(store: Store) -> str:
     if not rows:
         return "No task record yet: run `python experiments/tasks.py --task backflip`."
     note = ("Successes / episodes on seeds used by no dataset or training run; each task's success rule, the learners' "
-            "samples and training time are on the [tasks page](docs/env/tasks.md). BC and DAgger: summed over their "
+            "samples and training time are on its page ([Pronking-v0](docs/env/pronking.md), "
+            "[Backflip-v0](docs/env/backflip.md), [the jumps](docs/env/jumps.md), "
+            "[the gait transitions](docs/env/transitions.md)). BC and DAgger: summed over their "
             "training seeds, DAgger per number of iterations. The expert tracks the task's HS-DDP plan with the plan's "
             "feedback gains (the pronk: a periodic plan).")
     return "\n".join([markdown_table(header, rows, ["l", "l", "r", "r", "r", "r", "l"]), "", note,
