@@ -1,16 +1,18 @@
-"""``hsddp_gym/Backflip-v0``: the Bounding-v0 robot and physics, rewarded for a backflip (see :class:`BackflipEnv`).
+"""``hsddp_gym/Backflip-v0``: the Bounding-v0 robot and physics, rewarded for a backflip (see
+[`BackflipEnv`][BackflipEnv]).
 
-The task is a mixin, :class:`BackflipTask`, on top of an env class of the bounding family, as
-:mod:`hsddp_gym.envs.pronking`'s: :class:`BackflipEnv` puts it on :class:`~hsddp_gym.envs.bounding.BoundingEnv` (the
-exact-LCP simulation), :class:`MuJoCoBackflipEnv` on the MuJoCo twin (``hsddp_gym/BackflipMuJoCo-v0``). The physics,
-the action and observation layouts and the reset options are the base class's; the task changes the reward (pitch
-progress to ``-2 pi``, then upright and still on both feet), the healthy set (a fall: the trunk touches the ground,
-the trunk centre drops below 0.1 m, or the pitch leaves ``(-2 pi - 1.2, 1.2)`` rad), the start (standing at rest,
-both feet on the ground, with a seeded noise), the observation clock's period (the episode, 2 s) and adds a success
-flag to ``info`` (:func:`backflip_success`).
+The task is a mixin, [`BackflipTask`][BackflipTask], on top of an env class of the bounding family, as
+[`hsddp_gym.envs.pronking`][hsddp_gym.envs.pronking]'s: [`BackflipEnv`][BackflipEnv] puts it on
+[`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (the exact-LCP simulation),
+[`MuJoCoBackflipEnv`][MuJoCoBackflipEnv] on the MuJoCo twin (``hsddp_gym/BackflipMuJoCo-v0``). The physics, the action
+and observation layouts and the reset options are the base class's; the task changes the reward (pitch progress to ``-2
+pi``, then upright and still on both feet), the healthy set (a fall: the trunk touches the ground, the trunk centre
+drops below 0.1 m, or the pitch leaves ``(-2 pi - 1.2, 1.2)`` rad), the start (standing at rest, both feet on the
+ground, with a seeded noise), the observation clock's period (the episode, 2 s) and adds a success flag to ``info``
+([`backflip_success`][backflip_success]).
 
-Envs do not import the planners (the package's layers), so :func:`backflip_start_state` repeats the backflip plan's
-start (``hsddp_gym.planners.motions.backflip_problem()[0].x0``, standing at rest at 0.26 m);
+Envs do not import the planners (the package's layers), so [`backflip_start_state`][backflip_start_state] repeats the
+backflip plan's start (``hsddp_gym.planners.motions.backflip_problem()[0].x0``, standing at rest at 0.26 m);
 ``tests/test_backflip_env.py`` checks that they agree.
 """
 
@@ -81,10 +83,11 @@ def trunk_clearance(x, hip_offset: float) -> float:
 
 def backflip_success(fell: bool, min_pitch: float, final_state, both_feet_down: bool) -> bool:
     """The task's success criterion for one episode: no fall (no termination: the trunk never touched the ground),
-    a full turn (the pitch reached ``-2 pi +`` :data:`SUCCESS_PITCH_TOLERANCE`), and at the end upright on both
-    feet and still: pitch within :data:`SUCCESS_PITCH_TOLERANCE` of ``-2 pi``, trunk centre at least
-    :data:`SUCCESS_MIN_HEIGHT` high, trunk speed at most :data:`SUCCESS_MAX_SPEED`, pitch rate at most
-    :data:`SUCCESS_MAX_PITCH_RATE`, both contact flags set.
+    a full turn (the pitch reached ``-2 pi +`` [`SUCCESS_PITCH_TOLERANCE`][SUCCESS_PITCH_TOLERANCE]), and at the end
+    upright on both feet and still: pitch within [`SUCCESS_PITCH_TOLERANCE`][SUCCESS_PITCH_TOLERANCE] of ``-2 pi``,
+    trunk centre at least [`SUCCESS_MIN_HEIGHT`][SUCCESS_MIN_HEIGHT] high, trunk speed at most
+    [`SUCCESS_MAX_SPEED`][SUCCESS_MAX_SPEED], pitch rate at most [`SUCCESS_MAX_PITCH_RATE`][SUCCESS_MAX_PITCH_RATE],
+    both contact flags set.
 
     Args:
         fell: the episode terminated (a fall or an invalid state).
@@ -104,7 +107,8 @@ def backflip_success(fell: bool, min_pitch: float, final_state, both_feet_down: 
 
 
 class BackflipTask:
-    r"""The backflip task, a mixin on an env of the bounding family (:class:`BackflipEnv`, :class:`MuJoCoBackflipEnv`).
+    r"""The backflip task, a mixin on an env of the bounding family ([`BackflipEnv`][BackflipEnv],
+    [`MuJoCoBackflipEnv`][MuJoCoBackflipEnv]).
 
     Arguments it adds or changes (every other argument is the base env's):
 
@@ -174,8 +178,8 @@ class BackflipTask:
 
     def _standing_start(self) -> np.ndarray:
         """The noisy standing start: ``q`` plus ``U(-s, s)`` noise, then the joints moved to put both feet on the
-        ground where the noise left them (:meth:`~hsddp_gym.core.model.CheetahModel.place_feet`); trunk velocities
-        ``s N(0, 1)``, joint rates that keep both feet at rest (``J_c v = 0``)."""
+        ground where the noise left them ([`place_feet`][hsddp_gym.core.model.CheetahModel.place_feet]); trunk
+        velocities ``s N(0, 1)``, joint rates that keep both feet at rest (``J_c v = 0``)."""
         s = self.reset_noise_scale
         x = self.init_state.copy()
         q = x[:NQ] + self.np_random.uniform(low=-s, high=s, size=NQ)
@@ -189,7 +193,7 @@ class BackflipTask:
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        """Reset to the noisy standing start (:meth:`_standing_start`, drawn from ``self.np_random``) or to
+        """Reset to the noisy standing start (`_standing_start`, drawn from ``self.np_random``) or to
         ``options["state"]``; the other options (``time``, ``push``) are the base env's."""
         self._reset_task()
         if options is None or (isinstance(options, dict) and options.get("state") is None):
@@ -205,7 +209,7 @@ class BackflipTask:
 
     def step(self, action):
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the
-        rotation and landing terms (class docstring of :class:`BackflipEnv`)."""
+        rotation and landing terms (class docstring of [`BackflipEnv`][BackflipEnv])."""
         obs, reward, terminated, truncated, info = super().step(action)
         x = self.sim.x
         rot = land = 0.0
@@ -238,11 +242,11 @@ class BackflipEnv(BackflipTask, BoundingEnv):
 
     ## Description
     The robot, physics, action space, observation layout, info and reset options of
-    :class:`~hsddp_gym.envs.bounding.BoundingEnv` (``hsddp_gym/Bounding-v0``), with the backflip task
-    (:class:`BackflipTask`): the robot starts standing at rest and is rewarded for turning its trunk once
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (``hsddp_gym/Bounding-v0``), with the backflip task
+    ([`BackflipTask`][BackflipTask]): the robot starts standing at rest and is rewarded for turning its trunk once
     backwards (pitch from 0 to ``-2 pi``; nose-up is negative pitch) and then for standing upright and still on both
-    feet. The HS-DDP backflip (:mod:`hsddp_gym.planners.motions`, ``plan_backflip``) does it in 1.05 s: a 250 ms
-    push on both feet, a 100 ms take-off on the back feet, a 400 ms flight and a 300 ms landing.
+    feet. The HS-DDP backflip ([`hsddp_gym.planners.motions`][hsddp_gym.planners.motions], ``plan_backflip``) does it in
+    1.05 s: a 250 ms push on both feet, a 100 ms take-off on the back feet, a 400 ms flight and a 300 ms landing.
 
     ## Action space
     ``Box(-1, 1, (4,), float32)``: normalized joint torques, as Bounding-v0 (33 N m a full action, 200 Hz).
@@ -264,10 +268,10 @@ class BackflipEnv(BackflipTask, BoundingEnv):
     ``reward_healthy``, 0 by default).
 
     ## Starting state
-    The backflip plan's start (:func:`backflip_start_state`): standing at rest, trunk at 0.26 m, pitch 0, feet under
-    the hips; plus a seeded noise of scale ``s = reset_noise_scale`` (default 0.01, at most 0.05): ``U(-s, s)`` on
-    ``q`` after which the joints put both feet back on the ground, ``s N(0, 1)`` on the trunk velocities with joint
-    rates that keep the feet at rest. The reset options (``state``, ``time``, ``push``) are Bounding-v0's.
+    The backflip plan's start ([`backflip_start_state`][backflip_start_state]): standing at rest, trunk at 0.26 m, pitch
+    0, feet under the hips; plus a seeded noise of scale ``s = reset_noise_scale`` (default 0.01, at most 0.05): ``U(-s,
+    s)`` on ``q`` after which the joints put both feet back on the ground, ``s N(0, 1)`` on the trunk velocities with
+    joint rates that keep the feet at rest. The reset options (``state``, ``time``, ``push``) are Bounding-v0's.
 
     ## Episode end
     ``terminated`` on a fall: the trunk touches the ground (a trunk end, a hip, below ``trunk_contact_height`` =
@@ -276,9 +280,9 @@ class BackflipEnv(BackflipTask, BoundingEnv):
     ``TimeLimit``, 400 control steps (2 s: the flip, the landing and about a second standing).
 
     ## Success
-    :func:`backflip_success`, also ``info["success"]`` at every step (its value at the last step of an episode is
-    the episode's): no fall, a full turn, and at the end upright (pitch within 0.3 rad of ``-2 pi``, trunk centre at
-    least 0.15 m high) on both feet and still (trunk speed at most 0.3 m/s, pitch rate at most 1 rad/s).
+    [`backflip_success`][backflip_success], also ``info["success"]`` at every step (its value at the last step of an
+    episode is the episode's): no fall, a full turn, and at the end upright (pitch within 0.3 rad of ``-2 pi``, trunk
+    centre at least 0.15 m high) on both feet and still (trunk speed at most 0.3 m/s, pitch rate at most 1 rad/s).
 
     ## Info
     Bounding-v0's keys plus ``reward_rotation``, ``reward_landing`` (float), ``pitch_progress`` (float, ``p_t``),
@@ -286,8 +290,8 @@ class BackflipEnv(BackflipTask, BoundingEnv):
     and at every step.
 
     ## Arguments
-    :class:`BackflipTask`'s and every other argument of :class:`~hsddp_gym.envs.bounding.BoundingEnv`, all
-    JSON-serializable. No compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or
+    [`BackflipTask`][BackflipTask]'s and every other argument of [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv],
+    all JSON-serializable. No compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or
     ``"async"``).
 
     ## Version history
@@ -296,9 +300,9 @@ class BackflipEnv(BackflipTask, BoundingEnv):
 
 
 class MuJoCoBackflipEnv(BackflipTask, MuJoCoBoundingEnv):
-    """``hsddp_gym/BackflipMuJoCo-v0``: :class:`BackflipEnv`'s task (reward, start, termination, success, arguments)
-    simulated by MuJoCo, :class:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv` (its contact-model arguments too;
-    needs the extra ``mujoco``)."""
+    """``hsddp_gym/BackflipMuJoCo-v0``: [`BackflipEnv`][BackflipEnv]'s task (reward, start, termination, success,
+    arguments) simulated by MuJoCo, [`MuJoCoBoundingEnv`][hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv] (its
+    contact-model arguments too; needs the extra ``mujoco``)."""
 
 
 __all__ = ["FULL_TURN", "STAND_HEIGHT", "EPISODE_DURATION", "DEFAULT_HEALTHY_Z_RANGE", "DEFAULT_HEALTHY_PITCH_RANGE",

@@ -1,4 +1,5 @@
-"""``hsddp_gym/Bounding-v0``: the planar MIT Mini Cheetah with state-based contacts (see :class:`BoundingEnv`)."""
+"""``hsddp_gym/Bounding-v0``: the planar MIT Mini Cheetah with state-based contacts (see
+[`BoundingEnv`][BoundingEnv])."""
 
 from __future__ import annotations
 
@@ -38,7 +39,8 @@ RESET_VELOCITY_BOUNDS = (RESET_MAX_LINEAR_SPEED, RESET_MAX_LINEAR_SPEED, RESET_M
 """Bounds (7,) on ``|v|`` of a reset state, in state order ``[vx, vz, pitch rate, 4 joint rates]``."""
 TERRAIN_KINDS = tuple("random_" + kind for kind in SAMPLE_KINDS)
 """The ``terrain=`` strings of seeded random profiles: ``"random_steps"``, ``"random_slopes"``, ``"random_mixed"``
-(:meth:`hsddp_gym.core.terrain.Terrain.sample` with its defaults, one profile per episode)."""
+([`hsddp_gym.core.terrain.Terrain.sample`][hsddp_gym.core.terrain.Terrain.sample] with its defaults, one profile per
+episode)."""
 _STATE_NAMES = ("x", "z", "pitch", "hip_front", "knee_front", "hip_back", "knee_back",
                 "vx", "vz", "pitch_rate", "hip_front_rate", "knee_front_rate", "hip_back_rate", "knee_back_rate")
 
@@ -63,8 +65,9 @@ def _check_bool(value, name: str) -> bool:
 
 
 def check_terrain_option(terrain, name: str = "terrain"):
-    """The env's ``terrain=`` argument checked: None (flat), a :class:`~hsddp_gym.core.terrain.Terrain`, a dict of
-    :meth:`Terrain.to_dict` (JSON: becomes a Terrain) or one of :data:`TERRAIN_KINDS`; errors name ``name``."""
+    """The env's ``terrain=`` argument checked: None (flat), a [`Terrain`][hsddp_gym.core.terrain.Terrain], a dict of
+    [`Terrain.to_dict`][Terrain.to_dict] (JSON: becomes a Terrain) or one of [`TERRAIN_KINDS`][TERRAIN_KINDS]; errors
+    name ``name``."""
     if terrain is None or isinstance(terrain, Terrain):
         return terrain
     if isinstance(terrain, dict):
@@ -82,7 +85,7 @@ def pop_due_pushes(pushes: list, frame_start: float, n: int, h: float) -> list:
     control step of ``n`` simulation steps of ``h`` seconds starting at episode time ``frame_start``, and return
     them as ``[(k, delta_v), ...]``: a push acts after the first ``k`` simulation steps of the frame (``k`` the
     first step at or after its time, 0 <= k <= n, non-decreasing). One rule for the single env and the compiled
-    vector env (:class:`hsddp_gym.envs.vector.BoundingVectorEnv`)."""
+    vector env ([`hsddp_gym.envs.vector.BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv])."""
     due, done = [], 0
     end = frame_start + n * h - 1e-12
     while pushes and pushes[0][0] < end:
@@ -98,16 +101,16 @@ class BoundingEnv(gym.Env):
     ## Description
     The planar (sagittal) Mini Cheetah of Li & Wensing (RA-L 2020): a 5.46 kg trunk with a front and a back
     two-link leg (each planar leg stands for a left-right pair), 7 degrees of freedom
-    (``q = [x, z, pitch, hip_front, knee_front, hip_back, knee_back]``, see :mod:`hsddp_gym.core.conventions`),
-    four torque-controlled joints, point feet. **Contacts are decided by the state, not by a schedule**:
-    each foot may fly, touch down (inelastic impact, restitution 0), stick, slide (Coulomb friction,
-    ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level time-stepping scheme whose
-    per-step contact LCP is solved exactly (:mod:`hsddp_gym.core.contact`) at a 1 ms step, followed by a
-    position and an energy projection (``energy_consistent``). The motors are ideal torque
-    sources up to 36 rad/s; above it a torque that drives its joint further is cut linearly to zero at
-    50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no rotor inertia is
-    modelled) from spinning up without bound under random actions. The task suits bounding (back stance,
-    flight, front stance, flight; the paper's cycle is 0.296 s), but any gait that tracks the target speed
+    (``q = [x, z, pitch, hip_front, knee_front, hip_back, knee_back]``, see
+    [`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]), four torque-controlled joints, point feet. **Contacts
+    are decided by the state, not by a schedule**: each foot may fly, touch down (inelastic impact, restitution 0),
+    stick, slide (Coulomb friction, ``mu = 0.6``) or lift off, in any combination, simulated by a velocity-level
+    time-stepping scheme whose per-step contact LCP is solved exactly
+    ([`hsddp_gym.core.contact`][hsddp_gym.core.contact]) at a 1 ms step, followed by a position and an energy projection
+    (``energy_consistent``). The motors are ideal torque sources up to 36 rad/s; above it a torque that drives its joint
+    further is cut linearly to zero at 50 rad/s (back-EMF limit, ``motor_speed_limits``), which keeps the light legs (no
+    rotor inertia is modelled) from spinning up without bound under random actions. The task suits bounding (back
+    stance, flight, front stance, flight; the paper's cycle is 0.296 s), but any gait that tracks the target speed
     is rewarded.
 
     ## Action space
@@ -120,7 +123,7 @@ class BoundingEnv(gym.Env):
 
     ## Observation space
     ``Box(low, high, (17,), float32)`` by default (18 with ``exclude_current_positions_from_observation=False``),
-    documented in :mod:`hsddp_gym.core.observation`:
+    documented in [`hsddp_gym.core.observation`][hsddp_gym.core.observation]:
 
     | index | observation | unit |
     |---|---|---|
@@ -136,7 +139,8 @@ class BoundingEnv(gym.Env):
     At reset, before any step, a foot is flagged when it is at most 1 mm above the ground.
     The trunk ``x`` is excluded by default (as HalfCheetah-v5) and always reported in ``info``. The bounds
     are finite and generous; values beyond them are clipped. ``env.unwrapped.observation_structure`` gives
-    the block sizes and :func:`hsddp_gym.core.observation.state_from_observation` with
+    the block sizes and
+    [`hsddp_gym.core.observation.state_from_observation`][hsddp_gym.core.observation.state_from_observation] with
     ``env.unwrapped.observation_layout`` maps an observation back to ``(state (14,), contact Mode, phase)``.
 
     ## Rewards
@@ -149,16 +153,16 @@ class BoundingEnv(gym.Env):
     ``reward_healthy``).
 
     ## Starting state
-    The paper's initial state (:func:`hsddp_gym.core.references.paper_initial_state`: mid back stance, back foot
-    0.2 mm above the ground, 0.9 m/s forward) plus uniform noise ``U(-s, s)`` on ``q`` and Gaussian noise
-    ``s N(0, 1)`` on ``v`` (``s = reset_noise_scale``), drawn from ``self.np_random``; if the noise puts a
-    foot below the ground, the trunk is raised until the lowest foot is at height 0.
-    ``reset(options=...)`` accepts:
+    The paper's initial state
+    ([`hsddp_gym.core.references.paper_initial_state`][hsddp_gym.core.references.paper_initial_state]: mid back stance,
+    back foot 0.2 mm above the ground, 0.9 m/s forward) plus uniform noise ``U(-s, s)`` on ``q`` and Gaussian noise ``s
+    N(0, 1)`` on ``v`` (``s = reset_noise_scale``), drawn from ``self.np_random``; if the noise puts a foot below the
+    ground, the trunk is raised until the lowest foot is at height 0. ``reset(options=...)`` accepts:
 
     * ``"state"``: a state (14,) to start from exactly (no noise): finite, positions inside the observation
       bounds, ``|vx|, |vz| <= 10 m/s``, ``|pitch rate| <= 50 rad/s``, ``|joint rates| <= 100 rad/s``
-      (:data:`RESET_VELOCITY_BOUNDS`); feet may not be more than 1 mm below the ground. A violation raises
-      ``ValueError`` naming the entry (e.g. ``options['state'][10] (hip_front_rate)``);
+      ([`RESET_VELOCITY_BOUNDS`][RESET_VELOCITY_BOUNDS]); feet may not be more than 1 mm below the ground. A violation
+      raises ``ValueError`` naming the entry (e.g. ``options['state'][10] (hip_front_rate)``);
     * ``"time"``: the initial clock time [s] (>= 0, default 0), which sets the gait phase;
     * ``"push"``: either a velocity change (3,) ``[dvx, dvz, dpitch_rate]`` applied right after the reset, or
       ``{"delta_v": (3,), "time": t}`` applied at the first simulation step at or after ``t`` seconds of
@@ -214,30 +218,32 @@ class BoundingEnv(gym.Env):
     ground (and sticking feet onto their positions) every step.
     (2) Full torque up to ``w_full``; a torque driving its joint faster is cut linearly to 0 at ``w_zero``;
     braking torques are not limited. None: ideal torque sources, the planner's model.
-    (3) :mod:`hsddp_gym.core.contact`: a mass-metric position projection (sticking feet do not creep, contact
-    feet and any foot that crossed the ground end each step on it: no tunnelling at any joint rate) and an
-    energy projection, so that per simulation step ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); in free
+    (3) [`hsddp_gym.core.contact`][hsddp_gym.core.contact]: a mass-metric position projection (sticking feet do not
+    creep, contact feet and any foot that crossed the ground end each step on it: no tunnelling at any joint rate) and
+    an energy projection, so that per simulation step ``E(t+h) - E(t) <= tau . dq`` (+1e-9 J, tested); in free
     flight the centroidal momentum changes by gravity's impulse only and, with zero torque, the energy is kept
     (both to round-off, at any joint rate). The env
     steps it through the vector env's compiled kernel
-    (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`, equal to the reference
+    ([`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator], equal to the reference
     ``ContactSimulator`` to round-off), so ``gym.make_vec(..., vectorization_mode="vector_entry_point")``
     gives bit-identical transitions; the kernel is compiled once per machine (about a minute, announced on
     stderr, cached on disk).
-    (4) A model-mismatch test (:mod:`hsddp_gym.envs.perturbations`): the simulated trunk is heavier or lighter
-    than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other density).
+    (4) A model-mismatch test ([`hsddp_gym.envs.perturbations`][hsddp_gym.envs.perturbations]): the simulated trunk is
+    heavier or lighter than the 5.46 kg every planner and policy assumes; its inertia scales with it (same shape, other
+    density).
 
-    (5) :mod:`hsddp_gym.core.terrain`: steps, slopes and gaps (deep drops). The feet contact its continuous
-    simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`: a jump is a 1 mm wide riser) along the
-    local normal, with the friction cone in the local frame; the after-step projection puts contact feet, and any foot
-    that ended below it, onto it. ``info["foot_heights"]``, the reset contact flags and the reset's lift of a foot
-    below the ground measure from the surface under each foot; the healthy trunk height is ``z - g(x)`` with ``g`` the
-    ground under the trunk (:meth:`~hsddp_gym.core.terrain.Terrain.support_heights`: a gap is bridged at its near
-    edge's level, so falling into it ends the episode); ``info`` then also holds ``ground_height`` (that ``g``). The
-    observation keeps the absolute trunk height and the reward the horizontal speed. A string of
-    :data:`TERRAIN_KINDS` draws a new profile at every reset from ``self.np_random`` (before the reset noise), so the
-    reset seed fixes it (flat until the first reset). Only the energy-consistent scheme simulates a terrain; the
-    compiled vector env does not (``terrain`` must be None there). ``hsddp_gym/Terrain-v0`` is ``"random_mixed"``.
+    (5) [`hsddp_gym.core.terrain`][hsddp_gym.core.terrain]: steps, slopes and gaps (deep drops). The feet contact its
+    continuous simulated surface ([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices]: a jump is a 1
+    mm wide riser) along the local normal, with the friction cone in the local frame; the after-step projection puts
+    contact feet, and any foot that ended below it, onto it. ``info["foot_heights"]``, the reset contact flags and the
+    reset's lift of a foot below the ground measure from the surface under each foot; the healthy trunk height is ``z -
+    g(x)`` with ``g`` the ground under the trunk ([`support_heights`][hsddp_gym.core.terrain.Terrain.support_heights]: a
+    gap is bridged at its near edge's level, so falling into it ends the episode); ``info`` then also holds
+    ``ground_height`` (that ``g``). The observation keeps the absolute trunk height and the reward the horizontal speed.
+    A string of [`TERRAIN_KINDS`][TERRAIN_KINDS] draws a new profile at every reset from ``self.np_random`` (before the
+    reset noise), so the reset seed fixes it (flat until the first reset). Only the energy-consistent scheme simulates a
+    terrain; the compiled vector env does not (``terrain`` must be None there). ``hsddp_gym/Terrain-v0`` is
+    ``"random_mixed"``.
 
     Every argument is JSON-serializable (a ``terrain`` as its ``to_dict()`` or a string), so Minari can rebuild the
     env from its spec.
@@ -304,7 +310,7 @@ class BoundingEnv(gym.Env):
         self.render_grf = _check_bool(render_grf, "render_grf")
 
         self.terrain_option = check_terrain_option(terrain)
-        """The ``terrain`` argument (a Terrain, a random kind of :data:`TERRAIN_KINDS` or None)."""
+        """The ``terrain`` argument (a Terrain, a random kind of [`TERRAIN_KINDS`][TERRAIN_KINDS] or None)."""
         if self.terrain_option is not None and not energy_consistent:
             raise ValueError("terrain needs energy_consistent=True (only the energy-consistent scheme simulates a "
                              "terrain)")
@@ -344,12 +350,14 @@ class BoundingEnv(gym.Env):
         self._update_feet(at_reset=True)
 
     def _make_simulator(self, friction, gravity, contact_erp, motor_speed_limits, energy_consistent):
-        """The simulator (checked physics arguments); :mod:`hsddp_gym.envs.mujoco_twin` overrides it.
+        """The simulator (checked physics arguments); [`hsddp_gym.envs.mujoco_twin`][hsddp_gym.envs.mujoco_twin]
+        overrides it.
 
         The energy-consistent scheme (the default) steps through the compiled kernel of the vector env
-        (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`, one robot), so that this env and
-        :class:`~hsddp_gym.envs.vector.BoundingVectorEnv` give bit-identical transitions; the legacy scheme is
-        :class:`~hsddp_gym.core.contact.ContactSimulator` (Python). ``contact_erp`` acts on the legacy scheme only."""
+        ([`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator], one robot), so that
+        this env and [`BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv] give bit-identical transitions; the
+        legacy scheme is [`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] (Python). ``contact_erp`` acts on
+        the legacy scheme only."""
         if energy_consistent:
             from hsddp_gym.core.compiled_contact import CompiledContactSimulator  # numba: imported on first use
 
@@ -388,7 +396,7 @@ class BoundingEnv(gym.Env):
 
     @property
     def is_healthy(self) -> bool:
-        """A valid state (:meth:`valid_state`) with trunk height and pitch inside their healthy ranges."""
+        """A valid state ([`valid_state`][valid_state]) with trunk height and pitch inside their healthy ranges."""
         return self._healthy(self.valid_state())
 
     def _healthy(self, valid: bool) -> bool:
@@ -404,7 +412,7 @@ class BoundingEnv(gym.Env):
 
     def ground_height(self, x: float) -> float:
         """The ground [m] the trunk height is measured from at trunk ``x`` [m]: 0 on flat ground, else the terrain's
-        :meth:`~hsddp_gym.core.terrain.Terrain.support_heights` (a gap bridged at its near edge's level)."""
+        [`support_heights`][hsddp_gym.core.terrain.Terrain.support_heights] (a gap bridged at its near edge's level)."""
         if self.terrain is None:
             return 0.0
         return float(self.terrain.support_heights(x))

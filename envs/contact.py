@@ -1,6 +1,6 @@
-"""The env's contact simulator; it lives in :mod:`hsddp_gym.core.contact` (a model that policies may use too, e.g.
-the MPC's latency predictor), its LCP in :mod:`hsddp_gym.core.contact_lcp`; both are re-exported here for
-compatibility."""
+"""The env's contact simulator; it lives in [`hsddp_gym.core.contact`][hsddp_gym.core.contact] (a model that policies
+may use too, e.g. the MPC's latency predictor), its LCP in [`hsddp_gym.core.contact_lcp`][hsddp_gym.core.contact_lcp];
+both are re-exported here for compatibility."""
 
 from hsddp_gym.core.contact import (  # noqa: F401
     CONTACT_MARGIN,

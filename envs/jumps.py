@@ -1,19 +1,20 @@
 """``hsddp_gym/GapJump-v0`` and ``hsddp_gym/BoxJump-v0``: the Bounding-v0 robot and physics on a terrain, rewarded for
-jumping over a 0.3 m gap or onto a 0.1 m box and bounding on (see :class:`JumpEnv`).
+jumping over a 0.3 m gap or onto a 0.1 m box and bounding on (see [`JumpEnv`][JumpEnv]).
 
-The task is a mixin, :class:`JumpTask`, on top of an env class of the bounding family, as the backflip's
-(:mod:`hsddp_gym.envs.backflip`): :class:`JumpEnv` puts it on :class:`~hsddp_gym.envs.bounding.BoundingEnv` (the
-exact-LCP simulation), :class:`MuJoCoJumpEnv` on the MuJoCo twin (``hsddp_gym/GapJumpMuJoCo-v0``,
-``hsddp_gym/BoxJumpMuJoCo-v0``). One env, two tasks (``task="gap_jump"`` or ``"box_jump"``), two registrations. The
-physics, action and observation layouts, the start (Bounding-v0's: the paper's initial state, bounding at 0.9 m/s,
-with a seeded noise) and the reset options are the base class's; the task fixes the terrain, changes the reward
-(progress across the obstacle, then upright on the far side), adds a fall (a foot in the gap), sets the observation
-clock's period to the episode (2 s) and adds a success flag to ``info`` (:meth:`JumpTask.success`).
+The task is a mixin, [`JumpTask`][JumpTask], on top of an env class of the bounding family, as the backflip's
+([`hsddp_gym.envs.backflip`][hsddp_gym.envs.backflip]): [`JumpEnv`][JumpEnv] puts it on
+[`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (the exact-LCP simulation), [`MuJoCoJumpEnv`][MuJoCoJumpEnv] on the
+MuJoCo twin (``hsddp_gym/GapJumpMuJoCo-v0``, ``hsddp_gym/BoxJumpMuJoCo-v0``). One env, two tasks (``task="gap_jump"`` or
+``"box_jump"``), two registrations. The physics, action and observation layouts, the start (Bounding-v0's: the paper's
+initial state, bounding at 0.9 m/s, with a seeded noise) and the reset options are the base class's; the task fixes the
+terrain, changes the reward (progress across the obstacle, then upright on the far side), adds a fall (a foot in the
+gap), sets the observation clock's period to the episode (2 s) and adds a success flag to ``info``
+([`JumpTask.success`][JumpTask.success]).
 
-The terrain is the jump plan's (:func:`hsddp_gym.core.task_constants.jump_terrain`, at 1 m/s after
-:data:`~hsddp_gym.core.task_constants.JUMP_APPROACH_CYCLES` bounding cycles), the obstacle's constants
-(:data:`~hsddp_gym.core.task_constants.GAP_WIDTH`, ``BOX_HEIGHT``, ``BOX_LENGTH``) the planners' too.
-"""
+The terrain is the jump plan's
+([`hsddp_gym.core.task_constants.jump_terrain`][hsddp_gym.core.task_constants.jump_terrain], at 1 m/s after
+[`JUMP_APPROACH_CYCLES`][hsddp_gym.core.task_constants.JUMP_APPROACH_CYCLES] bounding cycles), the obstacle's constants
+([`GAP_WIDTH`][hsddp_gym.core.task_constants.GAP_WIDTH], ``BOX_HEIGHT``, ``BOX_LENGTH``) the planners' too. """
 
 from __future__ import annotations
 
@@ -43,8 +44,8 @@ SUCCESS_MAX_PITCH = 0.6
 HOLD_STEPS = 50
 """Success: the hold window, the last this many control steps (0.25 s) upright beyond the obstacle."""
 DEFAULT_CROSSING_REWARD = 10.0
-"""Reward for getting across, paid as the trunk's x progresses to :data:`SUCCESS_BEYOND` past the far edge (taken
-back on a fall)."""
+"""Reward for getting across, paid as the trunk's x progresses to [`SUCCESS_BEYOND`][SUCCESS_BEYOND] past the far edge
+(taken back on a fall)."""
 DEFAULT_UPRIGHT_REWARD = 1.0
 """Largest per-step reward for being upright beyond the obstacle."""
 UPRIGHT_PITCH_SIGMA = 0.3
@@ -61,7 +62,8 @@ def far_edge(task: str) -> float:
 
 
 class JumpTask:
-    r"""The jump task, a mixin on an env of the bounding family (:class:`JumpEnv`, :class:`MuJoCoJumpEnv`).
+    r"""The jump task, a mixin on an env of the bounding family ([`JumpEnv`][JumpEnv],
+    [`MuJoCoJumpEnv`][MuJoCoJumpEnv]).
 
     Arguments it adds or changes (every other argument is the base env's; ``terrain`` is set by ``task``):
 
@@ -122,10 +124,10 @@ class JumpTask:
 
     def success(self) -> bool:
         """The task's success now: no fall (no termination: the trunk never dropped below the healthy height over the
-        ground under it, no foot ever went into the gap), and for the last :data:`HOLD_STEPS` control steps across
-        (the trunk at least :data:`SUCCESS_BEYOND` past the far edge, both feet past it), upright
-        (``|pitch| <= SUCCESS_MAX_PITCH``) and up (trunk centre at least :data:`SUCCESS_MIN_HEIGHT` above the
-        ground under it)."""
+        ground under it, no foot ever went into the gap), and for the last [`HOLD_STEPS`][HOLD_STEPS] control steps
+        across (the trunk at least [`SUCCESS_BEYOND`][SUCCESS_BEYOND] past the far edge, both feet past it), upright
+        (``|pitch| <= SUCCESS_MAX_PITCH``) and up (trunk centre at least [`SUCCESS_MIN_HEIGHT`][SUCCESS_MIN_HEIGHT]
+        above the ground under it)."""
         return bool(not self._fell and self._hold >= HOLD_STEPS)
 
     def _get_info(self) -> dict:
@@ -149,7 +151,7 @@ class JumpTask:
 
     def step(self, action):
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the crossing
-        and upright terms (class docstring of :class:`JumpEnv`)."""
+        and upright terms (class docstring of [`JumpEnv`][JumpEnv])."""
         obs, reward, terminated, truncated, info = super().step(action)
         x = self.sim.x
         cross = upright = 0.0
@@ -184,13 +186,13 @@ class JumpEnv(JumpTask, BoundingEnv):
 
     ## Description
     The robot, physics, action space, observation layout, info and reset options of
-    :class:`~hsddp_gym.envs.bounding.BoundingEnv` (``hsddp_gym/Bounding-v0``) on a fixed terrain
-    (:func:`~hsddp_gym.core.task_constants.jump_terrain`), with the jump task (:class:`JumpTask`): ``task="gap_jump"``
-    (``hsddp_gym/GapJump-v0``) puts a 0.3 m gap 0.66 m ahead of the start, ``task="box_jump"``
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (``hsddp_gym/Bounding-v0``) on a fixed terrain
+    ([`jump_terrain`][hsddp_gym.core.task_constants.jump_terrain]), with the jump task ([`JumpTask`][JumpTask]):
+    ``task="gap_jump"`` (``hsddp_gym/GapJump-v0``) puts a 0.3 m gap 0.66 m ahead of the start, ``task="box_jump"``
     (``hsddp_gym/BoxJump-v0``) a 0.1 m high, 3 m long box 0.79 m ahead. The robot starts bounding at 0.9 m/s and is
     rewarded for getting across and then for being upright on the far side. The HS-DDP jumps
-    (:mod:`hsddp_gym.planners.motions`, ``plan_jump``) do it from two bounding cycles: a 80 ms take-off back stance, a
-    250 ms flight, a landing on the front foot beyond the far edge, then bounding on.
+    ([`hsddp_gym.planners.motions`][hsddp_gym.planners.motions], ``plan_jump``) do it from two bounding cycles: a 80 ms
+    take-off back stance, a 250 ms flight, a landing on the front foot beyond the far edge, then bounding on.
 
     ## Action space
     ``Box(-1, 1, (4,), float32)``: normalized joint torques, as Bounding-v0 (33 N m a full action, 200 Hz).
@@ -224,15 +226,16 @@ class JumpEnv(JumpTask, BoundingEnv):
 
     ## Success
     ``info["success"]`` at every step (its value at the last step of an episode is the episode's,
-    :meth:`JumpTask.success`): no fall, and for the last 50 control steps (0.25 s) the trunk 0.3 m past ``x_far``
-    with both feet past it, ``|pitch| <= 0.6`` rad and the trunk centre at least 0.15 m above the ground under it.
+    [`JumpTask.success`][JumpTask.success]): no fall, and for the last 50 control steps (0.25 s) the trunk 0.3 m past
+    ``x_far`` with both feet past it, ``|pitch| <= 0.6`` rad and the trunk centre at least 0.15 m above the ground under
+    it.
 
     ## Info
     Bounding-v0's keys (with ``ground_height``, the terrain's) plus ``reward_crossing``, ``reward_upright`` (float),
     ``crossing_progress`` (float, ``p_t``) and ``success`` (bool), the same keys at reset and at every step.
 
     ## Arguments
-    :class:`JumpTask`'s and every other argument of :class:`~hsddp_gym.envs.bounding.BoundingEnv` but
+    [`JumpTask`][JumpTask]'s and every other argument of [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] but
     ``terrain`` (set by ``task``), all JSON-serializable. No compiled vector entry point: ``gym.make_vec(...,
     vectorization_mode="sync")`` (or ``"async"``).
 
@@ -242,9 +245,10 @@ class JumpEnv(JumpTask, BoundingEnv):
 
 
 class MuJoCoJumpEnv(JumpTask, MuJoCoBoundingEnv):
-    """``hsddp_gym/GapJumpMuJoCo-v0`` and ``hsddp_gym/BoxJumpMuJoCo-v0``: :class:`JumpEnv`'s task (terrain, reward,
-    start, termination, success, arguments) simulated by MuJoCo, :class:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv`
-    (its contact-model arguments too; needs the extra ``mujoco``)."""
+    """``hsddp_gym/GapJumpMuJoCo-v0`` and ``hsddp_gym/BoxJumpMuJoCo-v0``: [`JumpEnv`][JumpEnv]'s task (terrain, reward,
+    start, termination, success, arguments) simulated by MuJoCo,
+    [`MuJoCoBoundingEnv`][hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv] (its contact-model arguments too; needs the
+    extra ``mujoco``)."""
 
 
 __all__ = ["TASKS", "EPISODE_DURATION",

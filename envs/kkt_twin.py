@@ -1,8 +1,9 @@
 """The planner's own model as an env: ``hsddp_gym/BoundingKKT-v0``, the task of ``hsddp_gym/Bounding-v0`` simulated
-by the hybrid rigid-contact model the HS-DDP planner and the MPC predict with (:mod:`hsddp_gym.core.dynamics`),
-with the contact mode decided by the state instead of a schedule.
+by the hybrid rigid-contact model the HS-DDP planner and the MPC predict with
+([`hsddp_gym.core.dynamics`][hsddp_gym.core.dynamics]), with the contact mode decided by the state instead of a
+schedule.
 
-Model (:class:`KKTSimulator`), one step of ``h`` (1 ms) in contact mode ``m`` (the set of pinned feet)
+Model ([`KKTSimulator`][KKTSimulator]), one step of ``h`` (1 ms) in contact mode ``m`` (the set of pinned feet)
 ------------------------------------------------------------------------------------------------------------
 1. *Touchdown at the start*: a free foot at or below the ground (``phi <= 0``) that does not move up joins ``m``
    through the touchdown reset map (paper eqs. 12-13, restitution 0: its velocity becomes 0;
@@ -22,19 +23,19 @@ Model (:class:`KKTSimulator`), one step of ``h`` (1 ms) in contact mode ``m`` (t
    constraint ``J a + dJ v = 0`` integrated by semi-implicit Euler lets a pinned foot creep by about
    ``h^2 |dJ v|`` per step (~1e-6 m at 1 kHz; 0.05 mm in the first 50 ms of a landing), accumulating over a
    stance. So after every step the positions are moved in the mass metric to put each pinned foot back at
-   its anchor (its touchdown x, z = 0; one Newton step, :attr:`KKTSimulator.pin_correction` is the largest
+   its anchor (its touchdown x, z = 0; one Newton step, `KKTSimulator.pin_correction` is the largest
    correction so far) and the velocities go through the reset map of the current mode (the identity on exact
    stance motion). Both are zero on the planner's continuous-time stance trajectories; ``stabilize=False``
    gives the bare discrete model.
 
 What the planner's model does not have, and what it therefore allows: the ground never makes a pinned foot slip
-(no friction cone; :attr:`KKTSimulator.friction_ratio` and ``info["friction_ratio"]`` report the largest
+(no friction cone; `KKTSimulator.friction_ratio` and ``info["friction_ratio"]`` report the largest
 ``|f_x| / f_z`` of the pinned feet in the last control step, against ``mu = 0.6`` of the other two simulators,
-and :attr:`KKTSimulator.cone_violations` counts the 1-ms steps above ``mu``); the acceleration-level constraint
+and `KKTSimulator.cone_violations` counts the 1-ms steps above ``mu``); the acceleration-level constraint
 ``J a + dJ v = 0`` keeps the foot velocity at 0 to O(h) per step but does not correct position drift (a pinned
 foot creeps unless stabilized, step 5); impacts are inelastic and instantaneous. The
-motors' torque-speed limit of the env is applied first (the same :func:`~hsddp_gym.core.contact.motor_torques`).
-"""
+motors' torque-speed limit of the env is applied first (the same
+[`motor_torques`][hsddp_gym.core.contact.motor_torques]). """
 
 from __future__ import annotations
 
@@ -53,10 +54,10 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 
 class KKTSimulator(SimulatorQueries):
-    """The planner's hybrid model (:mod:`hsddp_gym.core.dynamics`) with state-based mode switching, behind the
-    interface :class:`~hsddp_gym.envs.bounding.BoundingEnv` uses of its simulator (``x``/``q``/``v`` views,
-    ``set_state``, ``run``, ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...). See the module
-    docstring for the step.
+    """The planner's hybrid model ([`hsddp_gym.core.dynamics`][hsddp_gym.core.dynamics]) with state-based mode
+    switching, behind the interface [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] uses of its simulator
+    (``x``/``q``/``v`` views, ``set_state``, ``run``, ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...).
+    See the module docstring for the step.
 
     Args:
         robot: the model (default: the paper's robot). timestep: ``h`` [s] (default 1e-3).
@@ -71,9 +72,9 @@ class KKTSimulator(SimulatorQueries):
     impulse: ground impulses of the last 1-ms step (grf layout (4,)) [N s]; contact (2,) bool: the foot was
     pinned with a positive normal force (or touched down) in the last step; states (2,): ``STICK`` for a
     pinned foot, else ``SEPARATE``; friction_ratio: the largest ``|f_x| / f_z`` of a pinned foot over the last
-    :meth:`run`; cone_violations: 1-ms steps since :meth:`set_state` in which a pinned foot had
-    ``|f_x| > mu f_z``; touchdowns, liftoffs: counts since :meth:`set_state`; pin_correction: the largest
-    position correction of the stabilization since :meth:`set_state` [m].
+    [`run`][run]; cone_violations: 1-ms steps since [`set_state`][set_state] in which a pinned foot had
+    ``|f_x| > mu f_z``; touchdowns, liftoffs: counts since [`set_state`][set_state]; pin_correction: the largest
+    position correction of the stabilization since [`set_state`][set_state] [m].
     """
 
     def __init__(self, robot: CheetahModel | None = None, timestep: float = 1e-3, friction: float | None = None,
@@ -262,11 +263,11 @@ class KKTSimulator(SimulatorQueries):
 
 
 class KKTBoundingEnv(BoundingEnv):
-    """``hsddp_gym/BoundingKKT-v0``: :class:`~hsddp_gym.envs.bounding.BoundingEnv` (same observation, action,
-    reward, reset, termination and arguments) simulated by the planner's own hybrid model (:class:`KKTSimulator`:
-    pinned stance feet, KKT contact dynamics, touchdown reset maps, lift-off on a negative normal force) instead
-    of the exact-LCP contact simulator. ``contact_erp`` and ``energy_consistent`` do not apply (accepted,
-    ignored); ``friction`` only sets the cone against which violations are counted; extra argument
+    """``hsddp_gym/BoundingKKT-v0``: [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (same observation, action,
+    reward, reset, termination and arguments) simulated by the planner's own hybrid model
+    ([`KKTSimulator`][KKTSimulator]: pinned stance feet, KKT contact dynamics, touchdown reset maps, lift-off on a
+    negative normal force) instead of the exact-LCP contact simulator. ``contact_erp`` and ``energy_consistent`` do not
+    apply (accepted, ignored); ``friction`` only sets the cone against which violations are counted; extra argument
     ``stabilize`` (default True: the drift correction of the module docstring, step 5). ``info`` has the keys of
     Bounding-v0 plus ``friction_ratio``: the largest ``|f_x| / f_z`` of a pinned foot in the control step (0 in
     flight and at reset), which the model lets exceed ``mu``."""

@@ -1,38 +1,39 @@
 """A MuJoCo twin of ``hsddp_gym/Bounding-v0``: the same robot, task and API on an established soft-contact
 simulator, registered as ``hsddp_gym/BoundingMuJoCo-v0`` (needs the optional extra ``mujoco``:
-``pip install hsddp_gym[mujoco]``), and a family of contact models to test a policy on (:class:`ContactModel`).
+``pip install hsddp_gym[mujoco]``), and a family of contact models to test a policy on ([`ContactModel`][ContactModel]).
 
-Model (:func:`build_mjcf`, from :mod:`hsddp_gym.core.params`)
+Model ([`build_mjcf`][build_mjcf], from [`hsddp_gym.core.params`][hsddp_gym.core.params])
 -------------------------------------------------------------
 One ``trunk`` body carrying the joints ``x`` (slide along x), ``z`` (slide along z) and ``pitch`` (hinge about
 +y, positive nose-down) in that order -- the chain of the Pinocchio model -- and two legs of a ``thigh`` (hip
 hinge at ``(+-hip_offset, 0, 0)``) and a ``shank`` (knee hinge ``thigh.length`` below the hip); every body's
-mass, CoM (``com_z`` along the link) and ``I_yy`` come from :class:`~hsddp_gym.core.params.RobotParams`
+mass, CoM (``com_z`` along the link) and ``I_yy`` come from [`RobotParams`][hsddp_gym.core.params.RobotParams]
 (``diaginertia = I_yy (1, 1, 1)`` as in the Pinocchio model; off-plane axes cannot act), with
 ``inertiafromgeom="false"`` so that geoms add no mass; no armature, damping or joint limits. The point foot is a
-sphere of radius ``foot_radius`` (default :data:`FOOT_RADIUS`, 5 mm) centred on the foot point, and the floor plane
-lies ``foot_radius`` below ``z = 0``, so a foot touches exactly when the foot point reaches ``z = 0`` (the env's
+sphere of radius ``foot_radius`` (default [`FOOT_RADIUS`][FOOT_RADIUS], 5 mm) centred on the foot point, and the floor
+plane lies ``foot_radius`` below ``z = 0``, so a foot touches exactly when the foot point reaches ``z = 0`` (the env's
 ground). Only the feet collide, with the floor. Joint torques enter as ``qfrc_applied`` (the motors' torque-speed
 limit of the env is applied first, the same code).
 
 Terrain (``terrain=``, as Bounding-v0's): the floor plane is replaced by one box per piece of the terrain's
-simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`, :func:`terrain_geoms`), each tilted to its
-piece's slope with its top face ``foot_radius`` below the piece along its normal, so a foot sphere touches a piece when
-the foot point reaches it (at a corner between pieces, to within the foot radius times the angle between them).
+simulated surface ([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices],
+[`terrain_geoms`][terrain_geoms]), each tilted to its piece's slope with its top face ``foot_radius`` below the piece
+along its normal, so a foot sphere touches a piece when the foot point reaches it (at a corner between pieces, to within
+the foot radius times the angle between them).
 
-Simulation (the default :data:`ContactModel`): ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator,
+Simulation (the default [`ContactModel`][ContactModel]): ``timestep`` 1 ms, MuJoCo's semi-implicit ``Euler`` integrator,
 elliptic friction cone with ``mu`` = 0.6, and a stiff soft contact ``solref = (0.005, 1)`` (5 ms time constant,
 critically damped; MuJoCo's default is 0.02 s) with MuJoCo's default ``solimp`` and ``impratio``. Unlike the
 exact-LCP env, contacts are compliant: feet sink millimetres, may bounce and slip slightly while "sticking".
 
 Contact models
 --------------
-:class:`ContactModel` (frozen, validated) is one contact model of the twin: friction cone, ``solref``, ``solimp``,
-foot radius, ``impratio``, time step and friction. :data:`ContactModel.DEFAULT <ContactModel>` is the model above
-(its MJCF is the twin's, byte for byte); :meth:`ContactModel.sample` draws one from the documented family
-(:data:`FAMILY_RANGES`); :data:`CONTACT_CORNERS` names the family's corners. The env takes a model as
-``contact_model=`` (a :class:`ContactModel`, a dict of its fields or a corner name) and each field as its own
-keyword. The control period stays 5 ms whatever the time step: the time step must divide it
+[`ContactModel`][ContactModel] (frozen, validated) is one contact model of the twin: friction cone, ``solref``,
+``solimp``, foot radius, ``impratio``, time step and friction. [`ContactModel.DEFAULT`][ContactModel] is the model
+above (its MJCF is the twin's, byte for byte); [`ContactModel.sample`][ContactModel.sample] draws one from the
+documented family ([`FAMILY_RANGES`][FAMILY_RANGES]); [`CONTACT_CORNERS`][CONTACT_CORNERS] names the family's corners.
+The env takes a model as ``contact_model=`` (a [`ContactModel`][ContactModel], a dict of its fields or a corner name)
+and each field as its own keyword. The control period stays 5 ms whatever the time step: the time step must divide it
 (``timestep = 5 ms / n``, ``n`` = 3..10) and the env's ``frame_skip`` defaults to ``n``.
 
 Divergence: when MuJoCo meets a non-finite or huge ``qpos``/``qvel``/``qacc`` it warns and silently resets the
@@ -86,8 +87,8 @@ FAMILY_RANGES = {
     "timestep": (0.0005, 0.002),
     "friction": (0.4, 1.0),
 }
-"""The ranges of the contact-model family: :meth:`ContactModel.sample` draws from them (see there for the
-distribution). Units: s, m; the damping ratio, ``d`` and ``impratio`` have none."""
+"""The ranges of the contact-model family: [`ContactModel.sample`][ContactModel.sample] draws from them (see there for
+the distribution). Units: s, m; the damping ratio, ``d`` and ``impratio`` have none."""
 ACCEPTED_RANGES = {
     "solref_time_constant": (0.0005, 0.1),
     "solref_damping_ratio": (0.1, 10.0),
@@ -98,9 +99,10 @@ ACCEPTED_RANGES = {
     "timestep_divisions": (1, 20),
     "friction": (0.01, 2.0),
 }
-"""The values a :class:`ContactModel` accepts, wider than the family's (:data:`FAMILY_RANGES`) so that a user can
-build a model outside it (e.g. ``friction=0.3``): ``solimp``'s ``d_min`` and ``d_max`` in ``solimp_d``, its midpoint
-in (0, 1) and power >= 1, the time step ``5 ms / n`` for a whole ``n`` in ``timestep_divisions``. Units: s, m."""
+"""The values a [`ContactModel`][ContactModel] accepts, wider than the family's ([`FAMILY_RANGES`][FAMILY_RANGES]) so
+that a user can build a model outside it (e.g. ``friction=0.3``): ``solimp``'s ``d_min`` and ``d_max`` in ``solimp_d``,
+its midpoint in (0, 1) and power >= 1, the time step ``5 ms / n`` for a whole ``n`` in ``timestep_divisions``. Units: s,
+m."""
 
 
 def _real(value, name: str) -> float:
@@ -125,7 +127,7 @@ def _numbers(value, size: int, name: str) -> tuple:
 @dataclasses.dataclass(frozen=True)
 class ContactModel:
     """One contact model of the MuJoCo twin (validated on construction; ``ValueError`` naming the field, its range
-    and the value received). :data:`DEFAULT <ContactModel.DEFAULT>` is the twin's model, bit for bit.
+    and the value received). ``ContactModel.DEFAULT`` is the twin's model, bit for bit.
 
     Attributes:
         cone: MuJoCo's friction cone, ``"elliptic"`` (default) or ``"pyramidal"``.
@@ -133,18 +135,18 @@ class ContactModel:
             5 ms; MuJoCo raises a time constant below two time steps to two time steps), damping ratio in
             [0.1, 10] (default 1, critically damped).
         solimp: MuJoCo's impedance shape ``(d_min, d_max, width [m], midpoint, power)`` (default MuJoCo's
-            :data:`MUJOCO_SOLIMP`): ``d_min <= d_max`` in [0.01, 0.9999], ``width`` in [0.01, 50] mm, ``midpoint`` in
-            (0, 1), ``power`` >= 1.
+            [`MUJOCO_SOLIMP`][MUJOCO_SOLIMP]): ``d_min <= d_max`` in [0.01, 0.9999], ``width`` in [0.01, 50] mm,
+            ``midpoint`` in (0, 1), ``power`` >= 1.
         foot_radius: radius [m] of the foot spheres, in [0.5, 50] mm (default 5 mm); the floor lies ``foot_radius``
             below ``z = 0`` so a foot touches when its foot point reaches the ground. A larger sphere rolls: its
             contact point moves along the ground as the shank turns.
         impratio: MuJoCo's ratio of frictional to normal impedance, in [1, 100] (default 1; elliptic cones only).
         timestep: MuJoCo's step [s]: ``5 ms / n`` for a whole ``n`` from 1 to 20 (0.25 to 5 ms; default 1 ms), so
-            that the 5 ms control period is ``n`` steps (:attr:`frame_skip`); stored as exactly ``0.005 / n``.
+            that the 5 ms control period is ``n`` steps ([`frame_skip`][frame_skip]); stored as exactly ``0.005 / n``.
         friction: Coulomb coefficient ``mu`` of feet and floor, in [0.01, 2] (default 0.6, the planner's model).
 
-    The accepted ranges (:data:`ACCEPTED_RANGES`) are wider than the family's (:data:`FAMILY_RANGES`), which
-    :meth:`sample` draws from.
+    The accepted ranges ([`ACCEPTED_RANGES`][ACCEPTED_RANGES]) are wider than the family's
+    ([`FAMILY_RANGES`][FAMILY_RANGES]), which [`sample`][sample] draws from.
     """
 
     cone: str = "elliptic"
@@ -204,8 +206,9 @@ class ContactModel:
 
     @classmethod
     def parse(cls, value, name: str = "contact_model") -> ContactModel:
-        """``value`` as a model: a :class:`ContactModel`, a dict of its fields (missing ones: the default's) or the
-        name of a corner of :data:`CONTACT_CORNERS`; ``TypeError``/``ValueError`` naming ``name`` otherwise."""
+        """``value`` as a model: a [`ContactModel`][ContactModel], a dict of its fields (missing ones: the default's) or
+        the name of a corner of [`CONTACT_CORNERS`][CONTACT_CORNERS]; ``TypeError``/``ValueError`` naming ``name``
+        otherwise."""
         if isinstance(value, cls):
             return value
         if isinstance(value, str):
@@ -273,8 +276,8 @@ CONTACT_CORNERS: dict[str, ContactModel] = {
 
 
 def _resolve(contact_model, friction_default: float | None = None, **fields) -> ContactModel:
-    """``contact_model`` (see :meth:`ContactModel.parse`; None: the default, with ``friction_default`` when given)
-    with the non-None ``fields`` replacing its own (validated)."""
+    """``contact_model`` (see [`ContactModel.parse`][ContactModel.parse]; None: the default, with ``friction_default``
+    when given) with the non-None ``fields`` replacing its own (validated)."""
     if contact_model is None:
         base = ContactModel.DEFAULT
         if friction_default is not None and fields.get("friction") is None:
@@ -294,14 +297,14 @@ def _import_mujoco():
 
 
 TERRAIN_BOX_THICKNESS = 0.1
-"""Thickness [m] of the boxes that make a terrain's surface in the MJCF (:func:`terrain_geoms`)."""
+"""Thickness [m] of the boxes that make a terrain's surface in the MJCF ([`terrain_geoms`][terrain_geoms])."""
 
 
 def terrain_geoms(terrain, foot_radius: float, friction: float, solref, imp: str = "") -> str:
     """The MJCF ``<geom>`` boxes of ``terrain``'s simulated surface (one per piece between consecutive vertices of
-    :meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`), named ``terrain_0``, ``terrain_1``, ...: a box as long as
-    its piece, tilted about +y to its slope, :data:`TERRAIN_BOX_THICKNESS` thick, its top face ``foot_radius`` below the
-    piece along the piece's normal."""
+    [`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices]), named ``terrain_0``, ``terrain_1``, ...: a
+    box as long as its piece, tilted about +y to its slope, [`TERRAIN_BOX_THICKNESS`][TERRAIN_BOX_THICKNESS] thick, its
+    top face ``foot_radius`` below the piece along the piece's normal."""
     xs, zs = terrain.surface_vertices()
     out = []
     half_t = 0.5 * TERRAIN_BOX_THICKNESS
@@ -327,16 +330,17 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
     Args:
         params: the robot. gravity: [m/s^2] (default ``params.gravity``).
         timestep: MuJoCo's step [s] (5 ms / n); replaces ``contact_model``'s (None: keep it). Every contact argument
-            below likewise replaces that field of ``contact_model`` and is validated as :class:`ContactModel`.
+            below likewise replaces that field of ``contact_model`` and is validated as [`ContactModel`][ContactModel].
         friction: Coulomb ``mu`` (in [0.01, 2]).
         solref: ``(time constant [s], damping ratio)``.
         cone: ``"elliptic"`` or ``"pyramidal"``.
         solimp: ``(d_min, d_max, width [m], midpoint, power)``.
         foot_radius: [m].
         impratio: frictional / normal impedance ratio.
-        contact_model: a :class:`ContactModel` (or a dict of its fields, or a corner name); None: the default
+        contact_model: a [`ContactModel`][ContactModel] (or a dict of its fields, or a corner name); None: the default
             model with ``params.friction``.
-        terrain: a :class:`~hsddp_gym.core.terrain.Terrain` (its surface as boxes, :func:`terrain_geoms`) or None
+        terrain: a [`Terrain`][hsddp_gym.core.terrain.Terrain] (its surface as boxes, [`terrain_geoms`][terrain_geoms])
+            or None
             (the floor plane).
 
     The ``solimp`` and ``impratio`` attributes are written only when they differ from MuJoCo's defaults, so the
@@ -396,18 +400,20 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
 
 
 class MuJoCoSimulator(SimulatorQueries):
-    """The MuJoCo model behind the interface :class:`~hsddp_gym.envs.bounding.BoundingEnv` uses of
-    :class:`~hsddp_gym.envs.contact.ContactSimulator` (``x``/``q``/``v`` views, ``set_state``, ``run``,
+    """The MuJoCo model behind the interface [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] uses of
+    [`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] (``x``/``q``/``v`` views, ``set_state``, ``run``,
     ``contact``, ``impulse``, ``foot_heights_fast``, ``energy``, ...).
 
     Args:
         robot: the model (default: the paper's robot). gravity: as ContactSimulator.
         motor_speed_limits: with ``torque_limit``, the env's torque-speed limit (same semantics).
         torque_limit: see ``motor_speed_limits``.
-        contact_model: the contact model (a :class:`ContactModel`, a dict of its fields or a corner name of
-            :data:`CONTACT_CORNERS`; None: :data:`ContactModel.DEFAULT <ContactModel>` with the robot's friction).
+        contact_model: the contact model (a [`ContactModel`][ContactModel], a dict of its fields or a corner name of
+            [`CONTACT_CORNERS`][CONTACT_CORNERS]; None: [`ContactModel.DEFAULT`][ContactModel] with the robot's
+            friction).
         timestep: MuJoCo's step [s] (5 ms / n). This and every contact argument below replace that field of
-            ``contact_model`` (None: keep it), validated as :class:`ContactModel` (``ValueError`` naming the argument).
+            ``contact_model`` (None: keep it), validated as [`ContactModel`][ContactModel] (``ValueError`` naming the
+            argument).
         friction: Coulomb ``mu`` (in [0.01, 2]).
         solref: ``(time constant [s], damping ratio)``.
         cone: ``"elliptic"`` or ``"pyramidal"``.
@@ -416,7 +422,7 @@ class MuJoCoSimulator(SimulatorQueries):
         impratio: frictional / normal impedance ratio.
 
     Attributes:
-        contact_model: the :class:`ContactModel` simulated. dt: its time step [s]. mu: its friction.
+        contact_model: the [`ContactModel`][ContactModel] simulated. dt: its time step [s]. mu: its friction.
     """
 
     def __init__(self, robot: CheetahModel | None = None, timestep: float | None = None, friction: float | None = None,
@@ -467,7 +473,7 @@ class MuJoCoSimulator(SimulatorQueries):
                                  for f in FEET)
 
     def set_terrain(self, terrain) -> None:
-        """Simulate on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain` or None: the floor plane): the MuJoCo
+        """Simulate on ``terrain`` (a [`Terrain`][hsddp_gym.core.terrain.Terrain] or None: the floor plane): the MuJoCo
         model is rebuilt when it changes (set a state before stepping again)."""
         terrain = check_terrain(terrain)
         if terrain == self.terrain:
@@ -558,19 +564,20 @@ class MuJoCoSimulator(SimulatorQueries):
 
 
 class MuJoCoBoundingEnv(BoundingEnv):
-    """``hsddp_gym/BoundingMuJoCo-v0``: :class:`~hsddp_gym.envs.bounding.BoundingEnv` (same observation, action,
-    reward, reset, termination, info and arguments) simulated by MuJoCo (:class:`MuJoCoSimulator`) instead of the
-    exact-LCP contact simulator. Contact flags are set when MuJoCo reports a positive normal force on the foot in the
-    last MuJoCo step. ``contact_erp`` and ``energy_consistent`` do not apply (accepted, ignored).
+    """``hsddp_gym/BoundingMuJoCo-v0``: [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (same observation, action,
+    reward, reset, termination, info and arguments) simulated by MuJoCo ([`MuJoCoSimulator`][MuJoCoSimulator]) instead
+    of the exact-LCP contact simulator. Contact flags are set when MuJoCo reports a positive normal force on the foot in
+    the last MuJoCo step. ``contact_erp`` and ``energy_consistent`` do not apply (accepted, ignored).
 
     Extra (keyword) arguments, the contact model (``ValueError`` naming the argument for a value out of range):
 
     | argument | default | meaning |
     |---|---|---|
-    | ``contact_model`` | None | a :class:`ContactModel`, a dict of its fields or a corner name (None: the default) |
+    | ``contact_model`` | None | a [`ContactModel`][ContactModel], a dict of its fields or a corner name (None: the
+    default) |
     | ``cone`` | ``"elliptic"`` | friction cone, ``"elliptic"`` or ``"pyramidal"`` |
     | ``solref`` | (0.005, 1) | (time constant in [0.5, 100] ms, damping ratio in [0.1, 10]) |
-    | ``solimp`` | (0.9, 0.95, 0.001, 0.5, 2) | MuJoCo's impedance shape (see :class:`ContactModel`) |
+    | ``solimp`` | (0.9, 0.95, 0.001, 0.5, 2) | MuJoCo's impedance shape (see [`ContactModel`][ContactModel]) |
     | ``foot_radius`` | 0.005 | foot sphere radius [m], in [0.5, 50] mm |
     | ``impratio`` | 1 | frictional / normal impedance ratio, in [1, 100] |
     | ``sim_timestep`` | 0.001 | MuJoCo step [s]: 5 ms / n, n = 1..20 |
@@ -578,8 +585,8 @@ class MuJoCoBoundingEnv(BoundingEnv):
     | ``frame_skip`` | None | steps per action (None: 5 ms / ``sim_timestep``, the control period stays 5 ms) |
 
     Each of ``cone`` .. ``friction`` given (not None) replaces that field of ``contact_model``; the model
-    simulated is :attr:`contact_model`. :meth:`set_contact_model` changes it between episodes
-    (:class:`hsddp_gym.envs.perturbations.RandomContactModel` draws one per episode).
+    simulated is `contact_model`. [`set_contact_model`][set_contact_model] changes it between episodes
+    ([`RandomContactModel`][hsddp_gym.envs.perturbations.wrappers.RandomContactModel] draws one per episode).
     """
 
     def __init__(self, *, contact_model=None, cone: str | None = None, solref=None, solimp=None,
@@ -598,10 +605,10 @@ class MuJoCoBoundingEnv(BoundingEnv):
                                torque_limit=self.torque_limit, contact_model=self.contact_model, terrain=self.terrain)
 
     def set_contact_model(self, contact_model) -> None:
-        """Simulate ``contact_model`` (a :class:`ContactModel`, a dict of its fields or a corner name) from the next
-        :meth:`reset` on: the MuJoCo model is rebuilt, ``sim_timestep`` becomes the model's and, unless
+        """Simulate ``contact_model`` (a [`ContactModel`][ContactModel], a dict of its fields or a corner name) from the
+        next `reset` on: the MuJoCo model is rebuilt, ``sim_timestep`` becomes the model's and, unless
         ``frame_skip`` was given, ``frame_skip`` becomes ``5 ms / sim_timestep`` (the control period stays 5 ms).
-        Call :meth:`reset` before stepping again."""
+        Call `reset` before stepping again."""
         model = ContactModel.parse(contact_model, "contact_model")
         if model == self.contact_model:
             return

@@ -1,16 +1,17 @@
-"""``hsddp_gym/Pronking-v0``: the Bounding-v0 robot and physics, rewarded for pronking (see :class:`PronkingEnv`).
+"""``hsddp_gym/Pronking-v0``: the Bounding-v0 robot and physics, rewarded for pronking (see
+[`PronkingEnv`][PronkingEnv]).
 
-The task is a mixin, :class:`PronkingTask`, on top of an env class of the bounding family: :class:`PronkingEnv` puts
-it on :class:`~hsddp_gym.envs.bounding.BoundingEnv` (the exact-LCP simulation), :class:`MuJoCoPronkingEnv` on the
-MuJoCo twin (``hsddp_gym/PronkingMuJoCo-v0``). The physics, the action and observation layouts, the termination and
-the reset options are the base class's, untouched; the task changes four things: the reward (a contact-matching
-term), the observation clock's period (the pronk's cycle), the initial state (the pronk plan's start) and the range
-of target speeds. :func:`pronking_success` is its success criterion.
+The task is a mixin, [`PronkingTask`][PronkingTask], on top of an env class of the bounding family:
+[`PronkingEnv`][PronkingEnv] puts it on [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (the exact-LCP simulation),
+[`MuJoCoPronkingEnv`][MuJoCoPronkingEnv] on the MuJoCo twin (``hsddp_gym/PronkingMuJoCo-v0``). The physics, the action
+and observation layouts, the termination and the reset options are the base class's, untouched; the task changes four
+things: the reward (a contact-matching term), the observation clock's period (the pronk's cycle), the initial state (the
+pronk plan's start) and the range of target speeds. [`pronking_success`][pronking_success] is its success criterion.
 
 Envs do not import the planners (the package's layers), so the pronk's constants below repeat those of
-:mod:`hsddp_gym.planners.motions` (``PRONK_DURATIONS``, ``PRONK_HEIGHT``, ``SPEED_RANGE``) and
-:func:`pronk_start_state` repeats its start state (``pronk_problem(...)[0].x0``); ``tests/test_pronking_env.py``
-checks that they agree.
+[`hsddp_gym.planners.motions`][hsddp_gym.planners.motions] (``PRONK_DURATIONS``, ``PRONK_HEIGHT``, ``SPEED_RANGE``) and
+[`pronk_start_state`][pronk_start_state] repeats its start state (``pronk_problem(...)[0].x0``);
+``tests/test_pronking_env.py`` checks that they agree.
 """
 
 from __future__ import annotations
@@ -60,24 +61,27 @@ def contact_match_fraction(contacts) -> float:
 
 def pronking_success(fell: bool, mean_speed: float, match_fraction: float, target_speed: float) -> bool:
     """The task's success criterion for one episode: no fall (no termination), the mean forward speed within
-    :data:`SUCCESS_SPEED_TOLERANCE` (20 %) of ``target_speed`` and at least :data:`SUCCESS_MATCH_FRACTION` (80 %)
-    of the control steps with matching contact flags (:func:`contact_match_fraction`)."""
+    [`SUCCESS_SPEED_TOLERANCE`][SUCCESS_SPEED_TOLERANCE] (20 %) of ``target_speed`` and at least
+    [`SUCCESS_MATCH_FRACTION`][SUCCESS_MATCH_FRACTION] (80 %) of the control steps with matching contact flags
+    ([`contact_match_fraction`][contact_match_fraction])."""
     return (not fell) and abs(float(mean_speed) - float(target_speed)) <= SUCCESS_SPEED_TOLERANCE * abs(
         float(target_speed)) and float(match_fraction) >= SUCCESS_MATCH_FRACTION
 
 
 class PronkingTask:
-    r"""The pronking task, a mixin on an env of the bounding family (:class:`PronkingEnv`, :class:`MuJoCoPronkingEnv`).
+    r"""The pronking task, a mixin on an env of the bounding family ([`PronkingEnv`][PronkingEnv],
+    [`MuJoCoPronkingEnv`][MuJoCoPronkingEnv]).
 
     Arguments it adds or changes (every other argument is the base env's):
 
     | parameter | default | description |
     |---|---|---|
-    | ``target_speed`` | 1.0 | desired forward speed [m/s], in [0.5, 1.5] (:data:`PRONK_SPEED_RANGE`) |
-    | ``gait_period`` | 0.18 | period of the observation's clock [s]: the pronk's cycle (:data:`PRONK_PERIOD`) |
+    | ``target_speed`` | 1.0 | desired forward speed [m/s], in [0.5, 1.5] ([`PRONK_SPEED_RANGE`][PRONK_SPEED_RANGE]) |
+    | ``gait_period`` | 0.18 | period of the observation's clock [s]: the pronk's cycle ([`PRONK_PERIOD`][PRONK_PERIOD])
+    |
     | ``contact_match_reward`` | 0.5 | weight of the contact-matching term |
-    | ``start_at_pronk`` | True | start at the pronk plan's start (:func:`pronk_start_state`); False: the base env's |
-    """
+    | ``start_at_pronk`` | True | start at the pronk plan's start ([`pronk_start_state`][pronk_start_state]); False: the
+    base env's | """
 
     def __init__(self, *, target_speed: float = 1.0, gait_period: float = PRONK_PERIOD,
                  contact_match_reward: float = DEFAULT_CONTACT_MATCH_REWARD, start_at_pronk: bool = True,
@@ -127,10 +131,11 @@ class PronkingEnv(PronkingTask, BoundingEnv):
 
     ## Description
     The robot, physics, action space, observation layout, termination, info and reset options of
-    :class:`~hsddp_gym.envs.bounding.BoundingEnv` (``hsddp_gym/Bounding-v0``), with the pronking task
-    (:class:`PronkingTask`): a reward for keeping both feet in the same contact state, the observation's clock at
-    the pronk's cycle, and a start in the pronk plan's initial state. A pronk is a double stance and a flight
-    repeated (:mod:`hsddp_gym.planners.motions`: 100 ms and 80 ms, 0.18 s a cycle), both feet landing together.
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (``hsddp_gym/Bounding-v0``), with the pronking task
+    ([`PronkingTask`][PronkingTask]): a reward for keeping both feet in the same contact state, the observation's clock
+    at the pronk's cycle, and a start in the pronk plan's initial state. A pronk is a double stance and a flight
+    repeated ([`hsddp_gym.planners.motions`][hsddp_gym.planners.motions]: 100 ms and 80 ms, 0.18 s a cycle), both feet
+    landing together.
 
     ## Action space
     ``Box(-1, 1, (4,), float32)``: normalized joint torques, as Bounding-v0 (33 N m a full action, 200 Hz).
@@ -148,9 +153,9 @@ class PronkingEnv(PronkingTask, BoundingEnv):
     in ``info``: ``reward_forward``, ``reward_ctrl``, ``reward_healthy``, ``reward_contact_match``.
 
     ## Starting state
-    The pronk plan's start (:func:`pronk_start_state`, ``plan_pronk``'s ``X[0]`` at ``target_speed``): mid double
-    stance, feet under the hips, trunk at 0.26 m, pitch 0, moving at ``target_speed``; plus Bounding-v0's reset
-    noise (``reset_noise_scale``, default 0.01). ``start_at_pronk=False`` keeps Bounding-v0's start. The reset
+    The pronk plan's start ([`pronk_start_state`][pronk_start_state], ``plan_pronk``'s ``X[0]`` at ``target_speed``):
+    mid double stance, feet under the hips, trunk at 0.26 m, pitch 0, moving at ``target_speed``; plus Bounding-v0's
+    reset noise (``reset_noise_scale``, default 0.01). ``start_at_pronk=False`` keeps Bounding-v0's start. The reset
     options (``state``, ``time``, ``push``) are Bounding-v0's.
 
     ## Episode end
@@ -158,18 +163,18 @@ class PronkingEnv(PronkingTask, BoundingEnv):
     invalid state; ``truncated`` by the registered ``TimeLimit``, 1000 control steps (5 s, about 28 pronk cycles).
 
     ## Success
-    :func:`pronking_success`: no fall, the mean forward speed within 20 % of ``target_speed`` and at least 80 % of
-    the control steps with matching contact flags.
+    [`pronking_success`][pronking_success]: no fall, the mean forward speed within 20 % of ``target_speed`` and at least
+    80 % of the control steps with matching contact flags.
 
     ## Info
     Bounding-v0's keys plus ``reward_contact_match`` (float) and ``contact_match`` (bool, the two flags equal), the
     same keys at reset and at every step.
 
     ## Arguments
-    :class:`PronkingTask`'s (``target_speed`` in [0.5, 1.5] m/s, ``gait_period`` 0.18 s, ``contact_match_reward``
-    0.5, ``start_at_pronk`` True) and every other argument of :class:`~hsddp_gym.envs.bounding.BoundingEnv`, all
-    JSON-serializable. No compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or
-    ``"async"``).
+    [`PronkingTask`][PronkingTask]'s (``target_speed`` in [0.5, 1.5] m/s, ``gait_period`` 0.18 s,
+    ``contact_match_reward`` 0.5, ``start_at_pronk`` True) and every other argument of
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable. No compiled vector entry point:
+    ``gym.make_vec(..., vectorization_mode="sync")`` (or ``"async"``).
 
     ## Version history
     * v0: initial release.
@@ -177,9 +182,9 @@ class PronkingEnv(PronkingTask, BoundingEnv):
 
 
 class MuJoCoPronkingEnv(PronkingTask, MuJoCoBoundingEnv):
-    """``hsddp_gym/PronkingMuJoCo-v0``: :class:`PronkingEnv`'s task (reward, clock, start, arguments) simulated by
-    MuJoCo, :class:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv` (its contact-model arguments too; needs the extra
-    ``mujoco``)."""
+    """``hsddp_gym/PronkingMuJoCo-v0``: [`PronkingEnv`][PronkingEnv]'s task (reward, clock, start, arguments) simulated
+    by MuJoCo, [`MuJoCoBoundingEnv`][hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv] (its contact-model arguments too;
+    needs the extra ``mujoco``)."""
 
 
 __all__ = ["PRONK_DURATIONS", "PRONK_PERIOD", "PRONK_HEIGHT", "PRONK_SPEED_RANGE", "DEFAULT_CONTACT_MATCH_REWARD",

@@ -1,18 +1,19 @@
 """``hsddp_gym/StandToBound-v0``, ``hsddp_gym/BoundPronkBound-v0`` and ``hsddp_gym/BoundToStop-v0``: the Bounding-v0
-robot and physics, rewarded for a gait transition (see :class:`TransitionEnv`).
+robot and physics, rewarded for a gait transition (see [`TransitionEnv`][TransitionEnv]).
 
-The task is a mixin, :class:`TransitionTask`, on top of an env class of the bounding family, as the jumps'
-(:mod:`hsddp_gym.envs.jumps`): :class:`TransitionEnv` puts it on :class:`~hsddp_gym.envs.bounding.BoundingEnv` (the
-exact-LCP simulation), :class:`MuJoCoTransitionEnv` on the MuJoCo twin (``hsddp_gym/StandToBoundMuJoCo-v0``,
+The task is a mixin, [`TransitionTask`][TransitionTask], on top of an env class of the bounding family, as the jumps'
+([`hsddp_gym.envs.jumps`][hsddp_gym.envs.jumps]): [`TransitionEnv`][TransitionEnv] puts it on
+[`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (the exact-LCP simulation),
+[`MuJoCoTransitionEnv`][MuJoCoTransitionEnv] on the MuJoCo twin (``hsddp_gym/StandToBoundMuJoCo-v0``,
 ``hsddp_gym/BoundPronkBoundMuJoCo-v0``, ``hsddp_gym/BoundToStopMuJoCo-v0``). One env, three tasks (``task=``), three
-registrations. The physics, action and observation layouts and the reset options are the base class's; the task
-fixes the start (the transition plan's: standing at rest for ``"stand_to_bound"``, the backflip's standing start;
+registrations. The physics, action and observation layouts and the reset options are the base class's; the task fixes
+the start (the transition plan's: standing at rest for ``"stand_to_bound"``, the backflip's standing start;
 Bounding-v0's bounding start for the two others), replaces the reward (the plan's contact schedule and forward-speed
-profile, :func:`contact_schedule`, :func:`speed_reference`), sets the observation clock's period to the episode and
-adds a success flag to ``info`` (:meth:`TransitionTask.success`).
+profile, [`contact_schedule`][contact_schedule], [`speed_reference`][speed_reference]), sets the observation clock's
+period to the episode and adds a success flag to ``info`` ([`TransitionTask.success`][TransitionTask.success]).
 
-Envs do not import the planners (the package's layers), so :data:`SCHEDULES` repeats the transition plans' schedules
-(``hsddp_gym.planners.motions.transition_problem(task)``, 1 m/s, two cycles per gait segment);
+Envs do not import the planners (the package's layers), so [`SCHEDULES`][SCHEDULES] repeats the transition plans'
+schedules (``hsddp_gym.planners.motions.transition_problem(task)``, 1 m/s, two cycles per gait segment);
 ``tests/test_transition_envs.py`` checks that they agree.
 """
 
@@ -61,7 +62,7 @@ EPISODE_DURATIONS = {"stand_to_bound": 1.5, "bound_pronk_bound": 2.0, "bound_to_
 WINDOW_STEPS = 60
 """Success: the window, the last this many control steps (0.3 s, one bounding cycle), judged as a gait."""
 SPEED_TOLERANCE = 0.3
-"""Success (bounding): the mean forward speed over the window within this of :data:`TARGET_SPEED` [m/s]."""
+"""Success (bounding): the mean forward speed over the window within this of [`TARGET_SPEED`][TARGET_SPEED] [m/s]."""
 MIN_SINGLE_STANCE_STEPS = 4
 """Success (bounding): at least this many control steps of back stance alone and of front stance alone in the
 window."""
@@ -107,7 +108,7 @@ def contact_schedule(task: str, t: float) -> tuple[bool, bool]:
 
 
 def speed_reference(task: str, t: float) -> float:
-    """The forward-speed reference of ``task`` at time ``t`` [s] (:data:`SPEED_KNOTS`)."""
+    """The forward-speed reference of ``task`` at time ``t`` [s] ([`SPEED_KNOTS`][SPEED_KNOTS])."""
     knots = np.array(SPEED_KNOTS[task])
     return float(np.interp(t, knots[:, 0], knots[:, 1]))
 
@@ -118,8 +119,8 @@ def plan_duration(task: str) -> float:
 
 
 class TransitionTask:
-    r"""The gait-transition task, a mixin on an env of the bounding family (:class:`TransitionEnv`,
-    :class:`MuJoCoTransitionEnv`).
+    r"""The gait-transition task, a mixin on an env of the bounding family ([`TransitionEnv`][TransitionEnv],
+    [`MuJoCoTransitionEnv`][MuJoCoTransitionEnv]).
 
     Arguments it adds or changes (every other argument is the base env's):
 
@@ -172,7 +173,7 @@ class TransitionTask:
 
     def _bounding(self) -> bool:
         """The window is a bound at the target speed: full, single stances of both feet, few double stances, the
-        mean forward speed within :data:`SPEED_TOLERANCE`."""
+        mean forward speed within [`SPEED_TOLERANCE`][SPEED_TOLERANCE]."""
         if len(self._window) < WINDOW_STEPS:
             return False
         w = np.array(self._window)
@@ -198,15 +199,17 @@ class TransitionTask:
         """The task's success now (its value at an episode's last step is the episode's): no fall (no termination)
         and past the plan's duration, and
 
-        * ``"stand_to_bound"``: bounding over the last :data:`WINDOW_STEPS` control steps (0.3 s): at least
-          :data:`MIN_SINGLE_STANCE_STEPS` steps of back stance alone and of front stance alone, at most
-          :data:`MAX_DOUBLE_STANCE_FRACTION` of the window in double stance, the mean forward speed within
-          :data:`SPEED_TOLERANCE` of :data:`TARGET_SPEED`;
-        * ``"bound_pronk_bound"``: at least :data:`MIN_PRONK_STANCES` pronk stances (double stances of at least
-          :data:`PRONK_STANCE_STEPS` steps) in the episode, and bounding over the last window as above;
+        * ``"stand_to_bound"``: bounding over the last [`WINDOW_STEPS`][WINDOW_STEPS] control steps (0.3 s): at least
+          [`MIN_SINGLE_STANCE_STEPS`][MIN_SINGLE_STANCE_STEPS] steps of back stance alone and of front stance alone, at
+          most [`MAX_DOUBLE_STANCE_FRACTION`][MAX_DOUBLE_STANCE_FRACTION] of the window in double stance, the mean
+          forward speed within [`SPEED_TOLERANCE`][SPEED_TOLERANCE] of [`TARGET_SPEED`][TARGET_SPEED];
+        * ``"bound_pronk_bound"``: at least [`MIN_PRONK_STANCES`][MIN_PRONK_STANCES] pronk stances (double stances of at
+        least
+          [`PRONK_STANCE_STEPS`][PRONK_STANCE_STEPS] steps) in the episode, and bounding over the last window as above;
         * ``"bound_to_stop"``: at rest standing: both feet down over the last window, and now trunk speed at most
-          :data:`REST_MAX_SPEED`, pitch rate at most :data:`REST_MAX_PITCH_RATE`, ``|pitch|`` at most
-          :data:`REST_MAX_PITCH`, trunk centre at least :data:`REST_MIN_HEIGHT` high."""
+          [`REST_MAX_SPEED`][REST_MAX_SPEED], pitch rate at most [`REST_MAX_PITCH_RATE`][REST_MAX_PITCH_RATE],
+          ``|pitch|`` at most [`REST_MAX_PITCH`][REST_MAX_PITCH], trunk centre at least
+          [`REST_MIN_HEIGHT`][REST_MIN_HEIGHT] high."""
         if self._fell or self._invalid or self.task_time < self.plan_duration - 1e-9:
             return False
         if self.task == "bound_to_stop":
@@ -229,7 +232,7 @@ class TransitionTask:
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """The plan's start with a seeded noise: Bounding-v0's reset (the noisy paper initial state) for
         ``"bound_pronk_bound"`` and ``"bound_to_stop"``, the backflip's noisy standing start for
-        ``"stand_to_bound"`` (:meth:`~hsddp_gym.envs.backflip.BackflipTask._standing_start`); or
+        ``"stand_to_bound"`` (`_standing_start`); or
         ``options["state"]``. The other options (``time``, ``push``) are the base env's."""
         self._reset_task(0.0)
         if self.task == "stand_to_bound" and (options is None or (isinstance(options, dict)
@@ -246,7 +249,7 @@ class TransitionTask:
 
     def step(self, action):
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the speed
-        and gait terms (class docstring of :class:`TransitionEnv`)."""
+        and gait terms (class docstring of [`TransitionEnv`][TransitionEnv])."""
         t = self.task_time  # the schedule's time of this step's start
         obs, reward, terminated, truncated, info = super().step(action)
         x = self.sim.x
@@ -282,9 +285,10 @@ class TransitionEnv(TransitionTask, BoundingEnv):
 
     ## Description
     The robot, physics, action space, observation layout, info and reset options of
-    :class:`~hsddp_gym.envs.bounding.BoundingEnv` (``hsddp_gym/Bounding-v0``), with the transition task
-    (:class:`TransitionTask`) of one of the HS-DDP transition plans (:mod:`hsddp_gym.planners.motions`,
-    ``plan_transition``, 1 m/s, two cycles per gait segment):
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (``hsddp_gym/Bounding-v0``), with the transition task
+    ([`TransitionTask`][TransitionTask]) of one of the HS-DDP transition plans
+    ([`hsddp_gym.planners.motions`][hsddp_gym.planners.motions], ``plan_transition``, 1 m/s, two cycles per gait
+    segment):
 
     * ``task="stand_to_bound"`` (``hsddp_gym/StandToBound-v0``): from standing at rest, reach bounding at 1 m/s
       (plan: a 250 ms double stance that accelerates, then two bounding cycles at 0.7 and 1 m/s; 0.84 s);
@@ -303,12 +307,12 @@ class TransitionEnv(TransitionTask, BoundingEnv):
 
     ## Rewards
     ``reward = speed_reward * exp(-((vx - v_ref(t)) / 0.3)^2) + gait_reward * (matches / 2) - ctrl_cost_weight *
-    ||a||^2`` (defaults 1, 1, 0.1): ``v_ref(t)`` the plan's forward-speed profile (:func:`speed_reference`: stand to
-    bound from 0 to 1 m/s, bound-pronk-bound 1 m/s, bound to stop from 1 m/s to 0), ``matches`` the number of feet
-    (0-2) whose contact flag is what the plan's contact schedule has at ``t`` (:func:`contact_schedule`; after the
-    plan its last bounding cycle repeated, or the double stance of the stop). Bounding-v0's speed-tracking and
-    healthy terms are off. The terms are in ``info``: ``reward_speed``, ``reward_gait``, ``reward_ctrl`` (and the
-    base's ``reward_forward``, ``reward_healthy``, 0 by default).
+    ||a||^2`` (defaults 1, 1, 0.1): ``v_ref(t)`` the plan's forward-speed profile ([`speed_reference`][speed_reference]:
+    stand to bound from 0 to 1 m/s, bound-pronk-bound 1 m/s, bound to stop from 1 m/s to 0), ``matches`` the number of
+    feet (0-2) whose contact flag is what the plan's contact schedule has at ``t``
+    ([`contact_schedule`][contact_schedule]; after the plan its last bounding cycle repeated, or the double stance of
+    the stop). Bounding-v0's speed-tracking and healthy terms are off. The terms are in ``info``: ``reward_speed``,
+    ``reward_gait``, ``reward_ctrl`` (and the base's ``reward_forward``, ``reward_healthy``, 0 by default).
 
     ## Starting state
     The plan's start with a seeded noise of scale ``s = reset_noise_scale`` (default 0.01): ``"stand_to_bound"``
@@ -324,10 +328,10 @@ class TransitionEnv(TransitionTask, BoundingEnv):
 
     ## Success
     ``info["success"]`` at every step (its value at the last step of an episode is the episode's,
-    :meth:`TransitionTask.success`): no fall, past the plan's duration, and over the last 60 control steps (0.3 s)
-    bounding at 1 m/s (back stance alone and front stance alone at least 4 steps each, double stance at most 20 %,
-    mean speed within 0.3 m/s of 1 m/s; bound-pronk-bound also at least 2 double stances of 30 ms or more in the
-    episode) or, for the stop, both feet down throughout and at the end trunk speed at most 0.1 m/s, pitch rate at
+    [`TransitionTask.success`][TransitionTask.success]): no fall, past the plan's duration, and over the last 60 control
+    steps (0.3 s) bounding at 1 m/s (back stance alone and front stance alone at least 4 steps each, double stance at
+    most 20 %, mean speed within 0.3 m/s of 1 m/s; bound-pronk-bound also at least 2 double stances of 30 ms or more in
+    the episode) or, for the stop, both feet down throughout and at the end trunk speed at most 0.1 m/s, pitch rate at
     most 0.5 rad/s, ``|pitch|`` at most 0.3 rad, trunk centre at least 0.15 m high.
 
     ## Info
@@ -335,9 +339,9 @@ class TransitionEnv(TransitionTask, BoundingEnv):
     (int) and ``success`` (bool), the same keys at reset and at every step.
 
     ## Arguments
-    :class:`TransitionTask`'s and every other argument of :class:`~hsddp_gym.envs.bounding.BoundingEnv`, all
-    JSON-serializable (``target_speed`` is set to 1 m/s). No compiled vector entry point: ``gym.make_vec(...,
-    vectorization_mode="sync")`` (or ``"async"``).
+    [`TransitionTask`][TransitionTask]'s and every other argument of
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable (``target_speed`` is set to 1 m/s). No
+    compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or ``"async"``).
 
     ## Version history
     * v0: initial release.
@@ -346,9 +350,9 @@ class TransitionEnv(TransitionTask, BoundingEnv):
 
 class MuJoCoTransitionEnv(TransitionTask, MuJoCoBoundingEnv):
     """``hsddp_gym/StandToBoundMuJoCo-v0``, ``hsddp_gym/BoundPronkBoundMuJoCo-v0`` and
-    ``hsddp_gym/BoundToStopMuJoCo-v0``: :class:`TransitionEnv`'s task (start, reward, termination, success,
-    arguments) simulated by MuJoCo, :class:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv` (its contact-model
-    arguments too; needs the extra ``mujoco``)."""
+    ``hsddp_gym/BoundToStopMuJoCo-v0``: [`TransitionEnv`][TransitionEnv]'s task (start, reward, termination, success,
+    arguments) simulated by MuJoCo, [`MuJoCoBoundingEnv`][hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv] (its
+    contact-model arguments too; needs the extra ``mujoco``)."""
 
 
 __all__ = ["TASKS", "TARGET_SPEED", "SCHEDULES", "SPEED_KNOTS", "EPISODE_DURATIONS", "MAX_EPISODE_STEPS",

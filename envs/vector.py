@@ -1,6 +1,7 @@
 """``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N, vectorization_mode="vector_entry_point")``: N robots of
-:class:`~hsddp_gym.envs.bounding.BoundingEnv` stepped together by one compiled call
-(:mod:`hsddp_gym.core.batch_contact`), with the transitions of N single envs (see :class:`BoundingVectorEnv`)."""
+[`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] stepped together by one compiled call
+([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]), with the transitions of N single envs (see
+[`BoundingVectorEnv`][BoundingVectorEnv])."""
 
 from __future__ import annotations
 
@@ -45,12 +46,12 @@ EP_PITCH_LOW = 9  # healthy_pitch_range (open interval) [rad]
 EP_PITCH_HIGH = 10
 EP_GAIT_PERIOD = 11  # the observation's phase clock [s]
 N_ENV_PARAMS = 12
-"""Length of the env parameter vector (:func:`env_params`): the single env's reward and termination settings, read by
-the compiled step's bookkeeping at the ``EP_*`` slots."""
+"""Length of the env parameter vector ([`env_params`][env_params]): the single env's reward and termination settings,
+read by the compiled step's bookkeeping at the ``EP_*`` slots."""
 
 
 def env_params(env: BoundingEnv) -> np.ndarray:
-    """The env parameter vector (N_ENV_PARAMS,) of a :class:`~hsddp_gym.envs.bounding.BoundingEnv` (its control
+    """The env parameter vector (N_ENV_PARAMS,) of a [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (its control
     period, reward weights, healthy ranges, gait period) at the ``EP_*`` slots."""
     if not isinstance(env, BoundingEnv):
         raise TypeError(f"env must be a BoundingEnv, got {type(env).__name__}")
@@ -95,8 +96,8 @@ def _finish(x, x_before, values, contact, heights, impulse, t0, sim_time, steppe
     the episode bookkeeping of every robot: ``elapsed (N,)`` steps (+1 if stepped), ``truncated (N,)`` (a stepped
     robot at ``max_steps``; ``max_steps`` < 0: no limit), ``done (N,)`` = stepped and (terminated or truncated).
 
-    ``env_p`` (N_ENV_PARAMS,) the env parameter vector (:func:`env_params`); ``bounds (14,)`` the valid-state bounds;
-    ``low``, ``high`` the float32 observation box; ``values (N, 4)`` the clipped actions. Returns the number of
+    ``env_p`` (N_ENV_PARAMS,) the env parameter vector ([`env_params`][env_params]); ``bounds (14,)`` the valid-state
+    bounds; ``low``, ``high`` the float32 observation box; ``values (N, 4)`` the clipped actions. Returns the number of
     robots done."""
     dt = env_p[EP_DT]
     n_done = 0
@@ -212,16 +213,17 @@ def _reset_row(i, bounds, front, back, cycles, t0, x, lcp_states, sim_time, t0s,
 
 
 class BoundingVectorEnv(VectorEnv):
-    """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one :class:`gymnasium.vector.VectorEnv`.
+    """``num_envs`` robots of ``hsddp_gym/Bounding-v0`` in one `gymnasium.vector.VectorEnv`.
 
-    Every robot follows the single env exactly: the same physics (:mod:`hsddp_gym.core.batch_contact`, the
-    scheme of :class:`~hsddp_gym.core.contact.ContactSimulator` compiled for N robots, equal to it up to
-    round-off; the single env steps through the same compiled code, so the transitions are bit-identical,
-    ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always
-    terminates with ``info["invalid_state"]``), observation and info keys, and the registered time limit
-    (``max_episode_steps``, truncation). ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list gives one
-    seed per robot), as :class:`gymnasium.vector.SyncVectorEnv`, so that the transitions equal those of N
-    single envs ``gym.make("hsddp_gym/Bounding-v0")`` reset with the seeds ``s + i``.
+    Every robot follows the single env exactly: the same physics
+    ([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact], the scheme of
+    [`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] compiled for N robots, equal to it up to round-off;
+    the single env steps through the same compiled code, so the transitions are bit-identical,
+    ``tests/test_vector_env.py``), reset noise, reward, termination (falls; an invalid state always terminates with
+    ``info["invalid_state"]``), observation and info keys, and the registered time limit (``max_episode_steps``,
+    truncation). ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list gives one seed per robot), as
+    `gymnasium.vector.SyncVectorEnv`, so that the transitions equal those of N single envs
+    ``gym.make("hsddp_gym/Bounding-v0")`` reset with the seeds ``s + i``.
 
     Autoreset: ``autoreset_mode="next_step"`` (the default, as ``SyncVectorEnv``): the step after a robot's
     episode ended resets it (its action is ignored, reward 0, ``terminated = truncated = False``) and returns
@@ -234,10 +236,10 @@ class BoundingVectorEnv(VectorEnv):
         max_episode_steps: truncate an episode after this many steps (int >= 1), or None for no limit
             (``gym.make_vec`` passes the registered 1000).
         autoreset_mode: ``"next_step"`` / ``"same_step"`` (also Gymnasium's ``"NextStep"`` / ``"SameStep"``, or the
-            :class:`AutoresetMode`).
-        **kwargs: the arguments of :class:`~hsddp_gym.envs.bounding.BoundingEnv` (validated by it), except
-            the rendering ones (:data:`UNSUPPORTED_KWARGS`) and ``energy_consistent=False`` (the legacy scheme
-            is not compiled), which raise.
+            `AutoresetMode`).
+        **kwargs: the arguments of [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] (validated by it), except
+            the rendering ones ([`UNSUPPORTED_KWARGS`][UNSUPPORTED_KWARGS]) and ``energy_consistent=False`` (the legacy
+            scheme is not compiled), which raise.
 
     Spaces: ``single_observation_space`` / ``single_action_space`` are the single env's; observations
     ``(num_envs, 17)`` float32, actions ``(num_envs, 4)`` (clipped to [-1, 1]; non-finite entries or another
@@ -246,12 +248,12 @@ class BoundingVectorEnv(VectorEnv):
     ``"reset_mask"`` ((num_envs,) bool: reset only those robots); the single env's ``"push"`` is not offered.
 
     Random pushes (training under perturbation): ``push`` (a
-    :class:`~hsddp_gym.envs.perturbations.PushDistribution` or a dict of its fields, ``{}`` its defaults) gives
-    every robot random pushes in every episode, drawn at each of its resets as
-    :class:`~hsddp_gym.envs.perturbations.RandomPush` draws them, and applied at the same simulation step as the
-    single env's ``push`` reset option: robot ``i`` reset with seed ``s`` moves exactly as
+    [`PushDistribution`][hsddp_gym.envs.perturbations.wrappers.PushDistribution] or a dict of its fields, ``{}`` its
+    defaults) gives every robot random pushes in every episode, drawn at each of its resets as
+    [`RandomPush`][hsddp_gym.envs.perturbations.wrappers.RandomPush] draws them, and applied at the same simulation step
+    as the single env's ``push`` reset option: robot ``i`` reset with seed ``s`` moves exactly as
     ``RandomPush(gym.make("hsddp_gym/Bounding-v0"), **push)`` reset with ``s`` (``tests/test_vector_env.py``).
-    The schedule of robot ``i``'s episode is :meth:`scheduled_pushes` (not in ``info``).
+    The schedule of robot ``i``'s episode is [`scheduled_pushes`][scheduled_pushes] (not in ``info``).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -291,7 +293,7 @@ class BoundingVectorEnv(VectorEnv):
                 raise TypeError(f"BoundingVectorEnv: {exc}") from exc
             raise
         self.template = template
-        """A single :class:`BoundingEnv` built with the same arguments: the validated settings, the robot model,
+        """A single [`BoundingEnv`][BoundingEnv] built with the same arguments: the validated settings, the robot model,
         the reset-state checks (it is never stepped)."""
         self.env_kwargs = dict(kwargs)
         self.metadata = {**type(self).metadata, "autoreset_mode": mode, "render_fps": template.metadata["render_fps"]}
@@ -321,7 +323,7 @@ class BoundingVectorEnv(VectorEnv):
         self._heights = np.zeros((n, 2))
         self.counters = np.zeros((n, 4), dtype=np.int64)
         """Per robot ``[lcp_fallbacks, energy_projections, momentum_fallbacks, energy_deficits]`` since creation
-        (:data:`hsddp_gym.core.batch_contact.COUNTER_NAMES`)."""
+        ([`hsddp_gym.core.batch_contact.COUNTER_NAMES`][hsddp_gym.core.batch_contact.COUNTER_NAMES])."""
         self._scratch = batch_contact.kernel_scratch()
         self._model_cache = model_cache(n)
         self._obs = np.zeros((n, template.observation_layout.size), dtype=np.float32)
@@ -482,7 +484,7 @@ class BoundingVectorEnv(VectorEnv):
     # ------------------------------------------------------------------ step
     def _check_actions(self, actions) -> None:
         """Check the actions (real, shape (num_envs, 4), finite: else TypeError / ValueError naming the robots) and
-        load them (:func:`_prepare`: clipped values, torques, the trunk x before the step, the robots to step)."""
+        load them ([`_prepare`][_prepare]: clipped values, torques, the trunk x before the step, the robots to step)."""
         a = real_array(actions, "actions")
         if a.shape != (self.num_envs, NU):
             raise ValueError(f"actions must have shape ({self.num_envs}, {NU}), got {a.shape}")
@@ -549,7 +551,7 @@ class BoundingVectorEnv(VectorEnv):
 
     def _due_pushes(self) -> dict:
         """``{robot: [(k, delta_v), ...]}``: the robots to be stepped whose scheduled pushes come in this control
-        step (:func:`~hsddp_gym.envs.bounding.pop_due_pushes`, removed from their schedules)."""
+        step ([`pop_due_pushes`][hsddp_gym.envs.bounding.pop_due_pushes], removed from their schedules)."""
         n, h = self.template.frame_skip, self.template.sim_timestep
         due = {}
         # a cheap vectorized screen (pop_due_pushes' own test, elementwise), then the rule for those robots only
@@ -589,7 +591,7 @@ class BoundingVectorEnv(VectorEnv):
         return [(t, dv.copy()) for t, dv in self._push_schedules[i]]
 
     def _info(self, mask: np.ndarray | None = None) -> dict:
-        """The batched info (the single env's keys, :data:`INFO_KEYS`), each key with its ``_key`` mask."""
+        """The batched info (the single env's keys, [`INFO_KEYS`][INFO_KEYS]), each key with its ``_key`` mask."""
         x = self._x
         valid = self._valid
         mask = self._all if mask is None else mask

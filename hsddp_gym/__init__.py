@@ -1,7 +1,7 @@
 """hsddp_gym: HS-DDP for the planar MIT Mini Cheetah, and a Gymnasium bounding benchmark.
 
 Importing the package registers the Gymnasium environment of every task of the task registry
-(:data:`hsddp_gym.registry.TASKS`; entry points imported lazily), so both ``import hsddp_gym;
+([`hsddp_gym.registry.TASKS`][hsddp_gym.registry.TASKS]; entry points imported lazily), so both ``import hsddp_gym;
 gym.make("hsddp_gym/Bounding-v0")`` and ``gym.make("hsddp_gym:hsddp_gym/Bounding-v0")`` work;
 ``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N, vectorization_mode="vector_entry_point")`` gives the compiled
 vector env (``hsddp_gym.envs.vector``). ``hsddp_gym/Terrain-v0`` is Bounding-v0 on a seeded random terrain of steps
@@ -36,7 +36,7 @@ BOUNDING_MAX_EPISODE_STEPS = _tc.BOUNDING_MAX_EPISODE_STEPS
 """1000 control steps = 5 s at the default 200 Hz (about 17 bounding cycles)."""
 TERRAIN_ENV_ID = _TASKS["terrain"].env_id
 """Bounding-v0 on a seeded random terrain per episode (``terrain="random_mixed"``: steps up to 3 cm, slopes up to 0.1;
-:meth:`hsddp_gym.core.terrain.Terrain.sample`)."""
+[`hsddp_gym.core.terrain.Terrain.sample`][hsddp_gym.core.terrain.Terrain.sample])."""
 PRONKING_ENV_ID = _TASKS["pronking"].env_id
 """The pronking task on Bounding-v0's robot and physics (``hsddp_gym.envs.pronking``)."""
 PRONKING_MUJOCO_ENV_ID = _TASKS["pronking"].twin_id

@@ -1,17 +1,19 @@
-"""The task registry: one :class:`Task` entry per task defines everything the package knows of it.
+"""The task registry: one [`Task`][Task] entry per task defines everything the package knows of it.
 
 An entry holds the task's env and its twins (ids, entry points, keyword arguments, time limit, vector entry point),
 the start state, the HS-DDP plan the expert tracks (a function, its fixed arguments and the ones read from the env),
 the plan-tracking expert (its class and how its episodes start), the dataset expert, the success rule (words; the
 env computes ``info["success"]``), the per-episode measures of its evaluation, the evaluation seeds and the
-description. Everything else reads it: ``import hsddp_gym`` registers every env (:func:`register_envs`), the policy
-factory (:func:`hsddp_gym.rollout.policies.make_policy`) builds the expert, datasets and DAgger find the expert and
-its plan, the task evaluations (:mod:`hsddp_gym.benchmarks.tasks`) their measures and seeds.
+description. Everything else reads it: ``import hsddp_gym`` registers every env ([`register_envs`][register_envs]), the
+policy factory ([`hsddp_gym.rollout.policies.make_policy`][hsddp_gym.rollout.policies.make_policy]) builds the expert,
+datasets and DAgger find the expert and its plan, the task evaluations
+([`hsddp_gym.benchmarks.tasks`][hsddp_gym.benchmarks.tasks]) their measures and seeds.
 
-Light on purpose: this module imports only :mod:`hsddp_gym.core.task_constants` (pure Python); entry points, plans,
-experts and measures are ``"module:attr"`` strings, imported when used (:func:`resolve`), as Gymnasium's entry points.
+Light on purpose: this module imports only [`hsddp_gym.core.task_constants`][hsddp_gym.core.task_constants] (pure
+Python); entry points, plans, experts and measures are ``"module:attr"`` strings, imported when used
+([`resolve`][resolve]), as Gymnasium's entry points.
 
-Adding a task: one :class:`Task` in :data:`TASKS` (see ``docs/architecture.md``, "Adding a task").
+Adding a task: one [`Task`][Task] in [`TASKS`][TASKS] (see ``docs/architecture.md``, "Adding a task").
 """
 
 from __future__ import annotations
@@ -43,20 +45,20 @@ class Task:
     """Everything the package knows of one task (one place; new concerns become new fields).
 
     Attributes:
-        name: the task's key in :data:`TASKS` (``--task`` of ``experiments/tasks.py``).
+        name: the task's key in [`TASKS`][TASKS] (``--task`` of ``experiments/tasks.py``).
         env: the task's env.
         twins: the same task in other simulators, ``{"mujoco": EnvEntry, "kkt": EnvEntry}`` (those it has).
         description: one sentence (the records' description of the task's evaluation).
         start: how an episode starts (words).
         plan: ``"module:attr"`` of the HS-DDP plan the expert tracks: a function returning a
-            :class:`~hsddp_gym.planners.tasks.PlanResult` or a :class:`~hsddp_gym.planners.optimizer.solution.Solution`
-            (None: the task has no plan).
+            [`PlanResult`][hsddp_gym.planners.tasks.PlanResult] or a
+            [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] (None: the task has no plan).
         plan_kwargs: the plan function's fixed keyword arguments.
         plan_inputs: the plan function's keyword arguments read from the env: ``"hold"`` (plan knots of 1 ms per
             control period) and ``"speed"`` (the env's target speed); one plan is solved per task and values of these
-            per process (:func:`hsddp_gym.rollout.plans.task_plan`).
+            per process ([`hsddp_gym.rollout.plans.task_plan`][hsddp_gym.rollout.plans.task_plan]).
         expert: ``"module:attr"`` of the plan-tracking expert's factory
-            (:mod:`hsddp_gym.planners.policies.experts`), built as
+            ([`hsddp_gym.planners.policies.experts`][hsddp_gym.planners.policies.experts]), built as
             ``factory(EnvInterface.from_env(env), plan, **expert_kwargs)``.
         expert_kwargs: the expert's further keyword arguments.
         expert_starts_at_plan: the expert's episodes start at its plan's first state (reset options
@@ -66,7 +68,7 @@ class Task:
         terrain_aware_mpc: the task's ``mpc`` is given each episode's terrain (``env_terrain(env)``).
         success_rule: the success rule in words (the env computes ``info["success"]``), or None.
         measures: ``"module:attr"`` of the per-episode measures of the task's evaluation
-            (:class:`hsddp_gym.rollout.measures.Measures`), or None.
+            ([`hsddp_gym.rollout.measures.Measures`][hsddp_gym.rollout.measures.Measures]), or None.
         first_seed: the first evaluation seed (seeds no dataset uses), or None.
         episode_start: the posture episodes start in, for help texts (``"standing"``, ``"bounding"``).
     """
@@ -107,7 +109,7 @@ class Task:
         return self.env.max_episode_steps
 
     def entries(self) -> tuple:
-        """The task's env and its twins (:class:`EnvEntry`)."""
+        """The task's env and its twins ([`EnvEntry`][EnvEntry])."""
         return (self.env, *self.twins.values())
 
 
@@ -256,7 +258,7 @@ MPC_ENVS = tuple(task.env_id for task in TASKS.values() if task.dataset_expert =
 
 
 def register_envs() -> None:
-    """``gym.register`` every env of :data:`TASKS` not registered yet (imports gymnasium, not the envs)."""
+    """``gym.register`` every env of [`TASKS`][TASKS] not registered yet (imports gymnasium, not the envs)."""
     import gymnasium as gym
 
     for task in TASKS.values():
@@ -275,7 +277,7 @@ def resolve(ref: str):
 
 
 def get_task(name: str) -> Task:
-    """The task ``name`` (a key of :data:`TASKS`), else ``ValueError`` naming it."""
+    """The task ``name`` (a key of [`TASKS`][TASKS]), else ``ValueError`` naming it."""
     if name not in TASKS:
         raise ValueError(f"task must be one of {tuple(TASKS)}, got {name!r}")
     return TASKS[name]

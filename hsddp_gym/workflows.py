@@ -18,7 +18,7 @@ from hsddp_gym.util.io import write_json
 
 # ----------------------------------------------------------------------------------------------- plan
 def write_plan_outputs(result, out: Path, plots: bool) -> dict:
-    """Write a :class:`~hsddp_gym.planners.tasks.PlanResult` into ``out``: ``solution.npz`` (or
+    """Write a [`PlanResult`][hsddp_gym.planners.tasks.PlanResult] into ``out``: ``solution.npz`` (or
     ``trajectory.npz`` for the heuristic) and, with ``plots``, the figures (needs matplotlib, checked before
     anything is written). Returns ``{kind: file name}``."""
     if plots:
@@ -57,7 +57,7 @@ def write_plan_outputs(result, out: Path, plots: bool) -> dict:
 # ----------------------------------------------------------------------------------------------- rollout
 ROLLOUT_POLICIES = POLICIES
 ROLLOUT_ENVS = tuple(ENV_TASKS)
-"""The envs :func:`run_rollouts` runs in: every registered env (each task's env and its twins)."""
+"""The envs [`run_rollouts`][run_rollouts] runs in: every registered env (each task's env and its twins)."""
 
 
 def load_policy(spec: str, env=None):
@@ -77,11 +77,11 @@ def run_rollouts(policy_name: str, episodes: int, seed: int, out: Path, video: b
     """Run seeded episodes, write ``summary.json`` (and a GIF of the first episode) into ``out``.
 
     ``max_episode_steps`` overrides the env's registered time limit (None: keep it); ``mpc_options``: the MPC's
-    :class:`hsddp_gym.planners.policies.mpc.MPCOptions` (None: the defaults; for ``policy_name`` "mpc" only).
-    ``env_id``: any registered env (:data:`ROLLOUT_ENVS`: each task's env and its twins); the policy is built for
-    it (:func:`~hsddp_gym.rollout.policies.make_policy`: the task's expert, the terrain-aware MPC where the task's
-    MPC is) and its episodes start from the policy's ``reset_options``. ``record``: further entries of
-    ``summary.json`` (e.g. the CLI's ``transfer``)."""
+    [`hsddp_gym.planners.policies.mpc.MPCOptions`][hsddp_gym.planners.policies.mpc.options.MPCOptions] (None: the
+    defaults; for ``policy_name`` "mpc" only). ``env_id``: any registered env ([`ROLLOUT_ENVS`][ROLLOUT_ENVS]: each
+    task's env and its twins); the policy is built for it ([`make_policy`][hsddp_gym.rollout.policies.make_policy]: the
+    task's expert, the terrain-aware MPC where the task's MPC is) and its episodes start from the policy's
+    ``reset_options``. ``record``: further entries of ``summary.json`` (e.g. the CLI's ``transfer``)."""
     import gymnasium as gym
     from tqdm import tqdm
 
@@ -145,8 +145,8 @@ def run_demo(out: Path, cycles: int = 5, episodes: int = 1, video: bool = True, 
              max_episode_steps: int | None = None) -> dict:
     """The main job (``hsddp-gym demo``): the HS-DDP plan of ``cycles`` bounding cycles beside its warm start (the
     heuristic controller's rollout up to five cycles, a repeated cycle of the solved five-cycle plan beyond;
-    :func:`~hsddp_gym.planners.tasks.bounding_warm_start`), figures and ``solution.npz`` in ``out``, then
-    ``episodes`` seeded HS-DDP MPC episodes in ``hsddp_gym/Bounding-v0`` (``out/mpc``, a GIF of the first with
+    [`bounding_warm_start`][hsddp_gym.planners.tasks.bounding_warm_start]), figures and ``solution.npz`` in ``out``,
+    then ``episodes`` seeded HS-DDP MPC episodes in ``hsddp_gym/Bounding-v0`` (``out/mpc``, a GIF of the first with
     ``video``). Returns the summary written to ``out/summary.json`` (``warm_start``, ``hsddp_plan``,
     ``mpc_in_env``, ``files``)."""
     from hsddp_gym.planners.optimizer.metrics import trajectory_summary

@@ -62,11 +62,12 @@ then makes the front stance push instead of brake. From the paper's initial stat
 0.6-0.9 m/s in cycles 1-3 and then grows, 1.7 m/s in cycle 5, 3.6 m/s in cycle 7, while the mean pitch goes
 nose-down (0.2 rad in cycle 5, 0.9 rad in cycle 8). In cycle 8 the front leg no longer catches the trunk (it falls
 to 4.5 cm above the ground, torques reach 440 N m in cycle 9) and the rollout is no longer finite in cycle 10
-(``X[2722]`` of the 10-cycle problem). Longer horizons are warm-started by :func:`bounding_warm_start`."""
+(``X[2722]`` of the 10-cycle problem). Longer horizons are warm-started by
+[`bounding_warm_start`][bounding_warm_start]."""
 
 REPEATED_CYCLE = HEURISTIC_WARM_START_CYCLES - 1
-"""The cycle (counted from 1) of the solved :data:`HEURISTIC_WARM_START_CYCLES`-cycle plan that
-:func:`bounding_warm_start` repeats: the last one the end of that plan's horizon does not shape."""
+"""The cycle (counted from 1) of the solved [`HEURISTIC_WARM_START_CYCLES`][HEURISTIC_WARM_START_CYCLES]-cycle plan that
+[`bounding_warm_start`][bounding_warm_start] repeats: the last one the end of that plan's horizon does not shape."""
 
 
 class WarmStartDivergedError(RuntimeError):
@@ -87,7 +88,7 @@ class WarmStartDivergedError(RuntimeError):
 def check_warm_start(problem: HybridProblem, trajectory: Trajectory, what: str = "the warm start",
                      hint: str = "") -> Trajectory:
     """Return ``trajectory`` (a rollout on ``problem``'s knots) if it is finite, else raise
-    :class:`WarmStartDivergedError` naming the cycle, phase, knot and time where it diverged.
+    [`WarmStartDivergedError`][WarmStartDivergedError] naming the cycle, phase, knot and time where it diverged.
 
     Args:
         problem: the problem whose knots, phases and cycles the message names.
@@ -112,10 +113,11 @@ def heuristic_warm_start(problem: HybridProblem, check: bool = True) -> Trajecto
     """Roll out the heuristic bounding controller through the problem's schedule (the paper's warm start).
 
     Args:
-        check: raise :class:`WarmStartDivergedError` (naming the cycle and knot) when the rollout diverges; with
+        check: raise [`WarmStartDivergedError`][WarmStartDivergedError] (naming the cycle and knot) when the rollout
+            diverges; with
             False the trajectory is returned with NaN from there on.
     Returns:
-        A :class:`~hsddp_gym.core.rollout.Trajectory` (``X (N+1, 14)``, ``U (N, 4)``, ...).
+        A [`Trajectory`][hsddp_gym.core.rollout.Trajectory] (``X (N+1, 14)``, ``U (N, 4)``, ...).
     """
     controller = HeuristicBoundingController(problem.dynamics.robot)
     traj = rollout(problem.dynamics, problem.schedule, problem.x0,
@@ -129,7 +131,7 @@ def heuristic_warm_start(problem: HybridProblem, check: bool = True) -> Trajecto
 
 @dataclasses.dataclass
 class WarmStart:
-    """An initial guess for :meth:`HSDDP.solve <hsddp_gym.planners.optimizer.hsddp.HSDDP.solve>`.
+    """An initial guess for [`HSDDP.solve`][hsddp_gym.planners.optimizer.hsddp.HSDDP.solve].
 
     Attributes:
         trajectory: its rollout from the problem's ``x0`` (``X (N+1, 14)``, ``U (N, 4)``, ``GRF (N, 4)``, ...).
@@ -159,21 +161,21 @@ class WarmStart:
 def bounding_warm_start(problem: HybridProblem, options: SolverOptions | None = None) -> WarmStart:
     """A warm start for a bounding problem of any horizon that stays finite.
 
-    Up to :data:`HEURISTIC_WARM_START_CYCLES` cycles (and for a schedule that does not repeat the bounding cycle)
-    it is the heuristic controller's rollout, :func:`heuristic_warm_start`, unchanged. On a longer horizon the
-    heuristic drifts and tumbles (see :data:`HEURISTIC_WARM_START_CYCLES`), so the guess is built from a solved
-    plan instead: HS-DDP (``options``) solves the first :data:`HEURISTIC_WARM_START_CYCLES` cycles from the
-    heuristic's warm start; its cycles before :data:`REPEATED_CYCLE` are kept and its cycle
-    :data:`REPEATED_CYCLE` (a bounding cycle the horizon's end does not shape) is repeated to the end of the
-    horizon under its own feedback gains, ``u = U[k] + K[k] (x - X[k])``, each repetition re-anchored at the
-    forward position it starts from. On the paper's problem the gains hold the rollout on a periodic bound at
-    about 1 m/s.
+    Up to [`HEURISTIC_WARM_START_CYCLES`][HEURISTIC_WARM_START_CYCLES] cycles (and for a schedule that does not repeat
+    the bounding cycle) it is the heuristic controller's rollout, [`heuristic_warm_start`][heuristic_warm_start],
+    unchanged. On a longer horizon the heuristic drifts and tumbles (see
+    [`HEURISTIC_WARM_START_CYCLES`][HEURISTIC_WARM_START_CYCLES]), so the guess is built from a solved plan instead:
+    HS-DDP (``options``) solves the first [`HEURISTIC_WARM_START_CYCLES`][HEURISTIC_WARM_START_CYCLES] cycles from the
+    heuristic's warm start; its cycles before [`REPEATED_CYCLE`][REPEATED_CYCLE] are kept and its cycle
+    [`REPEATED_CYCLE`][REPEATED_CYCLE] (a bounding cycle the horizon's end does not shape) is repeated to the end of the
+    horizon under its own feedback gains, ``u = U[k] + K[k] (x - X[k])``, each repetition re-anchored at the forward
+    position it starts from. On the paper's problem the gains hold the rollout on a periodic bound at about 1 m/s.
 
     Args:
         problem: the bounding problem; a repeated cycle needs the same knots in every cycle.
         options: the solver options of the plan that is repeated (default ``SolverOptions()``).
     Returns:
-        A :class:`WarmStart`; pass ``**warm.solve_arguments()`` to the solver.
+        A [`WarmStart`][WarmStart]; pass ``**warm.solve_arguments()`` to the solver.
     Raises:
         WarmStartDivergedError: the guess diverges (naming the cycle and knot).
     """
@@ -213,14 +215,14 @@ def plan_bounding(method: str = "al-reb", cycles: int = 5, speed: float = 1.0, o
                   callbacks: list[Callback] | None = None, verbose: bool = False,
                   problem: HybridProblem | None = None) -> PlanResult:
     """Paper task 1: ``cycles`` bounding cycles, 80/72/72/72 ms, h = 1 ms, from the paper's initial state,
-    warm-started by :func:`bounding_warm_start` (the heuristic controller up to
-    :data:`HEURISTIC_WARM_START_CYCLES` cycles, a repeated cycle of a solved plan beyond).
+    warm-started by [`bounding_warm_start`][bounding_warm_start] (the heuristic controller up to
+    [`HEURISTIC_WARM_START_CYCLES`][HEURISTIC_WARM_START_CYCLES] cycles, a repeated cycle of a solved plan beyond).
 
     Args:
         method: ``"heuristic"`` (the heuristic controller's rollout only), ``"ddp"``, ``"al"`` or ``"al-reb"``.
     Returns:
-        A :class:`PlanResult`; its summary has :func:`trajectory_summary`'s fields, the iterations, the solve time
-        and ``warm_start`` (``"heuristic"`` or ``"repeated plan"``), ``warm_start_time_s``.
+        A [`PlanResult`][PlanResult]; its summary has [`trajectory_summary`][trajectory_summary]'s fields, the
+        iterations, the solve time and ``warm_start`` (``"heuristic"`` or ``"repeated plan"``), ``warm_start_time_s``.
     Raises:
         WarmStartDivergedError: the heuristic's rollout diverges (``method="heuristic"`` on a long horizon).
     """
@@ -266,7 +268,7 @@ def _check_flag(value, name: str) -> bool:
 
 def sto_problem(cycles: int = 1, durations=None, z_velocity: str = "paper", grf_tracking: bool = True,
                 terminal_half: bool = True, periodic: bool = False, periodic_weight: float = 1e5) -> HybridProblem:
-    """The problem of paper task 2 and its variants (see :func:`run_sto`)."""
+    """The problem of paper task 2 and its variants (see [`run_sto`][run_sto])."""
     if z_velocity not in Z_VELOCITY_VARIANTS:
         raise ValueError(f"z_velocity must be one of {Z_VELOCITY_VARIANTS}, got {z_velocity!r}")
     _check_flag(grf_tracking, "grf_tracking")
@@ -325,13 +327,14 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
 
     Args:
         min_duration: lower duration bound [s] (a number or one per phase; None:
-            :class:`hsddp_gym.planners.optimizer.sto.STOOptions`' default).
+            [`hsddp_gym.planners.optimizer.sto.STOOptions`][hsddp_gym.planners.optimizer.sto.STOOptions]' default).
         max_duration: upper duration bound [s] (the same forms).
         z_velocity: vertical-velocity references at the phase ends, ``"paper"`` (0, the paper's text) or
             ``"code"`` (the authors' code: +1 m/s after a stance, -1 m/s before a touchdown).
         grf_tracking: the authors' ground-force tracking term in the running cost (the paper has none).
         terminal_half: the authors' ``1/2`` in the terminal costs (the paper's eq. 33 has none).
-        periodic: the periodic task (:meth:`HybridProblem.bounding_periodic`: five phases ending in the start
+        periodic: the periodic task ([`HybridProblem.bounding_periodic`][HybridProblem.bounding_periodic]: five phases
+            ending in the start
             state up to x, a terminal penalty of scale ``periodic_weight``); ``durations`` then has 5 entries.
         solver_options: Algorithm 1's options (e.g. ``al_max_abs_tolerance``).
 
@@ -339,7 +342,7 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
         ``(STOResult, summary dict)``; the summary has ``initial_total_time``, ``total_time``, ``reduction``
         (fraction), ``mode_durations``, ``iterations``, ``final_cost``, ``switching_violation``, the variant
         (``z_velocity``, ``grf_tracking``, ``terminal_half``, ``periodic``), the solver's stopping tolerances,
-        and :func:`gait_metrics` of the final solution (``touchdown_heights``, ``max_touchdown_error``, ...).
+        and [`gait_metrics`][gait_metrics] of the final solution (``touchdown_heights``, ``max_touchdown_error``, ...).
     """
     from hsddp_gym.planners.optimizer.sto import STOOptions, optimize_switching_times
 
@@ -387,13 +390,13 @@ def run_sto(method: str = "hsddp", iterations: int = 30, cycles: int = 1, durati
 
 def fig8_study(problem: HybridProblem, steps, fraction: float = 0.1, solver_options: SolverOptions | None = None,
                U_warm: np.ndarray | None = None, options: STOOptions | None = None) -> dict:
-    """The point and the study of paper Fig. 8 (:func:`step_size_study`): Algorithm 1 solves ``problem`` (from
-    ``U_warm (N, 4)``; default the heuristic warm start), then ``fraction`` of Algorithm 2's first Newton step
+    """The point and the study of paper Fig. 8 ([`step_size_study`][step_size_study]): Algorithm 1 solves ``problem``
+    (from ``U_warm (N, 4)``; default the heuristic warm start), then ``fraction`` of Algorithm 2's first Newton step
     on the durations is rolled out with the feedback policy, the way Algorithm 2 moves the durations before
     Algorithm 1 re-optimizes the controls. The default tenth is about the step that Algorithm 2's line search
     accepts first on the paper's task 2; there both the control and the duration step change the objective.
 
-    Returns :func:`step_size_study`'s dict plus ``"z0"``, ``"z1"`` (the durations before and at the point).
+    Returns [`step_size_study`][step_size_study]'s dict plus ``"z0"``, ``"z1"`` (the durations before and at the point).
     """
     from hsddp_gym.planners.tasks import heuristic_warm_start
 

@@ -373,6 +373,45 @@ def test_the_site_builds_strict_and_renders_every_documented_module(site):
             assert f'id="{name}"' in html, f"{page.name}: {name} is not rendered"
 
 
+def public_modules() -> set[str]:
+    """Every public module of the package (no part starting with ``_``), the command line's aside (its reference is
+    ``hsddp-gym --help``)."""
+    import pkgutil
+
+    import hsddp_gym
+    import hsddp_gym.envs
+    import hsddp_gym.planners
+
+    found = {"hsddp_gym.envs", "hsddp_gym.planners"}
+    for pkg in (hsddp_gym, hsddp_gym.planners, hsddp_gym.envs):
+        for m in pkgutil.walk_packages(pkg.__path__, pkg.__name__ + "."):
+            if not any(part.startswith("_") for part in m.name.split(".")):
+                found.add(m.name)
+    return {m for m in found if not (m == "hsddp_gym.cli" or m.startswith("hsddp_gym.cli."))}
+
+
+def test_every_public_module_has_an_api_page():
+    documented = {name for page in (ROOT / "docs" / "api").glob("*.md")
+                  for name in re.findall(r"^::: ([\w.]+)", page.read_text(), flags=re.M)}
+    missing = sorted(public_modules() - documented)
+    assert not missing, f"public modules without an API page: {missing}"
+    assert "hsddp_gym.planners.policies.mpc.schedule" in documented and "hsddp_gym.registry" in documented
+
+
+ROLE = re.compile(r":(?:class|func|meth|attr|data|mod|exc|obj):`")
+
+
+def test_no_sphinx_role_reaches_the_site_or_the_docstrings(site):
+    """The docstrings link with mkdocstrings' Markdown cross-references (``[`Name`][path]``); a Sphinx role would
+    show as raw text."""
+    shown = [str(p.relative_to(site)) for p in site.rglob("*.html") if ROLE.search(p.read_text())]
+    assert not shown, f"raw Sphinx roles in {shown}"
+    written = [str(p) for root in ("hsddp_gym", "planners", "envs") for p in (ROOT / root).rglob("*.py")
+               if p.name != "_planar_terms.py" and "def generate" not in p.read_text() and ROLE.search(p.read_text())]
+    assert not written, f"Sphinx roles in the docstrings of {written}"
+    assert ROLE.search("see :class:`Terrain`") and not ROLE.search("see [`Terrain`][hsddp_gym.core.terrain.Terrain]")
+
+
 def test_a_broken_anchor_fails_the_strict_build(tmp_path):
     """The repository's ``validation`` settings make a link to a missing heading fail ``mkdocs build --strict``."""
     yaml = pytest.importorskip("yaml")

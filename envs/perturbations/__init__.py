@@ -1,14 +1,19 @@
 """Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
 
-* :mod:`~hsddp_gym.envs.perturbations.wrappers`: the Gymnasium wrappers: observation noise and bias
-  (:class:`ObservationNoise`, :class:`ObservationBias`), latency (:class:`ActionDelay`), pushes at random times or
-  by contact phase (:class:`RandomPush`, :class:`PhasePush`), a contact model of the MuJoCo twin drawn per episode
-  (:class:`RandomContactModel`); each draws from its own generator seeded from the episode seed, so an episode's
-  perturbation is a function of its seed alone;
-* :mod:`~hsddp_gym.envs.perturbations.conditions`: one registry, :data:`CONDITIONS`, of named conditions (env
+* [`wrappers`][hsddp_gym.envs.perturbations.wrappers]: the Gymnasium wrappers: observation noise and bias
+  ([`ObservationNoise`][hsddp_gym.envs.perturbations.wrappers.ObservationNoise],
+  [`ObservationBias`][hsddp_gym.envs.perturbations.wrappers.ObservationBias]), latency
+  ([`ActionDelay`][hsddp_gym.envs.perturbations.wrappers.ActionDelay]), pushes at random times or by contact phase
+  ([`RandomPush`][hsddp_gym.envs.perturbations.wrappers.RandomPush],
+  [`PhasePush`][hsddp_gym.envs.perturbations.wrappers.PhasePush]), a contact model of the MuJoCo twin drawn per episode
+  ([`RandomContactModel`][hsddp_gym.envs.perturbations.wrappers.RandomContactModel]); each draws from its own generator
+  seeded from the episode seed, so an episode's perturbation is a function of its seed alone;
+* [`conditions`][hsddp_gym.envs.perturbations.conditions]: one registry,
+[`CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS], of named conditions (env
   arguments such as ``friction`` and ``trunk_mass_scale`` plus those wrappers): the robustness benchmark's
-  (:data:`SUITE`, ``experiments/robustness.py``), the contact models (:data:`CONTACT_CONDITIONS`) and the conditions
-  of a real robot (:data:`HARDWARE_CONDITIONS`).
+  ([`SUITE`][hsddp_gym.envs.perturbations.conditions.SUITE], ``experiments/robustness.py``), the contact models
+  ([`CONTACT_CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONTACT_CONDITIONS]) and the conditions of a real
+  robot ([`HARDWARE_CONDITIONS`][hsddp_gym.envs.perturbations.conditions.HARDWARE_CONDITIONS]).
 
 Every public name of both modules is importable from ``hsddp_gym.envs.perturbations`` itself (lazily).
 

@@ -1,15 +1,18 @@
-"""The named test conditions of the robustness benchmark: a :class:`Condition` is env arguments plus the wrappers of
-:mod:`hsddp_gym.envs.perturbations.wrappers`, and :data:`CONDITIONS` names them all:
+"""The named test conditions of the robustness benchmark: a [`Condition`][Condition] is env arguments plus the wrappers
+of [`hsddp_gym.envs.perturbations.wrappers`][hsddp_gym.envs.perturbations.wrappers], and [`CONDITIONS`][CONDITIONS]
+names them all:
 
 * model mismatch through env arguments: ``friction`` (Coulomb coefficient) and ``trunk_mass_scale`` (the
   simulated trunk is heavier or lighter than the model every policy uses); reset noise and target speeds;
-* observation noise, latency and random pushes; :data:`SUITE` is the benchmark's set;
-* contact models the policies were not built on (:class:`ContactCondition`, always in the MuJoCo twin): a corner
-  of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS` (``contact_<corner>``), or
-  :class:`~hsddp_gym.envs.perturbations.wrappers.RandomContactModel`, a
-  :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` drawn per episode from the episode seed (``contact_family``).
-  They are extra conditions, not in :data:`SUITE`;
-* conditions a real robot has (:class:`HardwareCondition`, :data:`HARDWARE_CONDITIONS`): a latency other than the
+* observation noise, latency and random pushes; [`SUITE`][SUITE] is the benchmark's set;
+* contact models the policies were not built on ([`ContactCondition`][ContactCondition], always in the MuJoCo twin): a
+corner
+  of [`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`][hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS] (``contact_<corner>``),
+  or [`RandomContactModel`][hsddp_gym.envs.perturbations.wrappers.RandomContactModel], a
+  [`ContactModel`][hsddp_gym.envs.mujoco_twin.ContactModel] drawn per episode from the episode seed
+  (``contact_family``). They are extra conditions, not in [`SUITE`][SUITE];
+* conditions a real robot has ([`HardwareCondition`][HardwareCondition], [`HARDWARE_CONDITIONS`][HARDWARE_CONDITIONS]):
+a latency other than the
   announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
 """
 
@@ -44,9 +47,9 @@ class Condition:
         name: the registry key. description: one line for tables.
         env_kwargs: arguments of ``gym.make("hsddp_gym/Bounding-v0", ...)`` (reset noise, friction, trunk mass,
             target speed).
-        observation_noise: ``(position_std, velocity_std)`` of :class:`ObservationNoise`, or None.
-        action_delay: control steps of :class:`ActionDelay` (0: none).
-        push: the keyword arguments of :class:`RandomPush` (``{}``: its defaults), or None (no push).
+        observation_noise: ``(position_std, velocity_std)`` of [`ObservationNoise`][ObservationNoise], or None.
+        action_delay: control steps of [`ActionDelay`][ActionDelay] (0: none).
+        push: the keyword arguments of [`RandomPush`][RandomPush] (``{}``: its defaults), or None (no push).
     """
 
     name: str
@@ -61,12 +64,12 @@ class Condition:
 
     def simulator_for(self, requested: str = "bounding") -> str:
         """The simulator the condition runs in when ``requested`` is asked for: ``requested``, or the condition's
-        own (:attr:`SIMULATOR`) if it has one (``experiments/robustness.py --simulator`` asks for one)."""
+        own (`SIMULATOR`) if it has one (``experiments/robustness.py --simulator`` asks for one)."""
         return self.SIMULATOR or requested
 
     def make(self, simulator: str | None = None, **make_kwargs) -> gym.Env:
-        """``gym.make`` the env of ``simulator`` (a key of :data:`SIMULATORS`; None: the condition's own,
-        :attr:`SIMULATOR`, or ``"bounding"``) with :attr:`env_kwargs` (``make_kwargs`` may add others, e.g.
+        """``gym.make`` the env of ``simulator`` (a key of [`SIMULATORS`][SIMULATORS]; None: the condition's own,
+        `SIMULATOR`, or ``"bounding"``) with `env_kwargs` (``make_kwargs`` may add others, e.g.
         ``render_mode``, ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it. A condition with
         its own simulator raises ``ValueError`` for another one."""
         import hsddp_gym  # noqa: F401  (registers the env)
@@ -104,7 +107,7 @@ class Condition:
     @property
     def announced_delay(self) -> int:
         """The action delay [control steps] a policy is told (``EnvInterface.from_env(env).action_delay_steps``):
-        :attr:`action_delay` here; a :class:`HardwareCondition` may announce another one."""
+        `action_delay` here; a [`HardwareCondition`][HardwareCondition] may announce another one."""
         return self.action_delay
 
     @property
@@ -121,12 +124,13 @@ class Condition:
 @dataclasses.dataclass(frozen=True)
 class ContactCondition(Condition):
     """A condition of the contact model, run in the MuJoCo twin whatever simulator is asked for
-    (:attr:`SIMULATOR` ``"mujoco"``): a fixed model through :attr:`env_kwargs` (``{"contact_model":
-    ContactModel(...)}``, e.g. a corner of :data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`), or with
-    :attr:`family` a model drawn per episode from the episode seed (:class:`RandomContactModel`).
+    (`SIMULATOR` ``"mujoco"``): a fixed model through `env_kwargs` (``{"contact_model":
+    ContactModel(...)}``, e.g. a corner of
+    [`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`][hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS]), or with `family` a
+    model drawn per episode from the episode seed ([`RandomContactModel`][RandomContactModel]).
 
     Attributes:
-        family: draw the contact model per episode (:class:`RandomContactModel`, the outermost wrapper).
+        family: draw the contact model per episode ([`RandomContactModel`][RandomContactModel], the outermost wrapper).
     """
 
     family: bool = False
@@ -144,16 +148,19 @@ class ContactCondition(Condition):
 @dataclasses.dataclass(frozen=True)
 class HardwareCondition(Condition):
     """A condition a real robot has and the policies are not told about exactly: a latency other than the announced
-    one, a constant sensor bias, or a push timed by the contact phase. Extra conditions, not in :data:`SUITE`; the
-    compiled vector env cannot run them (:attr:`acts_through_env_arguments` is False).
+    one, a constant sensor bias, or a push timed by the contact phase. Extra conditions, not in [`SUITE`][SUITE]; the
+    compiled vector env cannot run them ([`acts_through_env_arguments`][acts_through_env_arguments] is False).
 
     Attributes:
-        announced_action_delay: the delay [control steps] :class:`ActionDelay` announces (None: the executed one,
-            :attr:`action_delay`).
-        delay_jitter: per-episode executed delay uniform in ``action_delay +- delay_jitter`` (:class:`ActionDelay`'s
+        announced_action_delay: the delay [control steps] [`ActionDelay`][ActionDelay] announces (None: the executed
+            one,
+            `action_delay`).
+        delay_jitter: per-episode executed delay uniform in ``action_delay +- delay_jitter``
+            ([`ActionDelay`][ActionDelay]'s
             ``jitter``).
-        observation_bias: the keyword arguments of :class:`ObservationBias` (``bias``, ``random_bias``), or None.
-        phase_push: the keyword arguments of :class:`PhasePush` (``phase``, ``time_range``, ``max_delta_v``), or
+        observation_bias: the keyword arguments of [`ObservationBias`][ObservationBias] (``bias``, ``random_bias``), or
+            None.
+        phase_push: the keyword arguments of [`PhasePush`][PhasePush] (``phase``, ``time_range``, ``max_delta_v``), or
             None.
     """
 
@@ -184,15 +191,16 @@ class HardwareCondition(Condition):
 
 
 SENSOR_BIAS = {"pitch": 0.03, "dx": 0.05, "z": -0.02}
-"""The fixed bias of ``sensor_bias`` (:class:`ObservationBias`'s ``bias``): +0.03 rad pitch (nose-down), +0.05 m/s
-forward velocity, -0.02 m trunk height."""
+"""The fixed bias of ``sensor_bias`` ([`ObservationBias`][ObservationBias]'s ``bias``): +0.03 rad pitch (nose-down),
++0.05 m/s forward velocity, -0.02 m trunk height."""
 SENSOR_BIAS_RANGE = {"z": 0.02, "pitch": 0.03, "hip_front": 0.02, "knee_front": 0.02, "hip_back": 0.02,
                      "knee_back": 0.02, "dx": 0.05, "dz": 0.05}
-"""The half-widths of ``sensor_bias_random`` (:class:`ObservationBias`'s ``random_bias``): each episode a bias
-uniform in +-0.02 m height, +-0.03 rad pitch, +-0.02 rad on each joint angle, +-0.05 m/s on the trunk's forward and
+"""The half-widths of ``sensor_bias_random`` ([`ObservationBias`][ObservationBias]'s ``random_bias``): each episode a
+bias uniform in +-0.02 m height, +-0.03 rad pitch, +-0.02 rad on each joint angle, +-0.05 m/s on the trunk's forward and
 vertical velocities (the rates are unbiased)."""
 SENSOR_BIAS_X2 = {name: 2.0 * value for name, value in SENSOR_BIAS.items()}
-"""The fixed bias of ``sensor_bias_x2``: :data:`SENSOR_BIAS` twice over, +0.06 rad pitch, +0.1 m/s forward velocity,
+"""The fixed bias of ``sensor_bias_x2``: [`SENSOR_BIAS`][SENSOR_BIAS] twice over, +0.06 rad pitch, +0.1 m/s forward
+velocity,
 -0.04 m trunk height."""
 PHASE_PUSH_DELTA_V = (1.0, 1.0, 7.0)
 """``max_delta_v`` of ``push_flight`` and ``push_stance``: ``U(+-1.0 m/s, +-1.0 m/s, +-7 rad/s)``, larger than
@@ -267,33 +275,34 @@ CONDITIONS: dict[str, Condition] = _conditions(
     *_corner_conditions(),
     *_hardware_conditions(),
 )
-"""Every named condition: the robustness benchmark's (:data:`SUITE`), ``push_x3`` (three pushes an episode: a
+"""Every named condition: the robustness benchmark's ([`SUITE`][SUITE]), ``push_x3`` (three pushes an episode: a
 harder test, and a training condition that gives a learner's rollouts three push recoveries each), the contact
-conditions (:data:`CONTACT_CONDITIONS`, in the MuJoCo twin) and the hardware ones (:data:`HARDWARE_CONDITIONS`)."""
+conditions ([`CONTACT_CONDITIONS`][CONTACT_CONDITIONS], in the MuJoCo twin) and the hardware ones
+([`HARDWARE_CONDITIONS`][HARDWARE_CONDITIONS])."""
 CONTACT_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, ContactCondition))
 """The contact-model conditions: ``contact_family`` and one ``contact_<corner>`` per corner of
-:data:`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`; not in :data:`SUITE`."""
+[`hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS`][hsddp_gym.envs.mujoco_twin.CONTACT_CORNERS]; not in [`SUITE`][SUITE]."""
 HARDWARE_CONDITIONS: tuple[str, ...] = tuple(n for n, c in CONDITIONS.items() if isinstance(c, HardwareCondition))
-"""The conditions of a real robot (:class:`HardwareCondition`): latencies other than the announced one
+"""The conditions of a real robot ([`HardwareCondition`][HardwareCondition]): latencies other than the announced one
 (``delay_<executed>_announced_<announced>``, ``delay_jitter``), sensor biases (``sensor_bias``,
 ``sensor_bias_random``, ``sensor_bias_x2``), phase-timed pushes (``push_flight``, ``push_stance``) and noise, a bias and
-a wrongly announced latency together (``noise_bias_latency``); not in :data:`SUITE`."""
+a wrongly announced latency together (``noise_bias_latency``); not in [`SUITE`][SUITE]."""
 SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" and name not in CONTACT_CONDITIONS
                                and name not in HARDWARE_CONDITIONS)
-"""The robustness benchmark's conditions (every condition of :data:`CONDITIONS` but ``push_x3``, the contact
+"""The robustness benchmark's conditions (every condition of [`CONDITIONS`][CONDITIONS] but ``push_x3``, the contact
 conditions and the hardware ones, target speeds 0.5 and 1.5 m/s included): the default of
 ``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
 
 
 def get_condition(name: str) -> Condition:
-    """The :class:`Condition` called ``name`` (ValueError naming the known ones otherwise)."""
+    """The [`Condition`][Condition] called ``name`` (ValueError naming the known ones otherwise)."""
     if not isinstance(name, str) or name not in CONDITIONS:
         raise ValueError(f"condition must be one of {list(CONDITIONS)}, got {name!r}")
     return CONDITIONS[name]
 
 
 def check_conditions(names, argument: str = "conditions") -> tuple[str, ...]:
-    """``names`` (a non-empty sequence of :data:`CONDITIONS` names, repeats allowed) as a tuple; ``ValueError``
+    """``names`` (a non-empty sequence of [`CONDITIONS`][CONDITIONS] names, repeats allowed) as a tuple; ``ValueError``
     naming ``argument`` and the allowed names otherwise."""
     if isinstance(names, str) or not isinstance(names, (list, tuple)) or not names:
         raise ValueError(f"{argument} must be a non-empty list of condition names, got {names!r}")
@@ -304,7 +313,8 @@ def check_conditions(names, argument: str = "conditions") -> tuple[str, ...]:
 
 
 def make_env(condition: str | Condition, **make_kwargs) -> gym.Env:
-    """The env of a condition (a name of :data:`CONDITIONS` or a :class:`Condition`), see :meth:`Condition.make`."""
+    """The env of a condition (a name of [`CONDITIONS`][CONDITIONS] or a [`Condition`][Condition]), see
+    [`Condition.make`][Condition.make]."""
     if isinstance(condition, Condition):
         return condition.make(**make_kwargs)
     return get_condition(condition).make(**make_kwargs)

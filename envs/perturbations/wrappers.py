@@ -1,22 +1,25 @@
 """The Gymnasium wrappers that perturb ``hsddp_gym/Bounding-v0`` (the named conditions that combine them:
-:mod:`hsddp_gym.envs.perturbations.conditions`):
+[`hsddp_gym.envs.perturbations.conditions`][hsddp_gym.envs.perturbations.conditions]):
 
-* :class:`ObservationNoise`: zero-mean Gaussian noise on the observed positions and velocities (the contact
+* [`ObservationNoise`][ObservationNoise]: zero-mean Gaussian noise on the observed positions and velocities (the contact
   flags and the gait clock stay clean);
-* :class:`ObservationBias`: a constant offset on named observed positions and velocities (a sensor bias), fixed
+* [`ObservationBias`][ObservationBias]: a constant offset on named observed positions and velocities (a sensor bias),
+fixed
   or drawn per episode;
-* :class:`ActionDelay`: every action is executed ``steps`` control steps after the policy returned it (the
+* [`ActionDelay`][ActionDelay]: every action is executed ``steps`` control steps after the policy returned it (the
   first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
-  policy its latency (:class:`hsddp_gym.planners.policies.base.EnvInterface` reads it), which may differ from the
-  executed one (``announced``), and the executed delay may be drawn per episode (``jitter``);
-* :class:`RandomPush`: one push (or ``count``) per episode at a random time, a random trunk-velocity change
-  ``[dvx, dvz, dpitch_rate]`` (a :class:`PushDistribution`) applied through the env's documented ``push`` reset
-  option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
-* :class:`PhasePush`: one such push at the first control step in flight (or in stance) after a random time,
+  policy its latency ([`hsddp_gym.planners.policies.base.EnvInterface`][hsddp_gym.planners.policies.base.EnvInterface]
+  reads it), which may differ from the executed one (``announced``), and the executed delay may be drawn per episode
+  (``jitter``);
+* [`RandomPush`][RandomPush]: one push (or ``count``) per episode at a random time, a random trunk-velocity change
+  ``[dvx, dvz, dpitch_rate]`` (a [`PushDistribution`][PushDistribution]) applied through the env's documented ``push``
+  reset option (the compiled vector env draws the same pushes for its robots with its ``push`` argument);
+* [`PhasePush`][PhasePush]: one such push at the first control step in flight (or in stance) after a random time,
   through the env's ``apply_push``;
-* :class:`RandomContactModel`: a contact model of the MuJoCo twin drawn per episode;
-* what the wrappers of an env add and did: :func:`wrapper_info_keys`, :func:`episode_perturbation`, and the
-  observation of the true state, :func:`true_observation`.
+* [`RandomContactModel`][RandomContactModel]: a contact model of the MuJoCo twin drawn per episode;
+* what the wrappers of an env add and did: [`wrapper_info_keys`][wrapper_info_keys],
+[`episode_perturbation`][episode_perturbation], and the
+  observation of the true state, [`true_observation`][true_observation].
 
 **Seeding.** Each wrapper draws from its own generator, seeded at every ``reset(seed=s)`` from ``(s, salt)``
 (a per-wrapper constant), so an episode's perturbation is a function of its seed alone, independent of the
@@ -100,8 +103,8 @@ class ObservationNoise(gym.Wrapper):
 
 def observation_entries(layout) -> dict[str, int]:
     """The observed positions and velocities of ``layout`` (an
-    :class:`~hsddp_gym.core.observation.ObservationLayout`) by name: ``{name: index}`` with the state names of
-    :data:`hsddp_gym.core.conventions.X_NAMES` (``"z"``, ``"pitch"``, ``"hip_front"``, ..., ``"dx"`` the forward
+    [`ObservationLayout`][hsddp_gym.core.observation.ObservationLayout]) by name: ``{name: index}`` with the state names
+    of `hsddp_gym.core.conventions.X_NAMES` (``"z"``, ``"pitch"``, ``"hip_front"``, ..., ``"dx"`` the forward
     velocity, ``"dz"``, ``"dpitch"`` the pitch rate, ``"dhip_front"``, ...; ``"x"`` only when the layout observes
     it). The contact flags and the gait clock have no name: they are not sensor readings to bias."""
     q_names = Q_NAMES[layout.skipped_qpos:]
@@ -140,18 +143,18 @@ class ObservationBias(gym.Wrapper):
     drawn at every reset from the episode's generator (seeded from ``(seed, ObservationBias.SALT)``, see the
     module's seeding rule; one uniform draw per observation entry, in observation order, whatever entries are
     named). The episode's offsets are ``info["observation_bias"]`` at reset (``{name: offset}`` of the named
-    entries) and :attr:`offset` (``(layout.size,)``, zeros elsewhere).
+    entries) and `offset` (``(layout.size,)``, zeros elsewhere).
 
     Args:
         env: a (wrapped) ``Bounding-v0``.
         bias: ``{entry: offset}`` in the entry's unit (m, rad, m/s, rad/s), or None. Entries are named as in
-            :func:`observation_entries` (``"z"``, ``"pitch"``, ``"dx"`` the forward velocity, ...).
+            [`observation_entries`][observation_entries] (``"z"``, ``"pitch"``, ``"dx"`` the forward velocity, ...).
         random_bias: ``{entry: half-width}`` (>= 0) of a uniform per-episode offset, or None.
     """
 
     SALT = 0xB1A5
     INFO_KEYS = ("observation_bias",)
-    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
+    """The ``info`` keys this wrapper adds (at reset; [`wrapper_info_keys`][wrapper_info_keys])."""
 
     def __init__(self, env: gym.Env, bias: dict | None = None, random_bias: dict | None = None) -> None:
         super().__init__(env)
@@ -195,11 +198,11 @@ class ActionDelay(gym.Wrapper):
     """Actions executed ``steps`` control steps late: ``step(a_t)`` executes ``a_{t - steps}`` (zero torques for
     the first ``steps`` steps after a reset). ``info["executed_action"]`` is the action the env executed.
 
-    The delay a policy is told (:attr:`action_delay_steps`) is ``steps`` unless ``announced`` says otherwise: a
+    The delay a policy is told (`action_delay_steps`) is ``steps`` unless ``announced`` says otherwise: a
     latency that is not known exactly (announced 1 step, executed 2, ...). With ``jitter`` the executed delay of
     each episode is drawn at reset, uniform in ``{steps - jitter, ..., steps + jitter}``, from a generator seeded
     from ``(seed, ActionDelay.SALT)`` (see the module's seeding rule); it is constant within the episode
-    (:attr:`executed_delay_steps`). Without ``announced`` and ``jitter`` nothing is drawn and the wrapper is the
+    (`executed_delay_steps`). Without ``announced`` and ``jitter`` nothing is drawn and the wrapper is the
     plain delay.
 
     A bad action (wrong shape, non-finite) raises ``ValueError`` when it is given, not when it is executed.
@@ -211,14 +214,14 @@ class ActionDelay(gym.Wrapper):
 
     Attributes:
         action_delay_steps: the announced delay (policies that know their latency read it through
-            ``env.get_wrapper_attr("action_delay_steps")``; :class:`~hsddp_gym.planners.policies.base.EnvInterface`
-            does).
+            ``env.get_wrapper_attr("action_delay_steps")``;
+            [`EnvInterface`][hsddp_gym.planners.policies.base.EnvInterface] does).
         executed_delay_steps: the delay the current episode executes (``steps`` without ``jitter``).
     """
 
     SALT = 0xDE1A
     INFO_KEYS = ("executed_action",)
-    """The ``info`` keys this wrapper adds (:func:`wrapper_info_keys`)."""
+    """The ``info`` keys this wrapper adds ([`wrapper_info_keys`][wrapper_info_keys])."""
 
     def __init__(self, env: gym.Env, steps: int = 1, announced: int | None = None, jitter: int = 0) -> None:
         super().__init__(env)
@@ -268,8 +271,8 @@ def _check_range(value, name: str, minimum: float | None = None) -> tuple[float,
 
 
 PUSH_SALT = 0x9054
-"""The salt of the push generators (:class:`RandomPush`, the vector env's ``push``): an episode reset with seed ``s``
-draws its pushes from ``SeedSequence([s, PUSH_SALT])``."""
+"""The salt of the push generators ([`RandomPush`][RandomPush], the vector env's ``push``): an episode reset with seed
+``s`` draws its pushes from ``SeedSequence([s, PUSH_SALT])``."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -278,8 +281,9 @@ class PushDistribution:
     trunk velocities by ``delta_v ~ U(-max_delta_v, max_delta_v)`` per component (``[dvx, dvz, dpitch_rate]``,
     m/s, m/s, rad/s, positive pitch rate nose-down). With one push its time is ``t ~ U(time_range)``; with
     ``count`` pushes ``time_range`` is cut into ``count`` equal slots and push ``j`` comes at a uniform time in
-    slot ``j`` (so they come in order, one recovery apart on average). One definition for :class:`RandomPush`
-    and :class:`hsddp_gym.envs.vector.BoundingVectorEnv`'s ``push`` argument, so both draw the same pushes.
+    slot ``j`` (so they come in order, one recovery apart on average). One definition for [`RandomPush`][RandomPush]
+    and [`hsddp_gym.envs.vector.BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv]'s ``push`` argument, so
+    both draw the same pushes.
 
     Args (validated, ``TypeError`` / ``ValueError`` naming the argument):
         time_range: ``(low, high)`` push times [s] (>= 0). max_delta_v: (3,) largest absolute velocity change per
@@ -300,7 +304,7 @@ class PushDistribution:
 
     @classmethod
     def parse(cls, value, name: str = "push") -> PushDistribution:
-        """``value`` as a distribution: a :class:`PushDistribution`, or a dict of its fields (``{}``: the
+        """``value`` as a distribution: a [`PushDistribution`][PushDistribution], or a dict of its fields (``{}``: the
         defaults); anything else raises ``TypeError`` naming ``name``."""
         if isinstance(value, cls):
             return value
@@ -326,19 +330,19 @@ class PushDistribution:
 
 
 class RandomPush(gym.Wrapper):
-    """Random pushes of a :class:`PushDistribution` (``count`` per episode, default one, at random times, each a
-    random change of the trunk velocities) through the env's ``push`` reset option (a scheduled push, or a schedule
-    of them). The pushes of the episode are ``info["push"]`` at reset and :attr:`last_push`: the reset option
+    """Random pushes of a [`PushDistribution`][PushDistribution] (``count`` per episode, default one, at random times,
+    each a random change of the trunk velocities) through the env's ``push`` reset option (a scheduled push, or a
+    schedule of them). The pushes of the episode are ``info["push"]`` at reset and `last_push`: the reset option
     given to the env, ``{"delta_v": [3 floats], "time": t}`` for one push, a list of such dicts for several.
     Giving the ``push`` reset option yourself as well raises ``ValueError``.
 
     Args:
-        env: a (wrapped) ``Bounding-v0``. time_range, max_delta_v, count: the :class:`PushDistribution`.
+        env: a (wrapped) ``Bounding-v0``. time_range, max_delta_v, count: the [`PushDistribution`][PushDistribution].
     """
 
     SALT = PUSH_SALT
     INFO_KEYS = ("push",)
-    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
+    """The ``info`` keys this wrapper adds (at reset; [`wrapper_info_keys`][wrapper_info_keys])."""
 
     def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0), count: int = 1) -> None:
         super().__init__(env)
@@ -363,8 +367,8 @@ class RandomPush(gym.Wrapper):
 
 
 PUSH_PHASES = ("flight", "stance")
-"""The contact phases a :class:`PhasePush` can wait for: ``"flight"`` (no foot in contact), ``"stance"`` (one or two
-feet in contact)."""
+"""The contact phases a [`PhasePush`][PhasePush] can wait for: ``"flight"`` (no foot in contact), ``"stance"`` (one or
+two feet in contact)."""
 
 
 class PhasePush(gym.Wrapper):
@@ -373,26 +377,26 @@ class PhasePush(gym.Wrapper):
     the push is applied at the end of the first control step that ends at or after ``t`` in the phase ``phase``:
     ``"flight"`` when the step's contact flags (``info["contact"]``, the last 1 ms simulation step) are all False,
     ``"stance"`` when at least one is True. It goes through the env's documented
-    :meth:`~hsddp_gym.envs.bounding.BoundingEnv.apply_push`; the step returns the observation after the push (the
+    [`apply_push`][hsddp_gym.envs.bounding.BoundingEnv.apply_push]; the step returns the observation after the push (the
     policy sees the pushed velocities at once) and its ``info`` gains ``"push_applied"``: ``{"delta_v": [3
     floats], "time": t [s], "contact": [front, back]}`` (``info["qvel"]`` is updated to the pushed velocities).
     No push comes after a fall or the time limit, nor if the phase never comes. The draws are those of
-    :class:`RandomPush` with the same distribution (one push, seeded from ``(seed, PUSH_SALT)``): at a given seed
+    [`RandomPush`][RandomPush] with the same distribution (one push, seeded from ``(seed, PUSH_SALT)``): at a given seed
     only the moment differs. The episode's push is ``info["phase_push"]`` at reset (``{"delta_v": [...],
-    "earliest_time": t, "phase": phase}``) and :attr:`last_push`; :attr:`applied` is the applied one or None.
+    "earliest_time": t, "phase": phase}``) and `last_push`; `applied` is the applied one or None.
 
-    It must wrap the env below any observation wrapper (:class:`ObservationNoise`, :class:`ObservationBias`, a
-    ``gym.ObservationWrapper``): ``TypeError`` otherwise.
+    It must wrap the env below any observation wrapper ([`ObservationNoise`][ObservationNoise],
+    [`ObservationBias`][ObservationBias], a ``gym.ObservationWrapper``): ``TypeError`` otherwise.
 
     Args:
-        env: a (wrapped) ``Bounding-v0``. phase: one of :data:`PUSH_PHASES`.
+        env: a (wrapped) ``Bounding-v0``. phase: one of [`PUSH_PHASES`][PUSH_PHASES].
         time_range: ``(low, high)`` [s] of the earliest push time. max_delta_v: (3,) [m/s, m/s, rad/s].
     """
 
     SALT = PUSH_SALT
     INFO_KEYS = ("phase_push", "push_applied")
     """The ``info`` keys this wrapper adds (``phase_push`` at reset, ``push_applied`` at the push's step;
-    :func:`wrapper_info_keys`)."""
+    [`wrapper_info_keys`][wrapper_info_keys])."""
 
     def __init__(self, env: gym.Env, phase: str = "flight", time_range=(1.0, 4.0),
                  max_delta_v=(1.0, 1.0, 7.0)) -> None:
@@ -441,18 +445,18 @@ class PhasePush(gym.Wrapper):
 
 
 CONTACT_SALT = 0xC0A7
-"""The salt of :class:`RandomContactModel`'s generator: an episode reset with seed ``s`` draws its contact model from
-``SeedSequence([s, CONTACT_SALT])``."""
+"""The salt of [`RandomContactModel`][RandomContactModel]'s generator: an episode reset with seed ``s`` draws its
+contact model from ``SeedSequence([s, CONTACT_SALT])``."""
 
 
 class RandomContactModel(gym.Wrapper):
     """A contact model of the MuJoCo twin drawn per episode: at every reset a
-    :class:`~hsddp_gym.envs.mujoco_twin.ContactModel` is drawn with
-    :meth:`ContactModel.sample <hsddp_gym.envs.mujoco_twin.ContactModel.sample>` from the episode's generator
+    [`ContactModel`][hsddp_gym.envs.mujoco_twin.ContactModel] is drawn with
+    [`ContactModel.sample`][hsddp_gym.envs.mujoco_twin.ContactModel.sample] from the episode's generator
     (seeded from ``(seed, CONTACT_SALT)``: the same seed gives the same model, whatever the policy) and set on the
-    env (:meth:`~hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv.set_contact_model`) before the env's own reset. The
-    control period stays 5 ms (the env's ``frame_skip`` follows the model's time step). The episode's model is
-    ``info["contact_model"]`` at reset (a dict of its fields) and :attr:`last_contact_model`.
+    env ([`set_contact_model`][hsddp_gym.envs.mujoco_twin.MuJoCoBoundingEnv.set_contact_model]) before the env's own
+    reset. The control period stays 5 ms (the env's ``frame_skip`` follows the model's time step). The episode's model
+    is ``info["contact_model"]`` at reset (a dict of its fields) and `last_contact_model`.
 
     Args:
         env: a (wrapped) ``hsddp_gym/BoundingMuJoCo-v0`` (``TypeError`` otherwise).
@@ -460,7 +464,7 @@ class RandomContactModel(gym.Wrapper):
 
     SALT = CONTACT_SALT
     INFO_KEYS = ("contact_model",)
-    """The ``info`` keys this wrapper adds (at reset; :func:`wrapper_info_keys`)."""
+    """The ``info`` keys this wrapper adds (at reset; [`wrapper_info_keys`][wrapper_info_keys])."""
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
@@ -494,9 +498,9 @@ def wrapper_info_keys(env: gym.Env) -> frozenset:
 
 def episode_perturbation(env: gym.Env) -> dict:
     """What the hardware wrappers of ``env`` did in the current episode, for the record of a run:
-    ``{"announced_delay_steps", "executed_delay_steps"}`` of an :class:`ActionDelay`, ``"observation_bias"``
-    (``{name: offset}``) of an :class:`ObservationBias`, ``"push_applied"`` (the applied push, or None) of a
-    :class:`PhasePush`; ``{}`` without such wrappers."""
+    ``{"announced_delay_steps", "executed_delay_steps"}`` of an [`ActionDelay`][ActionDelay], ``"observation_bias"``
+    (``{name: offset}``) of an [`ObservationBias`][ObservationBias], ``"push_applied"`` (the applied push, or None) of a
+    [`PhasePush`][PhasePush]; ``{}`` without such wrappers."""
     out: dict = {}
     e = env
     while isinstance(e, gym.Wrapper):
@@ -512,7 +516,7 @@ def episode_perturbation(env: gym.Env) -> dict:
 
 def true_observation(env: gym.Env) -> np.ndarray:
     """The observation ``(layout.size,)`` float32 of the env's *true* current state (what the unwrapped env
-    returned at the last reset/step, before any :class:`ObservationNoise`), built from the public state,
+    returned at the last reset/step, before any [`ObservationNoise`][ObservationNoise]), built from the public state,
     contact flags and clock of ``env.unwrapped``; for an env without observation noise it equals the
     observation the env returned."""
     from hsddp_gym.core.observation import build_observation

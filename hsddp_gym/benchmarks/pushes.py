@@ -1,6 +1,6 @@
 """The push benchmark (``experiments/push_robustness.py``): falls of the policies on ``hsddp_gym/Bounding-v0`` after
 a body-velocity change mid-episode, per (policy, push, push time, seed), run in parallel
-(:func:`hsddp_gym.util.parallel.run_parallel`) and tabled.
+([`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel]) and tabled.
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ POLICIES = ("mpc", "mpc-options", "heuristic", "random")
 
 
 def push_policy(name: str, env, mpc_options: dict | None = None):
-    """The policy ``name`` (:data:`POLICIES`) for ``env`` (``mpc_options``: the ``mpc-options`` policy's fields)."""
+    """The policy ``name`` ([`POLICIES`][POLICIES]) for ``env`` (``mpc_options``: the ``mpc-options`` policy's
+    fields)."""
     from hsddp_gym.rollout.policies import PolicySpec, make_policy
 
     if name not in POLICIES:
@@ -60,7 +61,8 @@ def run_grid(policies, pushes, seeds: int, first_seed: int, push_times, steps: i
              progress: bool = True, mpc_options: dict | None = None, backend: str = "local",
              address: str | None = None) -> dict:
     """``{policy: {push label: {"delta_v", "falls", "episodes", "runs": [per episode]}}}`` (``mpc_options``: the
-    fields of the ``mpc-options`` policy; ``backend``/``address``: :func:`hsddp_gym.util.parallel.run_parallel`)."""
+    fields of the ``mpc-options`` policy; ``backend``/``address``:
+    [`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel])."""
     tasks = [(name, tuple(dv), seed, float(t), steps, mpc_options) for name in policies for dv in pushes
              for t in push_times for seed in range(first_seed, first_seed + seeds)]
     from tqdm import tqdm

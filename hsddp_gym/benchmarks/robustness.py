@@ -1,11 +1,12 @@
 """The robustness benchmark (``experiments/robustness.py``): the named perturbations of
-:data:`hsddp_gym.envs.perturbations.CONDITIONS` x any policy, one episode per (policy, condition, seed), run in
-parallel (:func:`hsddp_gym.util.parallel.run_parallel`), summed per cell, tabled and plotted.
+[`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] x any policy, one
+episode per (policy, condition, seed), run in parallel
+([`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel]), summed per cell, tabled and plotted.
 
 A policy is a spec dict, as the benchmark's records store it: ``{"kind": ..., "mpc_options": {...}, "dir": ...,
 "estimator": bool, "checkpoint": ...}`` (``"dirs": [...]`` for a bc/dagger ensemble), built by
-:func:`benchmark_policy` through the policy factory (:func:`hsddp_gym.rollout.policies.make_policy`).
-"""
+[`benchmark_policy`][benchmark_policy] through the policy factory
+([`hsddp_gym.rollout.policies.make_policy`][hsddp_gym.rollout.policies.make_policy]). """
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ EVAL_FIRST_SEED = 7000
 
 
 def policy_spec(spec: dict):
-    """The :class:`~hsddp_gym.rollout.policies.PolicySpec` of a benchmark spec dict (its kind and options)."""
+    """The [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec] of a benchmark spec dict (its kind and options)."""
     from hsddp_gym.rollout.policies import PolicySpec
 
     kind = spec["kind"]
@@ -47,8 +48,8 @@ def policy_spec(spec: dict):
 def benchmark_policy(spec: dict, env):
     """The policy described by ``spec`` (see the module docstring) for ``env``, built for the env's interface (the
     random policy seeded 0); with ``estimator`` the policy, built for the env without its delay, acts behind
-    :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (the MPC's state filter and latency
-    compensation)."""
+    [`EstimatedStatePolicy`][hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy] (the MPC's state filter
+    and latency compensation)."""
     from hsddp_gym.planners.policies.base import EnvInterface
     from hsddp_gym.planners.policies.estimated_state import EstimatedStatePolicy
     from hsddp_gym.rollout.policies import make_policy
@@ -119,8 +120,8 @@ def summarize_cell(runs: list[dict]) -> dict:
 def run_benchmark(policies: dict, conditions, seeds, max_steps=None, workers: int = 1, progress: bool = True,
                   backend: str = "local", address: str | None = None, simulator: str = "bounding") -> dict:
     """``{label: {condition: cell summary + "runs"}}`` for ``policies = {label: spec}``; the episodes run on
-    :func:`hsddp_gym.util.parallel.run_parallel` (``backend`` "local" or "ray", ``address`` a Ray cluster) in
-    ``simulator`` (a key of ``hsddp_gym.envs.perturbations.SIMULATORS``)."""
+    [`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel] (``backend`` "local" or "ray",
+    ``address`` a Ray cluster) in ``simulator`` (a key of ``hsddp_gym.envs.perturbations.SIMULATORS``)."""
     from tqdm import tqdm
 
     tasks = [(label, spec, c, s, max_steps, simulator) for c in conditions for label, spec in policies.items()

@@ -1,10 +1,10 @@
 """The task evaluations (``experiments/tasks.py``, ``experiments/backflip.py``, ``experiments/pronking.py``): a task's
 expert in its env and twin, and learners from its demonstrations, on the task's unseen evaluation seeds.
 
-Each policy plays one episode per seed of the task's env (:func:`hsddp_gym.rollout.episodes.run_episode`); per
-episode the return, the length, a fall, the task's measures (``Task.measures`` of the task registry,
-:class:`~hsddp_gym.rollout.measures.TaskEpisodes`) and its success. A row sums them.
-"""
+Each policy plays one episode per seed of the task's env
+([`hsddp_gym.rollout.episodes.run_episode`][hsddp_gym.rollout.episodes.run_episode]); per episode the return, the
+length, a fall, the task's measures (``Task.measures`` of the task registry,
+[`TaskEpisodes`][hsddp_gym.rollout.measures.TaskEpisodes]) and its success. A row sums them. """
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from hsddp_gym.registry import Task, resolve
 
 
 def task_measures(task: Task):
-    """The :class:`~hsddp_gym.rollout.measures.Measures` of ``task`` (``Task.measures``)."""
+    """The [`Measures`][hsddp_gym.rollout.measures.Measures] of ``task`` (``Task.measures``)."""
     if task.measures is None:
         raise ValueError(f"task {task.name!r} has no per-episode measures")
     return resolve(task.measures)
@@ -46,8 +46,8 @@ def task_summary(task: Task, episodes: list[dict]) -> dict:
 
 
 def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet: bool) -> dict:
-    """The row of policy ``spec`` (a name or :class:`~hsddp_gym.rollout.policies.PolicySpec`,
-    :func:`~hsddp_gym.rollout.policies.make_policy`) in ``env_id`` (the task's env or a twin) on ``seeds``."""
+    """The row of policy ``spec`` (a name or [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec],
+    [`make_policy`][hsddp_gym.rollout.policies.make_policy]) in ``env_id`` (the task's env or a twin) on ``seeds``."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
@@ -85,8 +85,9 @@ def check_learner_runs(error, task: Task, runs_by_flag: dict, env_checked=("bc",
 
 def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word: str = "iteration") -> list[dict]:
     """The rows of the ``hsddp-gym train --algo bc|dagger`` runs ``runs`` (final weights), each with what the
-    record keeps of its run (:func:`hsddp_gym.learning.reporting.imitation_run_fields`); DAgger's label counts its
-    rounds as ``rounds_word``."""
+    record keeps of its run
+    ([`hsddp_gym.learning.reporting.imitation_run_fields`][hsddp_gym.learning.reporting.imitation_run_fields]); DAgger's
+    label counts its rounds as ``rounds_word``."""
     from hsddp_gym.learning.reporting import imitation_run_fields
 
     rows = []

@@ -2,10 +2,10 @@
 
 Every subcommand writes into ``--out DIR``: a ``summary.json`` with the numbers, plus figures and data.
 Run ``hsddp-gym SUBCOMMAND --help`` for the options of each. The subcommands live in one module per group:
-:mod:`~hsddp_gym.cli.planning_commands` (``demo``, ``plan``, ``sto``), :mod:`~hsddp_gym.cli.rollout_command`,
-:mod:`~hsddp_gym.cli.dataset_command` and :mod:`~hsddp_gym.cli.train_command`; :mod:`~hsddp_gym.cli.parsing`
-holds the parsers and argument types they share, :mod:`~hsddp_gym.cli.env_choices` the envs read from the task
-registry.
+[`planning_commands`][hsddp_gym.cli.planning_commands] (``demo``, ``plan``, ``sto``),
+[`rollout_command`][hsddp_gym.cli.rollout_command], [`dataset_command`][hsddp_gym.cli.dataset_command] and
+[`train_command`][hsddp_gym.cli.train_command]; [`parsing`][hsddp_gym.cli.parsing] holds the parsers and argument types
+they share, [`env_choices`][hsddp_gym.cli.env_choices] the envs read from the task registry.
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """``hsddp-gym dataset``: a demonstration dataset (Minari + ``episodes.npz`` + ``metadata.json``) recorded with a
-policy in one of the tasks' envs (:func:`hsddp_gym.datasets.generation.generate_dataset`)."""
+policy in one of the tasks' envs
+([`hsddp_gym.datasets.generation.generate_dataset`][hsddp_gym.datasets.generation.generate_dataset])."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ SIMULATORS = {"lcp": None, "mujoco": "mujoco"}
 
 
 def built_in_policies(env_id: str) -> tuple[str, ...]:
-    """The built-in policies (:data:`~hsddp_gym.rollout.policies.POLICIES`) that exist in ``env_id``: every one but
+    """The built-in policies ([`POLICIES`][hsddp_gym.rollout.policies.POLICIES]) that exist in ``env_id``: every one but
     the ``expert`` in a task without a plan-tracking expert (``Task.expert`` None, e.g. Terrain-v0)."""
     task = task_of_env_id(env_id)
     return tuple(p for p in POLICIES if p != "expert" or task.expert is not None)

@@ -1,6 +1,6 @@
 """The command line's parsers and argument types: one-line errors that name the subcommand's help and suggest the
-closest valid option or choice, the options a user gave (:attr:`CommandParser` records them), and the ``type``
-functions the subcommands share."""
+closest valid option or choice, the options a user gave ([`CommandParser`][CommandParser] records them), and the
+``type`` functions the subcommands share."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ class Parser(argparse.ArgumentParser):
 class CommandParser(Parser):
     """The parser of one subcommand: an argument no option of the subcommand takes is an error naming the closest
     option (``unrecognized argument --polcy (did you mean --policy?)``), and the parsed namespace's ``given`` is
-    the set of option destinations the user gave (whatever their value; see :func:`given_options`)."""
+    the set of option destinations the user gave (whatever their value; see [`given_options`][given_options])."""
 
     def parse_known_args(self, args=None, namespace=None):
         parsed, extras = super().parse_known_args(args, namespace)

@@ -1,6 +1,6 @@
 """``hsddp-gym rollout``: seeded episodes of a policy (built-in or trained) in any registered env
-(:func:`hsddp_gym.workflows.run_rollouts`), after checking that the policy exists there and that a trained policy
-runs in the env it was trained in (or is transferred on purpose, ``--transfer``)."""
+([`hsddp_gym.workflows.run_rollouts`][hsddp_gym.workflows.run_rollouts]), after checking that the policy exists there
+and that a trained policy runs in the env it was trained in (or is transferred on purpose, ``--transfer``)."""
 
 from __future__ import annotations
 

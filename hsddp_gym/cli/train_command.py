@@ -1,7 +1,7 @@
 """``hsddp-gym train``: a learning baseline (behaviour cloning, DAgger, PPO or SAC) trained into ``--out``.
 
-Each option belongs to the algorithms that use it (:data:`OPTION_ALGOS`, which also groups ``train --help``); an
-option given with an ``--algo`` that does not use it is refused by name before anything starts."""
+Each option belongs to the algorithms that use it ([`OPTION_ALGOS`][OPTION_ALGOS], which also groups ``train --help``);
+an option given with an ``--algo`` that does not use it is refused by name before anything starts."""
 
 from __future__ import annotations
 
@@ -256,7 +256,7 @@ def cmd_train(args) -> int:
 
 # ----------------------------------------------------------------------------------------------- parser
 def add_parser(sub) -> None:
-    """Add ``train`` to the subparsers ``sub``: its options in the argument groups of :data:`GROUPS`, each help
+    """Add ``train`` to the subparsers ``sub``: its options in the argument groups of [`GROUPS`][GROUPS], each help
     starting with the algorithms that use the option."""
     from hsddp_gym.learning.sb3 import ENV_IDS, OPTION_HELP  # numpy-only at import; SB3 and torch load when training
 

@@ -1,39 +1,43 @@
-"""The contact simulation of :mod:`hsddp_gym.core.contact` for ``N`` robots in one compiled (numba) call:
-:func:`step_batch` on the flat ground, :func:`step_batch_terrain` on a terrain's surface.
+"""The contact simulation of [`hsddp_gym.core.contact`][hsddp_gym.core.contact] for ``N`` robots in one compiled (numba)
+call: [`step_batch`][step_batch] on the flat ground, [`step_batch_terrain`][step_batch_terrain] on a terrain's surface.
 
-:class:`~hsddp_gym.core.contact.ContactSimulator` steps one robot with Pinocchio calls from Python; this
+[`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] steps one robot with Pinocchio calls from Python; this
 module is the same scheme -- semi-implicit Euler velocity step, the exact planar Coulomb LCP by
-enumeration of foot states (the previous states first, then the same fixed order; :mod:`hsddp_gym.core.batch_lcp`),
-the mass-metric position projection (Newton to :data:`~hsddp_gym.core.contact.POSITION_TOLERANCE`; contact feet and
-every foot that ended below the ground), the energy projection (flight: the centroidal momentum of the step's start
-plus gravity's impulse and the energy of the torques' second-order work, :mod:`hsddp_gym.core.batch_projection`;
+enumeration of foot states (the previous states first, then the same fixed order;
+[`hsddp_gym.core.batch_lcp`][hsddp_gym.core.batch_lcp]), the mass-metric position projection (Newton to
+[`POSITION_TOLERANCE`][hsddp_gym.core.contact.POSITION_TOLERANCE]; contact feet and every foot that ended below the
+ground), the energy projection (flight: the centroidal momentum of the step's start plus gravity's impulse and the
+energy of the torques' second-order work, [`hsddp_gym.core.batch_projection`][hsddp_gym.core.batch_projection];
 contacts: scale ``v``) and the motor torque-speed law -- written out on the closed-form model of
-:mod:`hsddp_gym.core.batch_model` and compiled with numba (cached on disk), one loop over the robots.
+[`hsddp_gym.core.batch_model`][hsddp_gym.core.batch_model] and compiled with numba (cached on disk), one loop over the
+robots.
 
 ``tests/test_vector_env.py`` checks whole steps against ``ContactSimulator`` in every contact combination (flight,
 front, back, double stance; stick and slide): the same foot states and contact flags, states within 1e-11 relative
 to their size (median 3e-16; 99.7 % within 1e-12). The LCP's linear solves, the small Cholesky factorizations and
 the order of the projections are contact.py's, written out; the round-off differences come from the model's tree
-factorization (:func:`~hsddp_gym.core.batch_model.tree_factor7`).
+factorization ([`tree_factor7`][hsddp_gym.core.batch_model.tree_factor7]).
 
-One source, two compiled functions: :func:`compile_step` writes the step once, with the terrain's code paths behind
-a constant of the closure (``on_terrain``) that numba resolves when it compiles (dead-branch pruning), so
-:func:`step_batch` holds the flat ground's code alone (its numbers and its speed are those of a kernel written for
-the flat ground) and :func:`step_batch_terrain` the terrain's (:mod:`hsddp_gym.core.batch_terrain`: contacts at the
-closest point of the surface, along its normal, the friction cone in the local frame).
-:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator` calls the one its terrain needs; the vector env is
-flat.
+One source, two compiled functions: [`compile_step`][compile_step] writes the step once, with the terrain's code paths
+behind a constant of the closure (``on_terrain``) that numba resolves when it compiles (dead-branch pruning), so
+[`step_batch`][step_batch] holds the flat ground's code alone (its numbers and its speed are those of a kernel written
+for the flat ground) and [`step_batch_terrain`][step_batch_terrain] the terrain's
+([`hsddp_gym.core.batch_terrain`][hsddp_gym.core.batch_terrain]: contacts at the closest point of the surface, along its
+normal, the friction cone in the local frame).
+[`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator] calls the one its terrain needs;
+the vector env is flat.
 
-Speed notes: numba passes a tuple of arrays (:class:`Scratch`) to a compiled call at about a microsecond (one
+Speed notes: numba passes a tuple of arrays ([`Scratch`][Scratch]) to a compiled call at about a microsecond (one
 reference count per array), more than a whole flight step costs, so the step is one function that unpacks it once
 per batch and has the simulator's step written out in line. About 88 % of the 1 ms steps of a random-action episode
-are in flight (no foot within reach), so the flight step is what costs (see :mod:`hsddp_gym.core.batch_model`). No
-fast-math flag, not even fused multiply-adds: the same seed gives the same episode on CPUs with and without FMA.
+are in flight (no foot within reach), so the flight step is what costs (see
+[`hsddp_gym.core.batch_model`][hsddp_gym.core.batch_model]). No fast-math flag, not even fused multiply-adds: the same
+seed gives the same episode on CPUs with and without FMA.
 
 numba's cache: the kernel's functions in the other modules are not cached on their own
-(:data:`~hsddp_gym.core.batch_model.kernel_jit`); they are compiled into the step that calls them, whose cache entry's
-key holds a digest of every source the step is compiled from (:data:`KERNEL_SOURCES`), so an edit of any of them
-recompiles it (numba itself checks only the step's own file).
+([`kernel_jit`][hsddp_gym.core.batch_model.kernel_jit]); they are compiled into the step that calls them, whose cache
+entry's key holds a digest of every source the step is compiled from ([`KERNEL_SOURCES`][KERNEL_SOURCES]), so an edit of
+any of them recompiles it (numba itself checks only the step's own file).
 
 Arrays: ``x (N, 14)`` states, ``u (N, 4)`` joint torques, ``states (N, 2)`` int64 foot states
 (``SEPARATE`` ... ``SLIDE_NEG``), ``contact (N, 2)`` bool, ``impulse (N, 4)`` summed ground impulses (grf
@@ -84,7 +88,7 @@ from hsddp_gym.core.contact_lcp import SEPARATE, STICK
 from hsddp_gym.core.conventions import NQ, NX
 
 COUNTER_NAMES = ("lcp_fallbacks", "energy_projections", "momentum_fallbacks", "energy_deficits")
-"""The names of a robot's four counters (``counters (N, 4)``), :class:`ContactSimulator`'s attributes."""
+"""The names of a robot's four counters (``counters (N, 4)``), [`ContactSimulator`][ContactSimulator]'s attributes."""
 
 # ------------------------------------------------------------------------------ scratch space
 _SCRATCH_FIELDS = {  # name: shape (int64 when the name is in _INT_FIELDS)
@@ -102,7 +106,7 @@ Scratch = collections.namedtuple("Scratch", list(_SCRATCH_FIELDS))
 
 
 def kernel_scratch() -> Scratch:
-    """A fresh :class:`Scratch` (zeros)."""
+    """A fresh [`Scratch`][Scratch] (zeros)."""
     return Scratch(*[np.zeros(shape, dtype=np.int64 if name in _INT_FIELDS else np.float64)
                      for name, shape in _SCRATCH_FIELDS.items()])
 
@@ -120,17 +124,18 @@ def _sources_digest(modules) -> str:
 KERNEL_MODULES = (batch_model, batch_lcp, batch_projection, batch_terrain, contact_lcp, contact, conventions)
 """The modules the step is compiled from besides this one: the functions it calls, the constants it reads."""
 KERNEL_SOURCES = _sources_digest(KERNEL_MODULES)
-"""Digest of the sources of :data:`KERNEL_MODULES`: a constant of the compiled step, so part of its numba cache
-key."""
+"""Digest of the sources of [`KERNEL_MODULES`][KERNEL_MODULES]: a constant of the compiled step, so part of its numba
+cache key."""
 
 _step_jit = numba.njit(cache=True, error_model="numpy")
-"""The step's compile options: :data:`~hsddp_gym.core.batch_model.kernel_jit`'s, cached on disk."""
+"""The step's compile options: [`kernel_jit`][hsddp_gym.core.batch_model.kernel_jit]'s, cached on disk."""
 
 
 def compile_step(on_terrain: bool, name: str):
     """The batch step compiled for the flat ground (``on_terrain=False``) or a terrain's surface (True), named
     ``name`` (numba's cache files carry it): one source, the terrain's code paths pruned from the flat ground's
-    function at compile time. See :func:`step_batch` and :func:`step_batch_terrain` for the arguments."""
+    function at compile time. See [`step_batch`][step_batch] and [`step_batch_terrain`][step_batch_terrain] for the
+    arguments."""
     if not isinstance(on_terrain, bool):
         raise TypeError(f"on_terrain must be a bool, got {type(on_terrain).__name__}")
     if not (isinstance(name, str) and name.isidentifier()):
@@ -461,29 +466,30 @@ counters_batch, cache_batch, sc)``: ``n`` simulation steps on the flat ground of
 ``contact_batch (N, 2)``, ``impulse_batch (N, 4)`` (summed over the ``n`` steps), ``sim_time (N,)`` (``+= h`` per
 step, accumulated like ``ContactSimulator.time``), ``heights (N, 2)`` foot heights after the steps,
 ``counters_batch (N, 4)`` (see the module docstring), ``cache_batch (N, MODEL_CACHE_SIZE)`` each robot's model cache
-(:func:`~hsddp_gym.core.batch_model.model_cache`: the points and mass matrix its last step ended with, reused when
-the next call starts from the same configuration, as it does unless the caller moved the robot; the parameters ``p``
-(:func:`~hsddp_gym.core.batch_model.kernel_params`) must stay the same), ``sc`` a :class:`Scratch`. Robots whose
-state is not finite are not stepped (NaN heights, no impulse); the caller ends their episodes.
+([`model_cache`][hsddp_gym.core.batch_model.model_cache]: the points and mass matrix its last step ended with, reused
+when the next call starts from the same configuration, as it does unless the caller moved the robot; the parameters
+``p`` ([`kernel_params`][hsddp_gym.core.batch_model.kernel_params]) must stay the same), ``sc`` a [`Scratch`][Scratch].
+Robots whose state is not finite are not stepped (NaN heights, no impulse); the caller ends their episodes.
 
 One function for the whole batch (ContactSimulator._step, _finish_consistent and _project_positions written out in
-line): numba passes a :class:`Scratch` to a call at a cost of about a microsecond (one reference count per array),
+line): numba passes a [`Scratch`][Scratch] to a call at a cost of about a microsecond (one reference count per array),
 more than a whole flight step, so it is unpacked here once per batch."""
 
 step_batch_terrain = compile_step(True, "step_batch_terrain")
-""":func:`step_batch` on a terrain: the same arguments, with ``p`` holding the terrain's surface
-(:func:`~hsddp_gym.core.batch_model.kernel_params` of a simulator with a terrain: ``p[P_TERRAIN_N] >= 2`` vertices)
-and ``heights`` the feet's heights above the surface under each. A foot's contact is with the closest point of the
-surface (:func:`~hsddp_gym.core.batch_terrain.terrain_contact`): its gap is the distance to it, the LCP's rows are
-its velocity along the outward normal there and along the tangent (the friction cone in the local frame), and the
-impulses are turned back into the world frame; the position projection puts a contact foot on the tangent line of its
-contact point, a sticking foot at its start, and a foot below the surface onto its closest point (two rows at a
-concave corner; :func:`~hsddp_gym.core.batch_terrain.terrain_rows`,
-:func:`~hsddp_gym.core.batch_terrain.terrain_corner_rows`). Compiled on first use."""
+"""[`step_batch`][step_batch] on a terrain: the same arguments, with ``p`` holding the terrain's surface
+([`kernel_params`][hsddp_gym.core.batch_model.kernel_params] of a simulator with a terrain: ``p[P_TERRAIN_N] >= 2``
+vertices) and ``heights`` the feet's heights above the surface under each. A foot's contact is with the closest point of
+the
+surface ([`terrain_contact`][hsddp_gym.core.batch_terrain.terrain_contact]): its gap is the distance to it, the LCP's
+rows are its velocity along the outward normal there and along the tangent (the friction cone in the local frame), and
+the impulses are turned back into the world frame; the position projection puts a contact foot on the tangent line of
+its contact point, a sticking foot at its start, and a foot below the surface onto its closest point (two rows at a
+concave corner; [`terrain_rows`][hsddp_gym.core.batch_terrain.terrain_rows],
+[`terrain_corner_rows`][hsddp_gym.core.batch_terrain.terrain_corner_rows]). Compiled on first use."""
 
 
 def run_one(p, x, u, n, states, contact, total, sc, counters) -> None:
-    """``n`` steps of one robot (ContactSimulator.run): :func:`step_batch` on a batch of one. ``x`` (14,) in
+    """``n`` steps of one robot (ContactSimulator.run): [`step_batch`][step_batch] on a batch of one. ``x`` (14,) in
     place, ``u`` (4,) commanded torques, ``states`` (2,) int64, ``contact`` (2,) bool, ``total`` (4,) the summed
     impulses, ``counters`` (4,) int64 (all updated in place)."""
     step_batch(p, x.reshape(1, NX), np.asarray(u, dtype=np.float64).reshape(1, 4), int(n), np.ones(1, dtype=np.bool_),
@@ -497,7 +503,7 @@ ANNOUNCE_AFTER_S = 5.0
 
 
 def _cache_index_exists() -> bool:
-    """Whether numba's cache index of :func:`step_batch` is on disk (numba internals: False if they moved)."""
+    """Whether numba's cache index of [`step_batch`][step_batch] is on disk (numba internals: False if they moved)."""
     import os
 
     try:

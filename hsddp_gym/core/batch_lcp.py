@@ -1,10 +1,11 @@
-"""The contact LCP of :mod:`hsddp_gym.core.contact_lcp` written out for numba: the contact kernel's
-(:mod:`hsddp_gym.core.batch_contact`) enumeration of foot states and its small dense solves.
+"""The contact LCP of [`hsddp_gym.core.contact_lcp`][hsddp_gym.core.contact_lcp] written out for numba: the contact
+kernel's ([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]) enumeration of foot states and its small dense
+solves.
 
-The same enumeration as :func:`~hsddp_gym.core.contact_lcp.solve_contact_lcp_lists` -- the guess first, then the
-fixed order :data:`~hsddp_gym.core.contact_lcp.BASE_ORDER` (its product for two feet), the least-violating
-combination when none is exact -- with the same linear solves (closed form for n <= 2, Gaussian elimination with
-partial pivoting, a Cholesky factorization for n = 3, 4) and the same tolerances, on
+The same enumeration as [`solve_contact_lcp_lists`][hsddp_gym.core.contact_lcp.solve_contact_lcp_lists] -- the guess
+first, then the fixed order [`BASE_ORDER`][hsddp_gym.core.contact_lcp.BASE_ORDER] (its product for two feet), the
+least-violating combination when none is exact -- with the same linear solves (closed form for n <= 2, Gaussian
+elimination with partial pivoting, a Cholesky factorization for n = 3, 4) and the same tolerances, on
 preallocated arrays (the kernel's scratch, passed one by one). Rows are ``[n_0, t_0, n_1, t_1]``: ``G`` (2k, 2k) the
 Delassus matrix, ``c`` (2k,) the free contact velocity plus the gap term, ``lam`` (2k,) the impulses.
 """
@@ -219,7 +220,7 @@ def _try(G, c, mu, k, s0, s1, lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, row
 def solve_lcp(G, c, mu, k, g0, g1, lam, out_states, best_lam, w, A, rhs, zz, L, cols_j, cols_c, cols_n, rows):
     """contact_lcp.solve_contact_lcp_lists: the guess ``(g0, g1)`` first, then the fixed order; fills ``lam``
     (2k,) and ``out_states`` (k,); returns True when exact (False: the least-violating combination). The
-    other arrays are scratch (the :class:`~hsddp_gym.core.batch_contact.Scratch` fields of the same names; passed
+    other arrays are scratch (the [`Scratch`][hsddp_gym.core.batch_contact.Scratch] fields of the same names; passed
     one by one, which is cheaper than passing the whole tuple)."""
     best_v = np.inf
     have = False

@@ -1,14 +1,14 @@
 """The planar Mini Cheetah's rigid-body terms in closed form, compiled with numba: the contact kernel's model
-(:mod:`hsddp_gym.core.batch_contact`).
+([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]).
 
-The model is still Pinocchio's: :func:`kernel_params` reads every number from the
-:class:`~hsddp_gym.core.model.CheetahModel` (its :class:`~hsddp_gym.core.params.RobotParams`) into the parameter
-vector ``p`` (the ``P_*`` slots), and ``tests/test_vector_env.py`` checks the closed-form mass matrix, bias, foot
-positions and Jacobians, centroidal momentum map and energies against ``pin.crba``, ``pin.nonLinearEffects``, frame
+The model is still Pinocchio's: [`kernel_params`][kernel_params] reads every number from the
+[`CheetahModel`][hsddp_gym.core.model.CheetahModel] (its [`RobotParams`][hsddp_gym.core.params.RobotParams]) into the
+parameter vector ``p`` (the ``P_*`` slots), and ``tests/test_vector_env.py`` checks the closed-form mass matrix, bias,
+foot positions and Jacobians, centroidal momentum map and energies against ``pin.crba``, ``pin.nonLinearEffects``, frame
 Jacobians, ``pin.computeCentroidalMap`` and ``pin.computeMechanicalEnergy`` to 1e-12 at random states. Pinocchio's
 ABA and ``computeMinverse`` are replaced by one sparse ``L^T D L`` factorization of ``M`` along the kinematic tree
-(:func:`tree_factor7`), which is where the kernel's round-off differences to
-:class:`~hsddp_gym.core.contact.ContactSimulator` come from (at cond(M) ~ 2e4, ``computeMinverse`` and
+([`tree_factor7`][tree_factor7]), which is where the kernel's round-off differences to
+[`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] come from (at cond(M) ~ 2e4, ``computeMinverse`` and
 ``inv(crba)`` differ by ~8e-12 themselves).
 
 Closed form (world frame, ``R(t) (a, c) = (cos t a + sin t c, -sin t a + cos t c)`` the rotation about
@@ -19,13 +19,13 @@ has the Jacobian columns ``[1, 0]`` (x), ``[0, 1]`` (z) and, for each revolute j
 ``a_p = -sum_k w_k^2 s_k`` (``s_k`` the chain segments, ``w_k`` their absolute rates: the planar
 Coriolis/centrifugal acceleration at zero joint accelerations).
 
-Speed: the kinematics use :func:`sincos` inline instead of libm's call, :func:`mass_matrix` and :func:`bias` work
-from per-leg lever arms, the tree factorization has no fill and no square roots, :func:`kinetic_energy` sums over
-``M``'s nonzeros; a robot's model cache (:func:`model_cache`) spares the recomputation of the points and ``M`` a
-call starts from. No fast-math flag (:data:`kernel_jit`).
+Speed: the kinematics use [`sincos`][sincos] inline instead of libm's call, [`mass_matrix`][mass_matrix] and
+[`bias`][bias] work from per-leg lever arms, the tree factorization has no fill and no square roots,
+[`kinetic_energy`][kinetic_energy] sums over ``M``'s nonzeros; a robot's model cache ([`model_cache`][model_cache])
+spares the recomputation of the points and ``M`` a call starts from. No fast-math flag ([`kernel_jit`][kernel_jit]).
 
-Arrays: ``q (7,)`` a configuration, ``pts (12, 2)`` the world ``(x, z)`` of the points (:data:`FOOT_POINT`),
-``M (7, 7)`` the joint-space inertia, ``p`` the parameter vector (:data:`N_PARAMS`, plus a terrain's vertices).
+Arrays: ``q (7,)`` a configuration, ``pts (12, 2)`` the world ``(x, z)`` of the points ([`FOOT_POINT`][FOOT_POINT]),
+``M (7, 7)`` the joint-space inertia, ``p`` the parameter vector ([`N_PARAMS`][N_PARAMS], plus a terrain's vertices).
 """
 
 from __future__ import annotations
@@ -40,10 +40,11 @@ from hsddp_gym.core.conventions import FOOT_SIGN, NQ
 
 kernel_jit = numba.njit(error_model="numpy")
 """numba's compile options for the kernel's functions: numpy's error model (no Python exception checks on each
-division: every divisor is checked before, as in :mod:`hsddp_gym.core.contact`); no fast-math flag (fused
-multiply-adds would make the round-off, and so whole episodes, depend on the CPU). Not cached on their own: numba
-compiles them into the step that calls them (:mod:`hsddp_gym.core.batch_contact`), whose cache entry holds them and
-is keyed by their sources (a function called from Python, as the tests do, is compiled in that process)."""
+division: every divisor is checked before, as in [`hsddp_gym.core.contact`][hsddp_gym.core.contact]); no fast-math flag
+(fused multiply-adds would make the round-off, and so whole episodes, depend on the CPU). Not cached on their own: numba
+compiles them into the step that calls them ([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]), whose
+cache entry holds them and is keyed by their sources (a function called from Python, as the tests do, is compiled in
+that process)."""
 
 # ------------------------------------------------------------------------------ parameter vector layout
 P_MASS = 0  # 3 entries: trunk, thigh, shank [kg]
@@ -63,8 +64,8 @@ P_FAR = 20  # a foot higher than this [m] cannot reach the ground within one ste
 P_TERRAIN_N = 21  # number K of vertices of the terrain's surface; 0: the flat ground z = 0
 N_PARAMS = 22
 """Length of the parameter vector on flat ground; a terrain appends its surface's vertices: ``xs`` (K,) at
-``p[N_PARAMS:N_PARAMS + K]``, ``zs`` (K,) after them (:func:`kernel_params`,
-:func:`~hsddp_gym.core.batch_terrain.terrain_piece`)."""
+``p[N_PARAMS:N_PARAMS + K]``, ``zs`` (K,) after them ([`kernel_params`][kernel_params],
+[`terrain_piece`][hsddp_gym.core.batch_terrain.terrain_piece])."""
 
 # points (rows of the (12, 2) point array): 0 trunk origin, 1 trunk CoM, then per leg hip, thigh CoM, knee,
 # shank CoM, foot (front: 2..6, back: 7..11)
@@ -90,10 +91,11 @@ def model_cache(n: int) -> np.ndarray:
 
 
 def kernel_params(sim: ContactSimulator) -> np.ndarray:
-    """The parameter vector (N_PARAMS,) of a simulator: its robot's :class:`RobotParams`, friction, gravity,
-    step, torque limit and motor law; with a terrain (``sim.terrain``, a :class:`~hsddp_gym.core.terrain.Terrain`
-    that is not None), followed by its surface's vertices (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`).
-    Only the energy-consistent scheme is compiled (ValueError otherwise)."""
+    """The parameter vector (N_PARAMS,) of a simulator: its robot's [`RobotParams`][hsddp_gym.core.params.RobotParams],
+    friction, gravity, step, torque limit and motor law; with a terrain (``sim.terrain``, a
+    [`Terrain`][hsddp_gym.core.terrain.Terrain] that is not None), followed by its surface's vertices
+    ([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices]). Only the energy-consistent scheme is
+    compiled (ValueError otherwise)."""
     if not isinstance(sim, ContactSimulator):
         raise TypeError(f"sim must be a ContactSimulator, got {type(sim).__name__}")
     if not sim.energy_consistent:
@@ -213,7 +215,7 @@ def point_jacobian(pts, chain, jx, jz):
 
 @kernel_jit
 def _leg_inertia(m1, m2, i1, i2, x0, z0, hx, hz, tx, tz, kx, kz, sx, sz):
-    """One leg's terms of :func:`mass_matrix`, from the trunk origin ``(x0, z0)``, the hip ``(hx, hz)``, thigh
+    """One leg's terms of [`mass_matrix`][mass_matrix], from the trunk origin ``(x0, z0)``, the hip ``(hx, hz)``, thigh
     CoM ``(tx, tz)``, knee ``(kx, kz)`` and shank CoM ``(sx, sz)`` (scalars, so that nothing is reloaded):
     ``(M[x, hip], M[z, hip], M[x, knee], M[z, knee], M[pitch, hip], M[pitch, knee], M[hip, hip], M[hip, knee],
     M[knee, knee], the leg's share of M[pitch, pitch], its first moments about the trunk origin (x, z))``."""
@@ -234,7 +236,7 @@ def _leg_inertia(m1, m2, i1, i2, x0, z0, hx, hz, tx, tz, kx, kz, sx, sz):
 
 @kernel_jit
 def mass_matrix(p, pts, M):
-    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of :func:`kinematics`, in closed form: with body
+    """Joint-space inertia ``M`` (7, 7) at the points ``pts`` of [`kinematics`][kinematics], in closed form: with body
     CoM ``P``, mass ``m``, inertia ``I`` and joint pivots ``O``, ``M[x, j] = sum m (P_z - O_z)``,
     ``M[z, j] = -sum m (P_x - O_x)``, ``M[j, k] = sum m (P - O_j).(P - O_k) + I`` over the bodies moved by
     both joints (the front and back legs do not couple: those entries are 0)."""
@@ -268,7 +270,7 @@ def mass_matrix(p, pts, M):
 
 @kernel_jit
 def _leg_bias(m1, m2, g, r0, x0, z0, w1, w2, hx, hz, tx, tz, kx, kz, sx, sz):
-    """One leg's terms of :func:`bias` from scalars (the trunk origin, hip, thigh CoM, knee, shank CoM; ``r0``
+    """One leg's terms of [`bias`][bias] from scalars (the trunk origin, hip, thigh CoM, knee, shank CoM; ``r0``
     the trunk's squared rate, ``w1``, ``w2`` the thigh's and shank's absolute rates): ``(sum of its forces x,
     z, their moment about the trunk origin, b[hip], b[knee])``."""
     r1, r2 = w1 * w1, w2 * w2
@@ -325,7 +327,7 @@ def potential_energy(p, pts):
 
 @kernel_jit
 def kinetic_energy(M, v):
-    """``1/2 v^T M v`` [J] over the nonzeros of :func:`mass_matrix` (``M[x, z]`` and the legs' cross terms are
+    """``1/2 v^T M v`` [J] over the nonzeros of [`mass_matrix`][mass_matrix] (``M[x, z]`` and the legs' cross terms are
     0): the diagonal plus twice the upper triangle."""
     d = 0.0
     for i in range(7):
@@ -408,7 +410,7 @@ def tree_factor7(M, L, dinv):
 
 @kernel_jit
 def tree_solve7(L, dinv, b, out):
-    """``out = M^-1 b`` (7,) from the factor of :func:`tree_factor7`: ``L^T y = b`` from the leaves up, then
+    """``out = M^-1 b`` (7,) from the factor of [`tree_factor7`][tree_factor7]: ``L^T y = b`` from the leaves up, then
     ``L out = D^-1 y`` from the root down (``out`` may not be ``b``)."""
     c0, c1, c2 = b[0], b[1], b[2]
     for leg in range(2):
@@ -435,7 +437,7 @@ def tree_solve7(L, dinv, b, out):
 
 @kernel_jit
 def tree_solve_rows(L, dinv, R, m, out):
-    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7) (:func:`tree_solve7` on each)."""
+    """``out[r] = M^-1 R[r]`` for the rows ``r < m`` of ``R`` (m, 7) ([`tree_solve7`][tree_solve7] on each)."""
     for r in range(m):
         tree_solve7(L, dinv, R[r], out[r])
 
@@ -453,7 +455,7 @@ def mechanical_energy(p, x, sc):
 def load_model(p, q, cache, pts, M):
     """The points ``pts`` (12, 2) and mass matrix ``M`` (7, 7) of configuration ``q`` (7,): copied from the robot's
     ``cache`` (MODEL_CACHE_SIZE,) when it holds this very ``q`` (the state the robot's last step left, untouched
-    since), else computed (:func:`kinematics`, :func:`mass_matrix`; the same numbers either way)."""
+    since), else computed ([`kinematics`][kinematics], [`mass_matrix`][mass_matrix]; the same numbers either way)."""
     for i in range(NQ):
         if not cache[_CACHE_Q + i] == q[i]:
             kinematics(p, q, pts)

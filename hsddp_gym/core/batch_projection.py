@@ -1,11 +1,12 @@
-"""The energy and momentum projection of a flight step in the contact kernel (:mod:`hsddp_gym.core.batch_contact`),
-compiled with numba: the free flight of :class:`~hsddp_gym.core.contact.ContactSimulator`'s energy-consistent step
-(``_finish_consistent``, ``_project_flight``), written out.
+"""The energy and momentum projection of a flight step in the contact kernel
+([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]), compiled with numba: the free flight of
+[`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator]'s energy-consistent step (``_finish_consistent``,
+``_project_flight``), written out.
 
 In free flight the step's velocity ``v+`` is moved to the nearest point (mass metric) with the centroidal momentum
-of the step's start plus gravity's impulse (:func:`momentum_target`, taken before the step) and with the allowed
-kinetic energy (:func:`project_flight`). Both read the kernel's scratch (``sc``, a
-:class:`~hsddp_gym.core.batch_contact.Scratch`): ``sc.M`` (7, 7) the inertia of the configuration, ``sc.pt`` (3,) the
+of the step's start plus gravity's impulse ([`momentum_target`][momentum_target], taken before the step) and with the
+allowed kinetic energy ([`project_flight`][project_flight]). Both read the kernel's scratch (``sc``, a
+[`Scratch`][hsddp_gym.core.batch_contact.Scratch]): ``sc.M`` (7, 7) the inertia of the configuration, ``sc.pt`` (3,) the
 momentum target, and its small work arrays.
 """
 

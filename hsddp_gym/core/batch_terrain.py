@@ -1,15 +1,16 @@
-"""The terrain's surface in the contact kernel (:mod:`hsddp_gym.core.batch_contact`), compiled with numba.
+"""The terrain's surface in the contact kernel ([`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact]),
+compiled with numba.
 
 A terrain enters the kernel as the vertices of its continuous piecewise-linear surface
-(:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`), appended to the parameter vector
-(:func:`~hsddp_gym.core.batch_model.kernel_params`: ``K = p[P_TERRAIN_N]`` of them, ``xs`` (K,) from
+([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices]), appended to the parameter vector
+([`kernel_params`][hsddp_gym.core.batch_model.kernel_params]: ``K = p[P_TERRAIN_N]`` of them, ``xs`` (K,) from
 ``p[N_PARAMS]``, ``zs`` (K,) after them). A foot's contact is with the closest point of the surface
-(:func:`terrain_contact`): its gap is the distance to it, the LCP's rows are its velocity along the outward normal
-there and along the tangent (the friction cone in the local frame, :func:`terrain_candidate`); the position
-projection puts a contact foot on the tangent line of its contact point, a sticking foot at its start, and a foot
-below the surface onto its closest point (two rows at a concave corner; :func:`terrain_rows`,
-:func:`terrain_corner_rows`). A projection row ``a`` on a terrain has the axis 2 (``taxis[a]``): its unit direction
-``tdir[a]`` (2,) dotted with the foot's position equals ``tval[a]``.
+([`terrain_contact`][terrain_contact]): its gap is the distance to it, the LCP's rows are its velocity along the outward
+normal there and along the tangent (the friction cone in the local frame, [`terrain_candidate`][terrain_candidate]); the
+position projection puts a contact foot on the tangent line of its contact point, a sticking foot at its start, and a
+foot below the surface onto its closest point (two rows at a concave corner; [`terrain_rows`][terrain_rows],
+[`terrain_corner_rows`][terrain_corner_rows]). A projection row ``a`` on a terrain has the axis 2 (``taxis[a]``): its
+unit direction ``tdir[a]`` (2,) dotted with the foot's position equals ``tval[a]``.
 """
 
 from __future__ import annotations
@@ -46,9 +47,10 @@ def _piece_index(p, px):
 
 @kernel_jit
 def terrain_piece(p, px):
-    """The piece of the terrain's surface (the vertices in ``p``, :func:`~hsddp_gym.core.batch_model.kernel_params`)
-    under ``px`` [m]: ``(h, s, x_j, z_j)`` its height at ``px``, its slope and its left vertex (a point on its line);
-    level beyond the outermost vertices (slope 0, the end vertex). A vertex belongs to the piece on its right."""
+    """The piece of the terrain's surface (the vertices in ``p``,
+    [`kernel_params`][hsddp_gym.core.batch_model.kernel_params]) under ``px`` [m]: ``(h, s, x_j, z_j)`` its height at
+    ``px``, its slope and its left vertex (a point on its line); level beyond the outermost vertices (slope 0, the end
+    vertex). A vertex belongs to the piece on its right."""
     k = int(p[P_TERRAIN_N])
     b = N_PARAMS
     if px < p[b]:
@@ -108,10 +110,10 @@ def terrain_contact(p, fx, fz, reach):
 @kernel_jit
 def terrain_candidate(p, pts, foot, fjx_all, fjz_all, fn, fpos, fa):
     """A foot's contact with the terrain at the step's start (the batch step's candidate test): ``phi`` its distance
-    to the closest point ``c`` of the surface (:func:`terrain_contact`; returned), ``fn[foot]`` the outward normal ``n``
-    there, ``fa[foot] = n . c``, ``fpos[foot]`` the foot's position; ``fjz_all[foot]``, ``fjx_all[foot]`` the rows of
-    the LCP, the foot's velocity along ``n`` and along the tangent ``t = (n_z, -n_x)``. Nothing is written when
-    ``phi`` is beyond the reach ``p[P_FAR]``."""
+    to the closest point ``c`` of the surface ([`terrain_contact`][terrain_contact]; returned), ``fn[foot]`` the outward
+    normal ``n`` there, ``fa[foot] = n . c``, ``fpos[foot]`` the foot's position; ``fjz_all[foot]``, ``fjx_all[foot]``
+    the rows of the LCP, the foot's velocity along ``n`` and along the tangent ``t = (n_z, -n_x)``. Nothing is written
+    when ``phi`` is beyond the reach ``p[P_FAR]``."""
     fx, fz = pts[FOOT_POINT[foot], 0], pts[FOOT_POINT[foot], 1]
     phi, nx, nz, cx, cz = terrain_contact(p, fx, fz, p[P_FAR])
     if phi > p[P_FAR]:

@@ -1,7 +1,7 @@
-"""One robot through the compiled contact kernel: :class:`CompiledContactSimulator`, the
-:class:`~hsddp_gym.core.contact.ContactSimulator` whose :meth:`~CompiledContactSimulator.run` is one call of
-:func:`~hsddp_gym.core.batch_contact.step_batch` (or :func:`~hsddp_gym.core.batch_contact.step_batch_terrain` on a
-terrain) on a batch of one."""
+"""One robot through the compiled contact kernel: [`CompiledContactSimulator`][CompiledContactSimulator], the
+[`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] whose [`run`][CompiledContactSimulator.run] is one call of
+[`step_batch`][hsddp_gym.core.batch_contact.step_batch] (or
+[`step_batch_terrain`][hsddp_gym.core.batch_contact.step_batch_terrain] on a terrain) on a batch of one."""
 
 from __future__ import annotations
 
@@ -21,31 +21,31 @@ def _counter_property(index: int, name: str) -> property:
     def set_(self, value) -> None:
         self._counters_b[0, index] = value
 
-    return property(get, set_, doc=f"``{name}`` of :class:`ContactSimulator`, counted by the kernel.")
+    return property(get, set_, doc=f"``{name}`` of [`ContactSimulator`][ContactSimulator], counted by the kernel.")
 
 
 class CompiledContactSimulator(ContactSimulator):
-    """:class:`ContactSimulator`'s energy-consistent scheme stepped by the compiled kernel: :meth:`run` is one
-    :func:`~hsddp_gym.core.batch_contact.step_batch` call on a batch of one robot, the same compiled code the vector
-    env (:mod:`hsddp_gym.envs.vector`) runs for N robots, so a single env and the vector env produce bit-identical
-    states from the same inputs. ``hsddp_gym/Bounding-v0`` uses it for ``energy_consistent=True``;
-    :class:`ContactSimulator` stays the readable reference (the MPC's predictor,
-    :class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`, uses this one); the two agree to
-    round-off (``tests/test_vector_env.py``: 1e-11 relative, median 4e-16).
+    """[`ContactSimulator`][ContactSimulator]'s energy-consistent scheme stepped by the compiled kernel: [`run`][run] is
+    one [`step_batch`][hsddp_gym.core.batch_contact.step_batch] call on a batch of one robot, the same compiled code the
+    vector env ([`hsddp_gym.envs.vector`][hsddp_gym.envs.vector]) runs for N robots, so a single env and the vector env
+    produce bit-identical states from the same inputs. ``hsddp_gym/Bounding-v0`` uses it for ``energy_consistent=True``;
+    [`ContactSimulator`][ContactSimulator] stays the readable reference (the MPC's predictor,
+    [`ContactModelPredictor`][hsddp_gym.planners.policies.estimation.ContactModelPredictor], uses this one); the two
+    agree to round-off (``tests/test_vector_env.py``: 1e-11 relative, median 4e-16).
 
-    Same arguments as :class:`ContactSimulator` without ``erp`` and ``energy_consistent`` (the legacy scheme is
-    not compiled), and the same attributes, with these differences: ``x`` (with its views ``q``, ``v``),
+    Same arguments as [`ContactSimulator`][ContactSimulator] without ``erp`` and ``energy_consistent`` (the legacy
+    scheme is not compiled), and the same attributes, with these differences: ``x`` (with its views ``q``, ``v``),
     ``states`` (an int64 array (2,)), ``contact``, ``time`` and the counters live in the kernel's batch-of-one
     arrays (assigning to them writes into those); ``impulse`` holds the impulses summed over the last
-    :meth:`run` call (the last step's for ``run(u, 1)``), which is also what :meth:`run` returns (an array, reused
-    by the next call); ``projection_residual`` is not tracked (stays 0). :meth:`foot_heights_fast` returns the
-    kernel's foot heights of the state the last :meth:`run` left (Pinocchio's after :meth:`set_state`; pushes
-    change only ``v``). ``_tau`` holds the torques the motors applied in the last step, as in
-    :class:`ContactSimulator`. :meth:`energy` and the other queries are Pinocchio's, as in :class:`ContactSimulator`.
-    ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain` or None, :meth:`set_terrain`): stepped by
-    :func:`~hsddp_gym.core.batch_contact.step_batch_terrain` (compiled on first use), the feet's heights above its
-    surface. The kernel is compiled once per machine (:func:`~hsddp_gym.core.batch_contact.warm_up`, announced on
-    stderr) when the first one is built.
+    [`run`][run] call (the last step's for ``run(u, 1)``), which is also what [`run`][run] returns (an array, reused
+    by the next call); ``projection_residual`` is not tracked (stays 0). [`foot_heights_fast`][foot_heights_fast]
+    returns the kernel's foot heights of the state the last [`run`][run] left (Pinocchio's after
+    [`set_state`][set_state]; pushes change only ``v``). ``_tau`` holds the torques the motors applied in the last step,
+    as in [`ContactSimulator`][ContactSimulator]. `energy` and the other queries are Pinocchio's, as in
+    [`ContactSimulator`][ContactSimulator]. ``terrain`` (a [`Terrain`][hsddp_gym.core.terrain.Terrain] or None,
+    [`set_terrain`][set_terrain]): stepped by [`step_batch_terrain`][hsddp_gym.core.batch_contact.step_batch_terrain]
+    (compiled on first use), the feet's heights above its surface. The kernel is compiled once per machine
+    ([`warm_up`][hsddp_gym.core.batch_contact.warm_up], announced on stderr) when the first one is built.
     """
 
     lcp_fallbacks = _counter_property(0, "lcp_fallbacks")
@@ -95,7 +95,7 @@ class CompiledContactSimulator(ContactSimulator):
     # state kept in the kernel's arrays
     @property
     def time(self) -> float:
-        """Simulated time since :meth:`set_state` [s] (accumulated ``+= h`` per step by the kernel)."""
+        """Simulated time since [`set_state`][set_state] [s] (accumulated ``+= h`` per step by the kernel)."""
         return float(self._time_b[0])
 
     @time.setter
@@ -113,7 +113,7 @@ class CompiledContactSimulator(ContactSimulator):
 
     @property
     def impulse(self) -> np.ndarray:
-        """Ground impulses summed over the last :meth:`run` call [N s], grf layout (4,)."""
+        """Ground impulses summed over the last [`run`][run] call [N s], grf layout (4,)."""
         return self._total_b[0]
 
     @impulse.setter
@@ -126,15 +126,15 @@ class CompiledContactSimulator(ContactSimulator):
         self._heights_valid = False
 
     def set_terrain(self, terrain) -> None:
-        """Simulate on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, or None: the flat ground) from now
-        on: the kernel's parameters get its surface (:func:`~hsddp_gym.core.batch_model.kernel_params`)."""
+        """Simulate on ``terrain`` (a [`Terrain`][hsddp_gym.core.terrain.Terrain], or None: the flat ground) from now
+        on: the kernel's parameters get its surface ([`kernel_params`][hsddp_gym.core.batch_model.kernel_params])."""
         self.terrain = check_terrain(terrain)
         self._p = kernel_params(self)
         self._heights_valid = False
 
     def foot_heights_fast(self) -> tuple[float, float]:
         """Foot heights ``(front, back)`` above the ground (with a terrain: above its surface under each foot): the
-        kernel's after a :meth:`run`, Pinocchio's after :meth:`set_state`."""
+        kernel's after a [`run`][run], Pinocchio's after [`set_state`][set_state]."""
         if self._heights_valid:
             h = self._heights_b[0]
             return float(h[0]), float(h[1])

@@ -13,7 +13,7 @@ With ``M(q)`` the joint-space inertia, ``b(q, v)`` the bias (Coriolis, centrifug
 For each foot ``i`` let ``phi_i`` be its height above the ground (``z = 0``), ``J_n,i`` / ``J_t,i`` the
 z / x rows of its LOCAL_WORLD_ALIGNED frame Jacobian (``(1, 7)`` each), ``lam = [lam_n, lam_t]`` its
 normal / tangential impulse and ``w = [w_n, w_t] = J v+`` its velocity after the step. A foot is a
-*candidate* contact when it is within :data:`CONTACT_MARGIN` (1 mm) of the ground or would reach it during
+*candidate* contact when it is within [`CONTACT_MARGIN`][CONTACT_MARGIN] (1 mm) of the ground or would reach it during
 this step without contact forces (``phi + h J_n v_free <= 0``); the margin matters because the impulse at
 one foot changes the velocity of the other, so a resting foot whose free motion points up may still be
 pressed down by the coupling. Every candidate obeys the complementarity conditions
@@ -38,8 +38,8 @@ does not keep momentum in flight. Two projections after ``q+ = q + h v+`` close 
    ground onto it** (a candidate that separates, or a foot too fast for the candidate test's linear
    prediction: at hundreds of rad/s a foot's path curves within one step): ``q+ += M^-1 J^T mu`` with ``J``
    the rows of those constraints, Newton iterations on the exact kinematics until the residual is below
-   :data:`POSITION_TOLERANCE` (1e-9 m); the first uses the exact Jacobians at ``q+`` and the step's ``M^-1``.
-   So a sticking foot does not move (<= 1e-9 m per step), a contact foot ends each step on the ground, and no
+   [`POSITION_TOLERANCE`][POSITION_TOLERANCE] (1e-9 m); the first uses the exact Jacobians at ``q+`` and the step's
+   ``M^-1``. So a sticking foot does not move (<= 1e-9 m per step), a contact foot ends each step on the ground, and no
    foot ends a step below it, at any joint rate (no tunnelling).
 2. *Energy and momentum projection*, with ``E = 1/2 v^T M v + V``:
 
@@ -53,7 +53,7 @@ does not keep momentum in flight. Two projections after ``q+ = q + h v+`` close 
      second order, ``h/2 tau . (v + v+)``, capped by ``tau . h v+`` (semi-implicit Euler's ``tau . h v+``
      counts the torques' own acceleration twice and would pump energy into a leg driven bang-bang).
 
-   Counted in :attr:`ContactSimulator.energy_projections` (steps whose energy had to come down).
+   Counted in `ContactSimulator.energy_projections` (steps whose energy had to come down).
 
 Hence ``E(t+h) - E(t) <= tau . dq`` for every step, impacts and position corrections included (tested to
 1e-9 J from random states in every contact combination, any gravity), and velocities stay bounded by the
@@ -77,11 +77,11 @@ bound, ``lam_t = -/+ mu lam_n``, sliding toward +x / -x) -- so with at most two 
 tried first (one linear solve per step in steady phases), then a fixed order, so the result is
 deterministic. Existence of a solution is guaranteed for this LCP (Anitescu & Potra 1997); if round-off
 makes every combination fail the checks, the least-violating one is used and counted in
-:attr:`ContactSimulator.lcp_fallbacks`.
+`ContactSimulator.lcp_fallbacks`.
 
 Relation to the planner's model: a sticking stance foot gives ``J_c(q_k) v_k+1 = 0``, whereas the KKT
-model of :mod:`hsddp_gym.core.dynamics` imposes ``J_c a + dJ_c v = 0``. Since ``v_k`` satisfies the constraint
-with the previous Jacobian, ``J_c(q_k) v_k = h dJ_c v + O(h^2)`` and the implied acceleration is the KKT
+model of [`hsddp_gym.core.dynamics`][hsddp_gym.core.dynamics] imposes ``J_c a + dJ_c v = 0``. Since ``v_k`` satisfies
+the constraint with the previous Jacobian, ``J_c(q_k) v_k = h dJ_c v + O(h^2)`` and the implied acceleration is the KKT
 one: sticking stance trajectories of the two agree to O(h) (tested: halving ``h`` halves the gap).
 
 Motors (optional, ``motor_speed_limits``): a torque that drives its joint in the direction it moves is
@@ -93,7 +93,7 @@ one energy evaluation per step (one ``computeMechanicalEnergy``: kinematics, kin
 contacts the position projection: joint and frame Jacobians at ``q+`` (which also give the foot positions), one
 Newton correction (two small products, an unrolled Cholesky, one product) whose energy evaluation doubles as the
 kinematics of the result, and an exact bound on the Newton remainder
-(:meth:`ContactSimulator._newton_remainder_bound`) that makes the final placement check unnecessary (in 90 % of the
+(`ContactSimulator._newton_remainder_bound`) that makes the final placement check unnecessary (in 90 % of the
 double-stick steps of a collapsing stance); two sticking feet take a straight-line version of the first Newton step.
 Every flight step adds the centroidal map twice (the momentum target at the step's start, its projection at the end;
 ``M^-1 P^T`` is read off ``P`` without a solve). ``experiments/bench_env.py`` times both schemes, interleaved: on a
@@ -103,9 +103,9 @@ stance (0.50x before), short of the 0.8x goal: the remaining gap is the Python a
 projection (about 40 % glue, 27 % the 4x4 solve with its list conversion, 20 % the small NumPy products, 15 % the
 Pinocchio calls of a double-stance step, line_profiler).
 
-Everything lives in the world frame, SI units; ground forces follow :mod:`hsddp_gym.core.conventions`
-(``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``, the force of the ground on the robot).
-"""
+Everything lives in the world frame, SI units; ground forces follow
+[`hsddp_gym.core.conventions`][hsddp_gym.core.conventions] (``grf (4,) = [f_front_x, f_front_z, f_back_x, f_back_z]``,
+the force of the ground on the robot). """
 
 from __future__ import annotations
 
@@ -159,14 +159,14 @@ def check_motor_speed_limits(value, name: str = "motor_speed_limits") -> tuple[f
 
 class SimulatorQueries:
     """The state queries and the checked one-step call that every simulator of the task shares (the env reads
-    them): :class:`ContactSimulator`, the MuJoCo twin's and the planner's-model twin's simulators. A subclass
-    provides ``robot`` (a :class:`CheetahModel`), the state views ``x`` (14,), ``q`` (7,), ``v`` (7,),
+    them): [`ContactSimulator`][ContactSimulator], the MuJoCo twin's and the planner's-model twin's simulators. A
+    subclass provides ``robot`` (a [`CheetahModel`][CheetahModel]), the state views ``x`` (14,), ``q`` (7,), ``v`` (7,),
     ``motor_speed_limits``, ``torque_limit`` and ``run(u, n)``."""
 
     def _set_common(self, robot, timestep, friction, gravity, torque_limit, motor_speed_limits) -> CheetahModel:
         """Check and store the settings every simulator takes: ``dt``, ``mu``, ``gravity``, ``torque_limit``,
         ``motor_speed_limits`` (defaults from the robot's parameters); returns the robot (default: the paper's),
-        checked to be a :class:`CheetahModel` (errors name the argument)."""
+        checked to be a [`CheetahModel`][CheetahModel] (errors name the argument)."""
         robot = robot if robot is not None else CheetahModel()
         if not isinstance(robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
@@ -184,20 +184,20 @@ class SimulatorQueries:
         return self.robot.foot_positions(self.q)
 
     terrain = None
-    """The ground's profile (a :class:`~hsddp_gym.core.terrain.Terrain`; None: the flat ground ``z = 0``). Only the
-    compiled kernel (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`) and the MuJoCo twin simulate
-    one; the foot heights below measure from its simulated surface."""
+    """The ground's profile (a [`Terrain`][hsddp_gym.core.terrain.Terrain]; None: the flat ground ``z = 0``). Only the
+    compiled kernel ([`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator]) and the
+    MuJoCo twin simulate one; the foot heights below measure from its simulated surface."""
 
     def foot_heights(self) -> np.ndarray:
-        """Heights of both feet above the ground at the current state (2,) [m] (with a :attr:`terrain`: above its
-        simulated surface under each foot, :meth:`~hsddp_gym.core.terrain.Terrain.surface_heights`)."""
+        """Heights of both feet above the ground at the current state (2,) [m] (with a [`terrain`][terrain]: above its
+        simulated surface under each foot, [`surface_heights`][hsddp_gym.core.terrain.Terrain.surface_heights])."""
         if self.terrain is None:
             return self.robot.foot_heights(self.q)
         feet = self.robot.foot_positions(self.q)
         return feet[:, 1] - self.terrain.surface_heights(feet[:, 0])
 
     def foot_heights_fast(self) -> tuple[float, float]:
-        """:meth:`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
+        """`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
         h = self.foot_heights()
         return float(h[0]), float(h[1])
 
@@ -218,7 +218,7 @@ class ContactSimulator(SimulatorQueries):
     """Time-stepping simulation of the planar Mini Cheetah with state-based point-foot contacts.
 
     See the module docstring for the scheme. The simulator owns its state and scratch buffers; call
-    :meth:`set_state` then :meth:`run` (or :meth:`step`).
+    [`set_state`][set_state] then [`run`][run] (or `step`).
 
     Args:
         robot: the model (default: the paper's robot). The simulator copies its Pinocchio model, so a
@@ -240,7 +240,7 @@ class ContactSimulator(SimulatorQueries):
             the legacy velocity-level scheme (creates energy, sticking feet creep; kept for comparisons).
 
     Attributes (read-only between calls):
-        x: state (14,) ``[q, v]``. q, v: views (7,) of it. time: simulated time since :meth:`set_state` [s].
+        x: state (14,) ``[q, v]``. q, v: views (7,) of it. time: simulated time since [`set_state`][set_state] [s].
         impulse: ground impulses of the last step [N s], grf layout (4,).
         states: per-foot contact state of the last step (2,) (``SEPARATE`` ... ``SLIDE_NEG``).
         contact: per-foot flag (2,) bool: the ground pushed the foot (``lam_n > 0``) in the last step.
@@ -309,7 +309,7 @@ class ContactSimulator(SimulatorQueries):
         self._had_contact = False
 
     def foot_heights_fast(self) -> tuple[float, float]:
-        """Unchecked :meth:`foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
+        """Unchecked `foot_heights` as two floats ``(front, back)`` (the env's hot path)."""
         model, data = self.model, self.data
         pin.forwardKinematics(model, data, self.q)
         return (pin.updateFramePlacement(model, data, self._fids[0]).translation[2],
@@ -488,8 +488,9 @@ class ContactSimulator(SimulatorQueries):
         impulse (``_momentum_target``). With ``P`` (3, 7) those rows of the centroidal momentum matrix at ``q+``,
         ``B = M^-1 P^T``, ``S = P B`` and ``v_c(p) = B S^-1 p`` (the least-energy motion with momentum ``p``,
         M-orthogonal to every momentum-free motion), ``v = v_c(p_target) + s (v+ - v_c(P v+))`` with ``s`` giving
-        the kinetic energy ``target``. Falls back to scaling ``v+`` (counted in :attr:`momentum_fallbacks`) when
-        ``target`` is below the least energy of that momentum or ``v+`` has no momentum-free part."""
+        the kinetic energy ``target``. Falls back to scaling ``v+`` (counted in
+        [`momentum_fallbacks`][momentum_fallbacks]) when ``target`` is below the least energy of that momentum or ``v+``
+        has no momentum-free part."""
         model, data, q, v = self.model, self.data, self.q, self.v
         P = pin.computeCentroidalMap(model, data, q)[_MOMENTUM_ROWS]
         # B = M^-1 P^T (7, 3) without a solve: the centroidal rows are P = T M[:3, :] with T the 3x3 shift of the
@@ -524,7 +525,7 @@ class ContactSimulator(SimulatorQueries):
         """Move ``q+`` in the mass metric of the step (``dq = M^-1 J^T mu``) so that every candidate foot in
         contact (or ending below the ground) is at height 0 and every sticking foot at its position at the start
         of the step. Newton iterations with the exact Jacobians at the current ``q`` (quadratic: one iteration
-        in practice) until the residual is below :data:`POSITION_TOLERANCE`. Leaves ``data`` with the
+        in practice) until the residual is below [`POSITION_TOLERANCE`][POSITION_TOLERANCE]. Leaves ``data`` with the
         kinematics (``q``, ``v``) of the result and its mechanical energy (``data.kinetic_energy``,
         ``data.potential_energy``).
 
@@ -608,8 +609,8 @@ class ContactSimulator(SimulatorQueries):
             pin.computeMechanicalEnergy(model, data, q, v)
 
     def _project_double_stick(self, cand: list, q_old: np.ndarray) -> bool:
-        """The first Newton step of :meth:`_project_positions` for its commonest case, both feet sticking (rows
-        ``x, z`` of the front foot, then of the back foot), in straight-line code. Returns True when the
+        """The first Newton step of [`_project_positions`][_project_positions] for its commonest case, both feet
+        sticking (rows ``x, z`` of the front foot, then of the back foot), in straight-line code. Returns True when the
         projection is finished (residual or its exact bound below the tolerance; ``data`` then holds the
         kinematics and the energy of the result), False when the general iteration must go on from ``q``."""
         model, data, q = self.model, self.data, self.q

@@ -6,12 +6,12 @@ solution puts each foot in one of four *states* -- ``SEPARATE`` (``lam = 0``, ``
 ``|lam_t| <= mu lam_n``), ``SLIDE_POS`` / ``SLIDE_NEG`` (``w_n = 0``, ``lam_t = -/+ mu lam_n``, sliding toward +x /
 -x) -- so with at most two feet the LCP is solved *exactly* by enumerating the at most ``4^2 = 16`` state
 combinations, each a linear system of size <= 4 followed by sign checks: the guess (the previous step's states)
-first, then the fixed order :data:`BASE_ORDER` (and its product for two feet), so the result is deterministic. If
-round-off makes every combination fail the checks, the least-violating one is returned (``exact = False``).
+first, then the fixed order [`BASE_ORDER`][BASE_ORDER] (and its product for two feet), so the result is deterministic.
+If round-off makes every combination fail the checks, the least-violating one is returned (``exact = False``).
 
-:class:`~hsddp_gym.core.contact.ContactSimulator` solves it on Python lists (:func:`solve_contact_lcp_lists`); the
-compiled kernel (:mod:`hsddp_gym.core.batch_lcp`) is the same enumeration written out for numba.
-"""
+[`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] solves it on Python lists
+([`solve_contact_lcp_lists`][solve_contact_lcp_lists]); the compiled kernel
+([`hsddp_gym.core.batch_lcp`][hsddp_gym.core.batch_lcp]) is the same enumeration written out for numba. """
 
 from __future__ import annotations
 
@@ -84,7 +84,7 @@ def _solve_linear(A: list, b: list) -> list | None:
 
 def solve_spd(S: list, r: list) -> list | None:
     """Solve ``S z = r`` for a symmetric positive-definite ``S`` (lists, n <= 4): closed form for n <= 2, an
-    unrolled Cholesky factorization for n = 3, 4 (~10x faster than :func:`_solve_linear` there); None when
+    unrolled Cholesky factorization for n = 3, 4 (~10x faster than `_solve_linear` there); None when
     ``S`` is not numerically positive definite."""
     n = len(r)
     if n <= 2:
@@ -222,7 +222,7 @@ def _try_double_stick(G: list, c: list, mu: float, tol_l: float):
 def solve_contact_lcp_lists(G: list, c: list, mu: float, guess: tuple | None = None,
                             tol_v: float = LCP_VELOCITY_TOLERANCE,
                             tol_l: float = LCP_IMPULSE_TOLERANCE):
-    """The hot-path LCP solver on Python lists (no input checks); see :func:`solve_contact_lcp`.
+    """The hot-path LCP solver on Python lists (no input checks); see [`solve_contact_lcp`][solve_contact_lcp].
 
     Returns:
         ``(lam (list of 2k floats), states (tuple of k ints), exact (bool))``.

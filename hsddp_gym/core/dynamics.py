@@ -7,9 +7,9 @@ Continuous dynamics (paper eq. 11), for the feet ``c`` in contact in a mode::
 
 solved with Pinocchio's ``constraintDynamics`` (3D point contacts in the x-z plane; the y row is
 identically zero, handled by the proximal solver) -- or plain ABA in flight. Over a horizon (the solver's rollouts
-and :meth:`HybridDynamics.linearize`) the same equations and their derivatives run compiled
-(:mod:`hsddp_gym.core.planar_dynamics`, checked against Pinocchio to rounding); the single-step methods stay
-Pinocchio's, the reference. ``lam`` is the force of the
+and [`HybridDynamics.linearize`][HybridDynamics.linearize]) the same equations and their derivatives run compiled
+([`hsddp_gym.core.planar_dynamics`][hsddp_gym.core.planar_dynamics], checked against Pinocchio to rounding); the
+single-step methods stay Pinocchio's, the reference. ``lam`` is the force of the
 ground on the robot in the world frame. Discrete step ``f_i`` with step ``h``:
 
 * ``"euler"`` (paper): ``q+ = q + h v``, ``v+ = v + h a``;
@@ -95,7 +95,8 @@ class HybridDynamics:
         self._tau = np.zeros(NV)
         self._zero_u = np.zeros(NU)
         self.kernel_params = kernel_params(self.robot)
-        """``(13,)``: the model of the compiled dynamics (:mod:`hsddp_gym.core.planar_dynamics`: the rollouts)."""
+        """``(13,)``: the model of the compiled dynamics
+        ([`hsddp_gym.core.planar_dynamics`][hsddp_gym.core.planar_dynamics]: the rollouts)."""
         self.scratch = Scratch()
         """Work arrays of the compiled dynamics (one per ``HybridDynamics``, like its Pinocchio ``Data``)."""
 
@@ -225,19 +226,20 @@ class HybridDynamics:
         """Derivatives of the discrete steps along a trajectory, written into ``out``.
 
         Knot ``k`` steps ``X[k] -> X[k+1]`` with ``U[k]`` in ``modes[k]``. The per-knot loop is compiled
-        (:func:`hsddp_gym.core.planar_dynamics.linearize_knots`: Pinocchio's derivatives to rounding, tested);
-        discrete Jacobians and ground-force rows are assembled over the horizon afterwards.
+        ([`hsddp_gym.core.planar_dynamics.linearize_knots`][hsddp_gym.core.planar_dynamics.linearize_knots]: Pinocchio's
+        derivatives to rounding, tested); discrete Jacobians and ground-force rows are assembled over the horizon
+        afterwards.
 
         Args:
             X: states ``(N+1, 14)`` (only ``X[:N]`` is read). U: controls ``(N, 4)``.
-            modes: contact mode per knot ``(N,)`` (ints). out: a :class:`Linearization` of length ``>= N``.
+            modes: contact mode per knot ``(N,)`` (ints). out: a [`Linearization`][Linearization] of length ``>= N``.
             h: step per knot ``(N,)`` or a scalar (default: ``self.dt``); time-scaled problems (switching-time
                 optimization) give each phase its own step.
 
         Raises:
             ValueError: naming the argument, for wrong shapes, non-finite states or controls, unknown modes, a too
                 small ``out`` or non-positive steps (checks are O(N) numpy calls, a few us).
-            TypeError: ``out`` is not a :class:`Linearization`.
+            TypeError: ``out`` is not a [`Linearization`][Linearization].
         """
         X, U, modes, h = _check_horizon(X, U, modes, out, h)
         n = U.shape[0]
@@ -341,8 +343,8 @@ _MODE_VALUES = tuple(int(m) for m in Mode)
 
 
 def _check_horizon(X, U, modes, out, h):
-    """Validate the arguments of :meth:`HybridDynamics.linearize`; returns ``(X, U, modes, h)`` as arrays
-    (no copies of float64 / integer inputs)."""
+    """Validate the arguments of [`HybridDynamics.linearize`][HybridDynamics.linearize]; returns ``(X, U, modes, h)`` as
+    arrays (no copies of float64 / integer inputs)."""
     U = np.asarray(U, dtype=np.float64)
     if U.ndim != 2 or U.shape[1] != NU or U.shape[0] < 1:
         raise ValueError(f"U must have shape (N, {NU}) with N >= 1, got {U.shape}")
@@ -381,7 +383,7 @@ def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h
         a_v: ``(N, 7, 7)``.
         a_u: ``(N, 7, 4)``.
         h: step, a scalar or ``(N,)``.
-        integrator: see :data:`INTEGRATORS`.
+        integrator: see `INTEGRATORS`.
         f_x: output ``(N, 14, 14)``.
         f_u: output ``(N, 14, 4)``.
     """
@@ -404,7 +406,7 @@ def assemble_step_jacobians(a_q: np.ndarray, a_v: np.ndarray, a_u: np.ndarray, h
 class Linearization:
     """Pre-allocated derivatives of the discrete dynamics over a horizon of ``capacity`` knots.
 
-    Filled by :meth:`HybridDynamics.linearize`. Public results (first ``N`` knots valid):
+    Filled by [`HybridDynamics.linearize`][HybridDynamics.linearize]. Public results (first ``N`` knots valid):
 
     * ``f_x (N, 14, 14)``, ``f_u (N, 14, 4)``: discrete step Jacobians;
     * ``grf (N, 4)``, ``grf_x (N, 4, 14)``, ``grf_u (N, 4, 4)``: ground force during each step and its
@@ -433,8 +435,8 @@ class Linearization:
 
     def finish(self, n: int, modes: np.ndarray, h, integrator: str, contact_sets: dict) -> None:
         """Assemble discrete Jacobians and ground-force rows for the first ``n`` knots: one compiled pass
-        (:func:`assemble_linearization`), the numbers of :func:`assemble_step_jacobians` and
-        :func:`grf_from_lambda`."""
+        ([`assemble_linearization`][assemble_linearization]), the numbers of
+        [`assemble_step_jacobians`][assemble_step_jacobians] and [`grf_from_lambda`][grf_from_lambda]."""
         if not 0 <= n <= self.capacity:
             raise ValueError(f"n must be in 0 .. {self.capacity} (the capacity), got {n}")
         h = np.asarray(h, dtype=np.float64)
@@ -459,11 +461,11 @@ class Linearization:
 @numba.njit(cache=True, error_model="numpy")
 def assemble_linearization(a_q, a_v, a_tau, lam6, lam6_q, lam6_v, lam6_tau, modes, h, semi_implicit, row_map, n_rows,
                            f_x, f_u, grf, grf_x, grf_u):
-    """:meth:`Linearization.finish` compiled: for each knot ``k < n = len(modes)`` (``modes (n,)`` int64, steps
-    ``h (n,)``), the discrete Jacobians ``f_x (., 14, 14)``, ``f_u (., 14, 4)`` from ``a_q, a_v, a_tau
-    (., 7, 7)`` (elementwise the operations of :func:`assemble_step_jacobians`, so bit-identical to it) and the
-    ground forces ``grf (., 4)`` with their Jacobians ``grf_x (., 4, 14)``, ``grf_u (., 4, 4)`` copied from the
-    rows of ``lam6 (., 6)``, ``lam6_q, lam6_v, lam6_tau (., 6, 7)`` (zero for feet in the air): mode ``m`` has
+    """[`Linearization.finish`][Linearization.finish] compiled: for each knot ``k < n = len(modes)`` (``modes (n,)``
+    int64, steps ``h (n,)``), the discrete Jacobians ``f_x (., 14, 14)``, ``f_u (., 14, 4)`` from ``a_q, a_v, a_tau
+    (., 7, 7)`` (elementwise the operations of [`assemble_step_jacobians`][assemble_step_jacobians], so bit-identical to
+    it) and the ground forces ``grf (., 4)`` with their Jacobians ``grf_x (., 4, 14)``, ``grf_u (., 4, 4)`` copied from
+    the rows of ``lam6 (., 6)``, ``lam6_q, lam6_v, lam6_tau (., 6, 7)`` (zero for feet in the air): mode ``m`` has
     ``n_rows[m]`` rows, ``row_map[m, j] = (grf row, Pinocchio row)``."""
     for k in range(modes.shape[0]):
         hk = h[k]

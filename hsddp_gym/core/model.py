@@ -3,8 +3,8 @@
 The kinematic tree is ``x (PX) -> z (PZ) -> pitch (RY, trunk) -> {front, back} hip (RY, thigh) -> knee
 (RY, shank) -> foot`` (a point at the end of the shank). The two prismatic joints carry massless bodies,
 so ``nq = nv = 7`` and the neutral configuration is all zeros (legs straight down, body level, trunk
-origin at z = 0 -- add ``leg_length`` to stand on the ground). See :mod:`hsddp_gym.core.conventions`.
-"""
+origin at z = 0 -- add ``leg_length`` to stand on the ground). See
+[`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]. """
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ class CheetahModel:
     """The robot: parameters, the Pinocchio model and foot kinematics.
 
     A ``CheetahModel`` only describes; algorithms that need scratch space create their own
-    ``pin.Data`` with :meth:`new_data` (Pinocchio derivative routines leave state in a Data that
+    ``pin.Data`` with [`new_data`][new_data] (Pinocchio derivative routines leave state in a Data that
     corrupts other algorithms run on it later).
 
     Args:

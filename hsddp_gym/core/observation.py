@@ -21,16 +21,16 @@ Layout (float32), with ``exclude_current_positions_from_observation=True`` (the 
 
 With ``exclude_current_positions_from_observation=False`` the trunk ``x`` position [m] (bound +-1e4) is
 prepended and every index above shifts by one (18 entries). The order of positions and velocities is the
-state order of :mod:`hsddp_gym.core.conventions`. Values outside the bounds are clipped (the exact state is
-always in the env's ``info["qpos"]`` / ``info["qvel"]``); the bounds are far outside anything a healthy
+state order of [`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]. Values outside the bounds are clipped (the
+exact state is always in the env's ``info["qpos"]`` / ``info["qvel"]``); the bounds are far outside anything a healthy
 episode reaches.
 
 Contact flags: after a step, the flag of a foot is 1 when the ground pushed on it (normal impulse > 0)
 during the last 1 ms simulation step of the control step -- the physical contact, so a stance foot whose
 load vanishes is released at once (lift-off) and a landing foot is flagged from its impact on. Right
 after a reset (before any step) a foot counts as in contact when its height is at most
-:data:`RESET_CONTACT_HEIGHT` (1 mm). ``t`` is the episode clock [s] (0 at reset unless the ``time`` reset
-option is given).
+[`RESET_CONTACT_HEIGHT`][RESET_CONTACT_HEIGHT] (1 mm). ``t`` is the episode clock [s] (0 at reset unless the ``time``
+reset option is given).
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def build_observation(x: np.ndarray, contact, time: float, gait_period: float,
 
 def fill_observation(obs: np.ndarray, x: np.ndarray, front: bool, back: bool, cycles: float,
                      exclude_current_positions: bool = True) -> None:
-    """Unchecked fast path of :func:`build_observation` (the env's hot loop).
+    """Unchecked fast path of [`build_observation`][build_observation] (the env's hot loop).
 
     Args:
         obs: float32 output (17,) or (18,). x: state (14,) float64. front, back: contact flags.
@@ -183,7 +183,7 @@ def _bounds_cache(exclude_current_positions: bool) -> tuple[np.ndarray, np.ndarr
 
 def state_from_observation(obs, layout: ObservationLayout = DEFAULT_LAYOUT,
                            x_position: float = 0.0) -> tuple[np.ndarray, Mode, float]:
-    """Invert :func:`build_observation`.
+    """Invert [`build_observation`][build_observation].
 
     Args:
         obs: an observation (``layout.size``,) (any float dtype).

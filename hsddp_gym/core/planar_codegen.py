@@ -1,17 +1,18 @@
-"""Generate :mod:`hsddp_gym.core._planar_terms`: the planar Mini Cheetah's rigid-body terms and their partial
+"""Generate `hsddp_gym.core._planar_terms`: the planar Mini Cheetah's rigid-body terms and their partial
 derivatives as straight-line code, derived symbolically (sympy) from the same kinematic tree as
-:func:`hsddp_gym.core.model.build_pinocchio_model`.
+[`build_pinocchio_model`][hsddp_gym.core.model.build_pinocchio_model].
 
 Run ``python -m hsddp_gym.core.planar_codegen`` after changing the tree (not the parameters: they are inputs of
-the generated functions, :func:`hsddp_gym.core.planar_dynamics.kernel_params`). sympy is only needed here, never
-at run time; ``tests/test_planar_dynamics.py`` checks the committed file is what this script generates and checks
-every generated term against Pinocchio.
+the generated functions, [`kernel_params`][hsddp_gym.core.planar_dynamics.kernel_params]). sympy is only needed
+here, never at run time; ``tests/test_planar_dynamics.py`` checks the committed file is what this script generates
+and checks every generated term against Pinocchio.
 
-The tree (conventions in :mod:`hsddp_gym.core.conventions`): ``q = [x, z, pitch, hip_f, knee_f, hip_b, knee_b]``;
-a rotation ``R(a)`` about +y maps a body-frame ``(px, pz)`` to ``(cos a px + sin a pz, -sin a px + cos a pz)``
-(Pinocchio's ``JointModelRY``); link angles add along the chain. The parameter vector ``p`` (13,):
-``[m_trunk, I_trunk, c_trunk, m_thigh, I_thigh, c_thigh, l_thigh, m_shank, I_shank, c_shank, l_shank, hip_offset,
-gravity]`` (masses [kg], inertias about the CoM [kg m^2], CoM offsets and lengths along the link's z [m]).
+The tree (conventions in [`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]):
+``q = [x, z, pitch, hip_f, knee_f, hip_b, knee_b]``; a rotation ``R(a)`` about +y maps a body-frame ``(px, pz)`` to
+``(cos a px + sin a pz, -sin a px + cos a pz)`` (Pinocchio's ``JointModelRY``); link angles add along the chain. The
+parameter vector ``p`` (13,): ``[m_trunk, I_trunk, c_trunk, m_thigh, I_thigh, c_thigh, l_thigh, m_shank, I_shank,
+c_shank, l_shank, hip_offset, gravity]`` (masses [kg], inertias about the CoM [kg m^2], CoM offsets and lengths along
+the link's z [m]).
 
 Generated functions (numba ``njit``, outputs written into caller-owned arrays):
 
@@ -107,7 +108,7 @@ def _function(name: str, args: str, inputs: list[tuple[str, list]], outputs: dic
 
 
 def generate() -> str:
-    """The source of :mod:`hsddp_gym.core._planar_terms`."""
+    """The source of `hsddp_gym.core._planar_terms`."""
     q, v, a, f, p, out = derive()
     params = ("p", list(p))
     terms = _function("terms", "q, v, p, M, b, J, drift", [("q", list(q)), ("v", list(v)), params],

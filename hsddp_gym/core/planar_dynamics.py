@@ -1,25 +1,25 @@
 """The planar Mini Cheetah's contact dynamics and their derivatives, compiled (numba): the planner's hot path.
 
-The same equations as :class:`hsddp_gym.core.dynamics.HybridDynamics` solves with Pinocchio (paper eq. 11), for
-the feet ``c`` in contact in a mode::
+The same equations as [`hsddp_gym.core.dynamics.HybridDynamics`][hsddp_gym.core.dynamics.HybridDynamics] solves with
+Pinocchio (paper eq. 11), for the feet ``c`` in contact in a mode::
 
     M(q) a + b(q, v) = tau + J_c(q)^T f,      J_c a + dJ_c v = 0
 
 with ``J_c`` the world ``(x, z)`` rows of the feet in contact (Pinocchio's 3D contacts carry a third, identically
 zero ``y`` row, which its proximal solver handles; here it is left out, and its force and derivative rows are
-zero). The rigid-body terms and their partial derivatives come from :mod:`hsddp_gym.core._planar_terms`
-(generated symbolically by :mod:`hsddp_gym.core.planar_codegen`); the KKT system is solved through the Schur
-complement ``G = J_c M^-1 J_c^T``, and its derivatives follow from differentiating it (``r = M a + b - J_c^T f``,
-``c = J_c a + dJ_c v``)::
+zero). The rigid-body terms and their partial derivatives come from `hsddp_gym.core._planar_terms`
+(generated symbolically by [`hsddp_gym.core.planar_codegen`][hsddp_gym.core.planar_codegen]); the KKT system is solved
+through the Schur complement ``G = J_c M^-1 J_c^T``, and its derivatives follow from differentiating it (``r = M a + b -
+J_c^T f``, ``c = J_c a + dJ_c v``)::
 
     df/dz = G^-1 (-c_z - J_c M^-1 (dtau/dz - r_z)),     da/dz = M^-1 (dtau/dz - r_z + J_c^T df/dz)
 
 for ``z`` in ``(q, v, tau)``: the numbers of Pinocchio's ``computeConstraintDynamicsDerivatives`` (and
-``computeABADerivatives`` in flight) to rounding, in the layout of :class:`hsddp_gym.core.dynamics.Linearization`
-(``tests/test_planar_dynamics.py``). One call rolls a whole phase out (:func:`rollout_phase`), with no Python in
-the per-knot loop: a pass over a re-plan's horizon with derivatives costs about a fifth of the same Pinocchio calls
-(``python experiments/bench_mpc.py`` prints both).
-"""
+``computeABADerivatives`` in flight) to rounding, in the layout of
+[`hsddp_gym.core.dynamics.Linearization`][hsddp_gym.core.dynamics.Linearization] (``tests/test_planar_dynamics.py``).
+One call rolls a whole phase out ([`rollout_phase`][rollout_phase]), with no Python in the per-knot loop: a pass over a
+re-plan's horizon with derivatives costs about a fifth of the same Pinocchio calls (``python experiments/bench_mpc.py``
+prints both). """
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ from hsddp_gym.core.small_linalg import cholesky_solve
 
 
 def kernel_params(robot: CheetahModel) -> np.ndarray:
-    """The parameter vector ``p (13,)`` of the compiled terms (:data:`hsddp_gym.core.planar_codegen.PARAM_NAMES`),
+    """The parameter vector ``p (13,)`` of the compiled terms (`hsddp_gym.core.planar_codegen.PARAM_NAMES`),
     read from ``robot``'s Pinocchio model (so a model changed after it was built, e.g. another gravity, is the one
     compiled) and checked against it: Pinocchio's mass matrix, bias and feet Jacobians at a few states must equal
     the compiled terms', else ``ValueError`` (a model of another structure than the generated one)."""
@@ -82,9 +82,9 @@ def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, 
         v: ``(7,)``.
         tau: ``(7,)`` generalized forces (the base rows are 0 for the robot).
         mode: contact mode bits (``FRONT_STANCE = 1``, ``BACK_STANCE = 2``).
-        p: ``(13,)``, :func:`kernel_params`.
+        p: ``(13,)``, [`kernel_params`][kernel_params].
         derivs: also the derivatives.
-        ws: a :class:`Scratch`'s arrays (``ws.arrays``).
+        ws: a [`Scratch`][Scratch]'s arrays (``ws.arrays``).
     Writes:
         ``a (7,)``; ``lam (>= 3 nc,)``: Pinocchio's ``lambda_c`` layout, ``[fx, fy, fz]`` per foot in contact in
         foot order (``fy = 0``); with ``derivs``: ``a_q, a_v, a_tau (7, 7)`` and, in stance, ``l_q, l_v, l_tau``
@@ -220,7 +220,7 @@ def knot_dynamics(q, v, tau, mode, p, derivs, ws, a, lam, a_q, a_v, a_tau, l_q, 
 
 
 class Scratch:
-    """Work arrays of :func:`knot_dynamics` (``arrays``: a tuple to pass as its ``ws``)."""
+    """Work arrays of [`knot_dynamics`][knot_dynamics] (``arrays``: a tuple to pass as its ``ws``)."""
 
     def __init__(self) -> None:
         n = NV
@@ -234,9 +234,9 @@ class Scratch:
 def rollout_phase(X, U, K, c, feedback, k0, k1, mode, h, semi_implicit, p, derivs, ws, tau, lam6, acc, a_q, a_v,
                   a_tau, l_q, l_v, l_tau):
     """Roll knots ``k0 .. k1 - 1`` of one phase out: ``U[k] = K[k] X[k] + c[k]`` (``feedback``; else ``U[k] =
-    c[k]``), the dynamics of ``mode`` (:func:`knot_dynamics`, with ``derivs`` their derivatives into row ``k`` of
-    ``a_q, a_v, a_tau (N, 7, 7)``, ``l_q, l_v, l_tau (N, 6, 7)``), ``lam6[k]``, ``acc[k]``, and the step ``h`` into
-    ``X[k + 1]`` (semi-implicit Euler: ``v+ = v + h a``, ``q+ = q + h v+``; else explicit Euler).
+    c[k]``), the dynamics of ``mode`` ([`knot_dynamics`][knot_dynamics], with ``derivs`` their derivatives into row
+    ``k`` of ``a_q, a_v, a_tau (N, 7, 7)``, ``l_q, l_v, l_tau (N, 6, 7)``), ``lam6[k]``, ``acc[k]``, and the step ``h``
+    into ``X[k + 1]`` (semi-implicit Euler: ``v+ = v + h a``, ``q+ = q + h v+``; else explicit Euler).
 
     Shapes: ``X (>= k1 + 1, 14)``, ``U (>= k1, 4)``, ``K (>= k1, 4, 14)`` (any ``(1, 4, 14)`` without ``feedback``),
     ``c (>= k1, 4)``, ``lam6 (>= k1, 6)``, ``tau (7,)`` scratch; without ``derivs``, ``acc (1, 7)`` and the derivative
@@ -275,7 +275,7 @@ def rollout_phase(X, U, K, c, feedback, k0, k1, mode, h, semi_implicit, p, deriv
 
 @numba.njit(cache=True)
 def linearize_knots(X, U, modes, p, ws, tau, lam6, acc, a_q, a_v, a_tau, l_q, l_v, l_tau):
-    """:func:`knot_dynamics` with derivatives at the knots ``k < N`` of a given trajectory ``X (>= N, 14)``,
+    """[`knot_dynamics`][knot_dynamics] with derivatives at the knots ``k < N`` of a given trajectory ``X (>= N, 14)``,
     ``U (N, 4)`` in ``modes (N,)`` (int64), into row ``k`` of ``lam6 (N, 6)``, ``acc (N, 7)``, ``a_q, a_v, a_tau
     (N, 7, 7)``, ``l_q, l_v, l_tau (N, 6, 7)``; ``tau (7,)`` scratch. Returns the first knot that failed, or -1."""
     for k in range(U.shape[0]):

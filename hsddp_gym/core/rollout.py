@@ -14,7 +14,7 @@ from hsddp_gym.core.schedule import ModeSchedule
 from hsddp_gym.util.validation import check_array, check_in_range, check_vector
 
 Controller = Callable[[np.ndarray, Mode, int, int], np.ndarray]
-"""``controller(x (14,), mode, phase, k) -> u (4,)``: a feedback law used by :func:`rollout`."""
+"""``controller(x (14,), mode, phase, k) -> u (4,)``: a feedback law used by [`rollout`][rollout]."""
 
 
 @dataclasses.dataclass
@@ -75,7 +75,7 @@ def rollout(dynamics: HybridDynamics, schedule: ModeSchedule, x0: np.ndarray, co
         restitution: coefficient of restitution at touchdowns (paper: 0).
         apply_final_reset: also apply the reset map at the end of the last phase to ``X[N]``.
     Returns:
-        A :class:`Trajectory`. States that become non-finite stop the rollout early with NaN after them.
+        A [`Trajectory`][Trajectory]. States that become non-finite stop the rollout early with NaN after them.
     """
     if not isinstance(dynamics, HybridDynamics):
         raise TypeError(f"dynamics must be a HybridDynamics, got {type(dynamics).__name__}")

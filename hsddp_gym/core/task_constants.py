@@ -2,8 +2,8 @@
 (``hsddp_gym.planners.motions``) need: the pronk's cycle, the standing posture, the gait transitions' double stances,
 the jumps' obstacles, and the episode lengths of the registered envs.
 
-Pure Python (no NumPy at import): the task registry (:mod:`hsddp_gym.registry`), which ``import hsddp_gym`` reads,
-imports this module.
+Pure Python (no NumPy at import): the task registry ([`hsddp_gym.registry`][hsddp_gym.registry]), which ``import
+hsddp_gym`` reads, imports this module.
 """
 
 from __future__ import annotations
@@ -54,7 +54,8 @@ more)."""
 
 
 def check_speed(speed) -> float:
-    """``speed`` [m/s] as a float if it is a real number in :data:`SPEED_RANGE`, else ``ValueError`` naming it."""
+    """``speed`` [m/s] as a float if it is a real number in [`SPEED_RANGE`][SPEED_RANGE], else ``ValueError`` naming
+    it."""
     lo, hi = SPEED_RANGE
     if isinstance(speed, bool) or not isinstance(speed, numbers.Real) or not lo <= float(speed) <= hi:
         raise ValueError(f"speed must be a number in [{lo}, {hi}] m/s, got {speed!r}")
@@ -62,12 +63,12 @@ def check_speed(speed) -> float:
 
 
 def jump_terrain(motion: str, speed: float = 1.0, cycles: int = JUMP_APPROACH_CYCLES):
-    """The :class:`~hsddp_gym.core.terrain.Terrain` of a jump (:data:`JUMPS`) after ``cycles`` bounding cycles at
-    ``speed`` [m/s] from the paper's initial state (x = 0): its near edge :data:`JUMP_EDGE_LEAD` ahead of where the
-    trunk is, at ``speed``, when the take-off back stance starts (``t = 4 cycles`` bound phases); ``"gap_jump"``: a
-    gap of :data:`GAP_WIDTH`; ``"box_jump"``: a box of :data:`BOX_HEIGHT`, its near edge :data:`GAP_WIDTH` / 2
-    further (the middle of where the gap would be), :data:`BOX_LENGTH` long. The jump envs' terrain is the one at
-    1 m/s after :data:`JUMP_APPROACH_CYCLES` cycles."""
+    """The [`Terrain`][hsddp_gym.core.terrain.Terrain] of a jump ([`JUMPS`][JUMPS]) after ``cycles`` bounding cycles at
+    ``speed`` [m/s] from the paper's initial state (x = 0): its near edge [`JUMP_EDGE_LEAD`][JUMP_EDGE_LEAD] ahead of
+    where the trunk is, at ``speed``, when the take-off back stance starts (``t = 4 cycles`` bound phases);
+    ``"gap_jump"``: a gap of [`GAP_WIDTH`][GAP_WIDTH]; ``"box_jump"``: a box of [`BOX_HEIGHT`][BOX_HEIGHT], its near
+    edge [`GAP_WIDTH`][GAP_WIDTH] / 2 further (the middle of where the gap would be), [`BOX_LENGTH`][BOX_LENGTH] long.
+    The jump envs' terrain is the one at 1 m/s after [`JUMP_APPROACH_CYCLES`][JUMP_APPROACH_CYCLES] cycles."""
     from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
     from hsddp_gym.core.terrain import Terrain
     from hsddp_gym.util.validation import check_int

@@ -1,38 +1,41 @@
 """Planar terrain for the planner: a piecewise-constant ground height ``h(x)`` [m] along the world x axis.
 
-The one place that defines terrain. The conventions' ground is the plane ``z = 0`` (:mod:`hsddp_gym.core.conventions`);
-a :class:`Terrain` raises or lowers it on intervals of x:
+The one place that defines terrain. The conventions' ground is the plane ``z = 0``
+([`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]); a [`Terrain`][Terrain] raises or lowers it on intervals of
+x:
 
-* :meth:`Terrain.flat` (the default): ``h(x) = 0`` everywhere;
-* :meth:`Terrain.step`: ``h = height`` for ``x >= x0`` (a step up or down);
-* :meth:`Terrain.box`: ``h = height`` for ``x0 <= x < x1`` (a box to jump onto);
-* :meth:`Terrain.gap`: no ground for ``x0 <= x < x1`` (a foot may not land there).
+* [`Terrain.flat`][Terrain.flat] (the default): ``h(x) = 0`` everywhere;
+* [`Terrain.step`][Terrain.step]: ``h = height`` for ``x >= x0`` (a step up or down);
+* [`Terrain.box`][Terrain.box]: ``h = height`` for ``x0 <= x < x1`` (a box to jump onto);
+* [`Terrain.gap`][Terrain.gap]: no ground for ``x0 <= x < x1`` (a foot may not land there).
 
-A gap has no ground at all; for the planner it is a floor :attr:`Terrain.gap_depth` below the neighbouring ground
+A gap has no ground at all; for the planner it is a floor `Terrain.gap_depth` below the neighbouring ground
 (finite, so the switching constraint ``g = foot_z - h(foot_x)`` and its derivative stay finite; the legs cannot reach
-that deep, so a plan that lands a foot there breaks its switching constraint), and :meth:`Terrain.over_gap` tells
-where it is (``motion_limits`` checks that no stance foot is over a gap).
+that deep, so a plan that lands a foot there breaks its switching constraint), and
+[`Terrain.over_gap`][Terrain.over_gap] tells where it is (``motion_limits`` checks that no stance foot is over a gap).
 
 Edges belong to the segment on their right: ``h(edge) = h(edge + 0)``. Piecewise constant, ``dh/dx = 0`` wherever x
 is not exactly on an edge, so the derivative of the switching constraint of a landing foot is the derivative of its
 height, ``dg/dq = d foot_z / dq``; at an edge ``h`` jumps and the planner uses the same one-sided derivative.
 
 Slopes: a segment may also rise linearly, ``h(x) = levels[i] + slopes[i] (x - a_i)`` with ``a_i`` its left edge
-(``edges[0]`` for the first segment, 0 when there is no edge); :meth:`Terrain.ramp` builds one. The planner's
+(``edges[0]`` for the first segment, 0 when there is no edge); [`Terrain.ramp`][Terrain.ramp] builds one. The planner's
 switching constraints differentiate a slope's ``h`` (``dg/dq = d foot_z / dq - dh/dx d foot_x / dq``; the jumps use
 level ground).
 
-The simulated surface (``hsddp_gym/Bounding-v0``'s ``terrain=``, :mod:`hsddp_gym.core.batch_contact`)
+The simulated surface (``hsddp_gym/Bounding-v0``'s ``terrain=``,
+[`hsddp_gym.core.batch_contact`][hsddp_gym.core.batch_contact])
 --------------------------------------------------------------------------------------------------------
 The contact simulation needs a surface with a normal everywhere, so it uses the *continuous* piecewise-linear
-profile :meth:`Terrain.surface_vertices`: ``h(x)`` itself, except that each jump of ``h`` at an edge ``e`` becomes a
-steep ramp (a riser) over ``[e - riser, e]`` (:data:`RISER_WIDTH`, 1 mm: a 3 cm step is a 88 degree wall whose normal
-points backward, so a foot that runs into it is stopped by it, with friction along it); a gap is a drop of
-:attr:`gap_depth` to its floor, with two risers. Beyond the outermost vertices (:data:`SURFACE_EXTENT` from the
-outermost edges) the surface is level. :meth:`Terrain.surface_heights` and :meth:`Terrain.surface_normals` evaluate it.
-:meth:`Terrain.support_heights` is the ground a trunk stands over, with a gap bridged at the level of its near edge
-(the env's fall rule: the trunk falling into a gap is a fall). :meth:`Terrain.sample` draws seeded random profiles.
-"""
+profile [`Terrain.surface_vertices`][Terrain.surface_vertices]: ``h(x)`` itself, except that each jump of ``h`` at an
+edge ``e`` becomes a steep ramp (a riser) over ``[e - riser, e]`` ([`RISER_WIDTH`][RISER_WIDTH], 1 mm: a 3 cm step is a
+88 degree wall whose normal points backward, so a foot that runs into it is stopped by it, with friction along it); a
+gap is a drop of `gap_depth` to its floor, with two risers. Beyond the outermost vertices
+([`SURFACE_EXTENT`][SURFACE_EXTENT] from the outermost edges) the surface is level.
+[`Terrain.surface_heights`][Terrain.surface_heights] and [`Terrain.surface_normals`][Terrain.surface_normals] evaluate
+it. [`Terrain.support_heights`][Terrain.support_heights] is the ground a trunk stands over, with a gap bridged at the
+level of its near edge (the env's fall rule: the trunk falling into a gap is a fall). [`Terrain.sample`][Terrain.sample]
+draws seeded random profiles. """
 
 from __future__ import annotations
 
@@ -49,7 +52,7 @@ RISER_WIDTH = 1e-3
 SURFACE_EXTENT = 1000.0
 """The simulated surface's outermost vertices lie this far [m] beyond the outermost edges (level beyond)."""
 SAMPLE_KINDS = ("steps", "slopes", "mixed")
-"""Kinds of :meth:`Terrain.sample`."""
+"""Kinds of [`Terrain.sample`][Terrain.sample]."""
 
 
 def _real(value, name: str, *, positive: bool = False) -> float:
@@ -202,14 +205,14 @@ class Terrain:
         return cls(tuple(edges), tuple(levels), (False,) * len(levels), tuple(slopes))
 
     def to_dict(self) -> dict:
-        """The profile as JSON-serializable lists (``edges``, ``levels``, ``gaps``, ``slopes``); :meth:`from_dict`
-        rebuilds it."""
+        """The profile as JSON-serializable lists (``edges``, ``levels``, ``gaps``, ``slopes``);
+        [`from_dict`][from_dict] rebuilds it."""
         return {"edges": list(self.edges), "levels": list(self.levels), "gaps": list(self.gaps),
                 "slopes": list(self.slopes)}
 
     @classmethod
     def from_dict(cls, data: dict, name: str = "terrain") -> Terrain:
-        """The :class:`Terrain` of :meth:`to_dict`'s dict (``slopes`` optional); errors name ``name``."""
+        """The [`Terrain`][Terrain] of [`to_dict`][to_dict]'s dict (``slopes`` optional); errors name ``name``."""
         if not isinstance(data, dict):
             raise TypeError(f"{name} must be a dict, got {type(data).__name__}")
         extra = sorted(set(data) - {"edges", "levels", "gaps", "slopes"})
@@ -234,7 +237,7 @@ class Terrain:
     @property
     def uniform_height(self) -> float | None:
         """The ground's height [m] when it is one level everywhere (no gap, no slope, every segment at the same
-        height; e.g. a flat ground :meth:`raised`), else None."""
+        height; e.g. a flat ground [`raised`][raised]), else None."""
         if any(self.gaps) or any(v != 0.0 for v in self.slopes) or any(v != self.levels[0] for v in self.levels):
             return None
         return self.levels[0]
@@ -251,7 +254,7 @@ class Terrain:
         return float(self._levels[i] + self._slopes[i] * (x - self._anchors[i]))
 
     def heights(self, xs) -> np.ndarray:
-        """Vectorised :meth:`height`: ``xs`` any shape [m] -> heights of the same shape [m]."""
+        """Vectorised [`height`][height]: ``xs`` any shape [m] -> heights of the same shape [m]."""
         xs = np.asarray(xs, dtype=np.float64)
         if not np.all(np.isfinite(xs)):
             raise ValueError("xs must be finite [m]")
@@ -306,8 +309,8 @@ class Terrain:
         return xs, vx, vz, j, (vz[j + 1] - vz[j]) / (vx[j + 1] - vx[j])
 
     def surface_heights(self, xs) -> np.ndarray:
-        """Height [m] of the simulated surface (:meth:`surface_vertices`) at ``xs`` (any shape) [m], with the
-        contact kernel's arithmetic (``z_j + s (x - x_j)`` on the piece ``[x_j, x_j+1)``, level beyond the ends)."""
+        """Height [m] of the simulated surface ([`surface_vertices`][surface_vertices]) at ``xs`` (any shape) [m], with
+        the contact kernel's arithmetic (``z_j + s (x - x_j)`` on the piece ``[x_j, x_j+1)``, level beyond the ends)."""
         xs, vx, vz, j, s = self._surface_pieces(xs)
         h = vz[j] + s * (xs - vx[j])
         return np.where(xs < vx[0], vz[0], np.where(xs >= vx[-1], vz[-1], h))
@@ -322,7 +325,7 @@ class Terrain:
         return np.stack([-s * inv, inv], axis=-1)
 
     def support_heights(self, xs) -> np.ndarray:
-        """The ground [m] under ``xs`` (any shape) [m] that a trunk is measured from: :meth:`heights` with each gap
+        """The ground [m] under ``xs`` (any shape) [m] that a trunk is measured from: [`heights`][heights] with each gap
         bridged at the level of its near (left) edge (the right one for a leading gap)."""
         xs = np.asarray(xs, dtype=np.float64)
         h = self.heights(xs)
@@ -367,7 +370,7 @@ FLAT = Terrain()
 
 
 def check_terrain(terrain, name: str = "terrain") -> Terrain | None:
-    """``terrain`` if it is a :class:`Terrain` or None; TypeError naming ``name`` otherwise."""
+    """``terrain`` if it is a [`Terrain`][Terrain] or None; TypeError naming ``name`` otherwise."""
     if terrain is not None and not isinstance(terrain, Terrain):
         raise TypeError(f"{name} must be a Terrain or None, got {type(terrain).__name__}")
     return terrain

@@ -2,36 +2,41 @@
 
 Generation
 ----------
-:func:`generate_dataset` runs ``episodes`` episodes of a policy, episode ``i`` reset with seed ``seed + i``
-and played by a *fresh* policy built for it (:class:`~hsddp_gym.rollout.policies.PolicySpec`, or any picklable
-factory ``factory(env, episode_seed) -> policy``, the policy's ``reset_options`` attribute its episodes' reset
-options), so an episode depends only on its seed: the same
-``seed`` and ``episodes`` give identical arrays whatever the number of worker processes. Workers are
-``spawn``-started processes (:class:`concurrent.futures.ProcessPoolExecutor`; ``workers=1`` runs in this
+[`generate_dataset`][hsddp_gym.datasets.generation.generate_dataset] runs ``episodes`` episodes of a policy, episode
+``i`` reset with seed ``seed + i`` and played by a *fresh* policy built for it
+([`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec], or any picklable factory ``factory(env, episode_seed) ->
+policy``, the policy's ``reset_options`` attribute its episodes' reset options), so an episode depends only on its seed:
+the same ``seed`` and ``episodes`` give identical arrays whatever the number of worker processes. Workers are
+``spawn``-started processes (`concurrent.futures.ProcessPoolExecutor`; ``workers=1`` runs in this
 process); a tqdm bar counts finished episodes.
 
-Built-in policies (:data:`~hsddp_gym.rollout.policies.POLICIES`, built by
-:func:`~hsddp_gym.rollout.policies.make_policy`): ``mpc``
-(:class:`hsddp_gym.planners.policies.mpc.MPCPolicy`, options = ``MPCOptions`` fields), ``expert``
-(:func:`hsddp_gym.planners.policies.experts.bounding_expert` tracking the HS-DDP plan
-``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as
-``expert_plan.npz`` in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without*
-reset noise, so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's
-1.48 s the default MPC takes over; in the other tasks' envs the task's plan tracker, ``Task.expert`` of the task
-registry :mod:`hsddp_gym.registry`), ``heuristic`` (:class:`hsddp_gym.planners.policies.heuristic.HeuristicPolicy`)
-and ``random`` (:class:`hsddp_gym.planners.policies.random_policy.RandomPolicy` seeded with the episode seed).
+Built-in policies ([`POLICIES`][hsddp_gym.rollout.policies.POLICIES], built by
+[`make_policy`][hsddp_gym.rollout.policies.make_policy]): ``mpc``
+([`hsddp_gym.planners.policies.mpc.MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], options =
+``MPCOptions`` fields), ``expert``
+([`hsddp_gym.planners.policies.experts.bounding_expert`][hsddp_gym.planners.policies.experts.bounding_expert] tracking
+the HS-DDP plan ``hsddp_gym.planners.tasks.plan_bounding("al-reb", cycles=5).solution``, solved once and stored as
+``expert_plan.npz`` in the dataset; every episode is reset with ``options={"state": plan.X[0]}``, i.e. *without* reset
+noise, so all expert episodes are identical -- the seed is recorded but has no effect; after the plan's 1.48 s the
+default MPC takes over; in the other tasks' envs the task's plan tracker, ``Task.expert`` of the task registry
+[`hsddp_gym.registry`][hsddp_gym.registry]), ``heuristic``
+([`hsddp_gym.planners.policies.heuristic.HeuristicPolicy`][hsddp_gym.planners.policies.heuristic.HeuristicPolicy]) and
+``random``
+([`hsddp_gym.planners.policies.random_policy.RandomPolicy`][hsddp_gym.planners.policies.random_policy.RandomPolicy]
+seeded with the episode seed).
 
 DART noise injection (``action_noise > 0``, Laskey et al. 2017): the executed actions are the policy's plus
 Gaussian noise (seeded by the episode seed), so the episodes visit the states around the policy's
 trajectory from which it recovers; the policy's clean actions are stored in ``infos["expert_action"]``
-and are the labels :func:`hsddp_gym.learning.demonstrations.load_demonstrations` uses.
+and are the labels
+[`hsddp_gym.learning.demonstrations.load_demonstrations`][hsddp_gym.learning.demonstrations.load_demonstrations] uses.
 
 Output (``out`` is one directory, created atomically)
 ----------------------------------------------------
 ::
 
     out/minari/<dataset_id>/data/{main_data.hdf5, metadata.json}   a Minari dataset (MINARI_DATASETS_PATH=out/minari)
-    out/episodes.npz       the same data as flat arrays (see :func:`load_npz`), no pickle
+    out/episodes.npz       the same data as flat arrays (see [`load_npz`][load_npz]), no pickle
     out/metadata.json      the dataset metadata (also stored in Minari's metadata under "hsddp_gym")
     out/expert_plan.npz    the tracked plan (``expert`` only; ``Solution.load``, hsddp_gym.planners.optimizer.solution)
 
@@ -59,11 +64,13 @@ env's info for it (the reset info for t = 0, the info returned by step t-1 after
 taken at it (for t < T; the last row, where no action is taken, repeats the last decision's values with
 ``replanned = planner_failed = False``). Keys:
 
-* from the env (:class:`hsddp_gym.envs.bounding.BoundingEnv`): ``qpos (7,)``, ``qvel (7,)``, ``contact (2,)`` bool
+* from the env ([`hsddp_gym.envs.bounding.BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv]): ``qpos (7,)``, ``qvel
+(7,)``, ``contact (2,)`` bool
   ``[front, back]``, ``x_position``, ``x_velocity``, ``reward_forward``, ``reward_ctrl``, ``reward_healthy``,
   ``foot_heights (2,)``, ``grf (4,)``, ``time`` (whatever keys the env's reset info has; every step is
   checked against them);
-* from the policy (:data:`DECISION_SCHEMA`): ``expert_state_nominal (14,)`` x-bar and
+* from the policy ([`DECISION_SCHEMA`][hsddp_gym.datasets.recording.DECISION_SCHEMA]): ``expert_state_nominal (14,)``
+x-bar and
   ``expert_action_nominal (4,)`` u-bar / torque_limit (normalized, not clipped) of the plan knot whose
   feedback law ``u = u-bar + K (x - x-bar)`` produced the action, ``expert_tracking`` (True when it did;
   False also when the policy changed the law's torques afterwards, as the MPC's projection of stance torques that

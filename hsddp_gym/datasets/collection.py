@@ -25,19 +25,21 @@ class EpisodeTask:
     include_gains: bool = False
     action_noise: float = 0.0
     condition: str | None = None
-    """A name of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (None: the plain env); the policy then acts on
-    the true state (``record_episode(privileged=True)``)."""
+    """A name of [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] (None:
+    the plain env); the policy then acts on the true state (``record_episode(privileged=True)``)."""
     env_id: str | None = None
-    """The registered env (None: :data:`~hsddp_gym.datasets.recording.ENV_ID`, Bounding-v0)."""
+    """The registered env (None: [`ENV_ID`][hsddp_gym.datasets.recording.ENV_ID], Bounding-v0)."""
 
 
 def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = None, condition: str | None = None,
              env_id: str | None = None):
     """``gym.make(env_id, **env_kwargs)`` (``env_id`` None: ``"hsddp_gym/Bounding-v0"``, else one of
-    :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`) with an optional time-limit override; with
-    ``condition`` (a name of :data:`hsddp_gym.envs.perturbations.CONDITIONS`) that condition's env (its env
-    arguments and wrappers, :func:`hsddp_gym.envs.perturbations.make_env`) with ``env_kwargs`` added (a key
-    both set raises ``ValueError``; conditions are Bounding-v0's)."""
+    [`DATASET_ENVS`][hsddp_gym.datasets.recording.DATASET_ENVS]) with an optional time-limit override; with
+    ``condition`` (a name of
+    [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS]) that condition's
+    env (its env arguments and wrappers,
+    [`hsddp_gym.envs.perturbations.make_env`][hsddp_gym.envs.perturbations.conditions.make_env]) with ``env_kwargs``
+    added (a key both set raises ``ValueError``; conditions are Bounding-v0's)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
@@ -92,7 +94,7 @@ def checkpoint_path(directory, index: int, prefix: str = "episode") -> Path:
 
 
 def save_episode(path, episode: Episode) -> Path:
-    """Write one :class:`Episode` to ``.npz`` atomically (uncompressed, no pickle)."""
+    """Write one [`Episode`][Episode] to ``.npz`` atomically (uncompressed, no pickle)."""
     from hsddp_gym.util.io import atomic_path
 
     arrays = {"index": np.array(episode.index), "seed": np.array(episode.seed),
@@ -106,7 +108,7 @@ def save_episode(path, episode: Episode) -> Path:
 
 
 def load_episode(path) -> Episode:
-    """Read an :class:`Episode` written by :func:`save_episode` (never unpickles)."""
+    """Read an [`Episode`][Episode] written by [`save_episode`][save_episode] (never unpickles)."""
     d = read_npz(path)
     return Episode(index=int(d["index"]), seed=int(d["seed"]), observations=d["observations"],
                    actions=d["actions"], rewards=d["rewards"], terminations=d["terminations"],
@@ -125,24 +127,29 @@ def collect_episodes(policy_factory: Callable, episodes: int, seed: int = 0, wor
 
     Args:
         policy_factory: picklable ``(env, episode_seed) -> policy`` (e.g. a
-            :class:`~hsddp_gym.rollout.policies.PolicySpec`; the policy's ``reset_options`` attribute, when it has
+            [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec]; the policy's ``reset_options`` attribute, when it has
             one, gives the episode's reset options); called once per episode, in the worker.
         workers: with ``backend="local"``, 1 runs in this process and more use ``spawn``-started worker
             processes (one BLAS/OpenMP thread each); with ``"ray"``, the CPUs of the local Ray instance.
-        backend: where the episodes run (:func:`hsddp_gym.util.parallel.run_parallel`): ``"local"`` or ``"ray"``.
+        backend: where the episodes run
+            ([`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel]): ``"local"`` or ``"ray"``.
             An episode whose worker dies is run again; the data do not depend on the backend or the number of
             workers.
         address: with ``"ray"``, the cluster to connect to (None: a local Ray instance).
-        action_noise: DART noise on the executed actions (see :func:`record_episode`).
-        checkpoint_dir: if given, every finished episode is saved there (:func:`checkpoint_path`, written
+        action_noise: DART noise on the executed actions (see [`record_episode`][record_episode]).
+        checkpoint_dir: if given, every finished episode is saved there ([`checkpoint_path`][checkpoint_path], written
             atomically as it arrives) and episodes already saved there are loaded instead of being run again
-            (the caller makes sure they were recorded with the same settings; :func:`generate_dataset` does).
+            (the caller makes sure they were recorded with the same settings;
+            [`generate_dataset`][hsddp_gym.datasets.generation.generate_dataset] does).
         checkpoint_prefix: file-name prefix of the checkpoints.
-        conditions: names of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (None: the plain env): episode ``i``
-            runs in ``conditions[i % len(conditions)]`` (:func:`episode_conditions`), every random draw of its
-            perturbation seeded by its episode seed; the policy acts on the true state, the recorded
+        conditions: names of
+            [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] (None: the
+            plain env): episode ``i``
+            runs in ``conditions[i % len(conditions)]`` ([`episode_conditions`][episode_conditions]), every random draw
+            of its perturbation seeded by its episode seed; the policy acts on the true state, the recorded
             observations are the perturbed ones (``record_episode(privileged=True)``).
-        env_id: the registered env (None: Bounding-v0; one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`).
+        env_id: the registered env (None: Bounding-v0; one of
+            [`DATASET_ENVS`][hsddp_gym.datasets.recording.DATASET_ENVS]).
     Returns:
         The episodes in index order (identical for any ``workers``, and whether loaded or recorded).
     """

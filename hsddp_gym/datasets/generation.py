@@ -33,13 +33,14 @@ REF_MAX_EPISODES = 5
 """With DART noise, clean (noise-free) episodes of the policy (seeds ``seed .. seed + 4``, at most
 ``episodes``) averaged into ``ref_max_score``; without noise it is the mean return of the dataset's episodes."""
 CHECKPOINT_FORMAT = 1
-"""Version of the checkpoint layout of an interrupted run (``.<name>.partial``, see :func:`generate_dataset`)."""
+"""Version of the checkpoint layout of an interrupted run (``.<name>.partial``, see
+[`generate_dataset`][generate_dataset])."""
 
 
 def mean_random_return(env_kwargs: dict | None = None, max_episode_steps: int | None = None, seed: int = 0,
                        episodes: int = REF_MIN_EPISODES, env_id: str | None = None) -> tuple[float, list[float]]:
-    """Mean return of :class:`~hsddp_gym.planners.policies.random_policy.RandomPolicy` over ``episodes`` episodes seeded
-    ``seed, seed + 1, ...`` (the ``ref_min_score``) and the returns."""
+    """Mean return of [`RandomPolicy`][hsddp_gym.planners.policies.random_policy.RandomPolicy] over ``episodes``
+    episodes seeded ``seed, seed + 1, ...`` (the ``ref_min_score``) and the returns."""
     eps = collect_episodes(PolicySpec("random"), episodes, seed, 1, env_kwargs, max_episode_steps, progress=False,
                            env_id=env_id)
     returns = [e.episode_return for e in eps]
@@ -48,8 +49,8 @@ def mean_random_return(env_kwargs: dict | None = None, max_episode_steps: int | 
 
 @dataclasses.dataclass
 class DatasetResult:
-    """What :func:`generate_dataset` wrote (``resumed_episodes``: episodes loaded from the checkpoints of an
-    interrupted run instead of being recorded again)."""
+    """What [`generate_dataset`][generate_dataset] wrote (``resumed_episodes``: episodes loaded from the checkpoints of
+    an interrupted run instead of being recorded again)."""
 
     path: Path
     dataset_id: str
@@ -136,7 +137,7 @@ def _prepare_checkpoints(partial: Path, settings: dict, resume: bool, overwrite:
     """Check the checkpoints in ``partial`` against ``settings``; returns the number of episode checkpoints kept.
 
     Same settings (and code): resumed (``resume=True``). Otherwise they are discarded with ``resume=False``
-    or ``overwrite=True`` and refused (:class:`FileExistsError` naming the differences) without.
+    or ``overwrite=True`` and refused (`FileExistsError` naming the differences) without.
     """
     settings_file = partial / "settings.json"
     found = sorted(partial.glob("episode-*.npz"))
@@ -175,55 +176,58 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     """Generate a demonstration dataset into ``out`` (see the module docstring).
 
     **Interrupted runs and reruns.** Every finished episode is checkpointed (atomically) into the hidden
-    sibling directory ``.<name>.partial`` (:func:`partial_dir`, with the run's settings and, for ``expert``,
+    sibling directory ``.<name>.partial`` ([`partial_dir`][partial_dir], with the run's settings and, for ``expert``,
     its plan) and the dataset itself is written into a temporary directory renamed onto ``out`` only when
     complete, so an interrupted run (an exception, Ctrl-C, a kill) never leaves a half-written ``out``. A
     rerun with the same settings (policy and options, seed, env kwargs, time limit, gains, noise, dataset
     id, and the same source code; ``episodes`` and ``workers`` may differ) **resumes**: checkpointed
     episodes are loaded, the others recorded, the data identical to an uninterrupted run. A rerun with other
-    settings **refuses** (:class:`FileExistsError` naming the differing settings) unless ``resume=False`` or
+    settings **refuses** (`FileExistsError` naming the differing settings) unless ``resume=False`` or
     ``overwrite=True`` discards the checkpoints. An existing ``out`` is never replaced without
     ``overwrite=True``. The checkpoints are deleted once the dataset is published; one run at a time may
     write a given ``out`` (a lock in the checkpoint directory, released when the process dies).
 
     Args:
-        policy: a name of :data:`POLICIES`, a :class:`PolicySpec`, or a picklable factory
+        policy: a name of `POLICIES`, a [`PolicySpec`][PolicySpec], or a picklable factory
             ``(env, episode_seed) -> (policy, reset_options)`` (then give ``policy_name``).
         episodes: number of episodes; episode ``i`` is seeded ``seed + i``.
         workers: worker processes, or the CPUs of a local Ray instance (the data do not depend on it).
         backend: ``"local"`` (this process or local worker processes) or ``"ray"`` (a local Ray instance,
-            or the running cluster at ``address``); see :func:`hsddp_gym.util.parallel.run_parallel`. The data
-            do not depend on it; an episode whose worker dies is run again.
+            or the running cluster at ``address``); see
+            [`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel]. The data do not depend on
+            it; an episode whose worker dies is run again.
         address: Ray cluster address (``"auto"``, ``"ray://host:10001"``); None starts a local instance.
         dataset_id: Minari id (default ``hsddp_gym/<task>/<policy>-v0``, task ``bounding``, ``pronking``,
             ``backflip``, ``gap_jump``, ``box_jump``, ``terrain``, ``stand_to_bound``, ``bound_pronk_bound`` or
             ``bound_to_stop``).
-        env_id: the env the episodes are recorded in, one of :data:`~hsddp_gym.datasets.recording.DATASET_ENVS`
+        env_id: the env the episodes are recorded in, one of [`DATASET_ENVS`][hsddp_gym.datasets.recording.DATASET_ENVS]
             (None: ``hsddp_gym/Bounding-v0``); in ``hsddp_gym/Pronking-v0`` the ``expert`` tracks a pronk plan
-            (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`), in ``hsddp_gym/Backflip-v0`` a
-            backflip plan (:func:`~hsddp_gym.planners.policies.experts.backflip_expert`); in
+            ([`pronking_expert`][hsddp_gym.planners.policies.experts.pronking_expert]), in ``hsddp_gym/Backflip-v0`` a
+            backflip plan ([`backflip_expert`][hsddp_gym.planners.policies.experts.backflip_expert]); in
             ``hsddp_gym/Terrain-v0`` ``mpc`` is the terrain-aware MPC, given each episode's terrain (``MPCPolicy(...,
             terrain=env_terrain(env))``), and there is no ``expert``.
         overwrite: replace an existing ``out`` (and discard checkpoints recorded with other settings).
         env_kwargs: ``gym.make`` keyword arguments; max_episode_steps: time-limit override (default 1000).
         policy_options: ``MPCOptions`` fields for ``mpc``.
         include_gains: also store the plan's feedback gains (``expert_feedback_gain (4, 14)`` per step).
-        action_noise: DART noise injection (:func:`record_episode`): the executed actions (``actions``) are
+        action_noise: DART noise injection ([`record_episode`][hsddp_gym.datasets.recording.record_episode]): the
+            executed actions (``actions``) are
             the policy's plus Gaussian noise of this standard deviation (normalized units), the policy's clean
             actions are in ``infos["expert_action"]`` (what
-            :func:`hsddp_gym.learning.demonstrations.load_demonstrations`
+            [`hsddp_gym.learning.demonstrations.load_demonstrations`][hsddp_gym.learning.demonstrations.load_demonstrations]
             uses as labels). Recorded in the metadata; ``ref_max_score`` then comes from
-            :data:`REF_MAX_EPISODES` clean episodes of the policy (the expert's score, not the noisy one's).
+            [`REF_MAX_EPISODES`][REF_MAX_EPISODES] clean episodes of the policy (the expert's score, not the noisy
+            one's).
         resume: resume from the checkpoints of an interrupted run with the same settings (False: discard
             any checkpoints and start over).
         conditions: demonstrations under perturbations: names of
-            :data:`hsddp_gym.envs.perturbations.CONDITIONS` (repeats allowed, as weights); episode ``i`` runs in
-            ``conditions[i % len(conditions)]``, its perturbation seeded by its episode seed. The policy acts on
-            the true state (under observation noise it sees the clean observation), the dataset's
-            ``observations`` are the perturbed ones the learner will see (``record_episode(privileged=True)``).
-            The metadata record ``conditions`` (names, definitions) and, per episode, ``episode_conditions``
-            and ``episode_target_speeds``. The reference episodes cycle through the same conditions (the random
-            policy's run in the plain env). None: the plain env.
+            [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] (repeats
+            allowed, as weights); episode ``i`` runs in ``conditions[i % len(conditions)]``, its perturbation seeded by
+            its episode seed. The policy acts on the true state (under observation noise it sees the clean observation),
+            the dataset's ``observations`` are the perturbed ones the learner will see
+            (``record_episode(privileged=True)``). The metadata record ``conditions`` (names, definitions) and, per
+            episode, ``episode_conditions`` and ``episode_target_speeds``. The reference episodes cycle through the same
+            conditions (the random policy's run in the plain env). None: the plain env.
     Raises:
         FileExistsError: ``out`` exists and ``overwrite`` is False; checkpoints with other settings exist
             and neither ``resume=False`` nor ``overwrite``; another run is writing ``out``.
@@ -299,7 +303,7 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
 
 def _generate(spec, name, describe, episodes, seed, workers, env_kwargs, max_episode_steps, include_gains,
               progress, action_noise, dataset_id, partial, plan_file, resumed, where):
-    """The episodes (checkpointed into ``partial``) and the metadata of :func:`generate_dataset`."""
+    """The episodes (checkpointed into ``partial``) and the metadata of [`generate_dataset`][generate_dataset]."""
     t0 = time.perf_counter()
     extra, plan_summary = {}, None
     if isinstance(spec, PolicySpec) and spec.name == "expert" and Path(spec.plan_path) == plan_file:

@@ -35,7 +35,8 @@ GAIN_KEY = "expert_feedback_gain"
 
 
 def check_env_id(env_id) -> str:
-    """``env_id`` (None: :data:`ENV_ID`) if it is one of :data:`DATASET_ENVS`, else ``ValueError`` naming it."""
+    """``env_id`` (None: [`ENV_ID`][ENV_ID]) if it is one of [`DATASET_ENVS`][DATASET_ENVS], else ``ValueError`` naming
+    it."""
     if env_id is None:
         return ENV_ID
     if env_id not in DATASET_ENVS:
@@ -46,7 +47,7 @@ def check_env_id(env_id) -> str:
 def solve_expert_plan(path, env_id: str | None = None, target_speed: float = 1.0, hold: int = 5) -> dict:
     """Solve the plan of the expert of ``env_id``'s task (``Task.plan`` of the task registry: for a control held
     ``hold`` plan knots, at ``target_speed`` [m/s] where the plan reads them, ``Task.plan_inputs``), save it to
-    ``path`` and return its summary (:func:`hsddp_gym.rollout.plans.plan_summary`)."""
+    ``path`` and return its summary ([`hsddp_gym.rollout.plans.plan_summary`][hsddp_gym.rollout.plans.plan_summary])."""
     from hsddp_gym.rollout.plans import plan_summary, task_plan
 
     task = task_of_env_id(check_env_id(env_id))
@@ -85,12 +86,12 @@ _CAPTURE: dict = {}
 
 @contextlib.contextmanager
 def capture_plan_controls():
-    """While active, every :meth:`hsddp_gym.planners.policies.tracking.PlanTracker.control` call records the knot it
-    used in the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot) and the torques (4,) [N m] its law gave
-    (``"u"``).
+    """While active, every
+    [`PlanTracker.control`][hsddp_gym.planners.policies.tracking.PlanTracker.control] call records the knot it used in
+    the returned dict (``"X"``, ``"U"``, ``"K"`` of that knot) and the torques (4,) [N m] its law gave (``"u"``).
 
-    The trackers of :class:`~hsddp_gym.planners.policies.tracking_policy.PlanTrackingPolicy` and
-    :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`
+    The trackers of [`PlanTrackingPolicy`][hsddp_gym.planners.policies.tracking_policy.PlanTrackingPolicy] and
+    [`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy]
     advance their cursor right after computing the control, so the knot cannot be read afterwards; this
     wraps the method (class level, restored on exit) for the duration of one episode in this process.
     """
@@ -122,7 +123,7 @@ def _max_violation(sol) -> float:
 
 
 class DecisionRecorder:
-    """Builds the policy-decision ``infos`` (:data:`DECISION_SCHEMA`) around ``policy(obs)`` calls."""
+    """Builds the policy-decision ``infos`` ([`DECISION_SCHEMA`][DECISION_SCHEMA]) around ``policy(obs)`` calls."""
 
     def __init__(self, policy, torque_limit: float, include_gains: bool = False) -> None:
         self.policy = policy
@@ -187,9 +188,9 @@ def inform_sent_action(policy, action) -> None:
     """Tell a policy that remembers the actions it returned which action was actually sent to the env in its
     place (the learner's in a DAgger rollout, or the expert's plus DART noise), through its public
     ``note_sent_action(action)`` when it has one
-    (:meth:`~hsddp_gym.planners.policies.mpc.MPCPolicy.note_sent_action`: the MPC feeds its last returned actions to
-    its state filter and latency compensation, which would otherwise predict with an action the env never
-    executed). Other policies are left alone.
+    ([`note_sent_action`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy.note_sent_action]: the MPC feeds its last
+    returned actions to its state filter and latency compensation, which would otherwise predict with an action the env
+    never executed). Other policies are left alone.
     """
     note = getattr(policy, "note_sent_action", None)
     if callable(note):
@@ -209,8 +210,8 @@ def _check_info(info: dict, schema: dict, step: int) -> None:
 
 
 class _RecordingPolicy:
-    """What the episode loop plays while recording: the policy through its :class:`DecisionRecorder` (on the true
-    state with ``privileged``), with DART noise on the sent action."""
+    """What the episode loop plays while recording: the policy through its [`DecisionRecorder`][DecisionRecorder] (on
+    the true state with ``privileged``), with DART noise on the sent action."""
 
     def __init__(self, policy, env, slot: dict, include_gains: bool, noise_rng, action_noise: float,
                  privileged: bool) -> None:
@@ -268,7 +269,7 @@ class _EpisodeRows:
 def record_episode(env, policy, seed: int, options: dict | None = None, index: int = 0,
                    include_gains: bool = False, action_noise: float = 0.0, privileged: bool = False) -> Episode:
     """Play one episode of ``env`` with ``policy`` from ``env.reset(seed=seed, options=options)`` (the policy's
-    ``reset_options`` added, :func:`hsddp_gym.rollout.episodes.run_episode`).
+    ``reset_options`` added, [`hsddp_gym.rollout.episodes.run_episode`][hsddp_gym.rollout.episodes.run_episode]).
 
     ``policy`` is any callable ``obs -> action`` with an optional ``reset()``; planner statistics and the
     tracked plan knot are recorded when it has them (see the module docstring).
@@ -279,14 +280,15 @@ def record_episode(env, policy, seed: int, options: dict | None = None, index: i
     (row t: the clean action at observation t; the last row repeats the last one) -- the label for imitation.
 
     ``privileged=True`` (demonstrations under a perturbation, ``hsddp-gym dataset --condition``): the policy
-    acts on :func:`hsddp_gym.envs.perturbations.true_observation` (the true state; it differs from the env's
-    observation only under :class:`~hsddp_gym.envs.perturbations.ObservationNoise`) while ``observations``
-    keep the env's (perturbed) ones -- the learner's input: the label is the expert's action at the true state
-    of the learner's situation; with DART noise the policy is also told the noisy action that was sent
-    (:func:`inform_sent_action`; without ``privileged`` it is not, as before, so older datasets reproduce).
-    The keys wrappers add to ``info`` (``push``, ``executed_action``:
-    :func:`~hsddp_gym.envs.perturbations.wrapper_info_keys`) are not recorded, so the schema stays the env's.
-    """
+    acts on [`hsddp_gym.envs.perturbations.true_observation`][hsddp_gym.envs.perturbations.wrappers.true_observation]
+    (the true state; it differs from the env's observation only under
+    [`ObservationNoise`][hsddp_gym.envs.perturbations.wrappers.ObservationNoise]) while ``observations`` keep the env's
+    (perturbed) ones -- the learner's input: the label is the expert's action at the true state of the learner's
+    situation; with DART noise the policy is also told the noisy action that was sent
+    ([`inform_sent_action`][inform_sent_action]; without ``privileged`` it is not, as before, so older datasets
+    reproduce). The keys wrappers add to ``info`` (``push``, ``executed_action``:
+    [`wrapper_info_keys`][hsddp_gym.envs.perturbations.wrappers.wrapper_info_keys]) are not recorded, so the schema
+    stays the env's. """
     from hsddp_gym.envs.perturbations import wrapper_info_keys
     from hsddp_gym.rollout.episodes import run_episode
 

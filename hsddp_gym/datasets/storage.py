@@ -35,14 +35,14 @@ def minari_root(path):
 
 def default_dataset_id(policy_name: str, env_id: str | None = None) -> str:
     """``hsddp_gym/<task>/<policy>-v0`` with ``<task>`` the name of ``env_id``'s task in the registry
-    (:data:`hsddp_gym.registry.TASKS`; ``env_id`` None: Bounding-v0's, ``bounding``), e.g.
+    ([`hsddp_gym.registry.TASKS`][hsddp_gym.registry.TASKS]; ``env_id`` None: Bounding-v0's, ``bounding``), e.g.
     ``hsddp_gym/pronking/expert-v0`` for ``hsddp_gym/Pronking-v0``; ``ValueError`` for an env of no task."""
     task = TASKS["bounding"] if env_id is None else task_of_env_id(env_id)
     return f"hsddp_gym/{task.name}/{policy_name}-v0"
 
 
 def episodes_to_arrays(episodes: list[Episode]) -> dict:
-    """Flat arrays of ``episodes`` (the ``episodes.npz`` layout, see :func:`load_npz`)."""
+    """Flat arrays of ``episodes`` (the ``episodes.npz`` layout, see [`load_npz`][load_npz])."""
     lengths = np.array([e.length for e in episodes], dtype=np.int64)
     arrays = {
         "observations": np.concatenate([e.observations for e in episodes]),
@@ -156,7 +156,7 @@ def package_version() -> str:
 
 # ================================================================================================ loading
 DATASET_FILES = ("metadata.json", "episodes.npz", "minari")
-"""What a dataset directory written by :func:`write_dataset` holds."""
+"""What a dataset directory written by [`write_dataset`][write_dataset] holds."""
 _DATASET_ALLOWED = ("a dataset directory holding metadata.json, episodes.npz and minari/, written by `hsddp-gym "
                     "dataset --out DIR` or hsddp_gym.datasets.generate_dataset")
 
@@ -166,7 +166,7 @@ def resolve_dataset_dir(path, name: str = "path") -> Path:
     ``DIR/episodes.npz``, ``DIR/metadata.json``, or a folder inside ``DIR/minari``), which resolve to ``DIR``.
 
     Raises:
-        UsageError (a ValueError naming ``name``): ``path`` does not exist or is no dataset directory.
+        UsageError: a ValueError naming ``name``: ``path`` does not exist or is no dataset directory.
     """
     from hsddp_gym.util.validation import UsageError
 
@@ -187,7 +187,8 @@ _DATASET_ID_RE = re.compile(r"(?:[-_\w][-_\w/]*[-_\w]+/)?[-_\w]+?-v\d+")
 
 
 def check_dataset_id(dataset_id: str, name: str = "dataset_id") -> str:
-    """A Minari dataset id ``(namespace/)name-vVERSION`` (the version is required), or :class:`UsageError`."""
+    """A Minari dataset id ``(namespace/)name-vVERSION`` (the version is required), or
+    [`UsageError`][hsddp_gym.util.validation.UsageError]."""
     from hsddp_gym.util.validation import UsageError
 
     if not isinstance(dataset_id, str) or not _DATASET_ID_RE.fullmatch(dataset_id):
@@ -199,18 +200,18 @@ def check_dataset_id(dataset_id: str, name: str = "dataset_id") -> str:
 
 def read_metadata(path) -> dict:
     """The ``metadata.json`` of a dataset directory (or of the dataset ``path`` lies in, see
-    :func:`resolve_dataset_dir`)."""
+    [`resolve_dataset_dir`][resolve_dataset_dir])."""
     return json.loads((resolve_dataset_dir(path) / "metadata.json").read_text())
 
 
 def load_minari(path, dataset_id: str | None = None):
     """``minari.load_dataset`` of the dataset in directory ``path`` (``MINARI_DATASETS_PATH`` is set to
     ``path/minari`` for the call only; the returned dataset keeps reading from there). ``path`` may also
-    name the dataset's ``minari/`` folder (see :func:`resolve_dataset_dir`).
+    name the dataset's ``minari/`` folder (see [`resolve_dataset_dir`][resolve_dataset_dir]).
 
     Raises:
-        UsageError (a ValueError naming ``path``): ``path`` does not exist or is no dataset directory, as
-        :func:`load_npz`.
+        UsageError: a ValueError naming ``path``: ``path`` does not exist or is no dataset directory, as
+            [`load_npz`][load_npz].
     """
     from hsddp_gym.util.extras import require
 
@@ -263,12 +264,12 @@ class FlatDataset:
 
 
 def load_npz(path) -> FlatDataset:
-    """Read ``episodes.npz`` (``path`` is the dataset directory, one of its parts, see :func:`resolve_dataset_dir`,
-    or an ``episodes.npz`` file itself); never unpickles.
+    """Read ``episodes.npz`` (``path`` is the dataset directory, one of its parts, see
+    [`resolve_dataset_dir`][resolve_dataset_dir], or an ``episodes.npz`` file itself); never unpickles.
 
     Raises:
-        UsageError (a ValueError naming ``path``): ``path`` does not exist or is no dataset directory, as
-        :func:`load_minari`.
+        UsageError: a ValueError naming ``path``: ``path`` does not exist or is no dataset directory, as
+            [`load_minari`][load_minari].
     """
     path = Path(path)
     d = read_npz(path if path.is_file() and path.suffix == ".npz" else resolve_dataset_dir(path) / "episodes.npz")

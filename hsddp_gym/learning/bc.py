@@ -1,5 +1,5 @@
-"""Behaviour cloning: an MLP trained on demonstrations (:func:`train_bc`), its NumPy policy (:class:`MLPPolicy`),
-and the whole job with evaluation and curves (:func:`run_bc`)."""
+"""Behaviour cloning: an MLP trained on demonstrations ([`train_bc`][train_bc]), its NumPy policy
+([`MLPPolicy`][MLPPolicy]), and the whole job with evaluation and curves ([`run_bc`][run_bc])."""
 
 from __future__ import annotations
 
@@ -90,15 +90,16 @@ class MLPPolicy(Policy):
         obs_mean: standardization of the inputs, their mean (obs_dim, plus 7 with ``gait_clock`` features, plus
             5 per slot with ``action_queue``, plus 1 with ``speed_input``).
         obs_std: their standard deviation (the same size).
-        config: the :class:`BCConfig` it was trained with.
-        clock: the :class:`hsddp_gym.planners.policies.mpc.GaitClock` (or its parameters as a dict) for ``gait_clock``
-            features; the policy then has memory (the clock), reset by :meth:`reset`.
+        config: the [`BCConfig`][BCConfig] it was trained with.
+        clock: the [`hsddp_gym.planners.policies.mpc.GaitClock`][hsddp_gym.planners.policies.mpc.clock.GaitClock] (or
+            its parameters as a dict) for ``gait_clock``
+            features; the policy then has memory (the clock), reset by `reset`.
 
     With ``config.action_queue`` slots the policy also remembers the actions it sent: it sees the
     ``interface.action_delay_steps`` of them that the env has not executed yet
-    (:func:`~hsddp_gym.learning.features.action_queue_features`), as the MPC's latency compensation does; a caller
-    that sends another action than the one returned (DART noise, a DAgger mixture) says so through
-    :meth:`note_sent_action`. A delay larger than the slots raises ``ValueError`` naming ``action_queue``.
+    ([`action_queue_features`][hsddp_gym.learning.features.action_queue_features]), as the MPC's latency compensation
+    does; a caller that sends another action than the one returned (DART noise, a DAgger mixture) says so through
+    [`note_sent_action`][note_sent_action]. A delay larger than the slots raises ``ValueError`` naming ``action_queue``.
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), weights=None, obs_mean=None, obs_std=None,
@@ -140,13 +141,14 @@ class MLPPolicy(Policy):
         self._sent = collections.deque(np.zeros(NU) for _ in range(self.delay))
 
     def note_sent_action(self, action) -> None:
-        """The action actually sent in place of the last one :meth:`act` returned (with ``action_queue``; a no-op
+        """The action actually sent in place of the last one `act` returned (with ``action_queue``; a no-op
         otherwise)."""
         if self.config.action_queue and self.delay:
             self._sent[-1] = np.asarray(action, dtype=np.float64).reshape(NU)
 
     def _queue_features(self) -> np.ndarray:
-        """``(5 action_queue,)``: this step's row of :func:`~hsddp_gym.learning.features.action_queue_features`."""
+        """``(5 action_queue,)``: this step's row of
+        [`action_queue_features`][hsddp_gym.learning.features.action_queue_features]."""
         return queue_row(self._sent, self.config.action_queue)
 
     def with_interface(self, interface: EnvInterface) -> MLPPolicy:
@@ -161,7 +163,7 @@ class MLPPolicy(Policy):
 
     def forward(self, obs: np.ndarray) -> np.ndarray:
         """Actions ``(n, 4)`` for network inputs ``(n, n_in)`` (float64): observations, with the gait-clock
-        features appended for ``features='gait_clock'`` (see :func:`build_inputs`)."""
+        features appended for ``features='gait_clock'`` (see [`build_inputs`][build_inputs])."""
         z = np.clip((np.asarray(obs, dtype=np.float64) - self.obs_mean) / self.obs_std, -self.config.obs_clip,
                     self.config.obs_clip)
         for W, b in self.weights[:-1]:
@@ -200,7 +202,7 @@ class MLPPolicy(Policy):
 
     @classmethod
     def load(cls, path, interface: EnvInterface | None = None) -> MLPPolicy:
-        """Read a policy written by :meth:`save` (no pickle). ``interface``: the env's (default: defaults)."""
+        """Read a policy written by [`save`][save] (no pickle). ``interface``: the env's (default: defaults)."""
         d = read_npz(path)
         meta = json.loads(str(d["meta"]))
         cfg = dict(meta["config"])
@@ -225,7 +227,7 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     Args:
         callback: called after every epoch with ``(epoch, mean_loss)``.
         clock: the gait clock for ``config.features == "gait_clock"`` (default: the default MPC's for
-            ``interface``, :func:`make_gait_clock`).
+            ``interface``, [`make_gait_clock`][make_gait_clock]).
         init: warm start: start from this policy's weights and keep its input standardization (its layer
             sizes, activation and features must match ``config``) instead of a fresh initialization.
     Returns:

@@ -1,4 +1,5 @@
-"""DAgger (Ross et al. 2011) with an expert that runs alongside the learner; see :mod:`hsddp_gym.learning`."""
+"""DAgger (Ross et al. 2011) with an expert that runs alongside the learner; see
+[`hsddp_gym.learning`][hsddp_gym.learning]."""
 
 from __future__ import annotations
 
@@ -36,29 +37,33 @@ class DAggerConfig:
             expert's clean action (0: none).
         warm_start: rounds >= 1 start training from the previous round's network and input standardization
             (``epochs`` per round, lr schedule restarted) instead of a fresh initialization.
-        conditions: names of :data:`hsddp_gym.envs.perturbations.CONDITIONS` (empty: the plain env):
+        conditions: names of
+            [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] (empty: the
+            plain env):
             episode ``j`` of every round runs in ``conditions[j % len(conditions)]`` (its perturbation seeded by
             its episode seed), so the learner is relabelled in the perturbed states it reaches. The expert
-            runs alongside on the *true* state (:func:`hsddp_gym.envs.perturbations.true_observation`: without
-            the observation noise) and is told the action actually sent
-            (:func:`hsddp_gym.datasets.recording.inform_sent_action`), so under latency its prediction of
-            the pending actions holds the learner's; the learner acts on (and the labels are stored with) the
-            perturbed observation.
+            runs alongside on the *true* state
+            ([`hsddp_gym.envs.perturbations.true_observation`][hsddp_gym.envs.perturbations.wrappers.true_observation]:
+            without the observation noise) and is told the action actually sent
+            ([`hsddp_gym.datasets.recording.inform_sent_action`][hsddp_gym.datasets.recording.inform_sent_action]), so
+            under latency its prediction of the pending actions holds the learner's; the learner acts on (and the labels
+            are stored with) the perturbed observation.
         rollout_steps: truncate the relabelling rollouts of rounds >= 1 after this many steps (None: run to
             the end of the episode). The learner's falls happen in the first ~150 steps (the start transient
             from the reset noise), so short rollouts spend the label budget on many initial states instead of
             on steady bounding. Only the labelled steps count; the evaluation is not truncated.
         estimator: the learner acts behind the MPC's perception
-            (:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`: the state filter, the
-            prediction over the action delay): every rollout stores what the learner sees through it (the estimate,
-            predicted over the delay; the expert's label is its action for the true state, its own prediction over
-            the delay included: the action for that predicted state), and the trained learner is meant to act behind
-            it. Round-0 demonstrations (``initial``) are used as they are: give ones of undisturbed envs, where the
-            estimate is the observation. Excludes ``bc.action_queue`` (the prediction replaces the queue).
+            ([`EstimatedStatePolicy`][hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy]: the state
+            filter, the prediction over the action delay): every rollout stores what the learner sees through it (the
+            estimate, predicted over the delay; the expert's label is its action for the true state, its own prediction
+            over the delay included: the action for that predicted state), and the trained learner is meant to act
+            behind it. Round-0 demonstrations (``initial``) are used as they are: give ones of undisturbed envs, where
+            the estimate is the observation. Excludes ``bc.action_queue`` (the prediction replaces the queue).
         env_id: the env of the rollouts, the learner's interface and the evaluations, one of
-            :data:`hsddp_gym.datasets.recording.DATASET_ENVS` (None: Bounding-v0). ``hsddp_gym/Pronking-v0``
-            takes no ``conditions`` and no ``estimator`` (both are Bounding-v0's); its expert is the pronk plan
-            tracker (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`, ``PolicySpec("expert",
+            [`hsddp_gym.datasets.recording.DATASET_ENVS`][hsddp_gym.datasets.recording.DATASET_ENVS] (None:
+            Bounding-v0). ``hsddp_gym/Pronking-v0`` takes no ``conditions`` and no ``estimator`` (both are
+            Bounding-v0's); its expert is the pronk plan tracker
+            ([`pronking_expert`][hsddp_gym.planners.policies.experts.pronking_expert], ``PolicySpec("expert",
             env_id=...)``).
     """
 
@@ -128,9 +133,9 @@ class DAggerResult:
 
 
 class DAggerMixture:
-    """What a relabelling rollout plays (:func:`dagger_rollout`): at every step the expert labels the true state, the
-    learner acts on what it sees, and the action sent is the expert's with probability ``beta`` (the learner's
-    otherwise) plus Gaussian noise; keeps the seen observations, the labels and the sent actions."""
+    """What a relabelling rollout plays ([`dagger_rollout`][dagger_rollout]): at every step the expert labels the true
+    state, the learner acts on what it sees, and the action sent is the expert's with probability ``beta`` (the
+    learner's otherwise) plus Gaussian noise; keeps the seen observations, the labels and the sent actions."""
 
     def __init__(self, env, learner, expert, beta: float, rng: np.random.Generator, noise: float,
                  perception) -> None:
@@ -177,15 +182,17 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
     """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
     observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
     plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the
-    true state (:func:`hsddp_gym.envs.perturbations.true_observation`; the env's observation unless it is
-    wrapped in observation noise) and is told the action sent (:func:`inform_sent_action`); the learner acts
-    on the env's observation, which is what is stored. The learner acts at every step, so that its memory (gait
-    clock, latency queue) follows the episode whichever policy's action is sent, and it is told the action sent too.
-    ``perception``: an :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` through which the
-    learner sees (``DAggerConfig.estimator``): the learner acts on, and the rollout stores, its
-    :meth:`observation_for_inner`. The episode starts from ``options`` and the expert's ``reset_options``
-    (:func:`hsddp_gym.rollout.episodes.run_episode`). Returns ``(obs (T, d), expert actions (T, 4), sent actions
-    (T, 4), return, expert acts)``."""
+    true state
+    ([`hsddp_gym.envs.perturbations.true_observation`][hsddp_gym.envs.perturbations.wrappers.true_observation]; the
+    env's observation unless it is wrapped in observation noise) and is told the action sent
+    ([`inform_sent_action`][hsddp_gym.datasets.recording.inform_sent_action]); the learner acts on the env's
+    observation, which is what is stored. The learner acts at every step, so that its memory (gait clock, latency queue)
+    follows the episode whichever policy's action is sent, and it is told the action sent too. ``perception``: an
+    [`EstimatedStatePolicy`][hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy] through which the learner
+    sees (``DAggerConfig.estimator``): the learner acts on, and the rollout stores, its `observation_for_inner`. The
+    episode starts from ``options`` and the expert's ``reset_options``
+    ([`hsddp_gym.rollout.episodes.run_episode`][hsddp_gym.rollout.episodes.run_episode]). Returns ``(obs (T, d), expert
+    actions (T, 4), sent actions (T, 4), return, expert acts)``."""
     from hsddp_gym.rollout.episodes import Returns, run_episode
 
     mixture = DAggerMixture(env, learner, expert, beta, rng, noise, perception)
@@ -217,7 +224,7 @@ class RolloutTask:
 
 
 def run_rollout_task(task: RolloutTask) -> tuple:
-    """Worker entry point: a fresh env (the task's condition) and expert, one :func:`dagger_rollout`; the
+    """Worker entry point: a fresh env (the task's condition) and expert, one [`dagger_rollout`][dagger_rollout]; the
     learner acts with the env's interface (its target speed, its action delay). Returns ``(obs, labels, sent
     actions, return, expert acts, target speed, action delay)``."""
     from hsddp_gym.datasets.collection import make_env
@@ -254,12 +261,14 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
 
     Args:
         expert_factory: ``(env, episode_seed) -> expert Policy`` (its ``reset_options`` attribute, when it has one,
-            starts the rollouts), e.g. :class:`hsddp_gym.rollout.policies.PolicySpec`; one expert is built per
-            rollout.
+            starts the rollouts), e.g. [`hsddp_gym.rollout.policies.PolicySpec`][hsddp_gym.rollout.policies.PolicySpec];
+            one expert is built per rollout.
         initial: round-0 demonstrations (None: ``episodes_per_round`` expert episodes are recorded).
         evaluate: optional ``policy -> dict`` called on each round's learner (stored in the history).
-        clock: the gait clock of ``gait_clock`` features (default: the default MPC's, :func:`make_gait_clock`).
-        workers: processes running a round's rollouts (:func:`hsddp_gym.util.parallel.run_parallel`; each
+        clock: the gait clock of ``gait_clock`` features (default: the default MPC's,
+            [`make_gait_clock`][make_gait_clock]).
+        workers: processes running a round's rollouts
+            ([`hsddp_gym.util.parallel.run_parallel`][hsddp_gym.util.parallel.run_parallel]; each
             rollout has its own env, expert and seeds, so the result does not depend on it).
     """
     from tqdm import tqdm
@@ -322,13 +331,15 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
 
 
 DATA_OPTIONAL = ("target_speed", "sent_actions", "action_delay")
-"""The optional per-pair arrays of :class:`Demonstrations` that ``dagger_data.npz`` keeps when the data have them."""
+"""The optional per-pair arrays of [`Demonstrations`][Demonstrations] that ``dagger_data.npz`` keeps when the data have
+them."""
 
 
 def load_dagger_data(path) -> Demonstrations:
-    """The aggregate labels of a :func:`run_dagger` run (its directory or its ``dagger_data.npz``) as
-    :class:`Demonstrations` (no feedback laws; the optional per-pair arrays the file holds), e.g. to train another
-    learner on the same labels with :func:`hsddp_gym.learning.bc.train_bc`. Never unpickles."""
+    """The aggregate labels of a [`run_dagger`][run_dagger] run (its directory or its ``dagger_data.npz``) as
+    [`Demonstrations`][Demonstrations] (no feedback laws; the optional per-pair arrays the file holds), e.g. to train
+    another learner on the same labels with [`hsddp_gym.learning.bc.train_bc`][hsddp_gym.learning.bc.train_bc]. Never
+    unpickles."""
     from hsddp_gym.util.io import read_npz
 
     path = Path(path)
@@ -352,7 +363,8 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         workers: processes for each round's rollouts (the result does not depend on it).
         env_id: the env (None: ``config.env_id``, else the env of ``dataset``'s metadata, else Bounding-v0); in
             ``hsddp_gym/Pronking-v0`` the expert must be ``"expert"``: the pronk plan tracker
-            (:func:`~hsddp_gym.planners.policies.experts.pronking_expert`, its plan solved at the env's target speed).
+            ([`pronking_expert`][hsddp_gym.planners.policies.experts.pronking_expert], its plan solved at the env's
+            target speed).
     """
     from hsddp_gym.datasets.recording import ENV_ID, check_env_id, solve_expert_plan
     from hsddp_gym.registry import task_of_env_id

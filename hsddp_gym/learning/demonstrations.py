@@ -10,7 +10,7 @@ import numpy as np
 # ================================================================================================ data
 FEEDBACK_KEYS = ("qpos", "qvel", "expert_state_nominal", "expert_action_nominal", "expert_feedback_gain",
                  "expert_tracking")
-"""The ``infos`` keys :class:`FeedbackLaw` is read from (a dataset generated with gains, ``--gains``)."""
+"""The ``infos`` keys [`FeedbackLaw`][FeedbackLaw] is read from (a dataset generated with gains, ``--gains``)."""
 
 
 @dataclasses.dataclass
@@ -62,12 +62,13 @@ class FeedbackLaw:
 class Demonstrations:
     """Labelled observations: ``obs (N, d)`` float32, ``actions (N, 4)`` float32, ``episode (N,)`` the
     episode each pair comes from (0-based, in dataset order), ``feedback`` the expert's local feedback law
-    at each pair (:class:`FeedbackLaw`; None when the dataset has no gains), ``target_speed (N,)`` the env's
+    at each pair ([`FeedbackLaw`][FeedbackLaw]; None when the dataset has no gains), ``target_speed (N,)`` the env's
     target speed [m/s] of each pair's episode (from the dataset's metadata; None when unknown),
     ``sent_actions (N, 4)`` the action sent to the env at each pair (the label plus DART noise, or the
     learner's in a DAgger rollout; None when unknown) and ``action_delay (N,)`` the actuation delay [control steps]
-    of each pair's episode (:class:`~hsddp_gym.envs.perturbations.ActionDelay`; None when unknown). The last two
-    rebuild the learner's latency queue (:func:`hsddp_gym.learning.features.action_queue_features`)."""
+    of each pair's episode ([`ActionDelay`][hsddp_gym.envs.perturbations.wrappers.ActionDelay]; None when unknown). The
+    last two rebuild the learner's latency queue
+    ([`hsddp_gym.learning.features.action_queue_features`][hsddp_gym.learning.features.action_queue_features])."""
 
     obs: np.ndarray
     actions: np.ndarray
@@ -113,9 +114,12 @@ def load_demonstrations(source, episodes: int | None = None, fmt: str = "minari"
     DART action noise, whose ``actions`` are the noisy executed ones), the recorded action otherwise.
 
     Args:
-        source: a ``MinariDataset``, a :class:`hsddp_gym.datasets.storage.FlatDataset`, a dataset directory written
-            by :func:`hsddp_gym.datasets.generation.generate_dataset`, an ``episodes.npz`` file, or a list of
-            these (their pairs concatenated, e.g. demonstrations at several target speeds).
+        source: a ``MinariDataset``, a
+            [`hsddp_gym.datasets.storage.FlatDataset`][hsddp_gym.datasets.storage.FlatDataset], a dataset directory
+            written by
+            [`hsddp_gym.datasets.generation.generate_dataset`][hsddp_gym.datasets.generation.generate_dataset], an
+            ``episodes.npz`` file, or a list of these (their pairs concatenated, e.g. demonstrations at several target
+            speeds).
         episodes: use only the first ``episodes`` episodes (None: all; of each source for a list).
         fmt: for a directory, read the Minari dataset (``"minari"``, via ``minari.load_dataset``) or
             ``episodes.npz`` (``"npz"``).

@@ -5,8 +5,8 @@ training seeds fall mostly on different evaluation episodes).
 Averaging their actions is the classic variance reduction of bagging; for a policy it also smooths the
 idiosyncratic corrections each network learned off the expert's states. Each member keeps its own memory (its
 gait clock, its latency queue); members trained behind the MPC's perception share one estimator
-(:class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy`) around the ensemble, as each of them
-acted behind one alone.
+([`EstimatedStatePolicy`][hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy]) around the ensemble, as
+each of them acted behind one alone.
 """
 
 from __future__ import annotations
@@ -68,10 +68,10 @@ class EnsemblePolicy(Policy):
 
 def load_mlp_learner(run_dirs, interface: EnvInterface = EnvInterface()) -> Policy:
     """A trained ``hsddp-gym train --algo bc|dagger`` learner for the env of ``interface``, as it was trained to act:
-    one run directory (``DIR/policy.npz``) gives its network, several the mean-action :class:`EnsemblePolicy` of
-    theirs. A learner trained behind the MPC's perception (``info["estimator"]``, DAgger's ``--estimator``) acts
-    behind one :class:`~hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy` (shared by the members of
-    an ensemble); mixing such members with plain ones raises ``ValueError``. The one loader of MLP learners
+    one run directory (``DIR/policy.npz``) gives its network, several the mean-action [`EnsemblePolicy`][EnsemblePolicy]
+    of theirs. A learner trained behind the MPC's perception (``info["estimator"]``, DAgger's ``--estimator``) acts
+    behind one [`EstimatedStatePolicy`][hsddp_gym.planners.policies.estimated_state.EstimatedStatePolicy] (shared by the
+    members of an ensemble); mixing such members with plain ones raises ``ValueError``. The one loader of MLP learners
     (``hsddp_gym.workflows.make_policy``, the robustness benchmark and the policy comparison use it).
 
     Args:
@@ -107,8 +107,9 @@ def load_mlp_learner(run_dirs, interface: EnvInterface = EnvInterface()) -> Poli
 
 
 def load_mlp_ensemble(run_dirs: Sequence, interface: EnvInterface = EnvInterface()) -> Policy:
-    """The mean-action ensemble of two or more (or one) ``hsddp-gym train --algo bc|dagger`` runs: :func:`
-    load_mlp_learner` with a list of run directories (a single directory, not in a list, raises ``ValueError``).
+    """The mean-action ensemble of two or more (or one) ``hsddp-gym train --algo bc|dagger`` runs:
+    [`load_mlp_learner`][load_mlp_learner] with a list of run directories (a single directory, not in a list, raises
+    ``ValueError``).
 
     Args:
         run_dirs: one or more run directories (str or Path), in a list or tuple.

@@ -11,18 +11,19 @@ from hsddp_gym.planners.policies.base import EnvInterface
 
 FEATURES = ("obs", "gait_clock")
 """Inputs of the MLP: ``obs`` (the observation) or ``gait_clock`` (the observation plus the 7
-:meth:`hsddp_gym.planners.policies.mpc.GaitClock.features` of the MPC's gait clock, rebuilt from the observation
-history)."""
+[`hsddp_gym.planners.policies.mpc.GaitClock.features`][hsddp_gym.planners.policies.mpc.clock.GaitClock.features] of the
+MPC's gait clock, rebuilt from the observation history)."""
 QUEUE_SLOT_SIZE = NU + 1
-"""Inputs per latency-queue slot (:func:`action_queue_features`): an action and a pending mark."""
+"""Inputs per latency-queue slot ([`action_queue_features`][action_queue_features]): an action and a pending mark."""
 
 
 # ================================================================================================ features
 def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options=None):
-    """The :class:`hsddp_gym.planners.policies.mpc.GaitClock` of an :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    built for ``interface`` with ``mpc_options`` (an ``MPCOptions``, a record of one as a dict,
-    :meth:`~hsddp_gym.planners.policies.mpc.MPCOptions.from_record`, or None: the defaults): its gait's durations,
-    the control period and the clock's fields of its schedule options."""
+    """The [`hsddp_gym.planners.policies.mpc.GaitClock`][hsddp_gym.planners.policies.mpc.clock.GaitClock] of an
+    [`hsddp_gym.planners.policies.mpc.MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy] built for
+    ``interface`` with ``mpc_options`` (an ``MPCOptions``, a record of one as a dict,
+    [`from_record`][hsddp_gym.planners.policies.mpc.options.MPCOptions.from_record], or None: the defaults): its gait's
+    durations, the control period and the clock's fields of its schedule options."""
     from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
     from hsddp_gym.planners.policies.mpc import GaitClock, MPCOptions
 
@@ -34,9 +35,10 @@ def make_gait_clock(interface: EnvInterface = EnvInterface(), mpc_options=None):
 def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
     """``(T, 7)`` gait-clock features of one episode's observations ``obs (T, d)`` in order: the clock is
     reset, then for every observation updated from its contact flags and pitch rate, read, and ticked
-    (exactly what :class:`MLPPolicy` does while acting, and :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`
-    with ``touchdown_height=None``: its late-landing rule reads the foot heights of its state estimate,
-    :meth:`~hsddp_gym.planners.policies.mpc.GaitClock.observe`)."""
+    (exactly what [`MLPPolicy`][hsddp_gym.learning.bc.MLPPolicy] does while acting, and
+    [`hsddp_gym.planners.policies.mpc.MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy] with
+    ``touchdown_height=None``: its late-landing rule reads the foot heights of its state estimate,
+    [`observe`][hsddp_gym.planners.policies.mpc.clock.GaitClock.observe])."""
     from hsddp_gym.core.observation import DEFAULT_LAYOUT, state_from_observation
 
     layout = layout if layout is not None else DEFAULT_LAYOUT
@@ -52,8 +54,9 @@ def gait_clock_features(obs: np.ndarray, clock, layout=None) -> np.ndarray:
 
 
 def queue_row(pending, slots: int) -> np.ndarray:
-    """``(5 slots,)``: one row of :func:`action_queue_features` from the ``pending`` actions ``(d, 4)`` (oldest first,
-    ``d <= slots``) -- what a policy acting in the env builds from the actions it remembers sending."""
+    """``(5 slots,)``: one row of [`action_queue_features`][action_queue_features] from the ``pending`` actions ``(d,
+    4)`` (oldest first, ``d <= slots``) -- what a policy acting in the env builds from the actions it remembers
+    sending."""
     out = np.zeros((int(slots), QUEUE_SLOT_SIZE))
     for j, a in enumerate(pending):
         out[j, :NU], out[j, NU] = a, 1.0
@@ -61,8 +64,9 @@ def queue_row(pending, slots: int) -> np.ndarray:
 
 
 def action_queue_features(sent: np.ndarray, delay: int, slots: int) -> np.ndarray:
-    """``(T, 5 slots)`` (:data:`QUEUE_SLOT_SIZE` per slot) latency-queue features of one episode whose actions
-    ``sent (T, 4)`` were executed ``delay`` control steps late (:class:`~hsddp_gym.envs.perturbations.ActionDelay`).
+    """``(T, 5 slots)`` ([`QUEUE_SLOT_SIZE`][QUEUE_SLOT_SIZE] per slot) latency-queue features of one episode whose
+    actions ``sent (T, 4)`` were executed ``delay`` control steps late
+    ([`ActionDelay`][hsddp_gym.envs.perturbations.wrappers.ActionDelay]).
 
     Row ``t`` (the observation at which action ``t`` is chosen) holds the ``delay`` actions sent before it and not
     yet executed, in the order the env will execute them (``sent[t - delay]`` first; the zero torques the
@@ -100,8 +104,8 @@ def _episode_runs(episode: np.ndarray) -> list[tuple[int, int]]:
 def build_inputs(demos: Demonstrations, config, clock=None, layout=None) -> np.ndarray:
     """The MLP inputs (float64) of ``demos`` for ``config.features`` (``clock``: a GaitClock for
     ``gait_clock``; each episode -- a contiguous run of one episode id -- starts from a reset clock), then the
-    latency queue (:func:`action_queue_features`) when ``config.action_queue``, and the target speed [m/s] of each
-    pair's episode appended last when ``config.speed_input``."""
+    latency queue ([`action_queue_features`][action_queue_features]) when ``config.action_queue``, and the target speed
+    [m/s] of each pair's episode appended last when ``config.speed_input``."""
     obs = np.asarray(demos.obs, dtype=np.float64)
     if config.features == "gait_clock":
         if clock is None:

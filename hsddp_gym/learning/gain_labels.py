@@ -5,8 +5,8 @@ recorded in a dataset with ``hsddp-gym dataset --gains``). Next to every demonst
 state ``x``, action) the law also gives the expert's action at nearby states, ``u(x + dx) = u(x) + K dx`` (up to
 the clip to the torque limit), without running the expert again: DART-style noise injection (Laskey et al.
 2017) done offline, or a finite-difference version of a loss on the policy's Jacobian against ``K``
-(Sobolev training, Czarnecki et al. 2017). :func:`gain_augmented_pairs` draws ``copies`` perturbed copies of
-every pair whose action came from the law (``expert_tracking``), with state offsets
+(Sobolev training, Czarnecki et al. 2017). [`gain_augmented_pairs`][gain_augmented_pairs] draws ``copies`` perturbed
+copies of every pair whose action came from the law (``expert_tracking``), with state offsets
 ``dx ~ N(0, diag(position_std^2, velocity_std^2))`` on the observed positions and velocities (the trunk ``x``
 is never perturbed: ``K`` has no x column), and labels them with the law. Contact flags, the gait phase and
 the gait-clock features of a copy are those of its pair (a small state offset does not change the contact

@@ -32,8 +32,8 @@ def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwar
                              max_episode_steps: int | None = None, reset_options: dict | None = None,
                              env_id: str | None = None) -> dict:
     """The comparison protocol: ``episodes`` episodes seeded ``seed, seed + 1, ...``, the policy's
-    deterministic actions; returns :func:`hsddp_gym.rollout.episodes.summarize` (mean/std return, falls,
-    forward speed, episode length, ...); ``env_id``: the env (None: Bounding-v0)."""
+    deterministic actions; returns [`hsddp_gym.rollout.episodes.summarize`][hsddp_gym.rollout.episodes.summarize]
+    (mean/std return, falls, forward speed, episode length, ...); ``env_id``: the env (None: Bounding-v0)."""
     from hsddp_gym.datasets.collection import make_env
     from hsddp_gym.rollout.episodes import run_episode, summarize
 

@@ -1,10 +1,10 @@
-"""The compiled vector env (:class:`hsddp_gym.envs.vector.BoundingVectorEnv`) as a Stable-Baselines3 ``VecEnv``,
-so that PPO / SAC train on N robots stepped by one call.
+"""The compiled vector env ([`hsddp_gym.envs.vector.BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv]) as a
+Stable-Baselines3 ``VecEnv``, so that PPO / SAC train on N robots stepped by one call.
 
 SB3 resets a finished env itself and returns the reset observation, with the last one in
 ``infos[i]["terminal_observation"]`` and ``infos[i]["TimeLimit.truncated"]`` (truncated, not terminated):
-:func:`make_sb3_vec_env` runs the vector env with ``autoreset_mode="same_step"``, which gives exactly that.
-"""
+[`make_sb3_vec_env`][make_sb3_vec_env] runs the vector env with ``autoreset_mode="same_step"``, which gives exactly
+that. """
 
 from __future__ import annotations
 
@@ -20,12 +20,12 @@ INFO_FORWARD = ("x_velocity", "reward_forward", "reward_ctrl", "reward_healthy",
 
 def make_sb3_vec_env(num_envs: int, seed: int | None = None, max_episode_steps: int | None = 1000,
                      **env_kwargs):
-    """A :class:`stable_baselines3.common.vec_env.VecEnv` over ``BoundingVectorEnv(num_envs, ...)``.
+    """A `stable_baselines3.common.vec_env.VecEnv` over ``BoundingVectorEnv(num_envs, ...)``.
 
     Args:
         num_envs: robots (>= 1). seed: the seed of the first reset (robot ``i`` gets ``seed + i``, as SB3's
             ``VecEnv.seed``); None: random. max_episode_steps: the time limit (None: none).
-        **env_kwargs: :class:`~hsddp_gym.envs.bounding.BoundingEnv` arguments (see ``BoundingVectorEnv``).
+        **env_kwargs: [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] arguments (see ``BoundingVectorEnv``).
     """
     require(["stable_baselines3"], "make_sb3_vec_env")
     from gymnasium.vector import AutoresetMode

@@ -1,6 +1,6 @@
 """Every results figure of the README and the documentation site, drawn from the records of the results store.
 
-Each figure is a function of record data; :data:`FIGURES` maps a published figure (its path under the repository)
+Each figure is a function of record data; [`FIGURES`][FIGURES] maps a published figure (its path under the repository)
 to the record it is drawn from and the function that draws it. The experiment scripts call the same functions on
 the data they record, so a figure from a run and a figure from the store are the same drawing.
 """
@@ -96,9 +96,10 @@ MOTION_STATE_STRIDE = 5
 
 
 def motion_figure_data(X: np.ndarray, dt: float) -> dict:
-    """What :func:`motion_figures` draws of one planned motion ``X (N+1, 14)`` with knot spacing ``dt`` [s], small
-    enough for the results store: :data:`MOTION_SNAPSHOTS` evenly spaced configurations (7 columns) and the trunk
-    height, pitch and forward speed every :data:`MOTION_STATE_STRIDE` knots (4 significant digits)."""
+    """What [`motion_figures`][motion_figures] draws of one planned motion ``X (N+1, 14)`` with knot spacing ``dt`` [s],
+    small enough for the results store: [`MOTION_SNAPSHOTS`][MOTION_SNAPSHOTS] evenly spaced configurations (7 columns)
+    and the trunk height, pitch and forward speed every [`MOTION_STATE_STRIDE`][MOTION_STATE_STRIDE] knots (4
+    significant digits)."""
     from hsddp_gym.core.conventions import IPITCH, IVX, IZ
     from hsddp_gym.reports.store import compact
 
@@ -111,7 +112,8 @@ def motion_figure_data(X: np.ndarray, dt: float) -> dict:
 
 
 def _motion_arrays(fig: dict) -> tuple[np.ndarray, np.ndarray]:
-    """``(snapshots (S, 14), states (M, 14))`` of :func:`motion_figure_data`'s dict (other columns zero)."""
+    """``(snapshots (S, 14), states (M, 14))`` of [`motion_figure_data`][motion_figure_data]'s dict (other columns
+    zero)."""
     from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NX
 
     snaps = np.asarray(fig["snapshots"], dtype=float)
@@ -262,7 +264,7 @@ STORE_FIGURES: list[Callable] = [robustness, motions, jumps]
 
 
 def regenerate(store, root) -> list[Path]:
-    """Draw every figure of :data:`FIGURES` from ``store`` into ``root/docs/figures``.
+    """Draw every figure of [`FIGURES`][FIGURES] from ``store`` into ``root/docs/figures``.
 
     Returns:
         the paths written.

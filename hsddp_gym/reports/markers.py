@@ -1,8 +1,8 @@
 """Generated blocks in Markdown files: the text between ``<!-- results: ID -->`` and ``<!-- /results -->``.
 
-The block's content belongs to the generator (:mod:`hsddp_gym.reports.tables`); everything outside the markers is the
-author's. :func:`render_file` returns a file's text with every block regenerated, so a check is a comparison.
-"""
+The block's content belongs to the generator ([`hsddp_gym.reports.tables`][hsddp_gym.reports.tables]); everything
+outside the markers is the author's. `render_file` returns a file's text with every block regenerated, so a check is a
+comparison. """
 
 from __future__ import annotations
 

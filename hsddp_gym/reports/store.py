@@ -14,7 +14,7 @@ A record is one file ``results/<topic>/<name>.json``; its id is the path under `
 
 ``command`` is a string or a list of strings (several commands, in order). Records are written atomically and read
 as plain JSON (nothing is unpickled). Tables and figures are made from records only
-(:mod:`hsddp_gym.reports.tables`, :mod:`hsddp_gym.reports.figures`).
+([`hsddp_gym.reports.tables`][hsddp_gym.reports.tables], [`hsddp_gym.reports.figures`][hsddp_gym.reports.figures]).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def write_record(path, data: dict, description: str, command: str | list[str] | 
         data: the measurements (JSON-serializable; NumPy arrays and scalars are converted).
         description: what the record is, one sentence.
         command: the command(s) that made it (default: this process's command line).
-        machine: :func:`machine_info` taken before the measurement (``load_average_after`` is added now).
+        machine: [`machine_info`][machine_info] taken before the measurement (``load_average_after`` is added now).
     """
     from hsddp_gym import __version__
 

@@ -1,9 +1,9 @@
 """Playing policies in the task envs: the policy factory, the tasks' plans and experts, the episode loop and the
 tasks' per-episode measures.
 
-The layer below datasets and learning (it reads the task registry, :mod:`hsddp_gym.registry`; learned policies are
-loaded through ``"module:attr"`` strings, :data:`hsddp_gym.rollout.policies.LEARNED_LOADERS`).
-"""
+The layer below datasets and learning (it reads the task registry, [`hsddp_gym.registry`][hsddp_gym.registry]; learned
+policies are loaded through ``"module:attr"`` strings,
+[`hsddp_gym.rollout.policies.LEARNED_LOADERS`][hsddp_gym.rollout.policies.LEARNED_LOADERS]). """
 
 from hsddp_gym.util.lazy import lazy_exports
 

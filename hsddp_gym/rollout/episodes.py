@@ -1,11 +1,11 @@
 """The episode loop: one seeded episode of a policy in an env, seen by observers; the episodes' statistics.
 
-:func:`run_episode` is the one loop of the package: the rollouts and demos, the datasets' recording
-(:func:`hsddp_gym.datasets.recording.record_episode`), DAgger's relabelling rollouts, the learners' evaluation and
-every experiment play their episodes through it. What they keep of an episode is an observer's job: an object with
-``on_reset(env, obs, info)`` and ``on_step(env, action, obs, reward, terminated, truncated, info)`` (either may be
-missing), called after the reset and after every step (:class:`FrameRecorder`, :class:`Returns`, the datasets'
-decision recorder, the tasks' measures).
+[`run_episode`][run_episode] is the one loop of the package: the rollouts and demos, the datasets' recording
+([`hsddp_gym.datasets.recording.record_episode`][hsddp_gym.datasets.recording.record_episode]), DAgger's relabelling
+rollouts, the learners' evaluation and every experiment play their episodes through it. What they keep of an episode is
+an observer's job: an object with ``on_reset(env, obs, info)`` and ``on_step(env, action, obs, reward, terminated,
+truncated, info)`` (either may be missing), called after the reset and after every step
+([`FrameRecorder`][FrameRecorder], [`Returns`][Returns], the datasets' decision recorder, the tasks' measures).
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ class EpisodeResult:
 
 
 class FrameRecorder:
-    """Observer: the ``env.render()`` frames of an episode (the reset's and one per step) in :attr:`frames` (the
+    """Observer: the ``env.render()`` frames of an episode (the reset's and one per step) in `frames` (the
     env needs ``render_mode="rgb_array"``)."""
 
     def __init__(self) -> None:
@@ -51,8 +51,8 @@ class FrameRecorder:
 
 
 class Returns:
-    """Observer: the episode's return summed step by step (:attr:`total`), its length (:attr:`steps`) and the
-    reset's and the last step's ``info`` (:attr:`first_info`, :attr:`last_info`)."""
+    """Observer: the episode's return summed step by step (`total`), its length (`steps`) and the
+    reset's and the last step's ``info`` (`first_info`, `last_info`)."""
 
     def __init__(self) -> None:
         self.total, self.steps, self.first_info, self.last_info = 0.0, 0, None, None
@@ -68,7 +68,8 @@ class Returns:
 
 def reset_options_of(policy, options: dict | None = None) -> dict | None:
     """The reset options of an episode of ``policy``: its ``reset_options`` attribute (the expert's start, see
-    :func:`hsddp_gym.rollout.policies.make_policy`) updated with ``options``; None when neither has any."""
+    [`hsddp_gym.rollout.policies.make_policy`][hsddp_gym.rollout.policies.make_policy]) updated with ``options``; None
+    when neither has any."""
     own = getattr(policy, "reset_options", None)
     if own is None:
         return options
@@ -82,7 +83,7 @@ def run_episode(env, policy, seed: int, options: dict | None = None, max_steps: 
     ``max_steps`` steps.
 
     ``observers`` see the reset and every step (see the module docstring); the time they take is not counted in
-    ``wall_time``. ``render``: collect the frames into ``EpisodeResult.frames`` (a :class:`FrameRecorder`).
+    ``wall_time``. ``render``: collect the frames into ``EpisodeResult.frames`` (a [`FrameRecorder`][FrameRecorder]).
     """
     frames = FrameRecorder() if render else None
     observers = (*observers, frames) if frames is not None else tuple(observers)

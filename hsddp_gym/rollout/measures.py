@@ -1,9 +1,9 @@
 """The tasks' per-episode measures (``Task.measures`` of the task registry) and the observer that takes them.
 
-A :class:`Measures` says what an episode of a task keeps beyond its return, length and fall: an accumulator started
+A [`Measures`][Measures] says what an episode of a task keeps beyond its return, length and fall: an accumulator started
 from the reset's ``info`` and updated with every step's, the episode's values from it and the last step's ``info``,
-its success, the measures of a row of episodes and their printed form. :class:`TaskEpisodes` is the episode loop's
-observer that applies them (:func:`hsddp_gym.rollout.episodes.run_episode`).
+its success, the measures of a row of episodes and their printed form. [`TaskEpisodes`][TaskEpisodes] is the episode
+loop's observer that applies them ([`hsddp_gym.rollout.episodes.run_episode`][hsddp_gym.rollout.episodes.run_episode]).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ class Measures:
 
 class TaskEpisodes:
     """Observer of the episode loop: per episode, ``{"seed", "return", "length", "fell", **measures, "success"}``
-    (:meth:`episode`, after :func:`~hsddp_gym.rollout.episodes.run_episode`)."""
+    ([`episode`][episode], after [`run_episode`][hsddp_gym.rollout.episodes.run_episode])."""
 
     def __init__(self, measures: Measures) -> None:
         self.measures = measures
@@ -193,4 +193,4 @@ PRONK = Measures(start=_pronk_start, update=_pronk_update, finish=_pronk_finish,
                                      f"{r['min_match_fraction']:.3f})"),
                  success=_pronk_success, return_digits=None)
 """The pronk's: the mean forward speed and the fraction of control steps with matching contact flags; success by
-:func:`hsddp_gym.envs.pronking.pronking_success`."""
+[`hsddp_gym.envs.pronking.pronking_success`][hsddp_gym.envs.pronking.pronking_success]."""

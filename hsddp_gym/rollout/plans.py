@@ -1,4 +1,5 @@
-"""The tasks' HS-DDP plans and plan-tracking experts, read from the task registry (:mod:`hsddp_gym.registry`).
+"""The tasks' HS-DDP plans and plan-tracking experts, read from the task registry
+([`hsddp_gym.registry`][hsddp_gym.registry]).
 
 One cache for every task: a plan is solved once per process and per task and values of its env-read arguments
 (``Task.plan_inputs``: plan knots per control period, target speed). The one place an expert is built.
@@ -27,8 +28,8 @@ def env_plan_inputs(task: Task, env) -> dict:
 
 
 def solve_task_plan(task: Task, **inputs):
-    """The result of ``task``'s plan function (a :class:`~hsddp_gym.planners.tasks.PlanResult` or a
-    :class:`~hsddp_gym.planners.optimizer.solution.Solution`) for the values ``inputs`` of ``task.plan_inputs``,
+    """The result of ``task``'s plan function (a [`PlanResult`][hsddp_gym.planners.tasks.PlanResult] or a
+    [`Solution`][hsddp_gym.planners.optimizer.solution.Solution]) for the values ``inputs`` of ``task.plan_inputs``,
     solved once per process and per ``(task, inputs)``."""
     if task.plan is None:
         raise ValueError(f"task {task.name!r} has no plan (its expert is the {task.dataset_expert!r} policy)")
@@ -42,8 +43,9 @@ def solve_task_plan(task: Task, **inputs):
 
 
 def task_plan(task: Task, env=None, **inputs):
-    """``task``'s plan (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`) for ``env`` (its control period
-    and target speed, when the plan reads them) or for the given ``inputs`` (cached, :func:`solve_task_plan`)."""
+    """``task``'s plan (a [`Solution`][hsddp_gym.planners.optimizer.solution.Solution]) for ``env`` (its control period
+    and target speed, when the plan reads them) or for the given ``inputs`` (cached,
+    [`solve_task_plan`][solve_task_plan])."""
     if env is not None:
         inputs = {**env_plan_inputs(task, env), **inputs}
     result = solve_task_plan(task, **inputs)
@@ -52,8 +54,8 @@ def task_plan(task: Task, env=None, **inputs):
 
 def plan_summary(task: Task, **inputs) -> dict:
     """What a dataset records of ``task``'s plan for ``inputs``: status, convergence, iterations, switching
-    violation, cost, solve time (and, for a :class:`~hsddp_gym.planners.tasks.PlanResult`, its forward speed; for a
-    held plan its ``hold``)."""
+    violation, cost, solve time (and, for a [`PlanResult`][hsddp_gym.planners.tasks.PlanResult], its forward speed; for
+    a held plan its ``hold``)."""
     result = solve_task_plan(task, **inputs)
     if hasattr(result, "summary"):
         return {k: result.summary[k] for k in _KEEP if k in result.summary}
@@ -64,9 +66,9 @@ def plan_summary(task: Task, **inputs) -> dict:
 
 
 def make_expert(env, solution=None, task: Task | None = None):
-    """The plan-tracking expert of ``env``'s task (``task``: that task, default :func:`task_of_env`) tracking
-    ``solution`` (None: the task's plan for the env, :func:`task_plan`); its ``reset_options`` attribute holds the
-    reset options its episodes need (``{"state": plan.X[0]}`` when the expert starts at its plan's first state, else
+    """The plan-tracking expert of ``env``'s task (``task``: that task, default [`task_of_env`][task_of_env]) tracking
+    ``solution`` (None: the task's plan for the env, [`task_plan`][task_plan]); its ``reset_options`` attribute holds
+    the reset options its episodes need (``{"state": plan.X[0]}`` when the expert starts at its plan's first state, else
     None)."""
     task = task if task is not None else task_of_env(env)
     if task.expert is None:

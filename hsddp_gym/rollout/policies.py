@@ -1,13 +1,13 @@
 """The policy factory: every policy by name, with one return convention.
 
-:func:`make_policy` takes a name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy ``bc:DIR``,
-``dagger:DIR``, ``sb3:DIR``, ``ppo:DIR``, ``sac:DIR``) or a picklable :class:`PolicySpec` (a name and its options),
-and returns a :class:`~hsddp_gym.planners.policies.base.Policy`. The reset options a policy's episodes need (the
-bounding expert starts at its plan's first state) are its ``reset_options`` attribute, which the episode loop
-(:func:`hsddp_gym.rollout.episodes.run_episode`) reads.
+[`make_policy`][make_policy] takes a name (``mpc``, ``expert``, ``heuristic``, ``random``, or a trained policy
+``bc:DIR``, ``dagger:DIR``, ``sb3:DIR``, ``ppo:DIR``, ``sac:DIR``) or a picklable [`PolicySpec`][PolicySpec] (a name and
+its options), and returns a [`Policy`][hsddp_gym.planners.policies.base.Policy]. The reset options a policy's episodes
+need (the bounding expert starts at its plan's first state) are its ``reset_options`` attribute, which the episode loop
+([`hsddp_gym.rollout.episodes.run_episode`][hsddp_gym.rollout.episodes.run_episode]) reads.
 
 Trained policies are built by the learning layer, above this one: their loaders are ``"module:attr"`` strings
-(:data:`LEARNED_LOADERS`), imported when used, so the import graph keeps pointing one way.
+([`LEARNED_LOADERS`][LEARNED_LOADERS]), imported when used, so the import graph keeps pointing one way.
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ POLICIES = ("mpc", "expert", "heuristic", "random")
 """The built-in policies."""
 LEARNED_POLICIES = ("bc", "dagger", "sb3", "ppo", "sac")
 """Prefixes of learned policies, ``KIND:DIR`` with ``DIR`` the ``--out`` of ``hsddp-gym train``: ``bc`` and
-``dagger`` load its ``policy.npz`` (an :class:`~hsddp_gym.learning.bc.MLPPolicy`, NumPy inference, no torch; several
-directories ``DIR1,DIR2,...`` act as their mean-action ensemble), ``sb3`` (or ``ppo`` / ``sac``) its ``model.zip`` +
-``vecnormalize.npz`` (needs stable-baselines3)."""
+``dagger`` load its ``policy.npz`` (an [`MLPPolicy`][hsddp_gym.learning.bc.MLPPolicy], NumPy inference, no torch;
+several directories ``DIR1,DIR2,...`` act as their mean-action ensemble), ``sb3`` (or ``ppo`` / ``sac``) its
+``model.zip`` + ``vecnormalize.npz`` (needs stable-baselines3)."""
 LEARNED_LOADERS = {"bc": "hsddp_gym.learning.ensemble:load_mlp_learner",
                    "dagger": "hsddp_gym.learning.ensemble:load_mlp_learner",
                    "sb3": "hsddp_gym.learning.sb3:load_trained_policy",
@@ -44,13 +44,13 @@ _KIND_ALGOS = {"bc": ("bc", "dagger"), "dagger": ("bc", "dagger"), "sb3": ("ppo"
 
 
 def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None]:
-    """``(kind, run_dir)`` of a policy name: one of :data:`POLICIES` (``run_dir`` None) or ``KIND:DIR`` with
-    ``KIND`` in :data:`LEARNED_POLICIES` and ``DIR`` a finished ``hsddp-gym train`` run of a matching algorithm
-    (``sb3`` matches ppo and sac, ``bc`` and ``dagger`` both MLP runs).
+    """``(kind, run_dir)`` of a policy name: one of [`POLICIES`][POLICIES] (``run_dir`` None) or ``KIND:DIR`` with
+    ``KIND`` in [`LEARNED_POLICIES`][LEARNED_POLICIES] and ``DIR`` a finished ``hsddp-gym train`` run of a matching
+    algorithm (``sb3`` matches ppo and sac, ``bc`` and ``dagger`` both MLP runs).
 
     Raises:
-        UsageError (a ValueError naming ``name``): an unknown name, a missing or unfinished run directory,
-        or a run of another algorithm.
+        UsageError: a ValueError naming ``name``: an unknown name, a missing or unfinished run directory, or a run
+            of another algorithm.
     """
     import json
 
@@ -83,7 +83,8 @@ def parse_policy_spec(spec: str, name: str = "policy") -> tuple[str, Path | None
 
 
 def required_modules(policy: str) -> list[str]:
-    """The optional packages a policy name needs (see :func:`hsddp_gym.util.extras.require`)."""
+    """The optional packages a policy name needs (see
+    [`hsddp_gym.util.extras.require`][hsddp_gym.util.extras.require])."""
     kind = str(policy).partition(":")[0]
     return ["stable_baselines3", "torch"] if kind in ("sb3", "ppo", "sac") else []
 
@@ -93,13 +94,16 @@ class PolicySpec:
     """A picklable recipe for a policy: its name and options (the ``policy_factory`` of datasets and DAgger).
 
     Args:
-        name: one of :data:`POLICIES`, or a learned policy ``KIND:DIR`` (:data:`LEARNED_POLICIES`; ``bc`` and
+        name: one of [`POLICIES`][POLICIES], or a learned policy ``KIND:DIR`` ([`LEARNED_POLICIES`][LEARNED_POLICIES];
+            ``bc`` and
             ``dagger`` take several directories ``DIR1,DIR2,...``, their mean-action ensemble).
         options: ``mpc``: an ``MPCOptions`` or a dict of its fields (JSON values, read with
             ``MPCOptions.from_record``); ``sb3`` / ``ppo`` / ``sac``: keyword arguments of ``load_trained_policy``
             (``checkpoint``, ``deterministic``, ...); unused otherwise.
-        plan_path: the expert's plan (``.npz`` of :meth:`hsddp_gym.planners.optimizer.solution.Solution.save`;
-            None: its task's plan, solved once per process, :func:`hsddp_gym.rollout.plans.task_plan`).
+        plan_path: the expert's plan (``.npz`` of
+            [`hsddp_gym.planners.optimizer.solution.Solution.save`][hsddp_gym.planners.optimizer.solution.Solution.save];
+            None: its task's plan, solved once per process,
+            [`hsddp_gym.rollout.plans.task_plan`][hsddp_gym.rollout.plans.task_plan]).
         env_id: the task the policy is for (None: Bounding-v0): the expert is that task's plan tracker
             (``Task.expert``), and the ``mpc`` of a task with ``terrain_aware_mpc`` (``hsddp_gym/Terrain-v0``) is
             given each episode's terrain as privileged information.
@@ -122,11 +126,11 @@ class PolicySpec:
 
     @property
     def task(self):
-        """The :class:`~hsddp_gym.registry.Task` of :attr:`env_id`."""
+        """The [`Task`][hsddp_gym.registry.Task] of `env_id`."""
         return task_of_env_id(self.env_id or TASKS["bounding"].env_id)
 
     def __call__(self, env, episode_seed: int):
-        """The policy for an episode of ``env`` seeded ``episode_seed`` (:func:`make_policy`)."""
+        """The policy for an episode of ``env`` seeded ``episode_seed`` ([`make_policy`][make_policy])."""
         return make_policy(self, env, seed=int(episode_seed))
 
     def describe(self) -> dict:
@@ -149,9 +153,9 @@ class PolicySpec:
 
 def task_policy_spec(name: str, env_id: str | None = None, options: dict | None = None,
                      plan_path: str | None = None) -> PolicySpec:
-    """The :class:`PolicySpec` datasets and DAgger record for policy ``name`` (one of :data:`POLICIES`) in the task
-    of ``env_id`` (None: Bounding-v0): the expert of that task (its plan at ``plan_path``), the ``mpc`` given the
-    terrain where the task's is (``Task.terrain_aware_mpc``), the other policies as in any task (``env_id`` None);
+    """The [`PolicySpec`][PolicySpec] datasets and DAgger record for policy ``name`` (one of [`POLICIES`][POLICIES]) in
+    the task of ``env_id`` (None: Bounding-v0): the expert of that task (its plan at ``plan_path``), the ``mpc`` given
+    the terrain where the task's is (``Task.terrain_aware_mpc``), the other policies as in any task (``env_id`` None);
     ``options``: the ``mpc``'s."""
     task = task_of_env_id(env_id or TASKS["bounding"].env_id)
     if name == "expert":
@@ -168,25 +172,26 @@ def _mpc_options(options):
 
 @functools.lru_cache(maxsize=4)
 def load_plan(path: str):
-    """The :class:`~hsddp_gym.planners.optimizer.solution.Solution` saved at ``path`` (cached per path)."""
+    """The [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] saved at ``path`` (cached per path)."""
     from hsddp_gym.planners.optimizer.solution import Solution
 
     return Solution.load(path)
 
 
 def make_policy(spec, env=None, seed: int = 0, interface=None):
-    """The policy ``spec`` for ``env``: a :class:`~hsddp_gym.planners.policies.base.Policy` whose
+    """The policy ``spec`` for ``env``: a [`Policy`][hsddp_gym.planners.policies.base.Policy] whose
     ``reset_options`` attribute (when present and not None) holds the reset options its episodes need.
 
     Args:
-        spec: a name (one of :data:`POLICIES` or ``KIND:DIR``, see :func:`parse_policy_spec`; ``env``'s task
-            decides the expert and whether the MPC is given the terrain) or a :class:`PolicySpec` (its ``env_id``
+        spec: a name (one of [`POLICIES`][POLICIES] or ``KIND:DIR``, see [`parse_policy_spec`][parse_policy_spec];
+            ``env``'s task
+            decides the expert and whether the MPC is given the terrain) or a [`PolicySpec`][PolicySpec] (its ``env_id``
             decides them).
         env: the env the policy acts in (a trained policy's own env when None; needed by every other policy).
             A trained policy's directory with a ``summary.json`` is checked to be a finished run of its kind
-            (:func:`parse_policy_spec`); one without is loaded from its weights alone.
+            ([`parse_policy_spec`][parse_policy_spec]); one without is loaded from its weights alone.
         seed: the random policy's seed.
-        interface: build the policy for this :class:`~hsddp_gym.planners.policies.base.EnvInterface` instead of
+        interface: build the policy for this [`EnvInterface`][hsddp_gym.planners.policies.base.EnvInterface] instead of
             ``env``'s (e.g. the env without its action delay, behind the MPC's perception); not for the expert.
     """
     if isinstance(spec, str):

@@ -2,7 +2,7 @@
 
 ``pip install -e ".[all]"`` installs every extra; with the core dependencies only (numpy, gymnasium, Pinocchio,
 numba, tqdm) planning, the env and the policies work, and a job that needs more says which extra to install
-before it starts (:func:`require`), instead of failing on a raw import after minutes of work.
+before it starts ([`require`][require]), instead of failing on a raw import after minutes of work.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ def missing(modules) -> list[str]:
 
 
 def require(modules, purpose: str) -> None:
-    """Raise :class:`MissingExtraError` if any of ``modules`` (import names, e.g. ``"minari"``) is missing.
+    """Raise [`MissingExtraError`][MissingExtraError] if any of ``modules`` (import names, e.g. ``"minari"``) is
+    missing.
 
     Args:
         purpose: what needs them, e.g. ``"hsddp-gym dataset"`` (starts the message).

@@ -1,14 +1,14 @@
 """Independent tasks in parallel: in this process, in spawn-started local processes, or on a Ray cluster.
 
-:func:`run_parallel` is the one engine behind dataset generation and the robustness / push sweeps. Each task is
-``fn(task)`` with a picklable module-level ``fn`` and a picklable ``task``; results come back in this process as
+[`run_parallel`][run_parallel] is the one engine behind dataset generation and the robustness / push sweeps. Each task
+is ``fn(task)`` with a picklable module-level ``fn`` and a picklable ``task``; results come back in this process as
 they finish (``on_result``) and in task order at the end, so a caller that makes every task depend only on
 its own inputs (an episode only on its seed) gets the same results for any backend and any number of workers.
 
-Backends (:data:`BACKENDS`):
+Backends (`BACKENDS`):
 
 * ``"local"``: ``workers == 1`` runs the tasks here, one after the other; more workers are ``spawn``-started
-  processes of :class:`concurrent.futures.ProcessPoolExecutor`, each limited to one BLAS/OpenMP/numba thread.
+  processes of `concurrent.futures.ProcessPoolExecutor`, each limited to one BLAS/OpenMP/numba thread.
   A worker that dies (killed, out of memory) breaks the pool: the pool is restarted and the tasks that had not
   finished are run again, at most ``max_retries`` times.
 * ``"ray"``: every task is a Ray task (``num_cpus=1``, one BLAS thread each). With ``address=None`` a local Ray
@@ -35,8 +35,9 @@ DEFAULT_RETRIES = 3
 
 
 def check_backend(backend: str, address: str | None = None) -> None:
-    """Validate ``backend`` (one of :data:`BACKENDS`) and ``address`` (a non-empty string, Ray only); for
-    ``"ray"`` check that Ray is installed (:class:`~hsddp_gym.util.extras.MissingExtraError` naming the extra)."""
+    """Validate ``backend`` (one of `BACKENDS`) and ``address`` (a non-empty string, Ray only); for
+    ``"ray"`` check that Ray is installed ([`MissingExtraError`][hsddp_gym.util.extras.MissingExtraError] naming the
+    extra)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     if address is not None:

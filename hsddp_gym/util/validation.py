@@ -97,7 +97,7 @@ def check_in_range(value, lo: float, hi: float, name: str) -> float:
 
 
 def did_you_mean(value: str, candidates) -> str:
-    """``"did you mean X?"`` with ``X`` the candidate closest to ``value`` (:func:`difflib.get_close_matches`), or
+    """``"did you mean X?"`` with ``X`` the candidate closest to ``value`` (`difflib.get_close_matches`), or
     ``""`` when none is close: the one wording of the command line's suggestions."""
     import difflib
 
@@ -124,8 +124,8 @@ class UsageError(ValueError):
 
 
 def check_output_dir(path, name: str = "out"):
-    """``path`` as a :class:`~pathlib.Path` that can be a directory to write into: a directory that exists, or
-    a new path whose nearest existing ancestor is a writable directory. Raises :class:`UsageError` naming
+    """``path`` as a `Path` that can be a directory to write into: a directory that exists, or
+    a new path whose nearest existing ancestor is a writable directory. Raises [`UsageError`][UsageError] naming
     ``name`` otherwise (an existing file, a path through a file, no write permission)."""
     import os
     from pathlib import Path

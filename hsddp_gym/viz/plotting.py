@@ -67,7 +67,7 @@ def plot_motion_strips(robot, trajectories: dict, path, n_snapshots: int = 14, t
 
     ``touchdowns``: ``{label: [(x, height), ...]}`` landing points; where a foot "lands" above or below
     z = 0 (the switching constraint violated), a red "virtual ground" segment is drawn at that height.
-    ``terrains``: ``{label: Terrain}`` ground profiles (:class:`~hsddp_gym.core.terrain.Terrain`) drawn instead of
+    ``terrains``: ``{label: Terrain}`` ground profiles ([`Terrain`][hsddp_gym.core.terrain.Terrain]) drawn instead of
     the line z = 0 (a gap as a break in the ground). ``dpi``: of the PNG.
     """
     plt = _plt()
@@ -134,8 +134,9 @@ def plot_states(trajectories: dict, dt: float, path, target_speed: float | None 
 
 
 def convergence_series(solution) -> dict:
-    """What :func:`plot_convergence` draws of a :class:`~hsddp_gym.planners.optimizer.solution.Solution`: per
-    logged DDP iteration its index, penalty-free cost, sum g^2, and whether an AL iteration starts there (lists)."""
+    """What [`plot_convergence`][plot_convergence] draws of a
+    [`Solution`][hsddp_gym.planners.optimizer.solution.Solution]: per logged DDP iteration its index, penalty-free cost,
+    sum g^2, and whether an AL iteration starts there (lists)."""
     events = np.array([r.event for r in solution.log])
     return {"ddp_iteration": solution.log_array("ddp_iteration").tolist(),
             "cost": solution.log_array("cost").tolist(),
@@ -239,7 +240,7 @@ def plot_step_size(study: dict, path) -> Path:
     """Paper Fig. 8: actual and predicted change of the objective against the step size.
 
     Args:
-        study: the result of :func:`hsddp_gym.planners.tasks.fig8_study`.
+        study: the result of [`hsddp_gym.planners.tasks.fig8_study`][hsddp_gym.planners.tasks.fig8_study].
         path: the PNG to write.
     """
     plt = _plt()

@@ -1,9 +1,9 @@
 """Off-screen drawing of the planar Mini Cheetah (no display needed) and GIF / MP4 export.
 
-:func:`render_state` turns a state ``x (14,)`` into an RGB image ``(height, width, 3) uint8`` with Pillow's
+[`render_state`][render_state] turns a state ``x (14,)`` into an RGB image ``(height, width, 3) uint8`` with Pillow's
 ``ImageDraw``: ground with distance ticks every 0.1 m, trunk, legs, feet (filled when in contact) and
 optional ground-reaction-force arrows. The camera follows the trunk horizontally. The env's
-``render()`` and the CLI (planned trajectories) both use it. :func:`save_gif` writes frames atomically.
+``render()`` and the CLI (planned trajectories) both use it. [`save_gif`][save_gif] writes frames atomically.
 
 Pillow is an optional dependency (``pip install hsddp_gym[viz]``); it is imported on first use.
 """
@@ -58,7 +58,8 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
     Args:
         x: state (14,) (only ``q = x[:7]`` is drawn; a (7,) configuration is accepted too).
         robot: the model (default: the paper's robot).
-        width, height: image size [px].
+        width: image width [px].
+        height: image height [px].
         pixels_per_meter: drawing scale (default: fit a 1.3 m wide, 0.6 m tall window).
         grf: optional ground forces (4,) ``[f_front_x, f_front_z, f_back_x, f_back_z]`` [N], drawn as arrows
             from each foot, ``grf_scale`` meters per newton.
@@ -67,9 +68,9 @@ def render_state(x: np.ndarray, *, robot: CheetahModel | None = None, width: int
         camera_x: world x at the image centre (default: the trunk x).
         ground_row: the ground line at this fraction of the height, in (0, 1].
         text: optional caption drawn in the top-left corner.
-        terrain: the ground's profile (a :class:`~hsddp_gym.core.terrain.Terrain`, None: flat ``z = 0``): its
-            simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`) is drawn filled below, with
-            the distance ticks on it; a foot's default contact flag measures from it.
+        terrain: the ground's profile (a [`Terrain`][hsddp_gym.core.terrain.Terrain], None: flat ``z = 0``): its
+            simulated surface ([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices]) is drawn filled
+            below, with the distance ticks on it; a foot's default contact flag measures from it.
     Returns:
         ``(height, width, 3)`` uint8 RGB image.
     """
@@ -163,7 +164,7 @@ def _arrow(draw, a, b, color, width) -> None:
 
 
 def render_trajectory(X: np.ndarray, *, every: int = 1, robot: CheetahModel | None = None, **kwargs) -> list:
-    """Draw every ``every``-th state of ``X (N, 14)``; keyword arguments go to :func:`render_state`.
+    """Draw every ``every``-th state of ``X (N, 14)``; keyword arguments go to [`render_state`][render_state].
 
     Returns:
         A list of ``(height, width, 3)`` uint8 frames.
@@ -206,7 +207,7 @@ def save_gif(frames, path: str | os.PathLike, fps: float = 30.0, min_delay_ms: f
 
     A GIF plays in **real time**: frames faster than ``min_delay_ms`` (default 20 ms, the shortest delay GIF
     viewers honour) are dropped, e.g. the env's 5-ms frames are written every 4th at 20 ms each (see
-    :func:`gif_timing`). An MP4 keeps every frame at ``fps``.
+    [`gif_timing`][gif_timing]). An MP4 keeps every frame at ``fps``.
 
     The file is written to a temporary name in the same directory and then renamed over ``path``, so a
     reader never sees a half-written file.

@@ -1,9 +1,9 @@
 """HS-DDP motions beyond the bound: a pronk, gait transitions, jumps and a backflip, as planning tasks.
 
-:mod:`~hsddp_gym.planners.motions.problems` builds each motion's phases, references, problem and warm start;
-:mod:`~hsddp_gym.planners.motions.planning` solves them (``plan_pronk``, ``plan_transition``, ``plan_jump``,
+[`problems`][hsddp_gym.planners.motions.problems] builds each motion's phases, references, problem and warm start;
+[`planning`][hsddp_gym.planners.motions.planning] solves them (``plan_pronk``, ``plan_transition``, ``plan_jump``,
 ``plan_backflip``, ``plan_motion`` by name, the experts' held plans ``plan_*_held``) and checks every plan's limits.
-The constants the envs share are :mod:`hsddp_gym.core.task_constants`'.
+The constants the envs share are [`hsddp_gym.core.task_constants`][hsddp_gym.core.task_constants]'.
 """
 
 from hsddp_gym.util.lazy import lazy_exports

@@ -1,6 +1,7 @@
-"""Planning the motions of :mod:`hsddp_gym.planners.motions.problems` with HS-DDP: the limits every plan is checked
-against, the plans of the pronk, the gait transitions and the jumps (:func:`plan_motion` by name), and the plans held
-over a control period (the experts' plans: ``plan_*_held``)."""
+"""Planning the motions of [`hsddp_gym.planners.motions.problems`][hsddp_gym.planners.motions.problems] with HS-DDP: the
+limits every plan is checked against, the plans of the pronk, the gait transitions and the jumps
+([`plan_motion`][plan_motion] by name), and the plans held over a control period (the experts' plans:
+``plan_*_held``)."""
 
 from __future__ import annotations
 
@@ -40,13 +41,13 @@ def motion_limits(problem: HybridProblem, X: np.ndarray, X_pre: np.ndarray, U: n
 
     Returns a dict: ``max_abs_torque`` [N m] against ``torque_limit``; ``min_normal_grf`` [N] over stance feet
     (>= 0); ``max_friction_violation`` ``max(|f_x| - mu f_z)`` over stance feet [N] (<= 0); ``hip_range``,
-    ``knee_range`` ``[min, max]`` over both legs [rad] against :data:`JOINT_LIMITS`; ``switching_violation``
-    ``sum g^2`` [m^2] (<= :data:`SWITCHING_TOLERANCE`) and ``max_touchdown_error`` ``max |g|`` [m]; ``ok`` (all
-    met) and ``violated`` (the names of those not met). On a terrain that is not flat (``problem.terrain``), also
-    ``stance_knots_over_gap`` (knots at which a stance foot is over a gap, check ``gap``: 0), ``min_terrain_clearance``
-    [m] (the lowest foot above the solid terrain under it over every knot, check ``terrain_clearance``:
-    ``>= -sqrt(SWITCHING_TOLERANCE)``, no foot through a box), ``landing_feet_x`` [m] (x of every landing foot) and
-    ``terrain`` (its description). On a problem that keeps its knees off the ground
+    ``knee_range`` ``[min, max]`` over both legs [rad] against [`JOINT_LIMITS`][JOINT_LIMITS]; ``switching_violation``
+    ``sum g^2`` [m^2] (<= [`SWITCHING_TOLERANCE`][SWITCHING_TOLERANCE]) and ``max_touchdown_error`` ``max |g|`` [m];
+    ``ok`` (all met) and ``violated`` (the names of those not met). On a terrain that is not flat (``problem.terrain``),
+    also ``stance_knots_over_gap`` (knots at which a stance foot is over a gap, check ``gap``: 0),
+    ``min_terrain_clearance`` [m] (the lowest foot above the solid terrain under it over every knot, check
+    ``terrain_clearance``: ``>= -sqrt(SWITCHING_TOLERANCE)``, no foot through a box), ``landing_feet_x`` [m] (x of every
+    landing foot) and ``terrain`` (its description). On a problem that keeps its knees off the ground
     (``problem.constraints.knee_clearance``, the backflip), also ``min_knee_height`` [m] (the lowest knee over every
     knot, check ``knee_clearance``: >= 0).
     """
@@ -135,23 +136,28 @@ def plan_backflip(options: SolverOptions | None = None, callbacks: list[Callback
                   verbose: bool = False) -> PlanResult:
     """Plan a backflip from standing at rest with HS-DDP (AL + ReB).
 
-    Schedule: ``DS(250 ms) BS(100 ms) FL(400 ms) DS(300 ms) -> DS`` (:data:`BACKFLIP_DURATIONS`): both feet push and
-    pitch the trunk nose-up, the front feet lift off, the back feet push off, a flight through ``-2 pi`` of pitch
-    (nose-up is negative pitch, :mod:`hsddp_gym.core.conventions`), a landing on both feet and a double stance that
-    ends at rest. References: end of the push, both feet under the hips, pitch :data:`BACKFLIP_PITCH` ``[0]`` and
-    pitch rate :data:`BACKFLIP_PITCH_RATE` ``[0]``; take-off, the back foot under its hip, pitch ``[1]``, pitch rate
-    ``[1]``, vertical speed ``g T_f / 2``; touchdown, the standing posture at pitch ``-2 pi``, ``-g T_f / 2``; rest,
-    standing at ``-2 pi``, every velocity 0 (:data:`STOP_TERMINAL_WEIGHTS`). The running cost also keeps the joints in
-    :data:`JOINT_LIMITS`, the knees :data:`BACKFLIP_KNEE_CLEARANCE` and the lifted feet :data:`BACKFLIP_FOOT_CLEARANCE`
-    above the ground (quadratic penalties, ``ConstraintSpec``). Warm start: ``_FlipWarmStart`` (see
-    :func:`motion_warm_start`).
+    Schedule: ``DS(250 ms) BS(100 ms) FL(400 ms) DS(300 ms) -> DS``
+    ([`BACKFLIP_DURATIONS`][hsddp_gym.planners.motions.problems.BACKFLIP_DURATIONS]): both feet push and pitch the trunk
+    nose-up, the front feet lift off, the back feet push off, a flight through ``-2 pi`` of pitch (nose-up is negative
+    pitch, [`hsddp_gym.core.conventions`][hsddp_gym.core.conventions]), a landing on both feet and a double stance that
+    ends at rest. References: end of the push, both feet under the hips, pitch
+    [`BACKFLIP_PITCH`][hsddp_gym.planners.motions.problems.BACKFLIP_PITCH] ``[0]`` and pitch rate
+    [`BACKFLIP_PITCH_RATE`][hsddp_gym.planners.motions.problems.BACKFLIP_PITCH_RATE] ``[0]``; take-off, the back foot
+    under its hip, pitch ``[1]``, pitch rate ``[1]``, vertical speed ``g T_f / 2``; touchdown, the standing posture at
+    pitch ``-2 pi``, ``-g T_f / 2``; rest, standing at ``-2 pi``, every velocity 0
+    ([`STOP_TERMINAL_WEIGHTS`][hsddp_gym.planners.motions.problems.STOP_TERMINAL_WEIGHTS]). The running cost also keeps
+    the joints in [`JOINT_LIMITS`][JOINT_LIMITS], the knees
+    [`BACKFLIP_KNEE_CLEARANCE`][hsddp_gym.planners.motions.problems.BACKFLIP_KNEE_CLEARANCE] and the lifted feet
+    [`BACKFLIP_FOOT_CLEARANCE`][hsddp_gym.planners.motions.problems.BACKFLIP_FOOT_CLEARANCE] above the ground (quadratic
+    penalties, ``ConstraintSpec``). Warm start: ``_FlipWarmStart`` (see [`motion_warm_start`][motion_warm_start]).
 
     Args:
-        options: solver options (default :data:`BACKFLIP_OPTIONS`: AL + ReB, up to 30 DDP iterations per AL
+        options: solver options (default [`BACKFLIP_OPTIONS`][BACKFLIP_OPTIONS]: AL + ReB, up to 30 DDP iterations per
+            AL
             iteration).
     Returns:
-        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s; ``limits`` adds
-        ``min_knee_height`` and ``min_swing_foot_height`` (:func:`motion_limits`).
+        A [`PlanResult`][hsddp_gym.planners.tasks.PlanResult], summary as [`plan_pronk`][plan_pronk]'s; ``limits`` adds
+        ``min_knee_height`` and ``min_swing_foot_height`` ([`motion_limits`][motion_limits]).
     """
     problem, phases = backflip_problem()
     return _plan("backflip", problem, phases, BACKFLIP_OPTIONS if options is None else options, callbacks, verbose,
@@ -162,17 +168,18 @@ def plan_pronk(cycles: int = 4, speed: float = 1.0, durations=PRONK_DURATIONS, o
                callbacks: list[Callback] | None = None, verbose: bool = False) -> PlanResult:
     """Plan a pronk with HS-DDP (AL on the double touchdowns, ReB on torque, normal force and friction cone).
 
-    Schedule: ``DS(T_s/2) FL (DS FL) x (cycles - 1) -> DS``, from mid stance at ``speed`` (:func:`pronk_problem`).
+    Schedule: ``DS(T_s/2) FL (DS FL) x (cycles - 1) -> DS``, from mid stance at ``speed``
+    ([`pronk_problem`][pronk_problem]).
 
     Args:
         cycles: pronk cycles (>= 1).
-        speed: target forward speed in :data:`SPEED_RANGE` [m/s].
-        durations: ``(T_s, T_f)`` double stance and flight [s] (default :data:`PRONK_DURATIONS`).
+        speed: target forward speed in [`SPEED_RANGE`][hsddp_gym.core.task_constants.SPEED_RANGE] [m/s].
+        durations: ``(T_s, T_f)`` double stance and flight [s] (default [`PRONK_DURATIONS`][PRONK_DURATIONS]).
         options: solver options (default ``SolverOptions()``: AL + ReB).
     Returns:
-        A :class:`~hsddp_gym.planners.tasks.PlanResult` (the type of ``plan_bounding``); its summary has
-        :func:`~hsddp_gym.planners.optimizer.metrics.trajectory_summary`'s fields, the schedule (``modes``,
-        ``durations``), iterations, ``solve_time_s`` [s] and ``limits`` (:func:`motion_limits`).
+        A [`PlanResult`][hsddp_gym.planners.tasks.PlanResult] (the type of ``plan_bounding``); its summary has
+        [`trajectory_summary`][hsddp_gym.planners.optimizer.metrics.trajectory_summary]'s fields, the schedule
+        (``modes``, ``durations``), iterations, ``solve_time_s`` [s] and ``limits`` ([`motion_limits`][motion_limits]).
     """
     problem, phases = pronk_problem(cycles, speed, durations)
     return _plan("pronk", problem, phases, options, callbacks, verbose, float(speed))
@@ -194,12 +201,12 @@ def plan_transition(motion: str, speed: float = 1.0, cycles: int = 2, options: S
       reference, every velocity 0).
 
     Args:
-        motion: one of :data:`TRANSITIONS`.
-        speed: bounding speed in :data:`SPEED_RANGE` [m/s].
+        motion: one of [`TRANSITIONS`][hsddp_gym.core.task_constants.TRANSITIONS].
+        speed: bounding speed in [`SPEED_RANGE`][hsddp_gym.core.task_constants.SPEED_RANGE] [m/s].
         cycles: bounding (and pronk) cycles per gait segment (>= 1).
         options: solver options (default ``SolverOptions()``: AL + ReB).
     Returns:
-        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s.
+        A [`PlanResult`][hsddp_gym.planners.tasks.PlanResult], summary as [`plan_pronk`][plan_pronk]'s.
     """
     problem, phases = transition_problem(motion, speed, cycles)
     return _plan(motion, problem, phases, options, callbacks, verbose, float(speed))
@@ -207,25 +214,31 @@ def plan_transition(motion: str, speed: float = 1.0, cycles: int = 2, options: S
 
 def plan_jump(motion: str, speed: float = 1.0, cycles: int = 2, options: SolverOptions | None = None,
               callbacks: list[Callback] | None = None, verbose: bool = False) -> PlanResult:
-    """Plan a jump from a bound with HS-DDP (AL + ReB), on a terrain (:func:`jump_terrain`).
+    """Plan a jump from a bound with HS-DDP (AL + ReB), on a terrain
+    ([`jump_terrain`][hsddp_gym.core.task_constants.jump_terrain]).
 
     Schedule (``c = cycles``): from the paper's initial state, ``(BS FL FS FL) x c`` at ``speed``, the jump
-    ``BS(80 ms) FL(250 ms) FS(72 ms) FL(72 ms)`` (references of a bound :data:`JUMP_SPEED_FACTOR` times faster),
-    ``(BS FL FS FL) x c -> BS`` at ``speed``:
+    ``BS(80 ms) FL(250 ms) FS(72 ms) FL(72 ms)`` (references of a bound
+    [`JUMP_SPEED_FACTOR`][hsddp_gym.planners.motions.problems.JUMP_SPEED_FACTOR] times faster), ``(BS FL FS FL) x c ->
+    BS`` at ``speed``:
 
-    * ``"gap_jump"``: over a gap of :data:`GAP_WIDTH` (0.3 m); the last landings before it and the first after it
-      have foot placement references (:data:`LANDING_MARGIN`) short of its near edge and beyond its far edge;
-    * ``"box_jump"``: onto a box of :data:`BOX_HEIGHT` (0.1 m); the same placement references around its near edge,
-      and every reference after the take-off :data:`BOX_HEIGHT` higher (bounding on the box).
+    * ``"gap_jump"``: over a gap of [`GAP_WIDTH`][hsddp_gym.core.task_constants.GAP_WIDTH] (0.3 m); the last landings
+    before it and the first after it
+      have foot placement references ([`LANDING_MARGIN`][hsddp_gym.planners.motions.problems.LANDING_MARGIN]) short of
+      its near edge and beyond its far edge;
+    * ``"box_jump"``: onto a box of [`BOX_HEIGHT`][hsddp_gym.core.task_constants.BOX_HEIGHT] (0.1 m); the same placement
+    references around its near edge,
+      and every reference after the take-off [`BOX_HEIGHT`][hsddp_gym.core.task_constants.BOX_HEIGHT] higher (bounding
+      on the box).
 
     Args:
-        motion: one of :data:`JUMPS`.
-        speed: bounding speed in :data:`SPEED_RANGE` [m/s].
+        motion: one of [`JUMPS`][JUMPS].
+        speed: bounding speed in [`SPEED_RANGE`][hsddp_gym.core.task_constants.SPEED_RANGE] [m/s].
         cycles: bounding cycles before and after the jump (>= 1).
         options: solver options (default ``SolverOptions()``: AL + ReB).
     Returns:
-        A :class:`~hsddp_gym.planners.tasks.PlanResult`, summary as :func:`plan_pronk`'s; ``limits`` adds the
-        terrain's checks (:func:`motion_limits`).
+        A [`PlanResult`][hsddp_gym.planners.tasks.PlanResult], summary as [`plan_pronk`][plan_pronk]'s; ``limits`` adds
+        the terrain's checks ([`motion_limits`][motion_limits]).
     """
     problem, phases = jump_problem(motion, speed, cycles)
     return _plan(motion, problem, phases, options, callbacks, verbose, float(speed))
@@ -233,8 +246,9 @@ def plan_jump(motion: str, speed: float = 1.0, cycles: int = 2, options: SolverO
 
 def plan_motion(motion: str, speed: float = 1.0, cycles: int | None = None, options: SolverOptions | None = None,
                 verbose: bool = False) -> PlanResult:
-    """:func:`plan_pronk` (``cycles`` default 4), :func:`plan_transition` (default 2), :func:`plan_jump` (default 2)
-    or :func:`plan_backflip` (no cycles, no speed) by name (:data:`MOTIONS`)."""
+    """[`plan_pronk`][plan_pronk] (``cycles`` default 4), [`plan_transition`][plan_transition] (default 2),
+    [`plan_jump`][plan_jump] (default 2) or [`plan_backflip`][plan_backflip] (no cycles, no speed) by name
+    ([`MOTIONS`][MOTIONS])."""
     if motion not in MOTIONS:
         raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
     if motion == "pronk":
@@ -266,13 +280,13 @@ def _check_options(options) -> None:
 
 def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
     """The backflip plan for a controller that holds each control for ``hold`` knots (the envs' 5 ms control period
-    over the plan's 1 ms knots: ``hold = 5``): :func:`plan_backflip`'s problem, warm start and options, solved
-    once; the :class:`~hsddp_gym.planners.optimizer.solution.Solution` with its gains ``K`` replaced by the
-    held-input gains of the same backward pass (:func:`~hsddp_gym.planners.optimizer.hold.held_input_gains`) and
-    its controls ``U`` by their means over the held knots
-    (:func:`~hsddp_gym.planners.optimizer.hold.held_feedforward`); ``hold = 1`` leaves the plan as solved. Its
-    ``X`` is the solved trajectory. Used by the backflip expert
-    (:func:`~hsddp_gym.planners.policies.experts.backflip_expert`)."""
+    over the plan's 1 ms knots: ``hold = 5``): [`plan_backflip`][plan_backflip]'s problem, warm start and options,
+    solved once; the [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] with its gains ``K`` replaced by the
+    held-input gains of the same backward pass
+    ([`held_input_gains`][hsddp_gym.planners.optimizer.hold.held_input_gains]) and its controls ``U`` by their means
+    over the held knots ([`held_feedforward`][hsddp_gym.planners.optimizer.hold.held_feedforward]); ``hold = 1`` leaves
+    the plan as solved. Its ``X`` is the solved trajectory. Used by the backflip expert
+    ([`backflip_expert`][hsddp_gym.planners.policies.experts.backflip_expert])."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = backflip_problem()
@@ -281,10 +295,10 @@ def plan_backflip_held(hold: int = 5, options: SolverOptions | None = None):
 
 def plan_jump_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int = 2,
                    options: SolverOptions | None = None):
-    """The plan of a jump (:data:`JUMPS`, :func:`plan_jump`'s problem, warm start and default options) for a
-    controller that holds each control for ``hold`` knots, as :func:`plan_backflip_held`: the solved
-    :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
-    Used by the jump expert (:func:`~hsddp_gym.planners.policies.experts.jump_expert`)."""
+    """The plan of a jump ([`JUMPS`][JUMPS], [`plan_jump`][plan_jump]'s problem, warm start and default options) for a
+    controller that holds each control for ``hold`` knots, as [`plan_backflip_held`][plan_backflip_held]: the solved
+    [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] with the held-input gains and the held controls' means.
+    Used by the jump expert ([`jump_expert`][hsddp_gym.planners.policies.experts.jump_expert])."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = jump_problem(motion, speed, cycles)
@@ -293,10 +307,11 @@ def plan_jump_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int =
 
 def plan_transition_held(motion: str, hold: int = 5, speed: float = 1.0, cycles: int = 2,
                          options: SolverOptions | None = None):
-    """The plan of a gait transition (:data:`TRANSITIONS`, :func:`plan_transition`'s problem, warm start and default
-    options) for a controller that holds each control for ``hold`` knots, as :func:`plan_jump_held`: the solved
-    :class:`~hsddp_gym.planners.optimizer.solution.Solution` with the held-input gains and the held controls' means.
-    Used by the transition expert (:func:`~hsddp_gym.planners.policies.experts.transition_expert`)."""
+    """The plan of a gait transition ([`TRANSITIONS`][hsddp_gym.core.task_constants.TRANSITIONS],
+    [`plan_transition`][plan_transition]'s problem, warm start and default options) for a controller that holds each
+    control for ``hold`` knots, as [`plan_jump_held`][plan_jump_held]: the solved
+    [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] with the held-input gains and the held controls' means.
+    Used by the transition expert ([`transition_expert`][hsddp_gym.planners.policies.experts.transition_expert])."""
     m = check_int(hold, "hold", minimum=1)
     _check_options(options)
     problem, phases = transition_problem(motion, speed, cycles)

@@ -4,49 +4,55 @@ HS-DDP plans any sequence of contact modes with impacts (Li & Wensing, RA-L 2020
 gait. Here the same problem, weights and solver (AL on the switching constraints, ReB on torque, normal force and
 friction cone) plan four more motions:
 
-* ``"pronk"``: both legs together, double stance / flight repeated (:func:`plan_pronk`);
+* ``"pronk"``: both legs together, double stance / flight repeated
+([`plan_pronk`][hsddp_gym.planners.motions.planning.plan_pronk]);
 * ``"stand_to_bound"``: from standing at rest in double stance into a few bounding cycles;
 * ``"bound_pronk_bound"``: bounding, a pronk, bounding again;
 * ``"bound_to_stop"``: bounding, then a landing on both feet and a double stance that ends at rest
-  (the three with :func:`plan_transition`).
+  (the three with [`plan_transition`][hsddp_gym.planners.motions.planning.plan_transition]).
 
-Every motion is a list of :class:`MotionPhase` (mode, duration, end-of-phase reference ``x_f (14,)``, ground-force
-reference ``(4,)``): :func:`motion_problem` turns it into a :class:`~hsddp_gym.planners.optimizer.problem.HybridProblem`
-with the bound's weights per mode (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`, paper eqs.
-32-33, the running reference equal to the phase's end reference). A flight that ends in double stance lands both
-feet together: the switching constraint then has one row per landing foot (``HybridProblem.switch_foot``), both
-heights ``g = 0`` at the end of the flight.
+Every motion is a list of [`MotionPhase`][MotionPhase] (mode, duration, end-of-phase reference ``x_f (14,)``,
+ground-force reference ``(4,)``): [`motion_problem`][motion_problem] turns it into a
+[`HybridProblem`][hsddp_gym.planners.optimizer.problem.HybridProblem] with the bound's weights per mode
+([`bounding_phase_cost`][hsddp_gym.planners.optimizer.problem.bounding_phase_cost], paper eqs. 32-33, the running
+reference equal to the phase's end reference). A flight that ends in double stance lands both feet together: the
+switching constraint then has one row per landing foot (``HybridProblem.switch_foot``), both heights ``g = 0`` at the
+end of the flight.
 
-References (derived as :func:`~hsddp_gym.core.references.end_of_mode_reference` derives the bound's: a posture that
-puts the relevant feet on the ground, at the desired speed):
+References (derived as [`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference] derives the bound's: a
+posture that puts the relevant feet on the ground, at the desired speed):
 
 * a pronk stance ends at lift-off with both feet ``v T_s / 2`` behind their hips, a pronk flight at touchdown with
   both feet ``v T_s / 2`` ahead (the neutral point of a stance of duration ``T_s`` at speed ``v``), trunk height
-  :data:`PRONK_HEIGHT`, pitch 0; the vertical velocity of a ballistic flight of duration ``T_f`` between equal
+  [`PRONK_HEIGHT`][PRONK_HEIGHT], pitch 0; the vertical velocity of a ballistic flight of duration ``T_f`` between equal
   heights, ``+g T_f / 2`` at lift-off and ``-g T_f / 2`` at touchdown; pitch and joint rates 0;
 * the ground-force reference of a pronk stance carries the weight of the whole cycle on the two feet,
   ``m g (T_s + T_f) / (2 T_s)`` per foot; of a double stance at rest ``m g / 2`` per foot;
-* bound phases use the bound's references (:func:`~hsddp_gym.core.references.end_of_mode_reference`) at the speed
-  of their cycle; the joint angles of every double-stance posture come from inverse kinematics (:func:`leg_posture`).
+* bound phases use the bound's references ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference])
+at the speed
+  of their cycle; the joint angles of every double-stance posture come from inverse kinematics
+  ([`leg_posture`][leg_posture]).
 
-The warm start (:func:`motion_warm_start`) rolls out a heuristic controller through the schedule: bound phases use
-the paper's heuristic bounding controller (:class:`~hsddp_gym.planners.policies.heuristic.HeuristicBoundingController`)
-at their cycle's speed; a double stance sets ground forces on both feet that carry the weight of its gait's cycle,
-hold the trunk height, track its reference speed and pitch (the vertical forces split to make the pitch moment),
-clipped to the friction cone (``u = -J^T f``); a flight that lands both feet tracks its touchdown posture with a joint
-PD and the heuristic's Raibert-style hip shift.
+The warm start ([`motion_warm_start`][motion_warm_start]) rolls out a heuristic controller through the schedule: bound
+phases use the paper's heuristic bounding controller
+([`HeuristicBoundingController`][hsddp_gym.planners.policies.heuristic.HeuristicBoundingController]) at their cycle's
+speed; a double stance sets ground forces on both feet that carry the weight of its gait's cycle, hold the trunk height,
+track its reference speed and pitch (the vertical forces split to make the pitch moment), clipped to the friction cone
+(``u = -J^T f``); a flight that lands both feet tracks its touchdown posture with a joint PD and the heuristic's
+Raibert-style hip shift.
 
-The double stance that ends the stop weights every velocity in its terminal cost (:data:`STOP_TERMINAL_WEIGHTS`), so
-the motion ends at rest.
+The double stance that ends the stop weights every velocity in its terminal cost
+([`STOP_TERMINAL_WEIGHTS`][STOP_TERMINAL_WEIGHTS]), so the motion ends at rest.
 
-The backflip (:func:`plan_backflip`) has its own warm start (``_FlipWarmStart``: ground forces in the friction cone
-that build up the take-off's angular momentum, tucked legs in flight) and keeps, in its running cost, its joints in
-:data:`JOINT_LIMITS`, its knees and lifted feet off the ground (``ConstraintSpec.joint_limits``, ``knee_clearance``,
-``swing_foot_clearance``; the other motions have none of these terms).
+The backflip ([`plan_backflip`][hsddp_gym.planners.motions.planning.plan_backflip]) has its own warm start
+(``_FlipWarmStart``: ground forces in the friction cone that build up the take-off's angular momentum, tucked legs in
+flight) and keeps, in its running cost, its joints in [`JOINT_LIMITS`][JOINT_LIMITS], its knees and lifted feet off the
+ground (``ConstraintSpec.joint_limits``, ``knee_clearance``, ``swing_foot_clearance``; the other motions have none of
+these terms).
 
 Joint ranges: the model defines none (``RobotParams`` has no joint limits and the authors' code switches its own
-off, original_code_facts §2), so :data:`JOINT_LIMITS` states the ranges used here; they are checked on every plan
-(:func:`motion_limits`), not enforced by a barrier.
+off, original_code_facts §2), so [`JOINT_LIMITS`][JOINT_LIMITS] states the ranges used here; they are checked on every
+plan ([`motion_limits`][hsddp_gym.planners.motions.planning.motion_limits]), not enforced by a barrier.
 """
 
 from __future__ import annotations
@@ -127,11 +133,11 @@ first 60 % of the flight."""
 BACKFLIP_KNEE_CLEARANCE = 0.04
 """The backflip keeps its knees this high above the ground [m] (``ConstraintSpec.knee_clearance``: the trunk pitched
 nose-up puts the back hip low, and a knee is no foot); its limits check the knees above the ground
-(:func:`motion_limits`)."""
+([`motion_limits`][hsddp_gym.planners.motions.planning.motion_limits])."""
 BACKFLIP_FOOT_CLEARANCE = 0.01
 """The backflip keeps the feet of its lifted legs this high above the ground [m] (``swing_foot_clearance``: the back
 foot swings down as the trunk turns after take-off); its limits check them above ``-sqrt(SWITCHING_TOLERANCE)``
-(:func:`motion_limits`, the landings' tolerance)."""
+([`motion_limits`][hsddp_gym.planners.motions.planning.motion_limits], the landings' tolerance)."""
 BACKFLIP_OPTIONS = SolverOptions(max_al_iterations=8, max_ddp_iterations=30)
 """The backflip's solver options: AL + ReB, up to 30 DDP iterations per AL iteration (the default 10 stop short of
 the turn-over, the plan then ends at about -4 rad)."""
@@ -294,8 +300,9 @@ def pronk_phases(cycles: int, speed: float, durations=PRONK_DURATIONS, params: R
 def bound_phases(speeds, params: RobotParams | None = None, durations=PAPER_BOUNDING_DURATIONS,
                  last_lands_both: bool = False) -> list[MotionPhase]:
     """Bounding cycles (back stance, flight, front stance, flight), one per entry of ``speeds`` [m/s], with the
-    bound's references (:func:`~hsddp_gym.core.references.end_of_mode_reference`) and ground-force references; with
-    ``last_lands_both`` the last flight lands both feet (its reference: the pronk's touchdown posture)."""
+    bound's references ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference]) and ground-force
+    references; with ``last_lands_both`` the last flight lands both feet (its reference: the pronk's touchdown
+    posture)."""
     params = params if params is not None else RobotParams()
     d = tuple(float(t) for t in durations)
     support = sum(d) / (d[0] + d[2])
@@ -314,15 +321,16 @@ def motion_problem(phases: list[MotionPhase], x0: np.ndarray, final_mode: Mode,
                    dynamics: HybridDynamics | None = None, terrain: Terrain | None = None,
                    joint_limits=None, knee_clearance: float | None = None,
                    swing_foot_clearance: float | None = None) -> HybridProblem:
-    """The hybrid problem of a motion: one phase per :class:`MotionPhase`, the bound's weights per mode
-    (:func:`~hsddp_gym.planners.optimizer.problem.bounding_phase_cost`: ``Q``, ``R``, ``S``, ``Q_f``) with the phase's
-    references (running = end reference), the robot's torque limit and friction, ``x0 (14,)``, ``final_mode`` the
-    mode entered after the last phase (a touchdown there keeps its switching constraint); ``terrain`` the ground
-    under the feet (:class:`~hsddp_gym.core.terrain.Terrain`, None: flat), whose height under a landing foot its
-    switching constraint measures from (``g = foot_z - h(foot_x)``); ``joint_limits`` None (no joint-range term, the
-    bound's problem) or the ranges of ``ConstraintSpec.joint_limits`` (e.g. :data:`JOINT_LIMITS`), penalized in the
-    running cost; ``knee_clearance`` and ``swing_foot_clearance`` None (unconstrained) or the heights [m] the knees
-    and the feet of the legs not in stance are kept above (``ConstraintSpec``, penalized in the running cost)."""
+    """The hybrid problem of a motion: one phase per [`MotionPhase`][MotionPhase], the bound's weights per mode
+    ([`bounding_phase_cost`][hsddp_gym.planners.optimizer.problem.bounding_phase_cost]: ``Q``, ``R``, ``S``, ``Q_f``)
+    with the phase's references (running = end reference), the robot's torque limit and friction, ``x0 (14,)``,
+    ``final_mode`` the mode entered after the last phase (a touchdown there keeps its switching constraint); ``terrain``
+    the ground under the feet ([`Terrain`][hsddp_gym.core.terrain.Terrain], None: flat), whose height under a landing
+    foot its switching constraint measures from (``g = foot_z - h(foot_x)``); ``joint_limits`` None (no joint-range
+    term, the bound's problem) or the ranges of ``ConstraintSpec.joint_limits`` (e.g. [`JOINT_LIMITS`][JOINT_LIMITS]),
+    penalized in the running cost; ``knee_clearance`` and ``swing_foot_clearance`` None (unconstrained) or the heights
+    [m] the knees and the feet of the legs not in stance are kept above (``ConstraintSpec``, penalized in the running
+    cost)."""
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
     schedule = ModeSchedule([p.mode for p in phases], [p.duration for p in phases], final_mode=final_mode)
@@ -360,8 +368,8 @@ def _ramp(start: float, stop: float, n: int) -> list[float]:
 
 def transition_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamics: HybridDynamics | None = None
                        ) -> tuple[HybridProblem, list[MotionPhase]]:
-    """The problem of a gait transition (see :func:`plan_transition` for the schedules). Returns the problem and
-    its phases."""
+    """The problem of a gait transition (see [`plan_transition`][hsddp_gym.planners.motions.planning.plan_transition]
+    for the schedules). Returns the problem and its phases."""
     if motion not in TRANSITIONS:
         raise ValueError(f"motion must be one of {TRANSITIONS}, got {motion!r}")
     speed = check_speed(speed)
@@ -409,7 +417,7 @@ def _foot_offset(x_ref: np.ndarray, foot: int, params: RobotParams) -> float:
 
 def _placed(phase: MotionPhase, foot: int, foot_x: float, params: RobotParams, dz: float = 0.0) -> MotionPhase:
     """``phase`` whose end reference puts ``foot`` (the one landing at its end) at world ``foot_x`` [m] (the trunk's
-    x reference, weighted :data:`PLACEMENT_WEIGHT` in ``Q_f``) and the trunk ``dz`` [m] higher."""
+    x reference, weighted [`PLACEMENT_WEIGHT`][PLACEMENT_WEIGHT] in ``Q_f``) and the trunk ``dz`` [m] higher."""
     x_f = phase.x_final.copy()
     x_f[0] = foot_x - _foot_offset(x_f, foot, params)
     x_f[IZ] += dz
@@ -427,8 +435,8 @@ def _raised(phase: MotionPhase, dz: float) -> MotionPhase:
 
 def jump_problem(motion: str, speed: float = 1.0, cycles: int = 2, dynamics: HybridDynamics | None = None
                  ) -> tuple[HybridProblem, list[MotionPhase]]:
-    """The problem of a jump (see :func:`plan_jump` for the schedules, references and terrain). Returns the problem
-    and its phases; the terrain is ``problem.terrain``."""
+    """The problem of a jump (see [`plan_jump`][hsddp_gym.planners.motions.planning.plan_jump] for the schedules,
+    references and terrain). Returns the problem and its phases; the terrain is ``problem.terrain``."""
     if motion not in JUMPS:
         raise ValueError(f"motion must be one of {JUMPS}, got {motion!r}")
     speed = check_speed(speed)
@@ -474,7 +482,8 @@ def _back_stance_posture(height: float, pitch: float, params: RobotParams) -> np
 
 
 def backflip_problem(dynamics: HybridDynamics | None = None) -> tuple[HybridProblem, list[MotionPhase]]:
-    """The backflip's problem (see :func:`plan_backflip`). Returns the problem and its phases."""
+    """The backflip's problem (see [`plan_backflip`][hsddp_gym.planners.motions.planning.plan_backflip]). Returns the
+    problem and its phases."""
     dynamics = dynamics if dynamics is not None else HybridDynamics()
     params = dynamics.robot.params
     t_ds, t_bs, t_fl, t_land = BACKFLIP_DURATIONS
@@ -506,7 +515,7 @@ def motion_warm_start(problem: HybridProblem, phases: list[MotionPhase]) -> Traj
     ``MotionPhase.gait == "flip"``, and the landing after them: the flip's controller, ``_FlipWarmStart``).
 
     Returns:
-        A :class:`~hsddp_gym.core.rollout.Trajectory` (``X (N+1, 14)``, ``U (N, 4)``, ...).
+        A [`Trajectory`][hsddp_gym.core.rollout.Trajectory] (``X (N+1, 14)``, ``U (N, 4)``, ...).
     Raises:
         WarmStartDivergedError: the rollout is not finite (naming the phase, knot and time).
     """
@@ -595,12 +604,14 @@ class _FlipWarmStart:
 
     * Push and take-off: the ground forces of the stance feet, nonnegative combinations of the friction cone's edges
       (``f_z >= 0``, ``|f_x| <= mu f_z`` by construction), that best give the centre of mass the vertical force of a
-      vertical speed ramped from 0 to :data:`BACKFLIP_PUSH_VZ` over the push and on to ``g T_f / 2`` at take-off,
-      no forward speed, and the moment about it of an angular momentum ramped (quadratically) to
-      :data:`BACKFLIP_MOMENTUM` ``[0]`` over the push and (linearly) to ``[1]`` at take-off, each with feed-forward
-      and feedback; ``u = -J^T f`` per stance leg; the lifted front leg tucks (:data:`BACKFLIP_TUCK`, joint PD).
+      vertical speed ramped from 0 to [`BACKFLIP_PUSH_VZ`][BACKFLIP_PUSH_VZ] over the push and on to ``g T_f / 2`` at
+      take-off, no forward speed, and the moment about it of an angular momentum ramped (quadratically) to
+      [`BACKFLIP_MOMENTUM`][BACKFLIP_MOMENTUM] ``[0]`` over the push and (linearly) to ``[1]`` at take-off, each with
+      feed-forward and feedback; ``u = -J^T f`` per stance leg; the lifted front leg tucks
+      ([`BACKFLIP_TUCK`][BACKFLIP_TUCK], joint PD).
     * Flight: both legs tucked, then (after ``_FLIP_TUCK_FRACTION`` of it) the touchdown posture (joint PD).
-    * Landing: the double stance's ground-force controller (:func:`_double_stance_torque`), pitch to the nearest
+    * Landing: the double stance's ground-force controller ([`_double_stance_torque`][_double_stance_torque]), pitch to
+    the nearest
       whole turn.
 
     Every torque clipped to the torque limit.

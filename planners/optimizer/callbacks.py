@@ -1,5 +1,5 @@
-"""Solver callbacks: called with every :class:`~hsddp_gym.planners.optimizer.solution.IterationRecord` as it is
-logged."""
+"""Solver callbacks: called with every [`IterationRecord`][hsddp_gym.planners.optimizer.solution.IterationRecord] as it
+is logged."""
 
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ for ``m`` steps on the state it saw at the first: for the stiff gains near a pla
 constraint's penalty) the loop gain is roughly ``m`` times the designed one, and a light joint (a leg in flight)
 oscillates from one control step to the next, its velocity flipping sign at every step.
 
-:func:`held_input_gains` gives, from the same backward pass, the gain of a control held over knots
+[`held_input_gains`][held_input_gains] gives, from the same backward pass, the gain of a control held over knots
 ``k .. k + m - 1``: the minimizer over ``du`` (the same ``du`` at every one of the ``m`` knots) of the quadratic
 model of the cost of those knots plus the value at knot ``k + m``::
 
@@ -33,9 +33,9 @@ def held_input_gains(solver, problem, hold: int) -> np.ndarray:
     knots (see the module docstring); the solve's own gains where a hold would cross a phase's end.
 
     Args:
-        solver: the :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP` that has just solved ``problem`` (its
+        solver: the [`HSDDP`][hsddp_gym.planners.optimizer.hsddp.HSDDP] that has just solved ``problem`` (its
             workspace holds the last backward pass: dynamics Jacobians, cost derivatives, value Hessians).
-        problem: that :class:`~hsddp_gym.planners.optimizer.problem.HybridProblem`.
+        problem: that [`HybridProblem`][hsddp_gym.planners.optimizer.problem.HybridProblem].
         hold: knots per held control (>= 1).
     """
     m = check_int(hold, "hold", minimum=1)
@@ -57,7 +57,8 @@ def held_input_gains(solver, problem, hold: int) -> np.ndarray:
 
 
 def _held_phase(ws, K, f_x, f_u, l_xx, l_uu, l_ux, a: int, b: int, is_last: bool, i: int, m: int) -> None:
-    """The held-input gains of phase ``i`` (knots ``a .. b - 1``) into ``K`` (see :func:`held_input_gains`)."""
+    """The held-input gains of phase ``i`` (knots ``a .. b - 1``) into ``K`` (see
+    [`held_input_gains`][held_input_gains])."""
     ks = np.arange(a, b - m + 1)  # holds that end inside the phase or at its end
     if ks.size == 0:
         return

@@ -5,9 +5,9 @@
 1. roll out the warm start (controls, optionally with a feedback law around a state trajectory);
 2. DDP to convergence on the current objective: linearize the dynamics along the nominal trajectory
    (Pinocchio analytical derivatives), differentiate the objective (vectorized over the horizon),
-   run the impact-aware backward pass (:mod:`hsddp_gym.planners.optimizer.riccati`), and a backtracking line search on
-   the policy ``u = u_hat + eps k + K (x - x_hat)`` (eq. 8) that accepts a step only if the actual decrease
-   is at least ``armijo`` times the expected one; non-finite rollouts are failed trials;
+   run the impact-aware backward pass ([`hsddp_gym.planners.optimizer.riccati`][hsddp_gym.planners.optimizer.riccati]),
+   and a backtracking line search on the policy ``u = u_hat + eps k + K (x - x_hat)`` (eq. 8) that accepts a step only
+   if the actual decrease is at least ``armijo`` times the expected one; non-finite rollouts are failed trials;
 3. update the AL multipliers and penalty (eq. 24: ``lam <- lam + sigma g``, then ``sigma <- beta sigma``),
    shrink the barrier relaxations (``delta <- delta_factor delta``) and grow their weights, until
    ``sum g^2 <= al_tolerance`` (and, with ``al_max_abs_tolerance`` set, ``max |g| <= al_max_abs_tolerance``).
@@ -36,7 +36,7 @@ from hsddp_gym.util.validation import check_array
 
 class _Traj:
     """Arrays of one trajectory: X (N+1, 14), X_pre (n, 14), U (N, 4), GRF (N, 4), for N = ``n_knots`` knots and
-    n = ``n_phases`` phases, or fewer (:meth:`resize`: they are the leading views of buffers of that capacity).
+    n = ``n_phases`` phases, or fewer ([`resize`][resize]: they are the leading views of buffers of that capacity).
     """
 
     def __init__(self, n_knots: int, n_phases: int) -> None:
@@ -76,7 +76,7 @@ class LoopState:
 
 class Workspace:
     """Everything a solve allocates, for problems of up to ``knot_capacity`` knots and ``phase_capacity`` phases
-    (default: ``problem``'s size). Its arrays are the leading views of one problem's size (:meth:`use`), so one
+    (default: ``problem``'s size). Its arrays are the leading views of one problem's size ([`use`][use]), so one
     workspace serves solves of varying sizes (MPC re-plans) without allocating."""
 
     _SHAPES = {"l_x": (0, NX), "l_u": (0, NU), "l_xx": (0, NX, NX), "l_uu": (0, NU, NU), "l_ux": (0, NU, NX),
@@ -144,15 +144,16 @@ def rollout_policy(problem: HybridProblem, out: _Traj, U_ref: np.ndarray, X_ref:
     """Roll out ``u_k = U_ref[k] + eps k_ff[k] + K[k] (x_k - X_ref[k])`` (eq. 8) through the hybrid system.
 
     The affine part is folded once per rollout, ``c_k = U_ref[k] + eps k_ff[k] - K[k] X_ref[k]``; each phase is
-    one compiled call (:func:`hsddp_gym.core.planar_dynamics.rollout_phase`: the feedback law, the mode's dynamics
-    and, with ``lin``, their derivatives, the integrator step), and the reset map between phases is Pinocchio's.
-    Writes ``out``; returns False (leaving NaNs) as soon as a phase ends in a non-finite state.
+    one compiled call ([`hsddp_gym.core.planar_dynamics.rollout_phase`][hsddp_gym.core.planar_dynamics.rollout_phase]:
+    the feedback law, the mode's dynamics and, with ``lin``, their derivatives, the integrator step), and the reset map
+    between phases is Pinocchio's. Writes ``out``; returns False (leaving NaNs) as soon as a phase ends in a non-finite
+    state.
 
     Args:
         lam6: optional ``(N, 6)`` scratch for the contact forces (Pinocchio's ``lambda_c`` layout).
         lin: when given, also linearize the dynamics at every knot of the new trajectory into it (the
-            same numbers as :meth:`HybridDynamics.linearize`; the solver's speculative first trial, which
-            saves a second pass over the horizon when the full step is accepted).
+            same numbers as [`HybridDynamics.linearize`][hsddp_gym.core.dynamics.HybridDynamics.linearize]; the solver's
+            speculative first trial, which saves a second pass over the horizon when the full step is accepted).
     """
     dyn = problem.dynamics
     N = problem.n_knots
@@ -214,9 +215,9 @@ class HSDDP:
     """The HS-DDP solver (Algorithm 1). Reusable: keeps its workspace between solves of equal size.
 
     Args:
-        options: :class:`SolverOptions`.
-        callbacks: extra callables receiving each :class:`IterationRecord`; the in-memory log always runs
-            and ``verbose=True`` adds a :class:`VerbosePrinter`.
+        options: [`SolverOptions`][SolverOptions].
+        callbacks: extra callables receiving each [`IterationRecord`][IterationRecord]; the in-memory log always runs
+            and ``verbose=True`` adds a [`VerbosePrinter`][VerbosePrinter].
         verbose: print a table row per iteration.
     """
 
@@ -254,7 +255,7 @@ class HSDDP:
             constraint_state: continue from a previous solve's outer-loop state (multipliers, penalty,
                 barrier relaxations and weights: ``HSDDP.last_constraint_state``); overrides the two above.
         Returns:
-            A :class:`Solution`.
+            A [`Solution`][Solution].
         """
         if not isinstance(problem, HybridProblem):
             raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
@@ -505,6 +506,6 @@ def solve(problem: HybridProblem, U_init: np.ndarray, options: SolverOptions = S
           X_init: np.ndarray | None = None, K_init: np.ndarray | None = None,
           multipliers: np.ndarray | None = None, callbacks: list[Callback] | None = None, verbose: bool = False,
           sigma: float | None = None, constraint_state: ConstraintState | None = None) -> Solution:
-    """Solve ``problem`` with HS-DDP Algorithm 1 (see :class:`HSDDP.solve`)."""
+    """Solve ``problem`` with HS-DDP Algorithm 1 (see [`HSDDP.solve`][HSDDP.solve])."""
     return HSDDP(options, callbacks, verbose).solve(problem, U_init, X_init, K_init, multipliers, sigma,
                                                     constraint_state)

@@ -1,20 +1,20 @@
 """Compiled (numba) elementwise kernels of the solver, fused over the horizon so that one call replaces a few dozen
 small NumPy temporaries: the quadratic cost terms and the relaxed barriers (paper eq. 27,
-:func:`~hsddp_gym.planners.optimizer.barrier.relaxed_barrier`) of
-:class:`~hsddp_gym.planners.optimizer.objective.Objective`, and the assembly of the discrete Jacobians.
+[`relaxed_barrier`][hsddp_gym.planners.optimizer.barrier.relaxed_barrier]) of
+[`Objective`][hsddp_gym.planners.optimizer.objective.Objective], and the assembly of the discrete Jacobians.
 
 Every kernel does, element by element, the same IEEE operations in the same order as the NumPy expressions it
 replaces (no fast-math, so no fused multiply-adds; NumPy's error model, so a division by zero gives inf or nan as in
 NumPy), and the results are bit-identical to them. What is not elementwise stays in NumPy: the matrix products
 (BLAS), the ``einsum`` contractions, the sums and the logarithm (NumPy's SIMD ``log`` rounds differently from the C
 library's in about 1e-4 of the cases), so a barrier value is computed in two passes around one ``np.log``:
-:func:`barrier_safe` then :func:`barrier_values`.
+[`barrier_safe`][barrier_safe] then [`barrier_values`][barrier_values].
 
 Constraint layout (N knots): torque rows ``umax - U`` (N, 4) and ``umax + U`` (N, 4); ground-force rows
 ``c = GRF @ A_grf.T`` (N, 6), weighted by the stance mask ``mask`` (N, 6). Compiled once per machine with the
-backward pass, in :func:`hsddp_gym.planners.optimizer.riccati.warm_up` (cached on disk). The rollout's dynamics
-and integrator step are compiled in :mod:`hsddp_gym.core.planar_dynamics`.
-"""
+backward pass, in [`hsddp_gym.planners.optimizer.riccati.warm_up`][hsddp_gym.planners.optimizer.riccati.warm_up] (cached
+on disk). The rollout's dynamics and integrator step are compiled in
+[`hsddp_gym.core.planar_dynamics`][hsddp_gym.core.planar_dynamics]. """
 
 from __future__ import annotations
 
@@ -103,7 +103,7 @@ def force_barrier_derivatives(c, delta, eps, mask, dc, ddc):
 def barrier_safe(U, c, umax, delta_torque, delta_grf, safe):
     """First pass of the barrier value: ``safe`` (N, 14) = the constraint where it is in the log branch
     (``> delta``), else 1 (columns: ``umax - U`` (4), ``umax + U`` (4), ``c`` (6)); its ``np.log`` feeds
-    :func:`barrier_values`."""
+    [`barrier_values`][barrier_values]."""
     for k in range(U.shape[0]):
         for i in range(NU):
             up = umax - U[k, i]
@@ -119,8 +119,8 @@ def barrier_safe(U, c, umax, delta_torque, delta_grf, safe):
 def barrier_values(U, c, umax, delta_torque, delta_grf, log_delta_torque, log_delta_grf, log_safe, mask, b_up, b_lo,
                    b_f):
     """Second pass of the barrier value: the relaxed barrier of every constraint, ``b_up``, ``b_lo`` (N, 4) and
-    ``mask * B(c)`` as ``b_f`` (N, 6) (outputs), from ``log_safe = np.log(safe)`` (N, 14) of :func:`barrier_safe`
-    and the NumPy logs of the two deltas."""
+    ``mask * B(c)`` as ``b_f`` (N, 6) (outputs), from ``log_safe = np.log(safe)`` (N, 14) of
+    [`barrier_safe`][barrier_safe] and the NumPy logs of the two deltas."""
     for k in range(U.shape[0]):
         for i in range(NU):
             up = umax - U[k, i]
@@ -168,5 +168,5 @@ def warm_up_kernels() -> None:
 KERNELS = (quadratic_derivatives, torque_barrier_derivatives, force_barrier_derivatives, barrier_safe, barrier_values,
            assemble_linearization)
 """The compiled entry points the solver calls besides the backward pass, with the linearization's assembly of
-:mod:`hsddp_gym.core.dynamics` (:meth:`~hsddp_gym.core.dynamics.Linearization.finish`): all warmed up by
-:func:`warm_up_kernels`, their numba caches checked by the warm-up."""
+[`hsddp_gym.core.dynamics`][hsddp_gym.core.dynamics] ([`finish`][hsddp_gym.core.dynamics.Linearization.finish]): all
+warmed up by [`warm_up_kernels`][warm_up_kernels], their numba caches checked by the warm-up."""

@@ -12,9 +12,9 @@ and a Gauss-Newton Hessian ``W (N, 4, 4)`` in force space, mapped through ``grf_
 together with the force-tracking term.
 
 The elementwise parts (quadratic terms, barriers) run in the compiled kernels of
-:mod:`~hsddp_gym.planners.optimizer.kernels`, bit-identical to the NumPy expressions they replace (those of
-:func:`~hsddp_gym.planners.optimizer.barrier.relaxed_barrier` for the barriers); products, contractions, sums and
-logarithms stay in NumPy.
+[`kernels`][hsddp_gym.planners.optimizer.kernels], bit-identical to the NumPy expressions they replace (those of
+[`relaxed_barrier`][hsddp_gym.planners.optimizer.barrier.relaxed_barrier] for the barriers); products, contractions,
+sums and logarithms stay in NumPy.
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ class CostBreakdown:
 
 
 class Objective:
-    """Evaluates the objective of a :class:`HybridProblem` and its derivatives along trajectories."""
+    """Evaluates the objective of a [`HybridProblem`][HybridProblem] and its derivatives along trajectories."""
 
     def __init__(self, problem: HybridProblem) -> None:
         self.problem = problem
@@ -311,7 +311,8 @@ class Objective:
 
 
 def _relaxation(delta, name: str) -> float:
-    """A barrier relaxation of :class:`ConstraintState` as a float, checked finite and > 0 (``name`` in errors)."""
+    """A barrier relaxation of [`ConstraintState`][ConstraintState] as a float, checked finite and > 0 (``name`` in
+    errors)."""
     d = float(delta)
     if not (0.0 < d < np.inf):
         raise ValueError(f"cs.{name} must be finite and > 0, got {delta!r}")

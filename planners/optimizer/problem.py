@@ -7,7 +7,7 @@ Running cost of knot k in phase i (``h`` the step; the authors' code adds the gr
     L = h [ (x - xr_i)^T Q_i (x - xr_i) + u^T R_i u + (grf - grf_ref_i)^T S_i (grf - grf_ref_i) ]
 
 Terminal cost at the end of phase i (the authors' code has the 1/2; the paper's eq. 33 has none, which
-``terminal_half=False`` of :func:`bounding_phase_cost` gives by doubling ``Qf_i``)::
+``terminal_half=False`` of [`bounding_phase_cost`][bounding_phase_cost] gives by doubling ``Qf_i``)::
 
     Phi_i = 1/2 (x^- - xf_i)^T Qf_i (x^- - xf_i)
 
@@ -45,7 +45,8 @@ _S = {Mode.BACK_STANCE: 0.3, Mode.FRONT_STANCE: 0.15, Mode.FLIGHT: 0.0, Mode.DOU
 _Q_LATER = 0.01 * np.array([0, 10, 5, 4, 4, 4, 4, 2, 1, 0.01, 6, 6, 6, 6], dtype=float)
 _QF_BASE_LATER = 100.0 * np.array([0, 20, 8, 3, 3, 3, 3, 3, 2, 0.01], dtype=float)
 PERIODIC_BOUNDING_DURATIONS = (0.080, 0.072, 0.072, 0.072, 0.040)
-"""Initial durations of :meth:`HybridProblem.bounding_periodic` (BS, FL, FS, FL, BS) [s]."""
+"""Initial durations of [`HybridProblem.bounding_periodic`][HybridProblem.bounding_periodic] (BS, FL, FS, FL, BS)
+[s]."""
 BOUNDING_WEIGHTS = ("paper", "later")
 """``"paper"``: the authors' code closest to the paper (MH@0b6ca76), the default; ``"later"``: their later code."""
 
@@ -72,9 +73,9 @@ class PhaseCost:
 
     @classmethod
     def _checked_by_caller(cls, **arrays: np.ndarray) -> PhaseCost:
-        """A PhaseCost of the arrays as given, without :meth:`__post_init__`'s checks: for arrays the caller built
-        to pass them (finite float64 of the right shapes, weights >= 0; :func:`bounding_phase_cost`, once per phase
-        of every MPC re-plan)."""
+        """A PhaseCost of the arrays as given, without [`__post_init__`][__post_init__]'s checks: for arrays the caller
+        built to pass them (finite float64 of the right shapes, weights >= 0;
+        [`bounding_phase_cost`][bounding_phase_cost], once per phase of every MPC re-plan)."""
         cost = object.__new__(cls)
         for name, arr in arrays.items():
             object.__setattr__(cost, name, arr)
@@ -89,18 +90,19 @@ def bounding_phase_cost(mode: Mode, touchdown_foot: int | None, speed: float = 1
     Args:
         mode: phase mode (BACK_STANCE, FLIGHT, FRONT_STANCE or DOUBLE_STANCE).
         touchdown_foot: the foot landing at the end of a flight phase; for DOUBLE_STANCE the foot that stays on
-            the ground after it (see :func:`hsddp_gym.core.references.end_of_mode_reference`).
+            the ground after it (see
+            [`hsddp_gym.core.references.end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference]).
         speed: desired forward speed [m/s].
         running_reference: ``"terminal"`` (paper eq. 32-33: the running cost tracks the mode's reference
             posture) or ``"code"`` (the authors' early code: a neutral posture, z = 0.254 m, legs straight).
         grf_tracking: include the authors' ground-force tracking term (full weight on the stance foot).
         z_velocity: terminal vertical-velocity reference, ``"code"`` (+-1 m/s) or ``"paper"`` (0).
         weights: ``"paper"`` (the authors' code closest to the paper, §3.5) or ``"later"`` (their later code,
-            which they ran at 1.5 m/s), see :data:`BOUNDING_WEIGHTS`.
+            which they ran at 1.5 m/s), see [`BOUNDING_WEIGHTS`][BOUNDING_WEIGHTS].
         terminal_half: True (default, the authors' code): ``Phi = 1/2 dx' Qf dx``; False: the paper's eq. 33,
             ``Phi = dx' Qf dx`` (stored as a doubled ``qf``, since the objective always has the 1/2).
         height_offset: reference postures with the trunk this much higher [m], the feet where the authors' postures
-            have them (:func:`hsddp_gym.core.references.end_of_mode_reference`; 0: the authors').
+            have them ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference]; 0: the authors').
     """
     params = params if params is not None else RobotParams()
     for name, flag in (("grf_tracking", grf_tracking), ("terminal_half", terminal_half)):
@@ -202,8 +204,8 @@ class ConstraintSpec:
 
 
 def _reference_foot(schedule: ModeSchedule, phase: int) -> int | None:
-    """The ``touchdown_foot`` argument of :func:`bounding_phase_cost` for ``phase``: the landing foot of a
-    flight, the foot that stays on the ground after a double stance."""
+    """The ``touchdown_foot`` argument of [`bounding_phase_cost`][bounding_phase_cost] for ``phase``: the landing foot
+    of a flight, the foot that stays on the ground after a double stance."""
     if schedule.modes[phase] == Mode.DOUBLE_STANCE:
         feet = schedule.next_mode(phase).feet
         if len(feet) != 1:
@@ -219,20 +221,20 @@ class HybridProblem:
     Args:
         dynamics: discrete hybrid dynamics (its ``dt`` is the knot spacing ``h``).
         schedule: modes and durations (phase i has ``round(T_i / h)`` knots).
-        costs: one :class:`PhaseCost` per phase.
+        costs: one [`PhaseCost`][PhaseCost] per phase.
         x0: initial state (14,).
-        constraints: a :class:`ConstraintSpec`.
+        constraints: a [`ConstraintSpec`][ConstraintSpec].
         restitution: of the touchdown reset maps (paper: 0).
         knots: steps per phase ``(n,)``; default ``round(T_i / dt)``. Given explicitly (time-scaled problems
             of the switching-time optimization, eq. 28), phase ``i`` steps with ``h_i = T_i / knots[i]``.
-        terrain: the ground under the feet, a :class:`~hsddp_gym.core.terrain.Terrain` (None: flat, ``z = 0``).
+        terrain: the ground under the feet, a [`Terrain`][hsddp_gym.core.terrain.Terrain] (None: flat, ``z = 0``).
             The switching constraint of a landing foot is its height above the terrain under it,
-            ``g = foot_z - terrain.height(foot_x)`` (:meth:`Objective.switching_values
-            <hsddp_gym.planners.optimizer.objective.Objective.switching_values>`); on a level segment
-            ``dg/dq = d foot_z / dq`` wherever the foot is not exactly on an edge, on a slope
-            ``dg/dq = d foot_z / dq - dh/dx d foot_x / dq`` (the Hessian is foot_z's). None and a flat
-            terrain give the same problem, bit for bit. The contact dynamics do not depend on the ground height
-            (a stance foot is held where it landed).
+            ``g = foot_z - terrain.height(foot_x)``
+            ([`Objective.switching_values`][hsddp_gym.planners.optimizer.objective.Objective.switching_values]); on a
+            level segment ``dg/dq = d foot_z / dq`` wherever the foot is not exactly on an edge, on a slope
+            ``dg/dq = d foot_z / dq - dh/dx d foot_x / dq`` (the Hessian is foot_z's). None and a flat terrain give the
+            same problem, bit for bit. The contact dynamics do not depend on the ground height (a stance foot is held
+            where it landed).
 
     Per-knot arrays (N = total knots): ``modes (N,)``, ``phase_of_knot (N,)``, weights ``Qd (N, 14)``,
     ``Rd (N, 4)``, ``Sd (N, 4)``, references ``XR (N, 14)``, ``YR (N, 4)``; per phase ``QF (n, 14)``,
@@ -315,11 +317,11 @@ class HybridProblem:
                  ) -> HybridProblem:
         """The paper's bounding task: ``cycles`` gait cycles from back stance, 80/72/72/72 ms, h = 1 ms,
         v_d = 1 m/s, the paper's initial state (Sec. V-B); ``running_reference``, ``grf_tracking``,
-        ``z_velocity``, ``weights``, ``terminal_half``, ``height_offset`` see :func:`bounding_phase_cost`; ``knots``
-        (n,) the knots per phase (None: ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases);
-        ``ground`` (n,) a height [m] per phase added to its reference trunk heights (running and terminal; the
-        ground under the trunk, e.g. at the phase's end; None: 0); ``terrain`` the ground of the switching
-        constraints (see the class; None: flat)."""
+        ``z_velocity``, ``weights``, ``terminal_half``, ``height_offset`` see
+        [`bounding_phase_cost`][bounding_phase_cost]; ``knots`` (n,) the knots per phase (None:
+        ``schedule.knots(dynamics.dt)``; a per-phase grid, e.g. finer first phases); ``ground`` (n,) a height [m] per
+        phase added to its reference trunk heights (running and terminal; the ground under the trunk, e.g. at the
+        phase's end; None: 0); ``terrain`` the ground of the switching constraints (see the class; None: flat)."""
         from hsddp_gym.core.references import paper_initial_state
         from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 
@@ -345,24 +347,24 @@ class HybridProblem:
                           dynamics: HybridDynamics | None = None, **cost_options) -> HybridProblem:
         """One bounding cycle that must end in the state it started from, up to the forward position x.
 
-        The paper's task starts mid back stance (:func:`hsddp_gym.core.references.paper_initial_state`) and
-        ends at the back foot's touchdown, so nothing makes its end state repeatable. Here the cycle is back
-        stance, flight, front stance, flight, back stance again (the back foot lands, a switching constraint as
-        every touchdown), and the last phase ends where the first began: its terminal cost is
-        ``1/2 (x^- - x0)^T W (x^- - x0)`` with ``W = periodic_weight * [0, 1 (z, pitch, 4 joints), 0.1 (7
-        velocities)]`` (x excluded) in place of the back-stance reference. Since the dynamics do not depend
-        on x, a trajectory that meets the condition can be repeated by applying the same controls again: its
-        gait is the sequence of the five phases, the last and the first back stance forming one back stance of
-        ``T_5 + T_1``. The condition is a stiff quadratic penalty, not an equality; its residual is reported
-        by the task (:func:`hsddp_gym.planners.tasks.run_sto`).
+        The paper's task starts mid back stance
+        ([`hsddp_gym.core.references.paper_initial_state`][hsddp_gym.core.references.paper_initial_state]) and ends at
+        the back foot's touchdown, so nothing makes its end state repeatable. Here the cycle is back stance, flight,
+        front stance, flight, back stance again (the back foot lands, a switching constraint as every touchdown), and
+        the last phase ends where the first began: its terminal cost is ``1/2 (x^- - x0)^T W (x^- - x0)`` with ``W =
+        periodic_weight * [0, 1 (z, pitch, 4 joints), 0.1 (7 velocities)]`` (x excluded) in place of the back-stance
+        reference. Since the dynamics do not depend on x, a trajectory that meets the condition can be repeated by
+        applying the same controls again: its gait is the sequence of the five phases, the last and the first back
+        stance forming one back stance of ``T_5 + T_1``. The condition is a stiff quadratic penalty, not an equality;
+        its residual is reported by the task ([`hsddp_gym.planners.tasks.run_sto`][hsddp_gym.planners.tasks.run_sto]).
 
         Args:
             durations: 5 durations [s] (BS, FL, FS, FL, BS); default the paper's 80/72/72/72 ms and a second
                 back stance of 40 ms.
             periodic_weight: ``W``'s scale (> 0).
-            dynamics: default :class:`HybridDynamics` (h = 1 ms).
+            dynamics: default [`HybridDynamics`][HybridDynamics] (h = 1 ms).
             cost_options: ``speed``, ``running_reference``, ``grf_tracking``, ``z_velocity``, ``weights``,
-                ``terminal_half`` of :meth:`bounding`.
+                ``terminal_half`` of [`bounding`][bounding].
         """
         check_positive(periodic_weight, "periodic_weight")
         durations = np.asarray(durations, dtype=np.float64)
@@ -436,7 +438,7 @@ class HybridProblem:
     def describe_knot(self, k: int) -> str:
         """Where knot ``k`` (``0 <= k <= N``) lies, in words for an error message, counting phases and cycles
         from 1: ``"t = 2.722 s, cycle 10 of 10, phase 37 of 40 (back stance)"`` (no cycle when the schedule does
-        not repeat the bounding cycle, see :attr:`cycle_length`)."""
+        not repeat the bounding cycle, see [`cycle_length`][cycle_length])."""
         t = self.knot_time(k)
         i = min(int(np.searchsorted(self.phase_start, k, side="right")) - 1, self.n_phases - 1)
         mode = self.schedule.modes[i].name.lower().replace("_", " ")
@@ -448,7 +450,8 @@ class HybridProblem:
         return ", ".join(parts)
 
     def cycle_of_knot(self, k: int) -> int | None:
-        """The gait cycle (counted from 1) of knot ``k`` (``0 <= k <= N``), or None (see :attr:`cycle_length`)."""
+        """The gait cycle (counted from 1) of knot ``k`` (``0 <= k <= N``), or None (see
+        [`cycle_length`][cycle_length])."""
         n = self.cycle_length
         if n is None:
             return None

@@ -98,7 +98,7 @@ def backward_pass(f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phas
 @numba.njit(cache=True, inline="always")
 def _backward_pass(nx, nu, f_x, f_u, l_x, l_u, l_xx, l_uu, l_ux, Phi_x, Phi_xx, P_x, phase_start, mu, k_ff, K,
                    V_x_out, V_xx_out):
-    """:func:`backward_pass` for ``nx`` states and ``nu`` controls (inlined into it, where constant sizes
+    """[`backward_pass`][backward_pass] for ``nx`` states and ``nu`` controls (inlined into it, where constant sizes
     specialize it)."""
     n_phase = phase_start.shape[0] - 1
     Vx = np.empty(nx)
@@ -237,7 +237,7 @@ stale cache; loading a valid one takes well under a second, a few on a loaded ma
 
 def _cache_index_exists() -> bool:
     """Whether numba's cache indexes of the backward pass and of the cost kernels
-    (:mod:`~hsddp_gym.planners.optimizer.kernels`) are all on disk (numba internals: False if they moved)."""
+    ([`kernels`][hsddp_gym.planners.optimizer.kernels]) are all on disk (numba internals: False if they moved)."""
     import os
 
     try:
@@ -251,11 +251,12 @@ def warm_up(announce: bool = True) -> float:
     10-20 s) or load numba's on-disk cache (``cache=True``; later runs, well under a second), once per
     process, on a 2-knot problem with the dtypes and layouts the solver passes (so its calls reuse this
     specialization): the backward pass, the objective's kernels
-    (:func:`hsddp_gym.planners.optimizer.kernels.warm_up_kernels`) and the compiled dynamics of the rollouts
-    (:func:`hsddp_gym.core.planar_dynamics.warm_up`). With ``announce``, a line on stderr says
-    when a compile is under way and how long it took. Returns the seconds spent (0 when already done).
-    :class:`~hsddp_gym.planners.optimizer.hsddp.HSDDP` calls it before its clock starts, so compile time never
-    lands in ``solve_time_s``."""
+    ([`hsddp_gym.planners.optimizer.kernels.warm_up_kernels`][hsddp_gym.planners.optimizer.kernels.warm_up_kernels]) and
+    the compiled dynamics of the rollouts
+    ([`hsddp_gym.core.planar_dynamics.warm_up`][hsddp_gym.core.planar_dynamics.warm_up]). With ``announce``, a line on
+    stderr says when a compile is under way and how long it took. Returns the seconds spent (0 when already done).
+    [`HSDDP`][hsddp_gym.planners.optimizer.hsddp.HSDDP] calls it before its clock starts, so compile time never lands in
+    ``solve_time_s``."""
     global _READY
     if _READY:
         return 0.0

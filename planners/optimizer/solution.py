@@ -1,4 +1,4 @@
-"""Solver options, the per-iteration log and the :class:`Solution` a solve returns."""
+"""Solver options, the per-iteration log and the [`Solution`][Solution] a solve returns."""
 
 from __future__ import annotations
 
@@ -245,7 +245,7 @@ class Solution:
 
     @classmethod
     def load(cls, path) -> Solution:
-        """Load a solution written by :meth:`save` (never unpickles).
+        """Load a solution written by [`save`][save] (never unpickles).
 
         Raises:
             FileNotFoundError: ``path`` does not exist.

@@ -21,7 +21,7 @@ whose derivatives are those of the open-loop cost, i.e. the same recursion with 
 Algorithm 1 again, warm-started, on the new durations. Durations stay inside ``[min, max]`` bounds
 (per phase); the step is a projected Newton step (a duration held at a bound its gradient pushes against is
 fixed and the Newton system is solved on the others), with the eigenvalues of ``V_zz`` replaced by their
-absolute values (floored) when it is not positive definite: see :func:`duration_step`.
+absolute values (floored) when it is not positive definite: see [`duration_step`][duration_step].
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
         phase_of_knot (N,): the phase (duration index) of each knot. n_z: number of durations.
         feedback: True for HS-DDP (gains from Q_uu), False for the open-loop baseline (K = 0, k = 0).
         mu: regularization added to Q_uu.
-        K_x (N, 4, 14), K_z (N, 4, n_z), k_ff (N, 4): outputs.
+            K_x (N, 4, 14), K_z (N, 4, n_z), k_ff (N, 4): outputs.
         knot_tensor: optional ``knot_tensor(k, V_x_next) -> (T_xx, T_ux, T_uu)``, the second-order terms
             of knot k's dynamics and force-dependent cost contracted with the value gradient (full DDP
             instead of iLQR); reset_tensor: optional ``reset_tensor(i, V_x_plus) -> T_xx`` for reset maps.
@@ -62,8 +62,8 @@ def backward_pass_time(f_x, f_u, f_z, f_xz, f_uz, l_x, l_u, l_xx, l_uu, l_ux, l_
         ``(ok, V_x0 (14,), V_z0 (n_z,), V_xx0 (14, 14), V_xz0 (14, n_z), V_zz0 (n_z, n_z), dV1, dV2)``.
     Raises:
         numpy.linalg.LinAlgError: (``feedback``) ``Q_uu + mu I`` is not positive definite at some knot, so the
-            gains would not minimize the control's quadratic model; :func:`time_derivatives` then retries with
-            a larger ``mu``.
+            gains would not minimize the control's quadratic model; [`time_derivatives`][time_derivatives] then retries
+            with a larger ``mu``.
     """
     nx = f_x.shape[1]
     nu = f_u.shape[2]
@@ -167,8 +167,8 @@ class TimeDerivatives:
 
 def duration_rates(problem: HybridProblem, X: np.ndarray, lin) -> np.ndarray:
     """``f_z (N, 14)``: the derivative of each knot's discrete step w.r.t. its own phase duration (the first output of
-    :func:`time_scaled_jacobians`, alone: what :func:`duration_gradient` needs, without the ``(N, 14, 14)`` and
-    ``(N, 14, 4)`` cross terms)."""
+    [`time_scaled_jacobians`][time_scaled_jacobians], alone: what [`duration_gradient`][duration_gradient] needs,
+    without the ``(N, 14, 14)`` and ``(N, 14, 4)`` cross terms)."""
     N = problem.n_knots
     Ni = problem.knots[problem.phase_of_knot].astype(float)[:, None]
     h = problem.h[:, None]
@@ -193,7 +193,8 @@ def time_scaled_jacobians(problem: HybridProblem, X: np.ndarray, lin) -> tuple[n
     Args:
         problem: the (time-scaled) problem; its ``knots``, ``h`` and the dynamics' integrator are used.
         X: states ``(N+1, 14)`` the linearization ``lin`` was taken at.
-        lin: a :class:`hsddp_gym.core.dynamics.Linearization` of ``X`` (``acc``, ``a_q``, ``a_v``, ``a_tau``).
+        lin: a [`hsddp_gym.core.dynamics.Linearization`][hsddp_gym.core.dynamics.Linearization] of ``X`` (``acc``,
+            ``a_q``, ``a_v``, ``a_tau``).
     Returns:
         ``(f_z (N, 14), f_xz (N, 14, 14), f_uz (N, 14, 4))``; ``f_xz[k] = d f_x[k] / d T_i``.
     """
@@ -223,7 +224,7 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
     """V_z, V_zz at the solver's current nominal trajectory (linearized at it by the last ``solve``).
 
     Args:
-        solver: an :class:`HSDDP` that has just solved ``problem`` (its workspace holds the linearization).
+        solver: an [`HSDDP`][HSDDP] that has just solved ``problem`` (its workspace holds the linearization).
         feedback: HS-DDP (True) or the open-loop baseline (False).
         second_order: add the dynamics' (and ground-force cost's) second-order terms contracted with the
             value gradient, as full DDP does (paper eq. 5 with the tensor terms); iLQR, the paper's choice,
@@ -273,13 +274,13 @@ def time_derivatives(solver: HSDDP, problem: HybridProblem, feedback: bool = Tru
 def duration_gradient(solver: HSDDP, problem: HybridProblem) -> np.ndarray:
     """``V_z (n,)``: the first-order derivative of the objective w.r.t. each phase duration at the solver's nominal
     trajectory, from the value gradients of its last backward pass (the envelope theorem: at an optimum the
-    feedback terms of :func:`time_derivatives` vanish and ``dJ/dT_i = sum_k (l_z[k] + V_x[k+1] . f_z[k])`` over the
-    knots of phase ``i``, with ``V_x`` taken through the reset map at the phase's end).
+    feedback terms of [`time_derivatives`][time_derivatives] vanish and ``dJ/dT_i = sum_k (l_z[k] + V_x[k+1] . f_z[k])``
+    over the knots of phase ``i``, with ``V_x`` taken through the reset map at the phase's end).
 
-    Vectorized over the horizon (no per-knot Python): about 50 times cheaper than :func:`time_derivatives`, which
-    also gives ``V_zz`` and the time-augmented gains. Exact at a converged solve; after a single DDP iteration (the
-    MPC's re-plans) it is the gradient of the quadratic model the iteration stopped at.
-    """
+    Vectorized over the horizon (no per-knot Python): about 50 times cheaper than
+    [`time_derivatives`][time_derivatives], which also gives ``V_zz`` and the time-augmented gains. Exact at a converged
+    solve; after a single DDP iteration (the MPC's re-plans) it is the gradient of the quadratic model the iteration
+    stopped at. """
     ws = solver._ws
     if ws is None or solver.last_problem is not problem or solver.last_objective is None:
         raise ValueError("solver has no linearization of this problem; call solver.solve(problem, ...) first")
@@ -366,7 +367,7 @@ def rollout_time_policy(problem_new: HybridProblem, nominal: _Traj, deriv: TimeD
 
 
 def _bound_value(value, name: str):
-    """A duration bound as given to :class:`STOOptions`: a number, or one number per phase (a tuple)."""
+    """A duration bound as given to [`STOOptions`][STOOptions]: a number, or one number per phase (a tuple)."""
     if isinstance(value, bool):
         raise ValueError(f"{name} must be a number or a sequence of numbers [s], got {value!r}")
     if isinstance(value, (int, float, np.integer, np.floating)):
@@ -394,13 +395,13 @@ class STOOptions:
         iterations: STO iterations (paper: 30).
         min_duration, max_duration: bounds on the mode durations [s]: one number for every phase, or a
             sequence with one number per phase (checked against the problem in
-            :func:`optimize_switching_times`). Not from the paper, which gives none: the default minimum
-            0.02 s (a quarter of the initial 72-80 ms phases; each phase keeps its knots, so its step
+            [`optimize_switching_times`][optimize_switching_times]). Not from the paper, which gives none: the default
+            minimum 0.02 s (a quarter of the initial 72-80 ms phases; each phase keeps its knots, so its step
             ``h_i = T_i / N_i`` stays >= 0.25 ms) keeps a phase from collapsing, the maximum 0.2 s keeps
             the Euler step <= 2.8 ms. Neither is active in the paper's task 2.
         step_factor, min_step: backtracking on eps_z. armijo: sufficient decrease fraction.
         tolerance: stop when the accepted duration change is below it [s] (max norm).
-        second_order: exact V_zz with the dynamics' second-order terms (see :func:`time_derivatives`);
+        second_order: exact V_zz with the dynamics' second-order terms (see [`time_derivatives`][time_derivatives]);
             default False: iLQR's Gauss-Newton V_zz, as in the paper.
         solver: Algorithm 1's options for the inner re-solves.
     """
@@ -499,7 +500,7 @@ def duration_step(V_z: np.ndarray, V_zz: np.ndarray, z: np.ndarray, lower: np.nd
 
 @dataclasses.dataclass
 class STOResult:
-    """Result of Algorithm 2: the final :class:`Solution`, the duration history ``(iters+1, n)``, the
+    """Result of Algorithm 2: the final [`Solution`][Solution], the duration history ``(iters+1, n)``, the
     objective after each iteration, and per-iteration records."""
 
     solution: Solution
@@ -523,8 +524,8 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
                              callback=None) -> STOResult:
     """Algorithm 2 (HS-DDP) or the open-loop baseline on ``problem`` (its durations are the start).
 
-    Each iteration: V_z, V_zz at the current solution (:func:`time_derivatives`), the direction of
-    :func:`duration_step`, a backtracking search on ``eps_z`` (durations ``clip(z + eps_z dz)``, rolled out
+    Each iteration: V_z, V_zz at the current solution ([`time_derivatives`][time_derivatives]), the direction of
+    [`duration_step`][duration_step], a backtracking search on ``eps_z`` (durations ``clip(z + eps_z dz)``, rolled out
     with the time-augmented feedback policy or, open loop, the controls as they are) that accepts only a
     decrease of the objective, then Algorithm 1 re-solved on the new durations from the accepted rollout's
     controls, continuing the outer-loop state (multipliers, penalty, barrier parameters) -- for both methods.
@@ -532,10 +533,10 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
     Args:
         problem: the hybrid OCP; its knots per phase stay fixed, their step scales with the duration.
         U_init: warm start controls ``(N, 4)``.
-        options: an :class:`STOOptions`.
+        options: an [`STOOptions`][STOOptions].
         callback: called with each iteration's record dict.
     Returns:
-        An :class:`STOResult`. Its records have ``iteration``, ``V_z``, ``V_zz``, ``V_zz_pd``, ``free``
+        An [`STOResult`][STOResult]. Its records have ``iteration``, ``V_z``, ``V_zz``, ``V_zz_pd``, ``free``
         (durations not held at a bound), ``direction`` (the projected Newton direction ``dz``),
         ``line_search`` (every trial in order: ``{"eps", "objective", "predicted"}``, the objective of the
         trial's rollout, NaN if it diverged, and the quadratic model's change; the first trial is
@@ -547,7 +548,7 @@ def optimize_switching_times(problem: HybridProblem, U_init: np.ndarray, options
         last two end the run.
     Raises:
         TypeError: ``problem`` or ``options`` of the wrong type. ValueError: initial durations outside the
-        bounds, per-phase bounds of the wrong length, or a bad ``U_init`` (see :meth:`HSDDP.solve`).
+            bounds, per-phase bounds of the wrong length, or a bad ``U_init`` (see [`HSDDP.solve`][HSDDP.solve]).
     """
     if not isinstance(problem, HybridProblem):
         raise TypeError(f"problem must be a HybridProblem, got {type(problem).__name__}")
@@ -631,7 +632,7 @@ def step_size_study(solver: HSDDP, problem: HybridProblem, U_nominal: np.ndarray
     ``eps dV1 + eps^2/2 dV2 + eps_z V_z^T dz + eps_z^2/2 dz^T V_zz dz``.
 
     Args:
-        solver: an :class:`HSDDP` whose options and outer-loop state (``last_constraint_state``) are used;
+        solver: an [`HSDDP`][HSDDP] whose options and outer-loop state (``last_constraint_state``) are used;
             its workspace is replaced by this study's (the nominal rollout of ``U_nominal``).
     Returns:
         ``{"steps": [...], "dz": [...], "<case>": {"actual": [...], "predicted": [...]}}`` for the cases

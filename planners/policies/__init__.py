@@ -7,12 +7,13 @@ Every policy here is
 * a Stable-Baselines3 ``predict(observation, state=None, episode_start=None, deterministic=True) ->
   (actions, state)`` predictor (batched ``(n_envs, obs_dim)`` in, ``(n_envs, 4)`` out; one independent copy
   of the policy per environment, reset where ``episode_start`` is true), so ``evaluate_policy`` runs it;
-* convertible into an SB3 ``BasePolicy`` with :func:`hsddp_gym.learning.sb3.as_sb3_policy` for imitation tooling.
+* convertible into an SB3 ``BasePolicy`` with
+[`hsddp_gym.learning.sb3.as_sb3_policy`][hsddp_gym.learning.sb3.adapter.as_sb3_policy] for imitation tooling.
 
 Policies never look inside the simulator: they map the observation back to a state, contact mode and gait
-phase with :func:`hsddp_gym.core.observation.state_from_observation` and use the env's public settings (control
-period, torque limit, observation layout) given at construction (``Policy.from_env(env)`` reads them).
-"""
+phase with [`hsddp_gym.core.observation.state_from_observation`][hsddp_gym.core.observation.state_from_observation] and
+use the env's public settings (control period, torque limit, observation layout) given at construction
+(``Policy.from_env(env)`` reads them). """
 
 from hsddp_gym.util.lazy import lazy_exports
 

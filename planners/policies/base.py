@@ -1,5 +1,5 @@
-"""The policy protocol: :class:`EnvInterface` (the env settings a policy may read) and the :class:`Policy` base
-class."""
+"""The policy protocol: [`EnvInterface`][EnvInterface] (the env settings a policy may read) and the [`Policy`][Policy]
+base class."""
 
 from __future__ import annotations
 
@@ -24,7 +24,8 @@ class EnvInterface:
         gait_period: period of the observation's phase clock [s].
         target_speed: the env's desired forward speed [m/s].
         action_delay_steps: control steps between an action's return and its execution (the env's known
-            actuation latency, e.g. :class:`hsddp_gym.envs.perturbations.ActionDelay`; 0: none).
+            actuation latency, e.g.
+            [`hsddp_gym.envs.perturbations.ActionDelay`][hsddp_gym.envs.perturbations.wrappers.ActionDelay]; 0: none).
         motor_speed_limits: the env's motor torque-speed limit ``(w_full, w_zero)`` [rad/s], or None.
     """
 
@@ -67,7 +68,7 @@ class EnvInterface:
 
 
 class Policy:
-    """Base class: subclasses implement :meth:`act` (one env) and :meth:`reset`."""
+    """Base class: subclasses implement [`act`][act] (one env) and [`reset`][reset]."""
 
     def __init__(self, interface: EnvInterface = EnvInterface()) -> None:
         if not isinstance(interface, EnvInterface):
@@ -77,7 +78,7 @@ class Policy:
 
     @classmethod
     def from_env(cls, env, **kwargs):
-        """Build the policy for ``env`` (reads its :class:`EnvInterface`)."""
+        """Build the policy for ``env`` (reads its [`EnvInterface`][EnvInterface])."""
         return cls(interface=EnvInterface.from_env(env), **kwargs)
 
     # -------------------------------------------------------------- single env
@@ -107,7 +108,7 @@ class Policy:
         """Give a shallow copy its own mutable memory (override when the memory holds arrays/objects)."""
 
     def _spawn_copies(self, n: int) -> list[Policy]:
-        """The ``n`` per-env copies used by :meth:`predict` (override to make copy 0 act like ``self``)."""
+        """The ``n`` per-env copies used by [`predict`][predict] (override to make copy 0 act like ``self``)."""
         return [self.spawn() for _ in range(n)]
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):

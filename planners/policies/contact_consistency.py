@@ -36,7 +36,7 @@ class PushingTorques:
         iterations: the most Dykstra sweeps of a projection (it stops once a sweep moves the torques by less than
             1e-10 N m with the constraints holding to 1e-9 N).
         dynamics: the model whose constrained dynamics give the forces (None: the nominal robot). Give a
-            :class:`~hsddp_gym.core.dynamics.HybridDynamics` of its own (its Pinocchio data is overwritten).
+            [`HybridDynamics`][hsddp_gym.core.dynamics.HybridDynamics] of its own (its Pinocchio data is overwritten).
 
     Attributes:
         projections: how many calls changed the torques (beyond clipping them to the limit).

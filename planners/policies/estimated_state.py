@@ -1,14 +1,15 @@
 """The MPC's perception for any policy: act on the filtered state, predicted over the actuation delay.
 
-:class:`EstimatedStatePolicy` wraps a policy (a learner, the heuristic, an SB3 model) in the two estimation steps the
-MPC runs before it plans (:mod:`hsddp_gym.planners.policies.estimation`):
+[`EstimatedStatePolicy`][EstimatedStatePolicy] wraps a policy (a learner, the heuristic, an SB3 model) in the two
+estimation steps the MPC runs before it plans
+([`hsddp_gym.planners.policies.estimation`][hsddp_gym.planners.policies.estimation]):
 
-1. **state filter** (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`): the observed positions and
+1. **state filter** ([`StateFilter`][hsddp_gym.planners.policies.estimation.StateFilter]): the observed positions and
    velocities are replaced by the Kalman estimate, propagated with the model and the torques the env executed;
 2. **latency compensation**: with an action delay of ``d`` control steps (``EnvInterface.action_delay_steps``), the
    estimate is predicted ``d`` steps ahead under the actions already sent
-   (:class:`~hsddp_gym.planners.policies.estimation.ContactModelPredictor`), with the contact flags the model
-   predicts and the observation's gait clock advanced by ``d`` control periods.
+   ([`ContactModelPredictor`][hsddp_gym.planners.policies.estimation.ContactModelPredictor]), with the contact flags the
+   model predicts and the observation's gait clock advanced by ``d`` control periods.
 
 The wrapped policy receives that as an ordinary observation (the env's layout) and acts as it would without noise
 or delay: it is built for an undelayed env (its interface's ``action_delay_steps`` must be 0). With exact
@@ -40,10 +41,10 @@ def _checked_action(action) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class EstimationOptions:
-    """What :class:`EstimatedStatePolicy` does before the wrapped policy acts.
+    """What [`EstimatedStatePolicy`][EstimatedStatePolicy] does before the wrapped policy acts.
 
     Attributes:
-        state_filter: filter the observed state (:class:`StateFilter`).
+        state_filter: filter the observed state ([`StateFilter`][StateFilter]).
         latency_compensation: predict over the env's action delay.
         position_noise, velocity_noise, acceleration_noise, innovation_gate: the filter's noise model (None: the
             MPC's, ``MPCOptions().estimator``, so that one place sets them).
@@ -81,14 +82,15 @@ class EstimatedStatePolicy(Policy):
 
     Args:
         inner: the wrapped policy, built for the same env without its delay (``inner.interface`` equal to
-            ``interface`` with ``action_delay_steps=0``: :meth:`undelayed`; :meth:`around` builds and wraps it).
+            ``interface`` with ``action_delay_steps=0``: [`undelayed`][undelayed]; [`around`][around] builds and wraps
+            it).
         interface: the env's interface (its ``action_delay_steps`` is the delay predicted over).
-        options: :class:`EstimationOptions`.
+        options: [`EstimationOptions`][EstimationOptions].
 
     Attributes:
         last_estimate: the filtered state (14,) of the last observation; last_prediction: the state (14,) the inner
             policy was given (the estimate predicted over the delay; the estimate itself when the model's prediction
-            diverges, counted in :attr:`stats` as ``prediction_failures``).
+            diverges, counted in [`stats`][stats] as ``prediction_failures``).
     """
 
     def __init__(self, inner: Policy, interface: EnvInterface = EnvInterface(),
@@ -116,8 +118,8 @@ class EstimatedStatePolicy(Policy):
 
     @classmethod
     def around(cls, build_inner, interface: EnvInterface, options: EstimationOptions = EstimationOptions()):
-        """``build_inner(interface) -> Policy`` called with :meth:`undelayed` ``interface``, wrapped for ``interface``
-        (e.g. ``EstimatedStatePolicy.around(HeuristicPolicy, EnvInterface.from_env(env))``)."""
+        """``build_inner(interface) -> Policy`` called with [`undelayed`][undelayed] ``interface``, wrapped for
+        ``interface`` (e.g. ``EstimatedStatePolicy.around(HeuristicPolicy, EnvInterface.from_env(env))``)."""
         return cls(build_inner(cls.undelayed(interface)), interface, options)
 
     def _make_models(self) -> None:
@@ -146,7 +148,7 @@ class EstimatedStatePolicy(Policy):
 
     def observation_for_inner(self, obs: np.ndarray) -> np.ndarray:
         """The observation (layout size,) float32 the inner policy acts on for the env's ``obs``; advances the
-        filter (call once per step, as :meth:`act` does)."""
+        filter (call once per step, as `act` does)."""
         i = self.interface
         x, mode, phase = self._parse(obs)
         if self.options.state_filter:
@@ -174,8 +176,9 @@ class EstimatedStatePolicy(Policy):
         return action
 
     def record_sent(self, action) -> None:
-        """The action (4,) sent to the env this step, for a caller that calls :meth:`observation_for_inner` and acts
-        itself (a DAgger rollout storing what the learner sees); :meth:`act` records its own."""
+        """The action (4,) sent to the env this step, for a caller that calls
+        [`observation_for_inner`][observation_for_inner] and acts itself (a DAgger rollout storing what the learner
+        sees); `act` records its own."""
         self._sent.append(_checked_action(action))
 
     def note_sent_action(self, action) -> None:

@@ -1,16 +1,17 @@
 """State estimation for a policy that knows its model: latency prediction and a contact-aware velocity filter.
 
-* :class:`ContactModelPredictor` integrates the nominal robot with the state-based contact model
-  (:class:`~hsddp_gym.core.contact.ContactSimulator`'s scheme: impacts, friction, lift-offs; stepped by the
-  compiled kernel, :class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`) over a few control steps
-  under known torques.
-* :meth:`ContactModelPredictor.predict` over the actions already sent but not yet executed gives the state at
+* [`ContactModelPredictor`][ContactModelPredictor] integrates the nominal robot with the state-based contact model
+  ([`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator]'s scheme: impacts, friction, lift-offs; stepped by the
+  compiled kernel, [`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator]) over a few
+  control steps under known torques.
+* [`ContactModelPredictor.predict`][ContactModelPredictor.predict] over the actions already sent but not yet executed
+gives the state at
   the moment a new action will act: the MPC's latency compensation.
-* :class:`StateFilter`: a Kalman filter: the estimate is propagated one control step with the model and the
+* [`StateFilter`][StateFilter]: a Kalman filter: the estimate is propagated one control step with the model and the
   executed torques, then corrected toward the measurement pair by pair (each coordinate's position and velocity)
   with the Kalman gain of a stated noise model, its covariance carried from step to step (the steady-state gain of
-  :func:`steady_state_kalman_gain` a few steps after a start); an innovation far beyond that noise for
-  ``restart_steps`` observations in a row (a push, another model) restarts it from the measurement. The contact
+  [`steady_state_kalman_gain`][steady_state_kalman_gain] a few steps after a start); an innovation far beyond that noise
+  for ``restart_steps`` observations in a row (a push, another model) restarts it from the measurement. The contact
   flags of the observation (clean) set the prior's mode; at a measured mode change the correction is complete for
   the velocities (the impact is where the model is least sure).
 """
@@ -29,11 +30,11 @@ from hsddp_gym.util.validation import check_in_range, check_int, check_positive,
 
 class ContactModelPredictor:
     """Forward prediction with the model: the nominal robot in the state-based contact model of
-    :class:`~hsddp_gym.core.contact.ContactSimulator` (rigid bodies, inelastic impacts, Coulomb friction with the
-    nominal ``mu``, lift-offs decided by the contact LCP, the motors' torque-speed limit), the physics the policy
-    believes in. It knows nothing of the env's actual friction, masses or pushes. Stepped by the compiled kernel
-    (:class:`~hsddp_gym.core.compiled_contact.CompiledContactSimulator`: 24 us per 5 ms control step against 190 us
-    for the Python reference, the same states to 1e-12; the state filter predicts every control step).
+    [`ContactSimulator`][hsddp_gym.core.contact.ContactSimulator] (rigid bodies, inelastic impacts, Coulomb friction
+    with the nominal ``mu``, lift-offs decided by the contact LCP, the motors' torque-speed limit), the physics the
+    policy believes in. It knows nothing of the env's actual friction, masses or pushes. Stepped by the compiled kernel
+    ([`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator]: 24 us per 5 ms control step
+    against 190 us for the Python reference, the same states to 1e-12; the state filter predicts every control step).
 
     Args:
         control_dt: control period [s] (one torque vector is held for it).
@@ -57,19 +58,19 @@ class ContactModelPredictor:
 
     @property
     def terrain(self):
-        """The ground the model's feet contact (a :class:`~hsddp_gym.core.terrain.Terrain`; None: flat)."""
+        """The ground the model's feet contact (a [`Terrain`][hsddp_gym.core.terrain.Terrain]; None: flat)."""
         return self.sim.terrain
 
     def set_terrain(self, terrain) -> None:
-        """Predict on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, or None: the flat ground), the env's
-        contact on its simulated surface (:meth:`~hsddp_gym.core.terrain.Terrain.surface_vertices`)."""
+        """Predict on ``terrain`` (a [`Terrain`][hsddp_gym.core.terrain.Terrain], or None: the flat ground), the env's
+        contact on its simulated surface ([`surface_vertices`][hsddp_gym.core.terrain.Terrain.surface_vertices])."""
         self.sim.set_terrain(terrain)
 
     def step(self, x: np.ndarray, u: np.ndarray, mode: Mode | None = None, ground: float = 0.0
              ) -> tuple[np.ndarray, Mode]:
         """One control period from ``x`` (14,) under torques ``u`` (4,) [N m]: ``(x_next (14,), contact mode at
         the end)``. The contacts follow from the state (``mode`` is accepted for symmetry and not needed).
-        ``ground`` [m]: the height of the ground (of :attr:`terrain` raised by it), in the frame of ``x``."""
+        ``ground`` [m]: the height of the ground (of `terrain` raised by it), in the frame of ``x``."""
         sim = self.sim
         if ground:
             ground = check_ground(ground)
@@ -87,7 +88,7 @@ class ContactModelPredictor:
     def predict(self, x: np.ndarray, mode: Mode | None, torques, ground: float = 0.0
                 ) -> tuple[np.ndarray, Mode | None]:
         """The state after holding each row of ``torques`` (n, 4) [N m] for one control period, from ``x`` (14,):
-        ``(x (14,), contact mode)`` (``(x, mode)`` itself for n = 0). ``ground``: as in :meth:`step`."""
+        ``(x (14,), contact mode)`` (``(x, mode)`` itself for n = 0). ``ground``: as in [`step`][step]."""
         x = check_vector(x, NX, "x").copy()
         for u in torques:
             x, mode = self.step(x, np.asarray(u, dtype=np.float64), mode, ground)
@@ -107,8 +108,8 @@ resolution leaves micrometres)."""
 
 def terrain_clearance(robot: CheetahModel, q: np.ndarray, foot: int, terrain=None) -> float:
     """Height [m] of ``foot`` of configuration ``q`` (7,) above the ground under it: the simulated surface of
-    ``terrain`` (:meth:`~hsddp_gym.core.terrain.Terrain.surface_heights`, the env's ``info["foot_heights"]``), or
-    the plane ``z = 0`` for None."""
+    ``terrain`` ([`surface_heights`][hsddp_gym.core.terrain.Terrain.surface_heights], the env's
+    ``info["foot_heights"]``), or the plane ``z = 0`` for None."""
     if terrain is None:
         return robot.foot_height(q, foot)
     p = robot.foot_positions(q)[foot]
@@ -116,8 +117,8 @@ def terrain_clearance(robot: CheetahModel, q: np.ndarray, foot: int, terrain=Non
 
 
 def clearance_jacobian(robot: CheetahModel, q: np.ndarray, foot: int, index, terrain=None) -> np.ndarray:
-    """Derivatives of :func:`terrain_clearance` with respect to the coordinates ``q[index]``: the foot's vertical
-    Jacobian less the surface's slope under the foot times its horizontal one."""
+    """Derivatives of [`terrain_clearance`][terrain_clearance] with respect to the coordinates ``q[index]``: the foot's
+    vertical Jacobian less the surface's slope under the foot times its horizontal one."""
     J = robot.foot_jacobian(q, foot)
     if terrain is None:
         return J[1, index]
@@ -129,8 +130,8 @@ def project_onto_contacts(robot: CheetahModel, x: np.ndarray, mode: Mode, terrai
                           ground: float = 0.0) -> np.ndarray:
     """``x`` (14,) with its trunk height (and, for two feet, pitch) moved so that the feet in contact in ``mode`` are
     on the ground (one Gauss-Newton step on the feet's heights; a copy), unless they all are within
-    :data:`CONTACT_TOLERANCE` of it. ``terrain``: the ground (:func:`terrain_clearance`; None: ``z = 0``), raised by
-    ``ground`` [m]."""
+    [`CONTACT_TOLERANCE`][CONTACT_TOLERANCE] of it. ``terrain``: the ground ([`terrain_clearance`][terrain_clearance];
+    None: ``z = 0``), raised by ``ground`` [m]."""
     x = np.array(x, dtype=np.float64)
     ground = check_ground(ground)
     feet = [f for f in (0, 1) if Mode(mode).in_contact(f)]
@@ -171,17 +172,17 @@ class MeasurementBias:
     and ``b = (b_z, b_pitch)`` the biases. One foot sees a combination of them; the two feet of a gait over a cycle
     see both. They are estimated by least squares over the observations, the older ones forgotten with the time
     constant ``memory`` (an exponential weight), from a prior of zero bias worth ``prior_steps`` observations of one
-    foot (a pitch's observation scaled by the hip's lever arm). :meth:`ground_offset` is then the height at which
-    the measurement puts a foot that stands on the ground (where a landing foot will stop, in the measurement's
-    frame); :meth:`correct` subtracts the bias from a measurement.
+    foot (a pitch's observation scaled by the hip's lever arm). [`ground_offset`][ground_offset] is then the height at
+    which the measurement puts a foot that stands on the ground (where a landing foot will stop, in the measurement's
+    frame); [`correct`][correct] subtracts the bias from a measurement.
 
     Whatever else holds a stance foot off the flat ground is read as a bias too: a foot that sinks into a soft
-    contact or stands on a step. For :meth:`ground_offset` that is right (a landing foot will sink as deep); for
-    :meth:`correct` it is not (in a flight the trunk is where the sensors say, not where the sunk feet put it), so
-    the MPC uses the estimate as the ground (of its plans, of its late-landing rule and of the model its state
+    contact or stands on a step. For [`ground_offset`][ground_offset] that is right (a landing foot will sink as deep);
+    for [`correct`][correct] it is not (in a flight the trunk is where the sensors say, not where the sunk feet put it),
+    so the MPC uses the estimate as the ground (of its plans, of its late-landing rule and of the model its state
     filter and latency compensation step) and never corrects the state with it. A sample whose residual from the
     estimate exceeds ``gate`` [m] (a foot flagged on the ground far from where the estimate puts it) is not used;
-    before :attr:`calibrated` the estimate is not yet known, and the gate is measured from the bound instead (a
+    before [`calibrated`][calibrated] the estimate is not yet known, and the gate is measured from the bound instead (a
     residual up to ``gate`` plus the height bound is used, so that a bias beyond ``gate`` is found at all). The
     estimates are bounded by ``limit`` (``(height [m], pitch [rad])``). Velocities are not estimated: on a compliant
     contact a stance foot is not at rest (it sinks and rebounds), and a velocity bias of the size of the measurement
@@ -199,15 +200,15 @@ class MeasurementBias:
 
     Attributes:
         bias: the estimate (14,) in state order (zeros but the trunk height and pitch).
-        samples: foot observations used since :meth:`reset`.
-        terrain: the ground the feet stand on when it is known (a :class:`~hsddp_gym.core.terrain.Terrain`; None,
+        samples: foot observations used since [`reset`][reset].
+        terrain: the ground the feet stand on when it is known (a [`Terrain`][hsddp_gym.core.terrain.Terrain]; None,
             the default: the plane ``z = 0``). A foot's residual is then its height above the terrain's surface under
-            it (:func:`terrain_clearance`), so only the sensors' bias is estimated and the measurement stays in the
-            world frame instead of the frame of the ground under the stance feet.
+            it ([`terrain_clearance`][terrain_clearance]), so only the sensors' bias is estimated and the measurement
+            stays in the world frame instead of the frame of the ground under the stance feet.
     """
 
     CALIBRATION_STEPS = 5.0
-    """The weight of observations of the height (in one foot's observations) after which :attr:`calibrated`."""
+    """The weight of observations of the height (in one foot's observations) after which [`calibrated`][calibrated]."""
     INDEX = np.array([IZ, IPITCH])
 
     def __init__(self, robot: CheetahModel, control_dt: float, memory: float = 1.0, settle_steps: int = 2,
@@ -235,12 +236,13 @@ class MeasurementBias:
 
     @property
     def calibrated(self) -> bool:
-        """True once the feet on the ground have given the height the weight of :attr:`CALIBRATION_STEPS`
+        """True once the feet on the ground have given the height the weight of [`CALIBRATION_STEPS`][CALIBRATION_STEPS]
         observations: before, where the measurement puts the ground is not known."""
         return bool(self._info[0, 0] >= self.CALIBRATION_STEPS)
 
     def update(self, y: np.ndarray, mode: Mode) -> np.ndarray:
-        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return :attr:`bias` (14,)."""
+        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return
+        [`bias`][hsddp_gym.core.batch_model.bias] (14,)."""
         mode = Mode(mode)
         self._info *= self.forget
         self._vec *= self.forget
@@ -268,7 +270,7 @@ class MeasurementBias:
         return self.bias
 
     def ground_offset(self, q: np.ndarray, foot: int) -> float:
-        """The height [m] above the ground (or :attr:`terrain`) at which a configuration ``q`` (7,) measured now
+        """The height [m] above the ground (or `terrain`) at which a configuration ``q`` (7,) measured now
         puts ``foot`` when it stands on the ground: ``J_f(q) b`` (0 before any foot on the ground)."""
         if self.terrain is None:
             j = self.robot.foot_jacobian(q, foot)[1, self.INDEX]
@@ -277,7 +279,7 @@ class MeasurementBias:
         return float(j @ self.bias[self.INDEX])
 
     def correct(self, y: np.ndarray, mode: Mode) -> np.ndarray:
-        """The measurement ``y`` (14,) less the bias estimated with it (:meth:`update`): a new array."""
+        """The measurement ``y`` (14,) less the bias estimated with it ([`update`][update]): a new array."""
         y = check_vector(y, NX, "y")
         return y - self.update(y, mode)
 
@@ -302,7 +304,7 @@ def steady_state_kalman_gain(dt: float, position_noise: float, velocity_noise: f
     ``q`` and ``v`` are measured with independent noise of standard deviations ``position_noise`` and
     ``velocity_noise``. Returns ``(L, S)``: the gain ``L (2, 2)`` (the correction of ``(q, v)`` is
     ``L @ innovation``) and the covariance ``S (2, 2)`` of the innovation, both at the fixed point of the Riccati
-    recursion (which :class:`StateFilter` runs step by step).
+    recursion (which [`StateFilter`][StateFilter] runs step by step).
     """
     A, Q, R = _noise_model(dt, position_noise, velocity_noise, acceleration_noise)
     P = R.copy()
@@ -322,12 +324,12 @@ class StateFilter:
 
     Each observation ``y`` (14,) is compared with the prior ``x_prior`` (the previous estimate propagated one
     control period with the model and the torque the env executed). Every coordinate's (position, velocity) pair
-    is corrected by the Kalman gain of the noise model of :func:`steady_state_kalman_gain`, ``x = x_prior + L (y -
-    x_prior)`` pair by pair, with the covariance ``P (2, 2)`` of the estimate carried from step to step (the same for
-    every coordinate: they share the noise model): right after a start or a restart the estimate is one observation
-    and the gain is high; it settles to the steady-state gain within a few steps. (A coordinate whose position the
-    model integrates from its velocity: the velocity measurement, integrated, says more about the position than
-    the position measurement does, so the steady-state position gain is small.) Two cases take the measurement
+    is corrected by the Kalman gain of the noise model of [`steady_state_kalman_gain`][steady_state_kalman_gain], ``x =
+    x_prior + L (y - x_prior)`` pair by pair, with the covariance ``P (2, 2)`` of the estimate carried from step to step
+    (the same for every coordinate: they share the noise model): right after a start or a restart the estimate is one
+    observation and the gain is high; it settles to the steady-state gain within a few steps. (A coordinate whose
+    position the model integrates from its velocity: the velocity measurement, integrated, says more about the position
+    than the position measurement does, so the steady-state position gain is small.) Two cases take the measurement
     instead of the model:
 
     * the **innovation test**: the normalized innovation squared ``sum_i e_i^T S^-1 e_i`` over the observed
@@ -335,20 +337,20 @@ class StateFilter:
       more than the assumed noise explains (the default 35 is exceeded by chance once in ~1000 observations) --
       on ``restart_steps`` observations in a row: the model is wrong (a push, a slip, another friction, mass or
       contact model), and the estimate restarts from the measurement (``P = R``). A shorter run of exceedances
-      (:attr:`outliers`) is corrected as any observation: one step the model could not predict (an impact on a
+      (`outliers`) is corrected as any observation: one step the model could not predict (an impact on a
       soft or stiff contact, which the rigid model has no state for) leaves the estimate to the prior and the
       gain, while a push keeps the innovation beyond the gate at the next observation too (the blended estimate
       is still far from it) and restarts then;
     * an observed contact **mode change the model did not predict**: the velocities are taken whole (the impact is
       where the model is least sure).
 
-    The feet the (clean) contact flags report on the ground are put on it (:func:`project_onto_contacts`: trunk
-    height, and pitch for two feet; on the predictor's terrain, :meth:`ContactModelPredictor.set_terrain`), so that the
-    prior's contact model neither lifts nor sinks them through noise in the measured heights and angles. The ground
-    is where the measurement puts it: ``update(..., ground=)`` raises it (the terrain, or ``z = 0``) by the height at
-    which a biased measurement puts a foot that stands on it (the height bias of :class:`MeasurementBias`), and when
-    that height moves the estimate moves with it. With exact observations and the exact model the estimate is
-    the observation (to round-off).
+    The feet the (clean) contact flags report on the ground are put on it
+    ([`project_onto_contacts`][project_onto_contacts]: trunk height, and pitch for two feet; on the predictor's terrain,
+    [`ContactModelPredictor.set_terrain`][ContactModelPredictor.set_terrain]), so that the prior's contact model neither
+    lifts nor sinks them through noise in the measured heights and angles. The ground is where the measurement puts it:
+    ``update(..., ground=)`` raises it (the terrain, or ``z = 0``) by the height at which a biased measurement puts a
+    foot that stands on it (the height bias of [`MeasurementBias`][MeasurementBias]), and when that height moves the
+    estimate moves with it. With exact observations and the exact model the estimate is the observation (to round-off).
 
     Args:
         predictor: the model used for the prior (its ``control_dt`` is the filter's period).
@@ -364,9 +366,9 @@ class StateFilter:
         gain: the steady-state Kalman gain ``L (2, 2)``.
         innovation_covariance: the steady-state innovation covariance ``S (2, 2)``.
         covariance: the current ``P (2, 2)`` (None before the first observation).
-        restarts: the observations taken whole by the innovation test since :meth:`reset`.
+        restarts: the observations taken whole by the innovation test since [`reset`][reset].
         outliers: the observations beyond the gate that did not restart the estimate (a run shorter than
-            ``restart_steps``) since :meth:`reset`.
+            ``restart_steps``) since [`reset`][reset].
         last_nis: the normalized innovation squared of the last corrected observation (None before one).
     """
 

@@ -15,11 +15,11 @@ model that a demanding user can read and tune:
   (F is the force of the ground on the robot); the swing leg holds its touchdown posture with PD.
 
 In flight every joint tracks the posture of the next touchdown (the per-mode references of
-:mod:`hsddp_gym.core.references`) with the hip shifted by a Raibert-style speed correction.
+[`hsddp_gym.core.references`][hsddp_gym.core.references]) with the hip shifted by a Raibert-style speed correction.
 
-:class:`ContactEventBoundingController` is the same idea for a simulator whose contacts follow the state
-(``hsddp_gym/Bounding-v0``), where no schedule says when a stance ends: there a stance lasts until the leg
-force vanishes (~140 ms with the gains above) and the trunk pitches over. It is a per-leg state machine
+[`ContactEventBoundingController`][ContactEventBoundingController] is the same idea for a simulator whose contacts
+follow the state (``hsddp_gym/Bounding-v0``), where no schedule says when a stance ends: there a stance lasts until the
+leg force vanishes (~140 ms with the gains above) and the trunk pitches over. It is a per-leg state machine
 driven by touchdown events (contact flags) and its own timers:
 
 * **stance** starts when a swinging leg touches the ground and lasts a fixed ``stance_duration``; the
@@ -104,9 +104,10 @@ class HeuristicBoundingController:
     """The warm-start controller; it acts from the state and the contact mode only.
 
     Args:
-        robot: the model. gains: :class:`HeuristicGains`. height_offset: the touchdown postures' trunk this much
-            higher [m] (:func:`~hsddp_gym.core.references.end_of_mode_reference`; the MPC's start-up and warm-start
-            controllers take ``MPCOptions.height_offset``).
+        robot: the model. gains: [`HeuristicGains`][HeuristicGains]. height_offset: the touchdown postures' trunk this
+            much
+            higher [m] ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference]; the MPC's start-up
+            and warm-start controllers take ``MPCOptions.height_offset``).
     """
 
     def __init__(self, robot: CheetahModel | None = None, gains: HeuristicGains = HeuristicGains(),
@@ -169,8 +170,8 @@ class HeuristicBoundingController:
         return u
 
     def as_schedule_controller(self, schedule=None):
-        """A ``controller(x, mode, phase, k)`` for :func:`hsddp_gym.core.rollout.rollout`; with a schedule, the
-        touchdown foot of each flight phase comes from it."""
+        """A ``controller(x, mode, phase, k)`` for [`hsddp_gym.core.rollout.rollout`][hsddp_gym.core.rollout.rollout];
+        with a schedule, the touchdown foot of each flight phase comes from it."""
 
         def controller(x, mode, phase, k):
             td = schedule.bounding_touchdown_foot(phase) if schedule is not None and mode == Mode.FLIGHT else None
@@ -181,9 +182,9 @@ class HeuristicBoundingController:
 
 @dataclasses.dataclass(frozen=True)
 class ContactEventGains:
-    """Gains of :class:`ContactEventBoundingController` (defaults: tuned in ``hsddp_gym/Bounding-v0`` at its
-    default settings, 5 ms control period; they give a ~165 ms cycle of 60 ms stances and 15-25 ms flights
-    at ~1 m/s).
+    """Gains of [`ContactEventBoundingController`][ContactEventBoundingController] (defaults: tuned in
+    ``hsddp_gym/Bounding-v0`` at its default settings, 5 ms control period; they give a ~165 ms cycle of 60 ms stances
+    and 15-25 ms flights at ~1 m/s).
 
     Attributes:
         speed: desired forward speed [m/s].
@@ -249,10 +250,10 @@ _STANCE, _SWING = "stance", "swing"
 class ContactEventBoundingController:
     """The bounding controller for state-based contacts: stance and swing of each leg follow the observed
     touchdowns and the controller's own timers (see the module docstring). It keeps memory: call
-    :meth:`reset` at the start of an episode and :meth:`torque` once per control period ``dt``.
+    [`reset`][reset] at the start of an episode and [`torque`][torque] once per control period ``dt``.
 
     Args:
-        dt: control period [s]. robot: the model. gains: :class:`ContactEventGains`.
+        dt: control period [s]. robot: the model. gains: [`ContactEventGains`][ContactEventGains].
     """
 
     def __init__(self, dt: float, robot: CheetahModel | None = None,
@@ -375,21 +376,23 @@ class ContactEventBoundingController:
 class HeuristicPolicy(Policy):
     """The heuristic bounding controller driven by the env's contact flags.
 
-    It acts with :class:`hsddp_gym.planners.policies.heuristic.ContactEventBoundingController` (``self.gait``): a
-    per-leg stance/swing state machine started by the observed touchdowns, with a fixed stance time after which the
-    leg is actively folded, a wrench-based stance force (height, speed, bounding pitch rate) and Raibert
-    foot placement. The observation's contact flags and the policy's own timers are its only gait inputs
-    (the gait clock is not used).
+    It acts with
+    [`ContactEventBoundingController`][hsddp_gym.planners.policies.heuristic.ContactEventBoundingController]
+    (``self.gait``): a per-leg stance/swing state machine started by the observed touchdowns, with a fixed stance time
+    after which the leg is actively folded, a wrench-based stance force (height, speed, bounding pitch rate) and Raibert
+    foot placement. The observation's contact flags and the policy's own timers are its only gait inputs (the gait clock
+    is not used).
 
     ``self.controller`` is the schedule-driven
-    :class:`~hsddp_gym.planners.policies.heuristic.HeuristicBoundingController`
+    [`HeuristicBoundingController`][hsddp_gym.planners.policies.heuristic.HeuristicBoundingController]
     (the planner's warm start, ``torque(x, mode)``), kept for callers that supply the contact mode from a
-    schedule (e.g. the MPC's fallback); it is not used by :meth:`act`.
+    schedule (e.g. the MPC's fallback); it is not used by `act`.
 
     Args:
-        gains: :class:`HeuristicGains` of ``self.controller`` (the desired speed defaults to the env's
+        gains: [`HeuristicGains`][HeuristicGains] of ``self.controller`` (the desired speed defaults to the env's
             target speed).
-        gait_gains: :class:`ContactEventGains` of ``self.gait`` (default: tuned for the env's defaults, with
+        gait_gains: [`ContactEventGains`][ContactEventGains] of ``self.gait`` (default: tuned for the env's defaults,
+            with
             the env's target speed and torque limit).
     """
 

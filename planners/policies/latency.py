@@ -1,13 +1,14 @@
 """Online estimation of an action delay from the robot's response to the policy's own actions.
 
-A policy that compensates a latency (:class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`, behind
-:class:`~hsddp_gym.envs.perturbations.ActionDelay`) is told the delay by the env (``action_delay_steps``). When the
-delay it is told is wrong by a control step, its state filter propagates the estimate with the wrong torque and its
-prediction over the delay uses the wrong actions: the closed loop is one step out of phase and falls.
+A policy that compensates a latency ([`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], behind
+[`ActionDelay`][hsddp_gym.envs.perturbations.wrappers.ActionDelay]) is told the delay by the env
+(``action_delay_steps``). When the delay it is told is wrong by a control step, its state filter propagates the estimate
+with the wrong torque and its prediction over the delay uses the wrong actions: the closed loop is one step out of phase
+and falls.
 
-:class:`DelayEstimator` tells the delays apart by what they predict. Every control step it predicts the new state
-from the previous estimate once per candidate delay ``d`` (the announced one and its neighbours), holding the torque
-of the action returned ``d + 1`` steps ago, and compares the predicted velocities with the measured ones. Each
+[`DelayEstimator`][DelayEstimator] tells the delays apart by what they predict. Every control step it predicts the new
+state from the previous estimate once per candidate delay ``d`` (the announced one and its neighbours), holding the
+torque of the action returned ``d + 1`` steps ago, and compares the predicted velocities with the measured ones. Each
 step's squared errors are normalized to shares (they sum to 1 over the candidates, so a push or an impact that no
 candidate predicts cannot outweigh the steps before it) and summed with exponential forgetting; the estimate moves
 to a candidate whose score is below the current one's by more than a margin (hysteresis), so that steps whose
@@ -39,7 +40,7 @@ class DelayEstimator:
 
     Attributes:
         candidates: the candidate delays (ascending). delay: the current estimate. scores: ``(len(candidates),)``.
-        switches: how many times the estimate has moved since :meth:`reset`.
+        switches: how many times the estimate has moved since [`reset`][reset].
     """
 
     def __init__(self, predictor: ContactModelPredictor, announced: int, search: int = 1, forgetting: float = 0.9,
@@ -63,7 +64,7 @@ class DelayEstimator:
 
     @property
     def history(self) -> int:
-        """How many past actions :meth:`update` needs: the largest candidate + 1."""
+        """How many past actions [`update`][update] needs: the largest candidate + 1."""
         return self.candidates[-1] + 1
 
     def reset(self) -> None:
@@ -78,9 +79,9 @@ class DelayEstimator:
         Args:
             x_prev: the state estimate (14,) at the start of the period.
             y: the state measured (14,) at its end.
-            torques: ``(history, 4)`` [N m] the torques of the last :attr:`history` actions returned, oldest first
+            torques: ``(history, 4)`` [N m] the torques of the last [`history`][history] actions returned, oldest first
                 (row ``-1 - d`` is what a delay of ``d`` steps executed over the period).
-            ground: the height [m] of the model's ground (:meth:`ContactModelPredictor.step`).
+            ground: the height [m] of the model's ground ([`ContactModelPredictor.step`][ContactModelPredictor.step]).
         Returns:
             The delay estimate [control steps].
         """

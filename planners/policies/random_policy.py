@@ -13,7 +13,7 @@ from hsddp_gym.planners.policies.base import EnvInterface, Policy
 class RandomPolicy(Policy):
     """Uniform random actions from a seeded generator (``seed``); ``reset`` keeps the stream going.
 
-    Through :meth:`predict` (and the SB3 adapter) env 0 continues this policy's stream from its current
+    Through `predict` (and the SB3 adapter) env 0 continues this policy's stream from its current
     state -- the same actions as calling the policy -- without advancing it, and env ``k >= 1`` draws from
     the independent stream ``SeedSequence(entropy of seed, spawn_key=(k,))``.
     """

@@ -1,4 +1,4 @@
-"""Touchdown rules: which observed touchdowns move a :class:`~hsddp_gym.planners.policies.tracking.PlanTracker`'s
+"""Touchdown rules: which observed touchdowns move a [`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker]'s
 cursor to the next phase.
 
 A touchdown is *early* when a foot is flagged on the ground that the plan's current phase has in the air and the
@@ -8,18 +8,21 @@ foot during the last 1 ms simulation step, so it also reads "touching" for a mom
 that skims the ground after a take-off: a flight that ends in a stance would read either as that stance's
 touchdown. A rule says which flagged feet count:
 
-* :class:`ContactFlags`: every flagged foot (the MPC's plans and the bounding expert's: their flights start from a
+* [`ContactFlags`][ContactFlags]: every flagged foot (the MPC's plans and the bounding expert's: their flights start
+from a
   single stance, whose lifted foot is not the landing one);
-* :class:`SeenAirborne`: a foot seen unflagged during the current phase, or any flagged foot once a fraction of the
+* [`SeenAirborne`][SeenAirborne]: a foot seen unflagged during the current phase, or any flagged foot once a fraction of
+the
   phase's plan time has passed (the pronk: right after a lift-off both feet are still flagged, and a flight that
   ends in a double stance would read that as its touchdown);
-* :class:`FootClearance`: a foot seen at least a clearance above ``z = 0`` during the current phase, its height from
+* [`FootClearance`][FootClearance]: a foot seen at least a clearance above ``z = 0`` during the current phase, its
+height from
   the observed state by the robot's kinematics (the backflip, the jumps, the gait transitions: the take-off leaves
   the feet skimming the ground for a few ms, the plans keep them 1 mm clear; the observation has no world x, so on a
   terrain the heights are above the start's ground).
 
 A rule is a stateless setting: the tracker keeps, per foot, whether the current phase has shown the evidence the rule
-asks for (:meth:`TouchdownRule.evidence`), forgotten when the phase changes.
+asks for ([`TouchdownRule.evidence`][TouchdownRule.evidence]), forgotten when the phase changes.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_positive
 
 TOUCHDOWN_CLEARANCE = 0.02
-""":class:`FootClearance`'s default: a touchdown counts only for a foot seen at least this high [m] during the
+"""[`FootClearance`][FootClearance]'s default: a touchdown counts only for a foot seen at least this high [m] during the
 current phase."""
 
 
@@ -52,8 +55,8 @@ class TouchdownRule:
 
 
 class ContactFlags(TouchdownRule):
-    """Every flagged foot counts: no evidence needed (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`'s
-    default)."""
+    """Every flagged foot counts: no evidence needed
+    ([`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker]'s default)."""
 
     def evidence(self, mode: Mode, x: np.ndarray | None) -> tuple[bool, bool]:
         return True, True
@@ -88,7 +91,8 @@ class FootClearance(TouchdownRule):
     height from the observed state; without a state no foot is seen clear).
 
     Args:
-        clearance: [m] (:data:`TOUCHDOWN_CLEARANCE`; :func:`plan_clearance` for a plan whose flights are low).
+        clearance: [m] ([`TOUCHDOWN_CLEARANCE`][TOUCHDOWN_CLEARANCE]; [`plan_clearance`][plan_clearance] for a plan
+            whose flights are low).
         robot: the kinematics for the feet's heights (None: the default model).
     """
 
@@ -111,8 +115,8 @@ class FootClearance(TouchdownRule):
 def plan_clearance(solution, robot: CheetahModel | None = None, clearance: float = TOUCHDOWN_CLEARANCE) -> float:
     """The touchdown clearance [m] for tracking ``solution``: ``clearance``, or, if lower, half the lowest over the
     phases that end in a touchdown of the peak height the landing feet reach during the phase (a touchdown counts
-    only for a foot seen that clear, :class:`FootClearance`, and one landing foot seen clear is enough to move on).
-    A pronk's 80 ms flights lift the feet only about 1 cm: with 2 cm no foot would ever be seen clear."""
+    only for a foot seen that clear, [`FootClearance`][FootClearance], and one landing foot seen clear is enough to move
+    on). A pronk's 80 ms flights lift the feet only about 1 cm: with 2 cm no foot would ever be seen clear."""
     robot = robot if robot is not None else CheetahModel()
     modes = [Mode(m) for m in solution.schedule.modes]
     nxt = modes[1:] + [Mode(solution.schedule.final_mode)]

@@ -1,6 +1,6 @@
 """Following a planned trajectory with its feedback law while the real contacts decide the phase.
 
-A :class:`PlanTracker` holds a plan (``X (N+1, 14)``, ``U (N, 4)``, ``K (N, 4, 14)``, the phase layout and each
+A [`PlanTracker`][PlanTracker] holds a plan (``X (N+1, 14)``, ``U (N, 4)``, ``K (N, 4, 14)``, the phase layout and each
 phase's step) and a cursor in plan time. The control at the cursor is the plan's feedback law
 (paper eq. 8 with ``eps = 0``)::
 
@@ -10,13 +10,13 @@ phase's step) and a cursor in plan time. The control at the cursor is the plan's
 
 * *Early touchdown*: when a foot is on the ground that the plan's current phase has in the air and the next
   phase has on the ground, the cursor jumps to the start of the next phase, if the tracker's touchdown rule counts
-  that foot's flag (:mod:`hsddp_gym.planners.policies.touchdown`; the default :class:`ContactFlags` counts every
-  flag).
+  that foot's flag ([`hsddp_gym.planners.policies.touchdown`][hsddp_gym.planners.policies.touchdown]; the default
+  [`ContactFlags`][ContactFlags] counts every flag).
 * *Late touchdown*: the cursor never leaves a phase that ends in a touchdown before that touchdown is seen;
   it waits on the phase's last knot (its feedback law keeps acting).
 * *Lift-off* follows plan time: the plan's own controls lift the foot, so a stance phase ends on schedule
   even if the foot still reads as touching (resting feet are flagged as in contact).
-* *End*: the plan is :attr:`~PlanTracker.finished` when the touchdown that ends its last phase is seen (a
+* *End*: the plan is `finished` when the touchdown that ends its last phase is seen (a
   plan ending in flight), or when plan time runs out (a plan ending in stance).
 * *Cycle* (``loop_phase``): the tracker never finishes; when the cursor would enter phase ``loop_end`` (None: the
   end of the plan) it returns to the start of phase ``loop_phase`` instead (a phase of the same mode), so that the
@@ -43,7 +43,7 @@ class PlanTracker:
         modes: ``(n,)`` phase modes.
         phase_dt: ``(n,)`` step of each phase [s].
         next_mode: mode after the last phase.
-        touchdown: which flagged touchdowns count (None: :class:`ContactFlags`, every flag).
+        touchdown: which flagged touchdowns count (None: [`ContactFlags`][ContactFlags], every flag).
         loop_phase: None (the plan finishes) or the phase the cursor returns to (module docstring, *Cycle*).
         loop_end: the phase whose start sends the cursor back to ``loop_phase`` (None: the end of the plan).
     """
@@ -86,7 +86,7 @@ class PlanTracker:
     @classmethod
     def from_solution(cls, solution, problem=None, touchdown: TouchdownRule | None = None,
                       loop_phase: int | None = None, loop_end: int | None = None) -> PlanTracker:
-        """Tracker of a :class:`~hsddp_gym.planners.optimizer.solution.Solution` (phase steps from ``problem`` when
+        """Tracker of a [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] (phase steps from ``problem`` when
         given, else ``durations / knots``); the other arguments are the constructor's."""
         knots = np.diff(solution.phase_start)
         phase_dt = problem.phase_dt if problem is not None else solution.schedule.durations / knots

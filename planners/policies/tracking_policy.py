@@ -1,21 +1,22 @@
 """The plan-tracking policy: one offline HS-DDP plan tracked with its feedback law, then what comes after the plan.
 
-:class:`PlanTrackingPolicy` acts with ``u = U_k + K_k (x - X_k)`` (paper eq. 8, eps = 0, the trunk's x not fed back)
-at the cursor of a :class:`~hsddp_gym.planners.policies.tracking.PlanTracker`, from observations only: each step the
-observed contacts synchronize the cursor (its touchdown rule, :mod:`hsddp_gym.planners.policies.touchdown`), the law
-at the cursor acts, and the cursor advances by the env's control period. Two settings make a task's expert
-(:mod:`hsddp_gym.planners.policies.experts`):
+[`PlanTrackingPolicy`][PlanTrackingPolicy] acts with ``u = U_k + K_k (x - X_k)`` (paper eq. 8, eps = 0, the trunk's x
+not fed back) at the cursor of a [`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker], from observations
+only: each step the observed contacts synchronize the cursor (its touchdown rule,
+[`hsddp_gym.planners.policies.touchdown`][hsddp_gym.planners.policies.touchdown]), the law at the cursor acts, and the
+cursor advances by the env's control period. Two settings make a task's expert
+([`hsddp_gym.planners.policies.experts`][hsddp_gym.planners.policies.experts]):
 
 * ``touchdown``: which observed touchdowns move the cursor to the next phase (contact flags, feet seen airborne,
   feet seen clear of the ground);
 * ``after_plan``: what happens when the plan is over:
 
-  * :class:`HandOver`: another policy takes over (by default the MPC, which picks up the gait from the observed
+  * [`HandOver`][HandOver]: another policy takes over (by default the MPC, which picks up the gait from the observed
     contacts); the plan's last knot acts on the step whose observation ends the plan, the other policy from the
     next step on;
-  * :class:`HoldPosture`: the plan's last control plus a joint PD to its last knot's joint angles, from the step
+  * [`HoldPosture`][HoldPosture]: the plan's last control plus a joint PD to its last knot's joint angles, from the step
     whose observation ends the plan (or whose cursor reaches the plan's end);
-  * :class:`RepeatCycle`: the plan is never over: the tracker plays the cycle ``loop_phase .. loop_end - 1``
+  * [`RepeatCycle`][RepeatCycle]: the plan is never over: the tracker plays the cycle ``loop_phase .. loop_end - 1``
     periodically.
 """
 
@@ -30,10 +31,10 @@ from hsddp_gym.planners.policies.tracking import PlanTracker, tracking_error
 from hsddp_gym.util.validation import check_int, check_positive
 
 HOLD_KP = 50.0
-""":class:`HoldPosture`'s joint stiffness [N m/rad]."""
+"""[`HoldPosture`][HoldPosture]'s joint stiffness [N m/rad]."""
 HOLD_KD = 0.8
-""":class:`HoldPosture`'s joint damping [N m s/rad] (the feet on the ground carry the trunk, so more than a swinging
-leg's 0.4 at 200 Hz is stable)."""
+"""[`HoldPosture`][HoldPosture]'s joint damping [N m s/rad] (the feet on the ground carry the trunk, so more than a
+swinging leg's 0.4 at 200 Hz is stable)."""
 
 
 class AfterPlan:
@@ -77,7 +78,8 @@ class HandOver(AfterPlan):
 
     Args:
         fallback: the policy (None: HS-DDP MPC with default options,
-            :class:`hsddp_gym.planners.policies.mpc.MPCPolicy`, for the tracking policy's interface).
+            [`hsddp_gym.planners.policies.mpc.MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], for the
+            tracking policy's interface).
     """
 
     acts_on_ending_step = False
@@ -115,8 +117,8 @@ class HoldPosture(AfterPlan):
     plus a joint PD to its last knot's joint angles, ``u = U[-1] + kp (q_j,end - q_j) - kd qd_j``.
 
     Args:
-        kp: joint stiffness [N m/rad] (:data:`HOLD_KP`).
-        kd: joint damping [N m s/rad] (:data:`HOLD_KD`).
+        kp: joint stiffness [N m/rad] ([`HOLD_KP`][HOLD_KP]).
+        kd: joint damping [N m s/rad] ([`HOLD_KD`][HOLD_KD]).
     """
 
     def __init__(self, kp: float = HOLD_KP, kd: float = HOLD_KD) -> None:
@@ -137,7 +139,7 @@ class HoldPosture(AfterPlan):
 class RepeatCycle(AfterPlan):
     """The plan is never over: the tracker returns to the start of phase ``loop_phase`` when its cursor would enter
     phase ``loop_end`` (None: at the end of the plan), so that the cycle in between repeats
-    (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`, *Cycle*).
+    ([`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker], *Cycle*).
 
     Args:
         loop_phase: the phase the cursor returns to (its mode that of the phase the cycle ends in).
@@ -162,11 +164,12 @@ class PlanTrackingPolicy(Policy):
     """Tracks one HS-DDP plan with its feedback law while the observed contacts decide the phase (module docstring).
 
     Args:
-        solution: the plan, a :class:`~hsddp_gym.planners.optimizer.solution.Solution` (its gains for the env's
+        solution: the plan, a [`Solution`][hsddp_gym.planners.optimizer.solution.Solution] (its gains for the env's
             control period); the env should start at its ``X[0]`` (e.g. ``options={"state": plan.X[0]}`` at reset).
         touchdown: the tracker's touchdown rule (None: every contact flag counts,
-            :class:`~hsddp_gym.planners.policies.touchdown.ContactFlags`).
-        after_plan: :class:`HandOver`, :class:`HoldPosture` or :class:`RepeatCycle` (None: ``HandOver()``, the MPC).
+            [`ContactFlags`][hsddp_gym.planners.policies.touchdown.ContactFlags]).
+        after_plan: [`HandOver`][HandOver], [`HoldPosture`][HoldPosture] or [`RepeatCycle`][RepeatCycle] (None:
+            ``HandOver()``, the MPC).
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), solution=None,
@@ -184,8 +187,8 @@ class PlanTrackingPolicy(Policy):
         """The plan's duration [s]."""
         self.tracker: PlanTracker | None = None
         self.errors: list[float] = []
-        """Per control step while tracking: :func:`~hsddp_gym.planners.policies.tracking.tracking_error` to the
-        plan."""
+        """Per control step while tracking: [`tracking_error`][hsddp_gym.planners.policies.tracking.tracking_error] to
+        the plan."""
         self.nominal_states: list[np.ndarray] = []
         """Per control step while tracking: the plan's state (14,) at the cursor the action came from."""
         self.reset()
@@ -208,7 +211,7 @@ class PlanTrackingPolicy(Policy):
 
     @property
     def fallback(self) -> Policy | None:
-        """The policy that takes over after the plan (:class:`HandOver`), else None."""
+        """The policy that takes over after the plan ([`HandOver`][HandOver]), else None."""
         return getattr(self.after_plan, "fallback", None)
 
     @property

@@ -1,13 +1,18 @@
 """Stable-Baselines3 glue: any policy as an SB3 ``BasePolicy``, and the PPO / SAC baselines on ``Bounding-v0`` (and
 the other tasks, ``env_id``).
 
-* :mod:`~hsddp_gym.learning.sb3.adapter`: :func:`as_sb3_policy`, a planner policy (or any callable) as an SB3
+* [`adapter`][hsddp_gym.learning.sb3.adapter]: [`as_sb3_policy`][hsddp_gym.learning.sb3.adapter.as_sb3_policy], a
+planner policy (or any callable) as an SB3
   ``BasePolicy`` for SB3's and ``imitation``'s tooling;
-* :mod:`~hsddp_gym.learning.sb3.presets`: the envs and algorithms the baselines train, the RL-Zoo presets
-  (:data:`PRESETS`), the overrides the front-ends offer (:func:`hyperparameters`, gSDE, the learning-rate notation);
-* :mod:`~hsddp_gym.learning.sb3.training`: :func:`train_sb3`, a PPO or SAC run and the files it writes;
-* :mod:`~hsddp_gym.learning.sb3.runs`: a run's files read back: its curves (:func:`write_curves`) and its policy
-  (:func:`load_trained_policy`, :class:`SB3ModelPolicy`, without unpickling).
+* [`presets`][hsddp_gym.learning.sb3.presets]: the envs and algorithms the baselines train, the RL-Zoo presets
+  ([`PRESETS`][hsddp_gym.learning.sb3.presets.PRESETS]), the overrides the front-ends offer
+  ([`hyperparameters`][hsddp_gym.learning.sb3.presets.hyperparameters], gSDE, the learning-rate notation);
+* [`training`][hsddp_gym.learning.sb3.training]: [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3], a PPO or SAC
+run and the files it writes;
+* [`runs`][hsddp_gym.learning.sb3.runs]: a run's files read back: its curves
+([`write_curves`][hsddp_gym.learning.sb3.runs.write_curves]) and its policy
+  ([`load_trained_policy`][hsddp_gym.learning.sb3.runs.load_trained_policy],
+  [`SB3ModelPolicy`][hsddp_gym.learning.sb3.runs.SB3ModelPolicy], without unpickling).
 
 Every name below is importable from ``hsddp_gym.learning.sb3`` itself (lazily: importing it loads neither SB3 nor
 torch).

@@ -1,10 +1,10 @@
 """Any policy as a Stable-Baselines3 ``BasePolicy``.
 
-:func:`as_sb3_policy` wraps a :class:`~hsddp_gym.planners.policies.base.Policy` (or any callable
+[`as_sb3_policy`][as_sb3_policy] wraps a [`Policy`][hsddp_gym.planners.policies.base.Policy] (or any callable
 ``obs (obs_dim,) -> action (act_dim,)``) into a ``stable_baselines3.common.policies.BasePolicy`` whose
 ``predict(observation, state, episode_start, deterministic)`` and ``_predict(obs_tensor)`` return exactly the
 callable's actions (float32, clipped to the action box, which leaves a policy's in-box actions unchanged).
-A :class:`Policy` keeps one independent copy per vectorized env and resets the copy whose ``episode_start``
+A [`Policy`][Policy] keeps one independent copy per vectorized env and resets the copy whose ``episode_start``
 is true, so planners with memory (gait clock, plan cursor, MPC warm start) work with ``evaluate_policy``
 and with ``imitation``'s rollout / DAgger tooling. A plain callable is applied row by row and has no memory.
 """
@@ -38,7 +38,7 @@ def as_sb3_policy(policy, observation_space, action_space):
     """Wrap ``policy`` into an SB3 ``BasePolicy`` (see the module docstring).
 
     Args:
-        policy: a :class:`~hsddp_gym.planners.policies.base.Policy` (memory handled per env through
+        policy: a [`Policy`][hsddp_gym.planners.policies.base.Policy] (memory handled per env through
             ``episode_start``) or a callable ``obs (obs_dim,) -> action (act_dim,)`` (no memory).
         observation_space: the env's observation space (a ``gymnasium.spaces.Box``).
         action_space: the env's action space (a ``gymnasium.spaces.Box``).
@@ -67,7 +67,8 @@ def _adapter_class():
     from stable_baselines3.common.policies import BasePolicy
 
     class CallableSB3Policy(BasePolicy):
-        """An SB3 ``BasePolicy`` that delegates to a planner policy or callable (see :func:`as_sb3_policy`)."""
+        """An SB3 ``BasePolicy`` that delegates to a planner policy or callable (see
+        [`as_sb3_policy`][as_sb3_policy])."""
 
         def __init__(self, policy, observation_space, action_space) -> None:
             super().__init__(observation_space, action_space)

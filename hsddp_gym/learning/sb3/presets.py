@@ -1,8 +1,8 @@
-"""What a baseline run is set up with: the envs and algorithms :func:`~hsddp_gym.learning.sb3.training.train_sb3`
-trains, the RL-Zoo hyperparameter presets (:data:`PRESETS`), the overrides the front-ends offer
-(:func:`hyperparameters`: layer widths, gSDE, the exploration noise, the learning rate and its ``lin_`` notation) and
-the SB3 constructor arguments made from them (:func:`model_kwargs`). NumPy only at import (the front-ends read
-:data:`OPTION_HELP` to build their parsers).
+"""What a baseline run is set up with: the envs and algorithms [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3]
+trains, the RL-Zoo hyperparameter presets ([`PRESETS`][PRESETS]), the overrides the front-ends offer
+([`hyperparameters`][hyperparameters]: layer widths, gSDE, the exploration noise, the learning rate and its ``lin_``
+notation) and the SB3 constructor arguments made from them ([`model_kwargs`][model_kwargs]). NumPy only at import (the
+front-ends read `OPTION_HELP` to build their parsers).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import numpy as np
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0")
-"""The envs :func:`~hsddp_gym.learning.sb3.training.train_sb3` trains in (``env_id``): Bounding-v0 (the default), the
-pronking task Pronking-v0, the backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no
+"""The envs [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3] trains in (``env_id``): Bounding-v0 (the default),
+the pronking task Pronking-v0, the backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no
 compiled vector env and no robustness conditions."""
 ALGOS = ("ppo", "sac")
 
@@ -90,7 +90,8 @@ PRESETS: dict = {"ppo": {"hopper": PPO_HOPPER_HYPERPARAMS, "halfcheetah": PPO_HY
                          "parallel": PPO_PARALLEL_HYPERPARAMS},
                  "sac": {"hopper": SAC_HYPERPARAMS, "halfcheetah": SAC_HYPERPARAMS}}
 """The hyperparameter sets by algorithm and task: RL-Zoo's Hopper-v3 and HalfCheetah-v3 (SAC's Hopper-v3 entry is
-its HalfCheetah-v3 one), and PPO's ``"parallel"`` (many robots at once, :data:`PPO_PARALLEL_HYPERPARAMS`)."""
+its HalfCheetah-v3 one), and PPO's ``"parallel"`` (many robots at once,
+[`PPO_PARALLEL_HYPERPARAMS`][PPO_PARALLEL_HYPERPARAMS])."""
 DEFAULT_PRESET = "hopper"
 """Bounding-v0 terminates on falls like Hopper/Walker2d: their settings are the default."""
 
@@ -105,10 +106,10 @@ def _policy_kwargs(kwargs: dict) -> dict:
 
 
 def hyperparameters(algo: str, overrides: dict | None = None, preset: str = DEFAULT_PRESET) -> dict:
-    """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` (:data:`PRESETS`) with
+    """The documented hyperparameters of ``algo`` (``"ppo"`` or ``"sac"``) for ``preset`` ([`PRESETS`][PRESETS]) with
     ``overrides`` applied (e.g. ``{"n_envs": 4}``). ``{"net_arch": [128, 128]}`` sets the hidden layers of every
     network (actor and critic alike) in ``policy_kwargs``, keeping the preset's other policy settings;
-    ``{"sde": True}`` (PPO) switches to gSDE exploration (:data:`SDE_HYPERPARAMS`); ``{"log_std_init": x}`` (PPO)
+    ``{"sde": True}`` (PPO) switches to gSDE exploration (`SDE_HYPERPARAMS`); ``{"log_std_init": x}`` (PPO)
     sets the initial log standard deviation of the exploration noise (gSDE: of its weights)."""
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
@@ -160,8 +161,8 @@ PPO on the PyBullet locomotion tasks sets it: the exploration noise is a linear 
 hidden features, its weights drawn anew every 4 steps, and ``log_std_init`` -2. With SB3's default white Gaussian
 noise the parallel preset's mean action bounds differently from the draws it was trained with (its mean action
 fell where its draws did not; docs/results/what-did-not-work.md); with gSDE the mean action is sound. SB3 redraws
-the weights every 4 steps of its rollouts; :class:`~hsddp_gym.learning.sb3.runs.SB3ModelPolicy`'s own draws every 4
-steps of the episode."""
+the weights every 4 steps of its rollouts; [`SB3ModelPolicy`][hsddp_gym.learning.sb3.runs.SB3ModelPolicy]'s own draws
+every 4 steps of the episode."""
 
 
 #: The help of the RL options both front-ends offer (``hsddp-gym train`` and ``experiments/train_rl.py``).
@@ -178,8 +179,8 @@ OPTION_HELP = {
 
 def parse_learning_rate(text: str) -> float | str:
     """A learning rate as a command line gives it: ``"3e-4"`` -> 3e-4, ``"lin_3e-4"`` stays a string (RL-Zoo's
-    linear decay, see :func:`learning_rate_schedule`); ``ValueError`` for anything else (the front-ends name their
-    option)."""
+    linear decay, see [`learning_rate_schedule`][learning_rate_schedule]); ``ValueError`` for anything else (the
+    front-ends name their option)."""
     if not isinstance(text, str):
         raise TypeError(f"learning rate text must be a str, got {type(text).__name__}")
     value = text if text.startswith("lin_") else _float_or_text(text)
@@ -218,9 +219,10 @@ TRAINER_KEYS = ("normalize", "n_envs")
 
 
 def model_kwargs(hp: dict) -> dict:
-    """The keyword arguments of an SB3 model's constructor from hyperparameters ``hp`` (:func:`hyperparameters`):
-    without :data:`TRAINER_KEYS`, the learning rate as SB3 takes it (:func:`learning_rate_schedule`) and the
-    activation named in ``policy_kwargs`` as its torch class."""
+    """The keyword arguments of an SB3 model's constructor from hyperparameters ``hp``
+    ([`hyperparameters`][hyperparameters]): without [`TRAINER_KEYS`][TRAINER_KEYS], the learning rate as SB3 takes it
+    ([`learning_rate_schedule`][learning_rate_schedule]) and the activation named in ``policy_kwargs`` as its torch
+    class."""
     kw = {k: v for k, v in hp.items() if k not in TRAINER_KEYS}
     if "learning_rate" in kw:
         kw["learning_rate"] = learning_rate_schedule(kw["learning_rate"])

@@ -1,6 +1,7 @@
 """A baseline run's files read back: the learning curves from its monitor and evaluation files
-(:func:`write_curves`), and its trained policy (:func:`load_trained_policy`, an :class:`SB3ModelPolicy`), rebuilt from
-``summary.json`` and the weights of ``model.zip`` without unpickling."""
+([`write_curves`][write_curves]), and its trained policy ([`load_trained_policy`][load_trained_policy], an
+[`SB3ModelPolicy`][SB3ModelPolicy]), rebuilt from ``summary.json`` and the weights of ``model.zip`` without
+unpickling."""
 
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ from hsddp_gym.util.validation import check_int, check_positive
 BEST_MODEL = "best_model.zip"
 BEST_VECNORMALIZE = "best_vecnormalize.npz"
 CHECKPOINTS = ("final", "best")
-"""Which weights :func:`load_trained_policy` reads: the end of training (``model.zip``) or the checkpoint whose
-training-time deterministic evaluation (``EvalCallback``, seeds 10000 + seed ..., apart from the protocol's 0, 1,
-...) had the highest mean return (``best_model.zip``, with the observation statistics of that moment)."""
+"""Which weights [`load_trained_policy`][load_trained_policy] reads: the end of training (``model.zip``) or the
+checkpoint whose training-time deterministic evaluation (``EvalCallback``, seeds 10000 + seed ..., apart from the
+protocol's 0, 1, ...) had the highest mean return (``best_model.zip``, with the observation statistics of that
+moment)."""
 
 
 def read_monitor(path: Path) -> np.ndarray:
@@ -87,17 +89,17 @@ def write_curves(out: Path, label: str, env_id: str = ENV_ID) -> list[str]:
 
 
 class SB3ModelPolicy(Policy):
-    """A trained SB3 model as a :class:`Policy`: normalizes the observation with the saved ``VecNormalize``
+    """A trained SB3 model as a [`Policy`][Policy]: normalizes the observation with the saved ``VecNormalize``
     statistics (if any) and returns the model's action, clipped to the action space.
 
     ``deterministic=True`` (the comparison protocol): the mean of PPO's Gaussian, SAC's squashed mean.
     ``deterministic=False``: a draw of the policy's own distribution, as in training (gSDE: noise weights held for
-    ``sde_sample_freq`` steps), from a generator seeded with ``noise_seed`` at every :meth:`reset` (so an episode
+    ``sde_sample_freq`` steps), from a generator seeded with ``noise_seed`` at every `reset` (so an episode
     is the same whatever ran before it in the process); ``noise_scale`` (>= 0, default 1) multiplies the noise's
     standard deviation (0: the mean action; a diagnostic of how much the policy rests on its noise,
     ``experiments/rl_noise_scale.py``).
 
-    Build it with :func:`load_trained_policy`.
+    Build it with [`load_trained_policy`][load_trained_policy].
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), model=None, obs_stats: dict | None = None,
@@ -174,17 +176,18 @@ class SB3ModelPolicy(Policy):
 
 def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,
                         checkpoint: str = "final", noise_scale: float = 1.0) -> SB3ModelPolicy:
-    """The policy of a :func:`~hsddp_gym.learning.sb3.training.train_sb3` run in ``run_dir``, read without unpickling:
-    the model is rebuilt from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are loaded
-    (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
+    """The policy of a [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3] run in ``run_dir``, read without
+    unpickling: the model is rebuilt from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are
+    loaded (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
 
     Args:
         env: the env to act in (None: ``gym.make`` of the run's env, ``summary.json``'s ``env_id``, with its env
             kwargs).
-        deterministic: the mean action (True) or draws of the policy's distribution (:class:`SB3ModelPolicy`).
+        deterministic: the mean action (True) or draws of the policy's distribution
+            ([`SB3ModelPolicy`][SB3ModelPolicy]).
         noise_seed: the seed of those draws.
         noise_scale: the factor on the draws' noise (1: the policy's own distribution).
-        checkpoint: ``"final"`` or ``"best"`` (:data:`CHECKPOINTS`: ``best_model.zip`` and
+        checkpoint: ``"final"`` or ``"best"`` ([`CHECKPOINTS`][CHECKPOINTS]: ``best_model.zip`` and
             ``best_vecnormalize.npz``, the best training-time evaluation).
     """
     import gymnasium as gym

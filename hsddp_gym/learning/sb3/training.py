@@ -1,12 +1,13 @@
-"""The PPO / SAC baselines: :func:`train_sb3` trains PPO or SAC with RL-Zoo hyperparameters
-(:data:`~hsddp_gym.learning.sb3.presets.PRESETS`): by default those of Hopper-v3
-(:data:`~hsddp_gym.learning.sb3.presets.PPO_HOPPER_HYPERPARAMS`; SAC's are its HalfCheetah-v3 defaults,
-:data:`~hsddp_gym.learning.sb3.presets.SAC_HYPERPARAMS`), a task that ends on a fall like this one;
-``preset="halfcheetah"`` gives the HalfCheetah-v3 set (:data:`~hsddp_gym.learning.sb3.presets.PPO_HYPERPARAMS`;
-``user_needs.md`` §2.2). It writes into ``out``:
+"""The PPO / SAC baselines: [`train_sb3`][train_sb3] trains PPO or SAC with RL-Zoo hyperparameters
+([`PRESETS`][hsddp_gym.learning.sb3.presets.PRESETS]): by default those of Hopper-v3
+([`PPO_HOPPER_HYPERPARAMS`][hsddp_gym.learning.sb3.presets.PPO_HOPPER_HYPERPARAMS]; SAC's are its HalfCheetah-v3
+defaults, [`SAC_HYPERPARAMS`][hsddp_gym.learning.sb3.presets.SAC_HYPERPARAMS]), a task that ends on a fall like this
+one; ``preset="halfcheetah"`` gives the HalfCheetah-v3 set
+([`PPO_HYPERPARAMS`][hsddp_gym.learning.sb3.presets.PPO_HYPERPARAMS]; ``user_needs.md`` §2.2). It writes into ``out``:
 
 * ``model.zip``: the SB3 model (``PPO.load`` / ``SAC.load``, or
-  :func:`~hsddp_gym.learning.sb3.runs.load_trained_policy`, which reads only the weights, never unpickles);
+  [`load_trained_policy`][hsddp_gym.learning.sb3.runs.load_trained_policy], which reads only the weights, never
+  unpickles);
 * ``vecnormalize.pkl`` (SB3's format, PPO only) and ``vecnormalize.npz`` (the same running statistics as
   plain arrays);
 * ``train.monitor.csv`` (SB3 ``Monitor``: return, length, time of every training episode),
@@ -38,14 +39,14 @@ from hsddp_gym.util.io import atomic_path, write_json, write_npz
 
 @dataclasses.dataclass
 class TrainResult:
-    """What :func:`train_sb3` wrote: ``out`` and the ``summary`` dict (also in ``out/summary.json``)."""
+    """What [`train_sb3`][train_sb3] wrote: ``out`` and the ``summary`` dict (also in ``out/summary.json``)."""
 
     out: Path
     summary: dict
 
 
 def check_env_id(env_id, vector_env: bool = False, train_condition=None) -> str:
-    """``env_id`` (None: :data:`ENV_ID`) if :func:`train_sb3` trains in it, else ``ValueError`` naming it; the
+    """``env_id`` (None: `ENV_ID`) if [`train_sb3`][train_sb3] trains in it, else ``ValueError`` naming it; the
     compiled vector env (``vector_env``) and the robustness conditions (``train_condition``) are Bounding-v0's."""
     if env_id is None:
         return ENV_ID
@@ -60,9 +61,10 @@ def check_env_id(env_id, vector_env: bool = False, train_condition=None) -> str:
 
 
 def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool = False):
-    """The :class:`~hsddp_gym.envs.perturbations.Condition` called ``name`` for training robots (None: none), with
-    ``ValueError`` naming ``train_condition`` for an unknown name, for env arguments it sets that ``env_kwargs``
-    sets too, and (``vector_env``) for observation noise or latency, which the compiled vector env does not offer."""
+    """The [`Condition`][hsddp_gym.envs.perturbations.conditions.Condition] called ``name`` for training robots (None:
+    none), with ``ValueError`` naming ``train_condition`` for an unknown name, for env arguments it sets that
+    ``env_kwargs`` sets too, and (``vector_env``) for observation noise or latency, which the compiled vector env does
+    not offer."""
     if name is None:
         return None
     from hsddp_gym.envs.perturbations.conditions import CONDITIONS
@@ -82,7 +84,7 @@ def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool
 def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None,
                vector_env: bool = False, condition=None, env_id: str = ENV_ID):
     """The training (or evaluation) envs of ``env_id``; ``condition`` (a checked
-    :class:`~hsddp_gym.envs.perturbations.Condition` or None) perturbs every one of them."""
+    [`Condition`][hsddp_gym.envs.perturbations.conditions.Condition] or None) perturbs every one of them."""
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
@@ -141,27 +143,29 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``,
             ``{"n_envs": 4}``: that many envs in a ``DummyVecEnv``, stepped together).
         vector_env: step the ``n_envs`` training robots with the compiled vector env
-            (:class:`hsddp_gym.envs.vector.BoundingVectorEnv` through :mod:`hsddp_gym.learning.vector_sb3`, one
-            ``train.monitor.csv`` for all) instead of a ``DummyVecEnv`` of single envs; the evaluation env stays
-            a single env. Same transitions up to round-off (``tests/test_vector_env.py``).
-        preset: the RL-Zoo hyperparameter set (:data:`~hsddp_gym.learning.sb3.presets.PRESETS`; default
+            ([`hsddp_gym.envs.vector.BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv] through
+            [`hsddp_gym.learning.vector_sb3`][hsddp_gym.learning.vector_sb3], one ``train.monitor.csv`` for all) instead
+            of a ``DummyVecEnv`` of single envs; the evaluation env stays a single env. Same transitions up to round-off
+            (``tests/test_vector_env.py``).
+        preset: the RL-Zoo hyperparameter set ([`PRESETS`][hsddp_gym.learning.sb3.presets.PRESETS]; default
             ``"hopper"``, a terminating task).
         eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
             ``max(steps // 10, 1000)``; 0: none).
         final_eval_episodes: after training, evaluate the saved policy with the comparison protocol
-            (:func:`hsddp_gym.learning.reporting.evaluate_policy_episodes`: seeds 0, 1, ..., deterministic) into
-            ``summary["eval"]`` (0: skip).
+            ([`evaluate_policy_episodes`][hsddp_gym.learning.reporting.evaluate_policy_episodes]: seeds 0, 1, ...,
+            deterministic) into ``summary["eval"]`` (0: skip).
         threads: ``torch.set_num_threads`` (1 by default: the machines are shared).
         train_condition: a condition of the robustness registry
-            (:data:`hsddp_gym.envs.perturbations.CONDITIONS`, e.g. ``"push_x3"``) under which every training robot
-            runs (domain randomization: pushes, env arguments; with ``vector_env`` observation noise and latency
-            are refused); the evaluations, training-time and final, stay on the unperturbed task. None: none.
+            ([`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS], e.g.
+            ``"push_x3"``) under which every training robot runs (domain randomization: pushes, env arguments; with
+            ``vector_env`` observation noise and latency are refused); the evaluations, training-time and final, stay on
+            the unperturbed task. None: none.
         time_limit: wall-clock budget of the training [s] (None: none). Training stops at the first env step
             after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
             Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
-        env_id: the env to train and evaluate in, one of :data:`ENV_IDS` (None: Bounding-v0); Pronking-v0 takes
+        env_id: the env to train and evaluate in, one of [`ENV_IDS`][ENV_IDS] (None: Bounding-v0); Pronking-v0 takes
             neither ``vector_env`` nor ``train_condition``. Stored in ``summary.json``, so
-            :func:`load_trained_policy` rebuilds the run's env.
+            [`load_trained_policy`][load_trained_policy] rebuilds the run's env.
     """
     from hsddp_gym.util.extras import require
 
@@ -260,9 +264,10 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
 
 
 def _save_best(out: Path, venv):
-    """An SB3 callback for ``EvalCallback(callback_on_new_best=...)``: writes the model (:data:`BEST_MODEL`) and,
-    with ``VecNormalize`` (``venv``), its observation statistics of that moment (:data:`BEST_VECNORMALIZE`, which
-    go on changing after), and keeps ``record`` = ``{"env_step", "mean_return"}`` of the evaluation."""
+    """An SB3 callback for ``EvalCallback(callback_on_new_best=...)``: writes the model ([`BEST_MODEL`][BEST_MODEL])
+    and, with ``VecNormalize`` (``venv``), its observation statistics of that moment
+    ([`BEST_VECNORMALIZE`][BEST_VECNORMALIZE], which go on changing after), and keeps ``record`` = ``{"env_step",
+    "mean_return"}`` of the evaluation."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class SaveBest(BaseCallback):

@@ -1,5 +1,5 @@
-"""The register of the results tables: :data:`TABLES` maps a table id (the ``ID`` of ``<!-- results: ID -->``) to
-its renderer, and :func:`render` draws one."""
+"""The register of the results tables: [`TABLES`][TABLES] maps a table id (the ``ID`` of ``<!-- results: ID -->``) to
+its renderer, and [`render`][render] draws one."""
 
 from __future__ import annotations
 

@@ -255,8 +255,8 @@ PUSH_BLOCK = 20
 
 def robustness_pushes(store: Store) -> str:
     """Falls under each push law on many fresh seeds (``robustness/pushes``), the MPC beside the heuristic: the fall
-    rate with its 95 % Wilson interval, and in how many blocks of :data:`PUSH_BLOCK` consecutive seeds (a cell of the
-    generality table) the MPC fell more often than the heuristic."""
+    rate with its 95 % Wilson interval, and in how many blocks of [`PUSH_BLOCK`][PUSH_BLOCK] consecutive seeds (a cell
+    of the generality table) the MPC fell more often than the heuristic."""
     d = store.data("robustness/pushes")
     res, seeds = d["results"], list(d["seeds"])
     missing = [p for p in ("mpc", "heuristic") if p not in res]

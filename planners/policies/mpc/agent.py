@@ -1,22 +1,23 @@
 """HS-DDP model-predictive control: the agent that drives the estimators, the planner and the feedback law.
 
 As in MuJoCo MPC, the planner optimizes and the policy is queried at the control rate from the latest plan; the
-loop that drives both is separate from each. Every control step :meth:`MPCPolicy.act`
+loop that drives both is separate from each. Every control step [`MPCPolicy.act`][MPCPolicy.act]
 
-1. estimates the state from the observation (:class:`~hsddp_gym.planners.policies.mpc.state.StateEstimator`:
+1. estimates the state from the observation ([`StateEstimator`][hsddp_gym.planners.policies.mpc.state.StateEstimator]:
    sensor bias, action delay, model-based filter) and predicts it over the action delay;
-2. advances the contact phase (:class:`~hsddp_gym.planners.policies.mpc.schedule.ContactScheduleEstimator`) from
+2. advances the contact phase
+([`ContactScheduleEstimator`][hsddp_gym.planners.policies.mpc.schedule.ContactScheduleEstimator]) from
    the estimate and the contact flags, and over the delay with the predicted contacts;
 3. re-plans from the predicted state every ``replan.period`` (at once when the phase moved against the cycle):
    the schedule estimator's schedule, the speed reference's speed
-   (:class:`~hsddp_gym.planners.policies.mpc.speed.SpeedReference`), the previous plan shifted as the warm start
-   (:class:`~hsddp_gym.planners.policies.mpc.planner.MPCPlanner`);
-4. acts with the latest plan's feedback law (:class:`~hsddp_gym.planners.policies.mpc.law.FeedbackLaw`); when its
+   ([`SpeedReference`][hsddp_gym.planners.policies.mpc.speed.SpeedReference]), the previous plan shifted as the warm
+   start ([`MPCPlanner`][hsddp_gym.planners.policies.mpc.planner.MPCPlanner]);
+4. acts with the latest plan's feedback law ([`FeedbackLaw`][hsddp_gym.planners.policies.mpc.law.FeedbackLaw]); when its
    feedback term alone would ask a motor for more than ``replan.feedback_threshold`` of the torque limit, the state
    is too far from the plan for its linearization and the agent re-plans from it at once (a feedback re-plan).
 
 A failed re-plan never ends the episode: the previous plan's feedback law keeps acting and the failure is counted
-in :attr:`MPCPolicy.stats`. Only while no plan exists yet does the schedule-driven heuristic act instead (a start-up
+in `MPCPolicy.stats`. Only while no plan exists yet does the schedule-driven heuristic act instead (a start-up
 controller).
 """
 
@@ -42,14 +43,14 @@ class MPCPolicy(Policy):
 
     Args:
         interface: the env's public settings (``MPCPolicy.from_env(env)``).
-        options: :class:`~hsddp_gym.planners.policies.mpc.options.MPCOptions`.
+        options: [`MPCOptions`][hsddp_gym.planners.policies.mpc.options.MPCOptions].
         terrain: the ground, given as privileged information (None, the default: the MPC plans for flat ground
-            where the feet put it): a :class:`~hsddp_gym.core.terrain.Terrain`, or a function of no argument
-            returning the current episode's, called at every :meth:`reset` (e.g.
-            :func:`~hsddp_gym.planners.policies.mpc.ground.env_terrain` of an env whose terrain is drawn at its
+            where the feet put it): a [`Terrain`][hsddp_gym.core.terrain.Terrain], or a function of no argument
+            returning the current episode's, called at every `reset` (e.g.
+            [`env_terrain`][hsddp_gym.planners.policies.mpc.ground.env_terrain] of an env whose terrain is drawn at its
             reset: reset the env first). With a terrain the MPC works in the world frame
-            (:mod:`hsddp_gym.planners.policies.mpc.ground`), and without the trunk x in the observation it
-            integrates the measured forward speed for it.
+            ([`hsddp_gym.planners.policies.mpc.ground`][hsddp_gym.planners.policies.mpc.ground]), and without the trunk
+            x in the observation it integrates the measured forward speed for it.
 
     Attributes:
         estimator: the state estimator. schedule: the contact-schedule estimator. planner: the planner.
@@ -97,9 +98,9 @@ class MPCPolicy(Policy):
         self.law.plan = None
         self.stats = self.planner.stats
         """``replans``, ``planner_failures``, ``solve_ms`` (list), ``iterations`` (list), ``time_budget_stops``,
-        ``restarts``, ``restarts_kept`` (:class:`~hsddp_gym.planners.policies.mpc.planner.MPCPlanner`'s own, the same
-        dict), ``delay_changes`` (the delay estimate's moves) and ``feedback_replans`` (feedback re-plans tried) since
-        :meth:`reset`: one live dict, updated in place."""
+        ``restarts``, ``restarts_kept`` ([`MPCPlanner`][hsddp_gym.planners.policies.mpc.planner.MPCPlanner]'s own, the
+        same dict), ``delay_changes`` (the delay estimate's moves) and ``feedback_replans`` (feedback re-plans tried)
+        since `reset`: one live dict, updated in place."""
         self.stats.update(delay_changes=0, feedback_replans=0)
         self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
@@ -108,7 +109,7 @@ class MPCPolicy(Policy):
     # ------------------------------------------------------------------ what the components know
     @property
     def last_solution(self):
-        """The plan acted on (a :class:`~hsddp_gym.planners.optimizer.solution.Solution`; None before the first)."""
+        """The plan acted on (a [`Solution`][hsddp_gym.planners.optimizer.solution.Solution]; None before the first)."""
         return None if self.law.plan is None else self.law.plan.solution
 
     @property
@@ -186,7 +187,7 @@ class MPCPolicy(Policy):
         return action
 
     def note_sent_action(self, action) -> None:
-        """Tell the MPC that ``action`` (4,) (normalized, as :meth:`act` returns them) was sent to the env in place
+        """Tell the MPC that ``action`` (4,) (normalized, as [`act`][act] returns them) was sent to the env in place
         of the one it returned last (a learner's action in a DAgger rollout, the expert's action plus DART noise):
         its state filter and latency compensation then predict with the action the env executes."""
         self.estimator.replace_sent(action)

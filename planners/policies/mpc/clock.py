@@ -1,12 +1,12 @@
 """The gait clock: the contact-schedule estimator's phase machine.
 
-:class:`GaitClock` holds the bounding phase (back stance, flight, front stance, flight, or a double stance) and the
-time spent in it, a deterministic function of the observed contact modes: it is the part of the MPC's schedule
-estimator (:mod:`hsddp_gym.planners.policies.mpc.schedule`) that learners rebuild from observations alone
-(:meth:`GaitClock.features`, :func:`hsddp_gym.learning.features.gait_clock_features`). Its settings are the
-clock's fields of :class:`~hsddp_gym.planners.policies.mpc.options.ScheduleOptions`, the one shape they have
-(saved with a learner as :meth:`GaitClock.settings`).
-"""
+[`GaitClock`][GaitClock] holds the bounding phase (back stance, flight, front stance, flight, or a double stance) and
+the time spent in it, a deterministic function of the observed contact modes: it is the part of the MPC's schedule
+estimator ([`hsddp_gym.planners.policies.mpc.schedule`][hsddp_gym.planners.policies.mpc.schedule]) that learners rebuild
+from observations alone ([`GaitClock.features`][GaitClock.features],
+[`hsddp_gym.learning.features.gait_clock_features`][hsddp_gym.learning.features.gait_clock_features]). Its settings are
+the clock's fields of [`ScheduleOptions`][hsddp_gym.planners.policies.mpc.options.ScheduleOptions], the one shape they
+have (saved with a learner as [`GaitClock.settings`][GaitClock.settings]). """
 
 from __future__ import annotations
 
@@ -22,9 +22,9 @@ from hsddp_gym.util.validation import check_positive, check_vector
 CYCLE = (Mode.BACK_STANCE, Mode.FLIGHT, Mode.FRONT_STANCE, Mode.FLIGHT)
 """The bounding cycle's phases 0-3 (back stance, flight, front stance, flight)."""
 DOUBLE_STANCE_PHASE = 4
-""":attr:`GaitClock.phase` of a double stance (outside the bounding cycle's phases 0-3)."""
+"""`GaitClock.phase` of a double stance (outside the bounding cycle's phases 0-3)."""
 CLOCK_SETTINGS = ("debounce_steps", "min_flight", "lost_stance_steps", "double_stance", "restep")
-"""The fields of :class:`ScheduleOptions` the clock uses."""
+"""The fields of [`ScheduleOptions`][ScheduleOptions] the clock uses."""
 _OFF = {"lost_stance_steps": 0, "double_stance": None, "restep": False}
 """The clock settings a learner saved before they existed had in effect (off)."""
 
@@ -39,30 +39,32 @@ class GaitClock:
     happened); grazes of the other foot are ignored. A stance is *lost* when its
     foot, having touched, is off the ground for ``lost_stance_steps`` control steps (0: never): in the second
     half of the stance the stance ends; in the first half the clock goes back to the flight that lands that
-    foot, with half of its nominal duration to go, and :attr:`resynced` is set for that update (the MPC then
-    re-plans at once). With ``double_stance > 0``, a *double stance* (``phase`` = :data:`DOUBLE_STANCE_PHASE`)
-    starts at a touchdown that finds the other foot on the ground: both feet touch and the one that touched down
-    in the current phase, after a swing of at least ``min_flight`` of the flight that lands it, has touched for
-    ``debounce_steps`` (in a flight, once ``min_flight`` of it has passed).
+    foot, with half of its nominal duration to go, and `resynced` is set for that update (the MPC then
+    re-plans at once). With ``double_stance > 0``, a *double stance* (``phase`` =
+    [`DOUBLE_STANCE_PHASE`][DOUBLE_STANCE_PHASE]) starts at a touchdown that finds the other foot on the ground: both
+    feet touch and the one that touched down in the current phase, after a swing of at least ``min_flight`` of the
+    flight that lands it, has touched for ``debounce_steps`` (in a flight, once ``min_flight`` of it has passed).
     It lasts ``double_stance`` seconds or until the other foot has lifted off for ``debounce_steps``, then the
-    stance of the foot that landed follows (:attr:`resynced` is set when it starts); a foot still down when that
+    stance of the foot that landed follows (`resynced` is set when it starts); a foot still down when that
     stance starts does not start another double stance until it has lifted off and touched down again. With
     ``restep``, a *re-step*: in a flight, the foot of the stance before it that lands again (after a swing of at
     least ``min_flight`` of its flight, for ``debounce_steps``; at its first contact step when the planner has planned
-    it, :attr:`restep_foot`) starts its stance again, :attr:`resynced` set, and the cycle goes on from there (without
+    it, `restep_foot`) starts its stance again, `resynced` set, and the cycle goes on from there (without
     ``restep`` the clock waits for the landing foot whatever the other foot does). The first
     observation picks the phase from the contacts (and, in flight, the sign of the pitch rate).
 
     Because late touchdowns stretch the cycle, this clock drifts from the env's observation clock
     (``2 pi t / gait_period``): on seed 0 of the default env the MPC's phase slips by about 0.2 cycles per
     second, i.e. through a whole cycle in a 5 s episode. A learner that imitates the MPC needs this clock
-    (:meth:`features`), which it can rebuild from the observations alone (:func:`gait_clock_features`).
+    ([`features`][features]), which it can rebuild from the observations alone
+    ([`gait_clock_features`][hsddp_gym.learning.features.gait_clock_features]).
 
     Args:
         durations: nominal (back stance, flight, front stance, flight) durations [s].
-        dt: control period [s] (``tau`` advances by ``dt`` at every :meth:`tick`).
-        options: the clock's settings, the :data:`CLOCK_SETTINGS` fields of a ``ScheduleOptions`` (the MPC's own by
-            default; learners that rebuild the clock from observations keep the MPC's, saved as :meth:`settings`).
+        dt: control period [s] (``tau`` advances by ``dt`` at every [`tick`][tick]).
+        options: the clock's settings, the [`CLOCK_SETTINGS`][CLOCK_SETTINGS] fields of a ``ScheduleOptions`` (the MPC's
+            own by
+            default; learners that rebuild the clock from observations keep the MPC's, saved as [`settings`][settings]).
     """
 
     def __init__(self, durations, dt: float, options: ScheduleOptions = ScheduleOptions()) -> None:
@@ -82,14 +84,15 @@ class GaitClock:
         self.reset()
 
     def settings(self) -> dict:
-        """The clock as JSON-ready values (saved with a learner): ``durations``, ``dt`` and :data:`CLOCK_SETTINGS`."""
+        """The clock as JSON-ready values (saved with a learner): ``durations``, ``dt`` and
+        [`CLOCK_SETTINGS`][CLOCK_SETTINGS]."""
         return {"durations": list(self.durations), "dt": self.dt,
                 **{k: getattr(self.options, k) for k in CLOCK_SETTINGS}}
 
     @classmethod
     def from_settings(cls, settings: dict) -> GaitClock:
-        """The clock of :meth:`settings`. Settings saved by earlier versions load too: a clock setting they lack was
-        off then (no lost stance, double stance or re-step); their ``"max_wait": None`` is ignored, any other
+        """The clock of [`settings`][settings]. Settings saved by earlier versions load too: a clock setting they lack
+        was off then (no lost stance, double stance or re-step); their ``"max_wait": None`` is ignored, any other
         ``max_wait`` refused (the clock's flights always wait for their touchdown)."""
         if not isinstance(settings, dict):
             raise TypeError(f"settings must be a dict, got {type(settings).__name__}")
@@ -118,7 +121,7 @@ class GaitClock:
         self.double_duration = 0.0
         """The duration [s] of the current double stance (``double_stance`` when it started)."""
         self.resynced = False
-        """True when the last :meth:`update` moved the phase against the cycle (a lost stance)."""
+        """True when the last [`update`][update] moved the phase against the cycle (a lost stance)."""
         self.restep_foot: int | None = None
         """Set by the planner in a flight: the foot of the stance before it, when the plans put it on the ground
         again (a planned re-step, ``MPCOptions.restep``): with ``restep``, its first contact step then starts its
@@ -138,8 +141,8 @@ class GaitClock:
         """Advance by the observed contact ``mode``; return the mode of the current gait phase.
 
         ``elapsed``: on the first observation, a function ``elapsed(phase, duration) -> float`` giving the time [s]
-        already spent in the phase the observation starts (e.g. :func:`stance_elapsed` of the state); None: 0 (the
-        phase has just begun). Ignored afterwards."""
+        already spent in the phase the observation starts (e.g. [`stance_elapsed`][stance_elapsed] of the state); None:
+        0 (the phase has just begun). Ignored afterwards."""
         before = self.phase
         self._phase_updates += 1
         mode = self._update(mode, pitch_rate, elapsed)
@@ -149,9 +152,9 @@ class GaitClock:
         return mode
 
     def observe(self, mode: Mode, x: np.ndarray, robot=None) -> Mode:
-        """:meth:`update` from the contact ``mode`` and the state ``x`` (14,): its pitch rate, and on the first
-        observation the time already spent in a stance (:func:`stance_elapsed`, with ``robot``, default the nominal
-        model). Returns the mode of the current phase."""
+        """[`update`][update] from the contact ``mode`` and the state ``x`` (14,): its pitch rate, and on the first
+        observation the time already spent in a stance ([`stance_elapsed`][stance_elapsed], with ``robot``, default the
+        nominal model). Returns the mode of the current phase."""
         x = check_vector(x, NX, "x")
         if self.phase is None and robot is None:
             robot = nominal_robot()

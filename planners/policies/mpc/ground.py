@@ -19,7 +19,7 @@ from hsddp_gym.core.terrain import Terrain, check_terrain
 
 def env_terrain(env):
     """A function of no argument returning the terrain of ``env``'s current episode (its unwrapped env's ``terrain``
-    attribute: a :class:`~hsddp_gym.core.terrain.Terrain`, or None on flat ground), for
+    attribute: a [`Terrain`][hsddp_gym.core.terrain.Terrain], or None on flat ground), for
     ``MPCPolicy(..., terrain=env_terrain(env))``: a random terrain (``hsddp_gym/Terrain-v0``) is drawn at every reset
     of the env, and the MPC reads it at its own reset."""
     unwrapped = env.unwrapped
@@ -42,8 +42,8 @@ class GroundModel:
     """The episode's terrain (None: flat ground) and the heights the plans read from it.
 
     Args:
-        source: None, a :class:`~hsddp_gym.core.terrain.Terrain`, or a function of no argument returning the
-            current episode's (read at every :meth:`reset`, see :func:`env_terrain`).
+        source: None, a [`Terrain`][hsddp_gym.core.terrain.Terrain], or a function of no argument returning the
+            current episode's (read at every [`reset`][reset], see [`env_terrain`][env_terrain]).
         hip_offset: the hips' distance from the trunk's centre along the trunk [m].
     """
 
@@ -74,8 +74,8 @@ class GroundModel:
                       + self.terrain.support_heights(xs + self.hip_offset))
 
     def level(self, x: np.ndarray) -> np.ndarray:
-        """``x`` (14,) with its height measured from :meth:`under_trunk` (``x`` itself without a terrain): for the
-        heuristic controllers, which hold a trunk height above flat ground."""
+        """``x`` (14,) with its height measured from [`under_trunk`][under_trunk] (``x`` itself without a terrain): for
+        the heuristic controllers, which hold a trunk height above flat ground."""
         if self.terrain is None:
             return x
         x = np.array(x, dtype=np.float64)

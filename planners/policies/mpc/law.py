@@ -1,11 +1,11 @@
 """The MPC's policy between re-plans: the latest plan's feedback law, queried at the control rate.
 
 As in MuJoCo MPC, the planner optimizes and the policy is read from the latest plan: ``u = U_k + K_k (x - X_k)`` at
-the plan's cursor (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`; the real contacts move the cursor over
-touchdowns), projected onto the torques with which every planned stance foot pushes on the ground inside the plans'
-friction cone (``min_stance_force``, :class:`~hsddp_gym.planners.policies.contact_consistency.PushingTorques`): far
-from the plan the linear law can ask a stance leg to pull its foot off the ground or slide it.
-"""
+the plan's cursor ([`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker]; the real contacts move the cursor
+over touchdowns), projected onto the torques with which every planned stance foot pushes on the ground inside the plans'
+friction cone (``min_stance_force``,
+[`PushingTorques`][hsddp_gym.planners.policies.contact_consistency.PushingTorques]): far from the plan the linear law
+can ask a stance leg to pull its foot off the ground or slide it. """
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ class FeedbackLaw:
         robot: the model (foot positions).
 
     Attributes:
-        plan: the plan acted on (a :class:`~hsddp_gym.planners.policies.mpc.planner.Plan`; None before the first).
+        plan: the plan acted on (a [`Plan`][hsddp_gym.planners.policies.mpc.planner.Plan]; None before the first).
     """
 
     def __init__(self, torque_limit: float, min_stance_force: float | None, friction: float, ground: GroundModel,

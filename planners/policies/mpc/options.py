@@ -1,15 +1,15 @@
-"""The MPC's settings: :class:`MPCOptions`, five small groups and one field.
+"""The MPC's settings: [`MPCOptions`][MPCOptions], five small groups and one field.
 
 Every field has one line here; what each setting does, when to change it and what it was measured to do are on the
 documentation site's MPC options page. ``MPCOptions()`` is the configuration evaluated in the results pages.
 
 Flat names: the settings of earlier versions were one flat list (``replan_period``, ``touchdown_height``, ...).
-:data:`FLAT_FIELDS` maps each flat name onto its group and field, so that :meth:`MPCOptions.from_record` loads a record
-written with flat options, :meth:`MPCOptions.replace` takes either spelling, and the experiment scripts' ``--mpc-options
+[`FLAT_FIELDS`][FLAT_FIELDS] maps each flat name onto its group and field, so that
+[`MPCOptions.from_record`][MPCOptions.from_record] loads a record written with flat options,
+[`MPCOptions.replace`][MPCOptions.replace] takes either spelling, and the experiment scripts' ``--mpc-options
 '{"touchdown_height": null}'`` keep working as recorded. Settings that earlier versions had and this one does not
-(:data:`FIXED_SETTINGS`: rejected variants and constants) load when they hold the value this version always uses, and
-are left out with a ``UserWarning`` naming them otherwise.
-"""
+([`FIXED_SETTINGS`][FIXED_SETTINGS]: rejected variants and constants) load when they hold the value this version always
+uses, and are left out with a ``UserWarning`` naming them otherwise. """
 
 from __future__ import annotations
 
@@ -201,25 +201,25 @@ class EstimatorOptions:
 
 GROUPS = {"plan": PlanOptions, "replan": ReplanOptions, "speed": SpeedOptions, "schedule": ScheduleOptions,
           "estimator": EstimatorOptions}
-"""The option groups by their field name in :class:`MPCOptions`."""
+"""The option groups by their field name in [`MPCOptions`][MPCOptions]."""
 
 
 @dataclasses.dataclass(frozen=True)
 class MPCOptions:
-    """Settings of :class:`~hsddp_gym.planners.policies.mpc.MPCPolicy`, in groups (each group's fields are documented
-    on its class).
+    """Settings of [`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], in groups (each group's fields are
+    documented on its class).
 
     Attributes:
-        plan: :class:`PlanOptions`, what a plan is.
-        replan: :class:`ReplanOptions`, when the MPC plans again and how far.
-        speed: :class:`SpeedOptions`, the plans' speed reference.
-        schedule: :class:`ScheduleOptions`, the contact-schedule estimator.
-        estimator: :class:`EstimatorOptions`, the state estimator.
+        plan: [`PlanOptions`][PlanOptions], what a plan is.
+        replan: [`ReplanOptions`][ReplanOptions], when the MPC plans again and how far.
+        speed: [`SpeedOptions`][SpeedOptions], the plans' speed reference.
+        schedule: [`ScheduleOptions`][ScheduleOptions], the contact-schedule estimator.
+        estimator: [`EstimatorOptions`][EstimatorOptions], the state estimator.
         min_stance_force: the least normal force [N] every planned stance foot must push with, the torques projected
             onto that set (None: the feedback law's torques as they are).
 
     ``MPCOptions().replace(replan_period=0.01)`` or ``.replace(replan=ReplanOptions(period=0.01))`` changes settings;
-    :meth:`from_record` reads them back from JSON, flat (earlier versions) or grouped (``dataclasses.asdict``).
+    [`from_record`][from_record] reads them back from JSON, flat (earlier versions) or grouped (``dataclasses.asdict``).
     """
 
     plan: PlanOptions = PlanOptions()
@@ -237,7 +237,8 @@ class MPCOptions:
 
     def replace(self, **changes) -> MPCOptions:
         """A copy with ``changes``: groups by name (``schedule=ScheduleOptions(...)``), ``min_stance_force``, or single
-        settings by their flat name (:data:`FLAT_FIELDS`, e.g. ``touchdown_height=None``, ``replan_period=0.01``)."""
+        settings by their flat name ([`FLAT_FIELDS`][FLAT_FIELDS], e.g. ``touchdown_height=None``,
+        ``replan_period=0.01``)."""
         groups = {name: {} for name in GROUPS}
         top = {}
         for key, value in changes.items():
@@ -254,18 +255,20 @@ class MPCOptions:
         return dataclasses.replace(out, **edits) if edits else out
 
     def flat(self) -> dict:
-        """Every setting by its flat name (:data:`FLAT_FIELDS`): ``{name: value}``."""
+        """Every setting by its flat name ([`FLAT_FIELDS`][FLAT_FIELDS]): ``{name: value}``."""
         return {name: getattr(getattr(self, group), field) if group else self.min_stance_force
                 for name, (group, field) in FLAT_FIELDS.items()}
 
     @classmethod
     def from_record(cls, options) -> MPCOptions:
         """The options stored in a record (JSON), grouped (``dataclasses.asdict`` of an ``MPCOptions``) or flat (the
-        names of earlier versions, :data:`FLAT_FIELDS`), back as ``MPCOptions``; None or ``{}`` are the defaults.
+        names of earlier versions, [`FLAT_FIELDS`][FLAT_FIELDS]), back as ``MPCOptions``; None or ``{}`` are the
+        defaults.
 
-        A setting this version no longer has (:data:`FIXED_SETTINGS`) is accepted silently when it holds the value this
-        version always uses, and left out with a ``UserWarning`` naming it otherwise; an unknown name is left out with a
-        ``UserWarning`` too. ``weights`` None (the paper's weights in earlier versions) counts as ``"paper"``."""
+        A setting this version no longer has ([`FIXED_SETTINGS`][FIXED_SETTINGS]) is accepted silently when it holds the
+        value this version always uses, and left out with a ``UserWarning`` naming it otherwise; an unknown name is left
+        out with a ``UserWarning`` too. ``weights`` None (the paper's weights in earlier versions) counts as
+        ``"paper"``."""
         if options is None:
             return cls()
         if isinstance(options, MPCOptions):
@@ -327,7 +330,7 @@ FLAT_FIELDS = {
     "min_stance_force": (None, "min_stance_force"),
 }
 """Each setting's flat name (earlier versions' ``MPCOptions`` fields) -> ``(group, field)`` (group None: a field of
-:class:`MPCOptions` itself)."""
+[`MPCOptions`][MPCOptions] itself)."""
 
 FIXED_SETTINGS = {
     "method": "al-reb", "integrator": "semi_implicit", "refresh_gains": True, "weights": "later", "z_velocity": "code",
@@ -337,5 +340,6 @@ FIXED_SETTINGS = {
 """Settings of earlier versions that this one fixes, with the value it always uses: the constraint handling (AL on
 the switching constraints, relaxed barriers), the integrator, the gains' refresh, the authors' later cost weights and
 vertical-velocity references, the state filter and the latency compensation (always on), one knot grid, no simulated
-solver latency, the env's announced action delay, and the constants :data:`~hsddp_gym.planners.policies.mpc.planner.
-WARM_START_KD`, ``REB_DELTA``, ``REB_EPS`` and ``SIGMA_MAX`` of the planner."""
+solver latency, the env's announced action delay, and the constants [`
+WARM_START_KD`][hsddp_gym.planners.policies.mpc.planner.
+WARM_START_KD], ``REB_DELTA``, ``REB_EPS`` and ``SIGMA_MAX`` of the planner."""

@@ -1,9 +1,9 @@
 """The MPC's planner: an HS-DDP plan of a contact schedule from a state, warm-started from the previous plan.
 
-:meth:`MPCPlanner.plan` builds the bounding problem of the schedule (the authors' later cost weights and their
-+-1 m/s vertical-velocity references, the plans' friction margin, reference heights on the plan's ground), shifts
-the previous plan onto it (:func:`~hsddp_gym.planners.policies.mpc.warm_start.shift_plan`) and runs HS-DDP (AL on the
-switching constraints, relaxed barriers on torques and ground forces):
+[`MPCPlanner.plan`][MPCPlanner.plan] builds the bounding problem of the schedule (the authors' later cost weights and
+their +-1 m/s vertical-velocity references, the plans' friction margin, reference heights on the plan's ground), shifts
+the previous plan onto it ([`shift_plan`][hsddp_gym.planners.policies.mpc.warm_start.shift_plan]) and runs HS-DDP (AL on
+the switching constraints, relaxed barriers on torques and ground forces):
 
 * a warm-started periodic re-plan takes ``replan.iterations`` DDP iterations (one: a real-time iteration) with the
   multipliers and penalty of the plan it shifts, no outer-loop update;
@@ -62,7 +62,7 @@ class Plan:
     """A plan the MPC acts on.
 
     Attributes:
-        tracker: its feedback law with a cursor (:class:`~hsddp_gym.planners.policies.tracking.PlanTracker`).
+        tracker: its feedback law with a cursor ([`PlanTracker`][hsddp_gym.planners.policies.tracking.PlanTracker]).
         solution: the HS-DDP solution. problem: the problem it solves.
         multipliers: ``(n,)`` the AL multipliers per phase the next re-plan is warm-started with (None: none).
     """
@@ -77,16 +77,16 @@ class MPCPlanner:
     """Plans of contact schedules from states (see the module docstring).
 
     Args:
-        plan: :class:`~hsddp_gym.planners.policies.mpc.options.PlanOptions`.
-        replan: :class:`~hsddp_gym.planners.policies.mpc.options.ReplanOptions`.
+        plan: [`PlanOptions`][hsddp_gym.planners.policies.mpc.options.PlanOptions].
+        replan: [`ReplanOptions`][hsddp_gym.planners.policies.mpc.options.ReplanOptions].
         torque_limit: the motors' limit [N m].
         target_speed: the target forward speed [m/s] of the heuristic that starts a plan from scratch.
-        ground: the terrain (:class:`~hsddp_gym.planners.policies.mpc.ground.GroundModel`).
+        ground: the terrain ([`GroundModel`][hsddp_gym.planners.policies.mpc.ground.GroundModel]).
 
     Attributes:
         dynamics: the planner's hybrid model (semi-implicit Euler at ``plan.planner_dt``).
         stats: ``replans``, ``restarts``, ``restarts_kept``, ``planner_failures``, ``solve_ms`` (list),
-            ``iterations`` (list), ``time_budget_stops`` since :meth:`reset`.
+            ``iterations`` (list), ``time_budget_stops`` since `reset`.
         last_failure: the last failure's exception, as text (None: none).
     """
 
@@ -107,8 +107,8 @@ class MPCPlanner:
     def reset(self) -> None:
         self._solver = HSDDP(SolverOptions())
         self._restart_solver = HSDDP(SolverOptions())
-        """Solves the restarts; swapped with :attr:`_solver` when its plan is kept, so that :attr:`_solver` always
-        holds the kept plan's backward pass and outer-loop state."""
+        """Solves the restarts; swapped with [`_solver`][_solver] when its plan is kept, so that [`_solver`][_solver]
+        always holds the kept plan's backward pass and outer-loop state."""
         self._cs: ConstraintState | None = None
         self.last_failure: str | None = None
         self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
@@ -117,7 +117,7 @@ class MPCPlanner:
     # ------------------------------------------------------------------ a plan
     def problem(self, x: np.ndarray, schedule: ModeSchedule, speed: float, height: float) -> HybridProblem:
         """The bounding problem of ``schedule`` from ``x`` (14,) at ``speed`` [m/s], its ground ``height`` [m] above
-        the terrain (:meth:`GroundModel.for_plan`)."""
+        the terrain ([`GroundModel.for_plan`][GroundModel.for_plan])."""
         h = self.plan_options.planner_dt
         knots = np.array([max(1, round(d / h)) for d in schedule.durations], dtype=np.int64)
         ground, terrain = self.ground.for_plan(schedule, float(x[0]), speed, height)
@@ -127,9 +127,9 @@ class MPCPlanner:
 
     def plan(self, x: np.ndarray, schedule: ModeSchedule, speed: float, height: float, previous: Plan | None,
              feedback: bool = False) -> Plan | None:
-        """A plan of ``schedule`` from ``x`` (14,) (see :meth:`problem`), warm-started from ``previous`` (its
+        """A plan of ``schedule`` from ``x`` (14,) (see [`problem`][problem]), warm-started from ``previous`` (its
         tracker's cursor is now); ``feedback``: a feedback re-plan, solved further when warm-started. None when it
-        fails (counted in :attr:`stats`, the reason in :attr:`last_failure`)."""
+        fails (counted in `stats`, the reason in `last_failure`)."""
         o = self.replan_options
         t0 = time.perf_counter()
         problem = self.problem(x, schedule, speed, height)
@@ -209,7 +209,7 @@ class MPCPlanner:
 
     def _restart(self, problem: HybridProblem, sol: Solution) -> Solution:
         """Solve ``problem`` again from scratch after the warm-started ``sol`` ended far above the previous plan's
-        objective; the plan with the lower objective is returned, and :attr:`_solver` is the solver that made it. A
+        objective; the plan with the lower objective is returned, and [`_solver`][_solver] is the solver that made it. A
         restart whose warm start cannot be rolled out (ValueError) or that diverges keeps ``sol``: it counts in
         ``stats["restarts"]`` and not in ``stats["restarts_kept"]``."""
         self.stats["restarts"] += 1

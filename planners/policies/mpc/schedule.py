@@ -1,30 +1,32 @@
 """The contact-schedule estimator: the current contact phase from the state and the contact flags, and the phases
 ahead.
 
-A plan is a contact schedule (:class:`~hsddp_gym.core.schedule.ModeSchedule`) from the current state. The nominal
-bounding cycle says which phases come and how long they last; a robot that is pushed, lands late on a stiff contact,
-loses a stance foot or lands on both feet does not follow it. :class:`ContactScheduleEstimator` keeps the schedule
-consistent with the state, in three steps that every control step and every re-plan go through:
+A plan is a contact schedule ([`ModeSchedule`][hsddp_gym.core.schedule.ModeSchedule]) from the current state. The
+nominal bounding cycle says which phases come and how long they last; a robot that is pushed, lands late on a stiff
+contact, loses a stance foot or lands on both feet does not follow it.
+[`ContactScheduleEstimator`][ContactScheduleEstimator] keeps the schedule consistent with the state, in three steps that
+every control step and every re-plan go through:
 
-1. **Contact evidence** (:meth:`~ContactScheduleEstimator.evidence`): which feet are on the ground. The flags say it,
+1. **Contact evidence** ([`evidence`][ContactScheduleEstimator.evidence]): which feet are on the ground. The flags say
+it,
    sampled at the end of each control step; from a flight's nominal end on, its landing foot that the state puts
    within ``touchdown_height`` of the ground (once the feet have calibrated where the measurement puts the ground) is
    on it too: on a stiff contact a landing foot can bounce at the control rate and never be flagged.
-2. **The phase** (:class:`~hsddp_gym.planners.policies.mpc.clock.GaitClock`): the evidence moves the phase on its
+2. **The phase** ([`GaitClock`][hsddp_gym.planners.policies.mpc.clock.GaitClock]): the evidence moves the phase on its
    events. A touchdown ends a flight (debounced early, at once when late); a stance whose foot has left the ground is
    lost (``lost_stance_steps``); a touchdown that finds the other foot down starts a double stance
    (``double_stance``); the foot of the stance before a flight that lands again starts that stance again
    (``restep``).
-3. **The phases ahead** (:meth:`~ContactScheduleEstimator.schedule`): the current phase for the rest of its nominal
+3. **The phases ahead** ([`schedule`][ContactScheduleEstimator.schedule]): the current phase for the rest of its nominal
    duration (at least ``min_phase``); a flight lasts at least until its landing hip, the trunk flying ballistically,
    is within ``flight_reach`` leg lengths of the ground, and is planned as a second step of the other foot when that
    hip leaves reach while the other comes within it (``restep``); then the bounding cycle until ``horizon`` is
    covered. Before the feet have measured where the ground is, a late flight's plans lower the ground its landing
-   foot is to meet at ``ground_search_speed`` (:meth:`~ContactScheduleEstimator.plan_height`).
+   foot is to meet at ``ground_search_speed`` ([`plan_height`][ContactScheduleEstimator.plan_height]).
 
 Over an action delay the phase is advanced on a copy of the clock with the contacts the state estimator predicts
-(:meth:`~ContactScheduleEstimator.predict`): the schedule is for the state at which the plan's first action will act.
-"""
+([`predict`][ContactScheduleEstimator.predict]): the schedule is for the state at which the plan's first action will
+act. """
 
 from __future__ import annotations
 
@@ -43,8 +45,9 @@ def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_h
     """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
     ``touchdown_height`` [m] of the ground (None: ``mode`` as it is): the plane ``z = 0``, or with a ``terrain``
     (the state in the world frame) its surface under the foot, raised by ``ground_offset(q, foot)`` [m] (where the
-    measurement puts a foot on the ground, :meth:`~hsddp_gym.planners.policies.estimation.MeasurementBias.
-    ground_offset`; None: 0), evaluated only for a late flight's landing foot.
+    measurement puts a foot on the ground, [`
+    ground_offset`][hsddp_gym.planners.policies.estimation.MeasurementBias.
+    ground_offset]; None: 0), evaluated only for a late flight's landing foot.
 
     A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
     stiff contact a landing foot can touch and leave within every step, so no flag ever reports the touchdown, the
@@ -70,12 +73,13 @@ class ContactScheduleEstimator:
     Args:
         durations: the nominal (back stance, flight, front stance, flight) durations [s].
         control_dt: the control period [s].
-        options: :class:`~hsddp_gym.planners.policies.mpc.options.ScheduleOptions`.
-        plan: :class:`~hsddp_gym.planners.policies.mpc.options.PlanOptions` (``horizon``, ``planner_dt``,
+        options: [`ScheduleOptions`][hsddp_gym.planners.policies.mpc.options.ScheduleOptions].
+        plan: [`PlanOptions`][hsddp_gym.planners.policies.mpc.options.PlanOptions] (``horizon``, ``planner_dt``,
             ``min_phase``).
         robot: the model (leg length, hip offset, kinematics).
-        ground: the terrain the feet are measured from (:class:`~hsddp_gym.planners.policies.mpc.ground.
-            GroundModel`).
+        ground: the terrain the feet are measured from ([`
+            GroundModel`][hsddp_gym.planners.policies.mpc.ground.
+            GroundModel]).
 
     Attributes:
         clock: the phase of the observed state. plan_clock: the phase of the state a plan starts from (``clock``
@@ -115,7 +119,7 @@ class ContactScheduleEstimator:
     def observe(self, x: np.ndarray, mode: Mode, bias: MeasurementBias | None) -> Mode:
         """Advance the phase by one observation: the estimate ``x`` (14,) and the flags' contact ``mode`` (steps 1 and
         2); returns the current phase's mode. On the first observation a stance's elapsed time comes from where its
-        foot is under the hip (:func:`~hsddp_gym.planners.policies.mpc.clock.stance_elapsed`)."""
+        foot is under the hip ([`stance_elapsed`][hsddp_gym.planners.policies.mpc.clock.stance_elapsed])."""
         clock = self.clock
         mode = self.evidence(x, mode, bias)
         return clock.update(mode, float(x[NQ + IPITCH]), elapsed=None if clock.phase is not None else
@@ -147,7 +151,7 @@ class ContactScheduleEstimator:
     # ------------------------------------------------------------------ 3: the phases ahead
     def schedule(self, x: np.ndarray) -> ModeSchedule:
         """The schedule of a plan from the state ``x`` (14,) (step 3 of the module docstring); every duration on the
-        ``planner_dt`` grid. Tells the clock which foot it plans a second step with (:attr:`GaitClock.restep_foot`)."""
+        ``planner_dt`` grid. Tells the clock which foot it plans a second step with (`GaitClock.restep_foot`)."""
         o = self.options
         clock = self.plan_clock
         j, tau = clock.phase, clock.tau

@@ -13,19 +13,21 @@ from hsddp_gym.planners.policies.mpc.options import SpeedOptions
 class SpeedReference:
     """The forward speed the MPC's plans aim at.
 
-    * :meth:`reference` is the target speed reached from the speed of the episode's first estimate at most at
+    * [`reference`][reference] is the target speed reached from the speed of the episode's first estimate at most at
       ``acceleration`` (a start-up that does not ask a robot at rest for the full speed within one gait cycle);
-    * :attr:`bias` is integral action: at every periodic re-plan, once a whole gait cycle has been seen, it moves by
+    * [`bias`][hsddp_gym.core.batch_model.bias] is integral action: at every periodic re-plan, once a whole gait cycle
+    has been seen, it moves by
       ``integral_gain * (time since the last update) * (mean reference - mean estimated speed)`` over the last cycle
       (both means over the same steps, so neither the within-cycle speed swing nor a ramping reference winds it up),
       within ``+- bias_limit``: offset-free speed tracking whatever makes the closed loop lag its plans;
-    * :meth:`plan_speed` is reference plus bias, moved at most ``ramp`` from the measured speed (a reference governor:
+    * [`plan_speed`][plan_speed] is reference plus bias, moved at most ``ramp`` from the measured speed (a reference
+    governor:
       after a push a plan does not demand the whole change of speed within one gait cycle).
 
     Args:
         target: the target speed [m/s].
         cycle_steps: control steps per gait cycle (the integral's averaging window).
-        options: :class:`~hsddp_gym.planners.policies.mpc.options.SpeedOptions`.
+        options: [`SpeedOptions`][hsddp_gym.planners.policies.mpc.options.SpeedOptions].
     """
 
     def __init__(self, target: float, cycle_steps: int, options: SpeedOptions) -> None:
@@ -76,8 +78,8 @@ class SpeedReference:
         self.bias = float(min(max(self.bias + gain * elapsed * err, -lim), lim))
 
     def plan_speed(self, x: np.ndarray) -> float:
-        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): :meth:`reference` plus :attr:`bias`,
-        moved at most ``ramp`` from the measured speed (None: not moved)."""
+        """The forward-speed reference [m/s] of a plan from state ``x`` (14,): [`reference`][reference] plus
+        [`bias`][hsddp_gym.core.batch_model.bias], moved at most ``ramp`` from the measured speed (None: not moved)."""
         target = self.reference() + self.bias
         ramp = self.options.ramp
         if ramp is None:

@@ -1,19 +1,20 @@
 """The MPC's state estimator: from an observation to the state its plans start from.
 
-Every control step :meth:`StateEstimator.update` takes the state the observation gives
-(:func:`~hsddp_gym.core.observation.state_from_observation`) and
+Every control step [`StateEstimator.update`][StateEstimator.update] takes the state the observation gives
+([`state_from_observation`][hsddp_gym.core.observation.state_from_observation]) and
 
 1. on a terrain without the trunk x in the observation, puts in the trunk x integrated from the measured forward
-   speed (:meth:`StateEstimator.trunk_x`);
+   speed ([`StateEstimator.trunk_x`][StateEstimator.trunk_x]);
 2. folds it into the estimate of a constant sensor bias of the trunk height and pitch from the feet on the ground
-   (:class:`~hsddp_gym.planners.policies.estimation.MeasurementBias`; once calibrated, its height is where the model
-   puts the ground, :meth:`StateEstimator.model_ground`);
+   ([`MeasurementBias`][hsddp_gym.planners.policies.estimation.MeasurementBias]; once calibrated, its height is where
+   the model puts the ground, [`StateEstimator.model_ground`][StateEstimator.model_ground]);
 3. re-estimates the executed action delay from the robot's response to the actions already sent
-   (:class:`~hsddp_gym.planners.policies.latency.DelayEstimator`);
+   ([`DelayEstimator`][hsddp_gym.planners.policies.latency.DelayEstimator]);
 4. filters it with the contact model under the executed torque
-   (:class:`~hsddp_gym.planners.policies.estimation.StateFilter`).
+   ([`StateFilter`][hsddp_gym.planners.policies.estimation.StateFilter]).
 
-:meth:`StateEstimator.predict` then steps the estimate over the action delay under the actions sent and not yet
+[`StateEstimator.predict`][StateEstimator.predict] then steps the estimate over the action delay under the actions sent
+and not yet
 executed (latency compensation): the plan and its feedback law are for the state at which the action will act.
 """
 
@@ -39,14 +40,14 @@ class StateEstimator:
 
     Args:
         interface: the env's public settings (control period, torque limit, motor limits, layout, announced delay).
-        options: :class:`~hsddp_gym.planners.policies.mpc.options.EstimatorOptions`.
+        options: [`EstimatorOptions`][hsddp_gym.planners.policies.mpc.options.EstimatorOptions].
         robot: the model whose kinematics the bias estimate uses.
 
     Attributes:
         announced_delay: the action delay the env announces [control steps].
         action_delay: the delay compensated for: the announced one, or its online estimate (``delay_search``).
         bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
-        delay_changes: how often the delay estimate moved since :meth:`reset`.
+        delay_changes: how often the delay estimate moved since [`reset`][reset].
     """
 
     def __init__(self, interface: EnvInterface, options: EstimatorOptions, robot: CheetahModel) -> None:
@@ -71,7 +72,7 @@ class StateEstimator:
                                      torque_limit=i.torque_limit)
 
     def reset(self, terrain=None) -> None:
-        """Start an episode on ``terrain`` (a :class:`~hsddp_gym.core.terrain.Terrain`, None: flat ground)."""
+        """Start an episode on ``terrain`` (a [`Terrain`][hsddp_gym.core.terrain.Terrain], None: flat ground)."""
         self.action_delay = self.announced_delay
         history = self._delay_estimator.history if self._delay_estimator is not None else self.announced_delay + 1
         if self._delay_estimator is not None:
@@ -140,8 +141,9 @@ class StateEstimator:
 
     def predict(self, x: np.ndarray, mode: Mode) -> list[tuple[np.ndarray, Mode]] | None:
         """The states (14,) and contact modes of the ``action_delay`` control steps after the estimate ``x`` (14,) in
-        contact ``mode``, under the actions sent and not yet executed, on :meth:`model_ground`: ``[(x_1, mode_1), ...]``
-        (empty without a delay); None when the model cannot step the state (:data:`PREDICTION_ERRORS`)."""
+        contact ``mode``, under the actions sent and not yet executed, on [`model_ground`][model_ground]:
+        ``[(x_1, mode_1), ...]`` (empty without a delay); None when the model cannot step the state
+        ([`PREDICTION_ERRORS`][PREDICTION_ERRORS])."""
         out = []
         if not self.action_delay:
             return out
