@@ -40,3 +40,9 @@ def robustness_rule_ablations_pushes(store: Store) -> str:
     """The rules that cost no fall there, on many more seeds of the pushes and sensor biases
     (``robustness/rule_ablations_pushes``)."""
     return rule_ablation_table(store, "robustness/rule_ablations_pushes")
+
+
+def robustness_rule_ablations_push_laws(store: Store) -> str:
+    """The three rules that cost at most one fall in both runs above, on 100 seeds of each push law
+    (``robustness/rule_ablations_push_laws``)."""
+    return rule_ablation_table(store, "robustness/rule_ablations_push_laws")

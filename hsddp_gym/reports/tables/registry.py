@@ -6,7 +6,11 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from hsddp_gym.reports.store import Store
-from hsddp_gym.reports.tables.ablations import robustness_rule_ablations, robustness_rule_ablations_pushes
+from hsddp_gym.reports.tables.ablations import (
+    robustness_rule_ablations,
+    robustness_rule_ablations_push_laws,
+    robustness_rule_ablations_pushes,
+)
 from hsddp_gym.reports.tables.learned import learning_imitation, policies_protocol
 from hsddp_gym.reports.tables.paper import paper_sto_periodic, paper_sto_variants, paper_task1
 from hsddp_gym.reports.tables.physics import env_physics
@@ -74,6 +78,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/pushes": robustness_pushes,
     "robustness/rule_ablations": robustness_rule_ablations,
     "robustness/rule_ablations_pushes": robustness_rule_ablations_pushes,
+    "robustness/rule_ablations_push_laws": robustness_rule_ablations_push_laws,
 }
 """``{table id: renderer}``."""
 
