@@ -340,8 +340,7 @@ def build_mjcf(params: RobotParams = DEFAULT_PARAMS, timestep: float | None = No
         contact_model: a [`ContactModel`][ContactModel] (or a dict of its fields, or a corner name); None: the default
             model with ``params.friction``.
         terrain: a [`Terrain`][hsddp_gym.core.terrain.Terrain] (its surface as boxes, [`terrain_geoms`][terrain_geoms])
-            or None
-            (the floor plane).
+            or None (the floor plane).
 
     The ``solimp`` and ``impratio`` attributes are written only when they differ from MuJoCo's defaults, so the
     default model's XML is the twin's original one, byte for byte.

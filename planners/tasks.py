@@ -114,8 +114,7 @@ def heuristic_warm_start(problem: HybridProblem, check: bool = True) -> Trajecto
 
     Args:
         check: raise [`WarmStartDivergedError`][WarmStartDivergedError] (naming the cycle and knot) when the rollout
-            diverges; with
-            False the trajectory is returned with NaN from there on.
+            diverges; with False the trajectory is returned with NaN from there on.
     Returns:
         A [`Trajectory`][hsddp_gym.core.rollout.Trajectory] (``X (N+1, 14)``, ``U (N, 4)``, ...).
     """

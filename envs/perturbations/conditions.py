@@ -12,8 +12,7 @@ corner
   [`ContactModel`][hsddp_gym.envs.mujoco_twin.ContactModel] drawn per episode from the episode seed
   (``contact_family``). They are extra conditions, not in [`SUITE`][SUITE];
 * conditions a real robot has ([`HardwareCondition`][HardwareCondition], [`HARDWARE_CONDITIONS`][HARDWARE_CONDITIONS]):
-a latency other than the
-  announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
+a latency other than the announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
 """
 
 from __future__ import annotations
@@ -153,11 +152,9 @@ class HardwareCondition(Condition):
 
     Attributes:
         announced_action_delay: the delay [control steps] [`ActionDelay`][ActionDelay] announces (None: the executed
-            one,
-            `action_delay`).
+            one, `action_delay`).
         delay_jitter: per-episode executed delay uniform in ``action_delay +- delay_jitter``
-            ([`ActionDelay`][ActionDelay]'s
-            ``jitter``).
+            ([`ActionDelay`][ActionDelay]'s ``jitter``).
         observation_bias: the keyword arguments of [`ObservationBias`][ObservationBias] (``bias``, ``random_bias``), or
             None.
         phase_push: the keyword arguments of [`PhasePush`][PhasePush] (``phase``, ``time_range``, ``max_delta_v``), or

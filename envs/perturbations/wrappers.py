@@ -4,8 +4,7 @@
 * [`ObservationNoise`][ObservationNoise]: zero-mean Gaussian noise on the observed positions and velocities (the contact
   flags and the gait clock stay clean);
 * [`ObservationBias`][ObservationBias]: a constant offset on named observed positions and velocities (a sensor bias),
-fixed
-  or drawn per episode;
+fixed or drawn per episode;
 * [`ActionDelay`][ActionDelay]: every action is executed ``steps`` control steps after the policy returned it (the
   first ``steps`` executed actions are zero torques); the wrapper's ``action_delay_steps`` attribute tells a
   policy its latency ([`hsddp_gym.planners.policies.base.EnvInterface`][hsddp_gym.planners.policies.base.EnvInterface]
@@ -66,8 +65,7 @@ class ObservationNoise(gym.Wrapper):
     """Gaussian noise ``N(0, position_std^2)`` on every observed position (trunk height, pitch, joint angles;
     the trunk ``x`` too when it is observed) and ``N(0, velocity_std^2)`` on every observed velocity, drawn
     independently at every observation (reset included); contact flags and the gait clock are not perturbed.
-    The noisy observation is clipped to the observation space. ``info`` is untouched (it holds the true
-    state).
+    The noisy observation is clipped to the observation space. ``info`` is untouched (it holds the true state).
 
     Args:
         env: a (wrapped) ``Bounding-v0``.
@@ -202,8 +200,7 @@ class ActionDelay(gym.Wrapper):
     latency that is not known exactly (announced 1 step, executed 2, ...). With ``jitter`` the executed delay of
     each episode is drawn at reset, uniform in ``{steps - jitter, ..., steps + jitter}``, from a generator seeded
     from ``(seed, ActionDelay.SALT)`` (see the module's seeding rule); it is constant within the episode
-    (`executed_delay_steps`). Without ``announced`` and ``jitter`` nothing is drawn and the wrapper is the
-    plain delay.
+    (`executed_delay_steps`). Without ``announced`` and ``jitter`` nothing is drawn and the wrapper is the plain delay.
 
     A bad action (wrong shape, non-finite) raises ``ValueError`` when it is given, not when it is executed.
 

@@ -148,8 +148,7 @@ class CompiledContactSimulator(ContactSimulator):
         compiled call.
 
         Returns:
-            The summed ground impulses over the ``n`` steps, grf layout (4,) [N s] (an array reused by the next
-            call).
+            The summed ground impulses over the ``n`` steps, grf layout (4,) [N s] (an array reused by the next call).
         """
         self._u[:] = u
         kernel = step_batch if self.terrain is None else step_batch_terrain

@@ -70,8 +70,7 @@ taken at it (for t < T; the last row, where no action is taken, repeats the last
   ``foot_heights (2,)``, ``grf (4,)``, ``time`` (whatever keys the env's reset info has; every step is
   checked against them);
 * from the policy ([`DECISION_SCHEMA`][hsddp_gym.datasets.recording.DECISION_SCHEMA]): ``expert_state_nominal (14,)``
-x-bar and
-  ``expert_action_nominal (4,)`` u-bar / torque_limit (normalized, not clipped) of the plan knot whose
+x-bar and ``expert_action_nominal (4,)`` u-bar / torque_limit (normalized, not clipped) of the plan knot whose
   feedback law ``u = u-bar + K (x - x-bar)`` produced the action, ``expert_tracking`` (True when it did;
   False also when the policy changed the law's torques afterwards, as the MPC's projection of stance torques that
   would push a foot off the ground does; when no plan acted the nominal holds its last value, zeros before any),

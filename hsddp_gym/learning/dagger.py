@@ -181,8 +181,7 @@ def dagger_rollout(env, learner, expert, beta: float, seed: int, rng: np.random.
                    perception=None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """One episode (stopped after ``max_steps`` steps if given) in which the expert labels every visited
     observation and the executed action is the expert's with probability ``beta`` (the learner's otherwise),
-    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the
-    true state
+    plus Gaussian noise of std ``noise`` (clipped to [-1, 1]; the label stays clean). The expert acts on the true state
     ([`hsddp_gym.envs.perturbations.true_observation`][hsddp_gym.envs.perturbations.wrappers.true_observation]; the
     env's observation unless it is wrapped in observation noise) and is told the action sent
     ([`inform_sent_action`][hsddp_gym.datasets.recording.inform_sent_action]); the learner acts on the env's

@@ -95,8 +95,7 @@ class PolicySpec:
 
     Args:
         name: one of [`POLICIES`][POLICIES], or a learned policy ``KIND:DIR`` ([`LEARNED_POLICIES`][LEARNED_POLICIES];
-            ``bc`` and
-            ``dagger`` take several directories ``DIR1,DIR2,...``, their mean-action ensemble).
+            ``bc`` and ``dagger`` take several directories ``DIR1,DIR2,...``, their mean-action ensemble).
         options: ``mpc``: an ``MPCOptions`` or a dict of its fields (JSON values, read with
             ``MPCOptions.from_record``); ``sb3`` / ``ppo`` / ``sac``: keyword arguments of ``load_trained_policy``
             (``checkpoint``, ``deterministic``, ...); unused otherwise.

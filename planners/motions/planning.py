@@ -153,8 +153,7 @@ def plan_backflip(options: SolverOptions | None = None, callbacks: list[Callback
 
     Args:
         options: solver options (default [`BACKFLIP_OPTIONS`][BACKFLIP_OPTIONS]: AL + ReB, up to 30 DDP iterations per
-            AL
-            iteration).
+            AL iteration).
     Returns:
         A [`PlanResult`][hsddp_gym.planners.tasks.PlanResult], summary as [`plan_pronk`][plan_pronk]'s; ``limits`` adds
         ``min_knee_height`` and ``min_swing_foot_height`` ([`motion_limits`][motion_limits]).
@@ -194,8 +193,7 @@ def plan_transition(motion: str, speed: float = 1.0, cycles: int = 2, options: S
     * ``"stand_to_bound"``: from standing at rest, ``DS(250 ms) (BS FL FS FL) x c -> BS``; the reference speed
       ramps from ``0.4 speed`` at the end of the double stance to ``speed`` over the first two cycles;
     * ``"bound_pronk_bound"``: from the paper's initial state, ``(BS FL FS FL) x c`` whose last flight lands both
-      feet, ``(DS FL) x c``, ``DS(T_s/2)`` (the front foot lifts off), ``(BS FL FS FL) x c -> BS``, all at
-      ``speed``;
+      feet, ``(DS FL) x c``, ``DS(T_s/2)`` (the front foot lifts off), ``(BS FL FS FL) x c -> BS``, all at ``speed``;
     * ``"bound_to_stop"``: from the paper's initial state, ``(BS FL FS FL) x c`` slowing from ``speed`` to
       ``0.4 speed`` whose last flight lands both feet, then ``DS(400 ms) -> DS`` ending at rest (standing
       reference, every velocity 0).

@@ -29,8 +29,7 @@ posture that puts the relevant feet on the ground, at the desired speed):
 * the ground-force reference of a pronk stance carries the weight of the whole cycle on the two feet,
   ``m g (T_s + T_f) / (2 T_s)`` per foot; of a double stance at rest ``m g / 2`` per foot;
 * bound phases use the bound's references ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference])
-at the speed
-  of their cycle; the joint angles of every double-stance posture come from inverse kinematics
+at the speed of their cycle; the joint angles of every double-stance posture come from inverse kinematics
   ([`leg_posture`][leg_posture]).
 
 The warm start ([`motion_warm_start`][motion_warm_start]) rolls out a heuristic controller through the schedule: bound
@@ -611,8 +610,7 @@ class _FlipWarmStart:
       ([`BACKFLIP_TUCK`][BACKFLIP_TUCK], joint PD).
     * Flight: both legs tucked, then (after ``_FLIP_TUCK_FRACTION`` of it) the touchdown posture (joint PD).
     * Landing: the double stance's ground-force controller ([`_double_stance_torque`][_double_stance_torque]), pitch to
-    the nearest
-      whole turn.
+    the nearest whole turn.
 
     Every torque clipped to the torque limit.
     """

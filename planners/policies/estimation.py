@@ -5,8 +5,7 @@
   compiled kernel, [`CompiledContactSimulator`][hsddp_gym.core.compiled_contact.CompiledContactSimulator]) over a few
   control steps under known torques.
 * [`ContactModelPredictor.predict`][ContactModelPredictor.predict] over the actions already sent but not yet executed
-gives the state at
-  the moment a new action will act: the MPC's latency compensation.
+gives the state at the moment a new action will act: the MPC's latency compensation.
 * [`StateFilter`][StateFilter]: a Kalman filter: the estimate is propagated one control step with the model and the
   executed torques, then corrected toward the measurement pair by pair (each coordinate's position and velocity)
   with the Kalman gain of a stated noise model, its covariance carried from step to step (the steady-state gain of

@@ -14,13 +14,11 @@ touchdowns
   one of its middle double stances ([`PRONK_LOOP_PHASE`][PRONK_LOOP_PHASE], ``RepeatCycle``): the plan's steady cycles,
   whose touchdown and lift-off states repeat to a few mm and mrad, are played periodically.
 * **Backflip** ([`backflip_expert`][backflip_expert]; ``plan_backflip_held``: ``DS(250 ms) BS(100 ms) FL(400 ms) DS(300
-ms)``
-  with the feedback gains of a control held for the env's 5 ms control period): touchdowns count for feet seen 2 cm
+ms)`` with the feedback gains of a control held for the env's 5 ms control period): touchdowns count for feet seen 2 cm
   clear (``FootClearance``); when the plan runs out (its last double stance ends at rest, pitch ``-2 pi``) its last
   posture is held (``HoldPosture``).
 * **Jumps** ([`jump_expert`][jump_expert]; ``plan_jump_held``: from the paper's initial state two bounding cycles at 1
-m/s,
-  the jump ``BS(80 ms) FL(250 ms) FS(72 ms) FL(72 ms)`` and two bounding cycles on the far side): touchdowns as the
+m/s, the jump ``BS(80 ms) FL(250 ms) FS(72 ms) FL(72 ms)`` and two bounding cycles on the far side): touchdowns as the
   backflip's. The observation has no world x, so the expert, like the plan, places its feet by time and the env must
   put the terrain where the plan has it. The first bounding cycle after the jump ([`JUMP_LOOP`][JUMP_LOOP], phases
   12-15) is then played periodically, so the robot bounds on with the plan's own gains. The plan's last cycle is never

@@ -392,8 +392,7 @@ class HeuristicPolicy(Policy):
         gains: [`HeuristicGains`][HeuristicGains] of ``self.controller`` (the desired speed defaults to the env's
             target speed).
         gait_gains: [`ContactEventGains`][ContactEventGains] of ``self.gait`` (default: tuned for the env's defaults,
-            with
-            the env's target speed and torque limit).
+            with the env's target speed and torque limit).
     """
 
     def __init__(self, interface: EnvInterface = EnvInterface(), gains: HeuristicGains | None = None,

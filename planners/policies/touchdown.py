@@ -9,11 +9,9 @@ that skims the ground after a take-off: a flight that ends in a stance would rea
 touchdown. A rule says which flagged feet count:
 
 * [`ContactFlags`][ContactFlags]: every flagged foot (the MPC's plans and the bounding expert's: their flights start
-from a
-  single stance, whose lifted foot is not the landing one);
+from a single stance, whose lifted foot is not the landing one);
 * [`SeenAirborne`][SeenAirborne]: a foot seen unflagged during the current phase, or any flagged foot once a fraction of
-the
-  phase's plan time has passed (the pronk: right after a lift-off both feet are still flagged, and a flight that
+the phase's plan time has passed (the pronk: right after a lift-off both feet are still flagged, and a flight that
   ends in a double stance would read that as its touchdown);
 * [`FootClearance`][FootClearance]: a foot seen at least a clearance above ``z = 0`` during the current phase, its
 height from

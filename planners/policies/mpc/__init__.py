@@ -1,19 +1,16 @@
 """HS-DDP model-predictive control, split as MuJoCo MPC splits it.
 
 * [`agent`][hsddp_gym.planners.policies.mpc.agent]: [`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], the
-agent: the loop that drives the parts below
-  at the control rate;
+agent: the loop that drives the parts below at the control rate;
 * [`state`][hsddp_gym.planners.policies.mpc.state]: the state estimator (filter, sensor bias, action delay, prediction
   over the delay);
 * [`schedule`][hsddp_gym.planners.policies.mpc.schedule] and [`clock`][hsddp_gym.planners.policies.mpc.clock]: the
   contact-schedule estimator (the current and next contact phases from the state and the flags);
 * [`planner`][hsddp_gym.planners.policies.mpc.planner] and [`warm_start`][hsddp_gym.planners.policies.mpc.warm_start]:
-the planner
-  (HS-DDP re-plans, warm starts, restarts);
+the planner (HS-DDP re-plans, warm starts, restarts);
 * [`law`][hsddp_gym.planners.policies.mpc.law]: the policy between re-plans (the latest plan's feedback law);
 * [`speed`][hsddp_gym.planners.policies.mpc.speed], [`ground`][hsddp_gym.planners.policies.mpc.ground]: the speed
-reference
-  and the ground the plans stand on;
+reference and the ground the plans stand on;
 * [`options`][hsddp_gym.planners.policies.mpc.options]:
 [`MPCOptions`][hsddp_gym.planners.policies.mpc.options.MPCOptions]. """
 

@@ -4,8 +4,7 @@ As in MuJoCo MPC, the planner optimizes and the policy is queried at the control
 loop that drives both is separate from each. Every control step [`MPCPolicy.act`][MPCPolicy.act]
 
 1. estimates the state from the observation ([`StateEstimator`][hsddp_gym.planners.policies.mpc.state.StateEstimator]:
-   sensor bias, action delay, model-based filter) and predicts it over the action delay;
-2. advances the contact phase
+   sensor bias, action delay, model-based filter) and predicts it over the action delay; 2. advances the contact phase
 ([`ContactScheduleEstimator`][hsddp_gym.planners.policies.mpc.schedule.ContactScheduleEstimator]) from
    the estimate and the contact flags, and over the delay with the predicted contacts;
 3. re-plans from the predicted state every ``replan.period`` (at once when the phase moved against the cycle):

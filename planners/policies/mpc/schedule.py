@@ -8,15 +8,13 @@ contact, loses a stance foot or lands on both feet does not follow it.
 every control step and every re-plan go through:
 
 1. **Contact evidence** ([`evidence`][ContactScheduleEstimator.evidence]): which feet are on the ground. The flags say
-it,
-   sampled at the end of each control step; from a flight's nominal end on, its landing foot that the state puts
+it, sampled at the end of each control step; from a flight's nominal end on, its landing foot that the state puts
    within ``touchdown_height`` of the ground (once the feet have calibrated where the measurement puts the ground) is
    on it too: on a stiff contact a landing foot can bounce at the control rate and never be flagged.
 2. **The phase** ([`GaitClock`][hsddp_gym.planners.policies.mpc.clock.GaitClock]): the evidence moves the phase on its
    events. A touchdown ends a flight (debounced early, at once when late); a stance whose foot has left the ground is
    lost (``lost_stance_steps``); a touchdown that finds the other foot down starts a double stance
-   (``double_stance``); the foot of the stance before a flight that lands again starts that stance again
-   (``restep``).
+   (``double_stance``); the foot of the stance before a flight that lands again starts that stance again (``restep``).
 3. **The phases ahead** ([`schedule`][ContactScheduleEstimator.schedule]): the current phase for the rest of its nominal
    duration (at least ``min_phase``); a flight lasts at least until its landing hip, the trunk flying ballistically,
    is within ``flight_reach`` leg lengths of the ground, and is planned as a second step of the other foot when that
@@ -77,9 +75,8 @@ class ContactScheduleEstimator:
         plan: [`PlanOptions`][hsddp_gym.planners.policies.mpc.options.PlanOptions] (``horizon``, ``planner_dt``,
             ``min_phase``).
         robot: the model (leg length, hip offset, kinematics).
-        ground: the terrain the feet are measured from ([`
-            GroundModel`][hsddp_gym.planners.policies.mpc.ground.
-            GroundModel]).
+        ground: the terrain the feet are measured from
+            ([`GroundModel`][hsddp_gym.planners.policies.mpc.ground.GroundModel]).
 
     Attributes:
         clock: the phase of the observed state. plan_clock: the phase of the state a plan starts from (``clock``
