@@ -340,6 +340,6 @@ FIXED_SETTINGS = {
 """Settings of earlier versions that this one fixes, with the value it always uses: the constraint handling (AL on
 the switching constraints, relaxed barriers), the integrator, the gains' refresh, the authors' later cost weights and
 vertical-velocity references, the state filter and the latency compensation (always on), one knot grid, no simulated
-solver latency, the env's announced action delay, and the constants [`
-WARM_START_KD`][hsddp_gym.planners.policies.mpc.planner.
-WARM_START_KD], ``REB_DELTA``, ``REB_EPS`` and ``SIGMA_MAX`` of the planner."""
+solver latency, the env's announced action delay, and the constants
+[`WARM_START_KD`][hsddp_gym.planners.policies.mpc.planner.WARM_START_KD], ``REB_DELTA``, ``REB_EPS`` and
+``SIGMA_MAX`` of the planner."""

@@ -43,9 +43,9 @@ def late_landing(clock: GaitClock, mode: Mode, x: np.ndarray, robot, touchdown_h
     """``mode`` with the landing foot of a late flight added when the state ``x`` (14,) puts it within
     ``touchdown_height`` [m] of the ground (None: ``mode`` as it is): the plane ``z = 0``, or with a ``terrain``
     (the state in the world frame) its surface under the foot, raised by ``ground_offset(q, foot)`` [m] (where the
-    measurement puts a foot on the ground, [`
-    ground_offset`][hsddp_gym.planners.policies.estimation.MeasurementBias.
-    ground_offset]; None: 0), evaluated only for a late flight's landing foot.
+    measurement puts a foot on the ground,
+    [`MeasurementBias.ground_offset`][hsddp_gym.planners.policies.estimation.MeasurementBias.ground_offset]; None: 0),
+    evaluated only for a late flight's landing foot.
 
     A contact flag is a sample: it says whether the foot pushed on the ground at the end of the control step. On a
     stiff contact a landing foot can touch and leave within every step, so no flag ever reports the touchdown, the
