@@ -406,6 +406,8 @@ def test_no_sphinx_role_reaches_the_site_or_the_docstrings(site):
     show as raw text."""
     shown = [str(p.relative_to(site)) for p in site.rglob("*.html") if ROLE.search(p.read_text())]
     assert not shown, f"raw Sphinx roles in {shown}"
+    unlinked = [str(p.relative_to(site)) for p in site.rglob("*.html") if "][hsddp_gym." in p.read_text()]
+    assert not unlinked, f"cross-references shown as raw text in {unlinked}"
     written = [str(p) for root in ("hsddp_gym", "planners", "envs") for p in (ROOT / root).rglob("*.py")
                if p.name != "_planar_terms.py" and "def generate" not in p.read_text() and ROLE.search(p.read_text())]
     assert not written, f"Sphinx roles in the docstrings of {written}"
