@@ -99,7 +99,7 @@ def end_of_mode_reference(mode: Mode, touchdown_foot: int | None, speed: float =
             stance / -1 m/s before touchdown.
         height_offset: the trunk this much higher [m] than in the authors' posture, each foot where that posture
             has it (the joint angles by inverse kinematics; pitch unchanged). 0 (default): the authors' postures.
-            The MPC plans a gait 4 cm higher (``MPCOptions.height_offset``): more room to the ground after a push.
+            The MPC plans a gait 4 cm higher (``PlanOptions.height_offset``): more room to the ground after a push.
     Returns:
         x_ref (14,): zero x position, joint and pitch rates.
     """

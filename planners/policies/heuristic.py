@@ -107,7 +107,7 @@ class HeuristicBoundingController:
         robot: the model. gains: [`HeuristicGains`][HeuristicGains]. height_offset: the touchdown postures' trunk this
             much
             higher [m] ([`end_of_mode_reference`][hsddp_gym.core.references.end_of_mode_reference]; the MPC's start-up
-            and warm-start controllers take ``MPCOptions.height_offset``).
+            and warm-start controllers take ``PlanOptions.height_offset``).
     """
 
     def __init__(self, robot: CheetahModel | None = None, gains: HeuristicGains = HeuristicGains(),

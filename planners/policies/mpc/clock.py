@@ -124,7 +124,7 @@ class GaitClock:
         """True when the last [`update`][update] moved the phase against the cycle (a lost stance)."""
         self.restep_foot: int | None = None
         """Set by the planner in a flight: the foot of the stance before it, when the plans put it on the ground
-        again (a planned re-step, ``MPCOptions.restep``): with ``restep``, its first contact step then starts its
+        again (a planned re-step, ``ScheduleOptions.restep``): with ``restep``, its first contact step then starts its
         stance. Cleared at every phase change."""
 
     def copy(self) -> GaitClock:
