@@ -35,6 +35,18 @@ t ~ U(1, 4) s, dv up to 1.0 m/s, 1.0 m/s, 7 rad/s) and several at once (``noise_
 ``sensor_bias_random``'s bias, 10 ms of latency announced as 5 ms). Each of their episodes records what was drawn
 (``perturbation``: the executed and announced delay, the bias, the applied push).
 
+**Every task.** ``--env ID [ID ...]`` runs in tasks' envs instead of Bounding-v0 (``hsddp_gym/Backflip-v0``,
+``hsddp_gym/GapJump-v0``, ...; the contact conditions in their MuJoCo twins), one after the other (several:
+``OUT/TASK/``): by default the task-generic suite (``hsddp_gym.envs.perturbations.TASK_SUITE``, those of its
+conditions that apply to the task) with the task's plan-tracking expert (``--policies expert``, starting from its
+``reset_options``; Terrain-v0 has none: ``--policies mpc``, given each episode's terrain). Pushes come in the task's
+window with the task's sizes (``Task.push_window``, ``Task.push_size``); a condition that cannot apply to a task (a
+target speed where the task fixes its own, a twin it does not have) is refused. Each episode records the task's
+success (its rule at the last step) beside its fall; per cell: successes / episodes and falls / episodes. ``--record``
+then puts the tasks' cells into a record of several tasks (e.g. ``results/robustness/tasks.json``: per task, policy
+and condition the successes and falls; every episode is in ``OUT/robustness.json``), keeping its other tasks and
+policies.
+
 **Seeds.** The default evaluation seeds are 7000-7019 (``--first-seed 7000 --seeds 20``); they were not used to
 develop or tune anything, with one exception: the scuff rule of the MPC's gait clock (a contact counts as a landing
 only after a swing of at least ``min_flight`` of the flight) was found on seed 7012 of the ``obs_noise`` condition.
@@ -59,6 +71,8 @@ Usage::
         --conditions delay_10ms_announced_5ms delay_jitter sensor_bias sensor_bias_random push_flight push_stance
         push_x3
     python experiments/robustness.py --out runs/robustness_table --combine runs/a/robustness.json runs/b/robustness.json
+    python experiments/robustness.py --env hsddp_gym/Backflip-v0 hsddp_gym/GapJump-v0 --policies expert
+        --first-seed 56000 --workers 2 --record results/robustness/tasks.json
 """
 
 from __future__ import annotations
@@ -76,11 +90,13 @@ from hsddp_gym.benchmarks.robustness import (
     benchmark_policy,
     combine,
     markdown,
+    merge_task_record,
     run_benchmark,
     run_one,
     summarize_cell,
+    task_record_entry,
 )
-from hsddp_gym.reports.store import machine_info, write_record
+from hsddp_gym.reports.store import machine_info, read_record, write_record
 from hsddp_gym.util.io import atomic_path, write_json
 from hsddp_gym.util.parallel import add_backend_arguments, check_backend
 from hsddp_gym.viz.plotting import plot_robustness
@@ -90,12 +106,21 @@ __all__ = ["BUILTIN", "EVAL_FIRST_SEED", "LEARNED", "benchmark_policy", "combine
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hsddp_gym.envs.perturbations import CONDITIONS, SIMULATORS, SUITE
+    from hsddp_gym.envs.perturbations import CONDITIONS, SIMULATORS, SUITE, TASK_SUITE, condition_task
+    from hsddp_gym.registry import TASKS
 
+    bounding = TASKS["bounding"].env_id
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="runs/robustness", help="output directory (default: %(default)s)")
-    p.add_argument("--policies", nargs="*", default=["mpc", "heuristic"], choices=BUILTIN,
-                   help="built-in policies; '--policies' alone runs none (only --learned ones) (default: %(default)s)")
+    p.add_argument("--env", nargs="+", default=[bounding], choices=[t.env_id for t in TASKS.values()],
+                   metavar="ID",
+                   help="the tasks whose envs the conditions run in, one after the other (their MuJoCo twins for the "
+                        "contact conditions): pushes in the task's window and sizes, each episode's success recorded; "
+                        "several: OUT/TASK/ per task (default: %(default)s)")
+    p.add_argument("--policies", nargs="*", default=None, choices=BUILTIN,
+                   help="built-in policies (expert: the task's plan-tracking expert); '--policies' alone runs none "
+                        "(only --learned ones) (default: mpc heuristic in Bounding-v0, the task's expert in another "
+                        "task's env)")
     p.add_argument("--mpc-options", default=None, metavar="JSON",
                    help="the mpc-options policy's settings by their flat names (MPCOptions.replace), JSON (ablations)")
     p.add_argument("--label", default="mpc-options", help="name of the mpc-options policy (default: %(default)s)")
@@ -109,10 +134,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--estimated", nargs="+", default=[], metavar="LABEL",
                    help="policies (labels of --policies or --learned names, not the MPC) that also run behind the "
                         "MPC's state filter and latency compensation (EstimatedStatePolicy), labelled LABEL+est")
-    p.add_argument("--conditions", nargs="+", default=list(SUITE), choices=list(CONDITIONS),
+    p.add_argument("--conditions", nargs="+", default=None, choices=list(CONDITIONS),
                    help="conditions (default: the benchmark suite, hsddp_gym.envs.perturbations.SUITE: every condition "
-                        "but push_x3 and the contact ones). The contact-model conditions always run in the MuJoCo twin "
-                        "(whatever --simulator says): contact_family draws a contact model per episode from the "
+                        "but push_x3 and the contact ones; with --env a task's env: TASK_SUITE, those of its "
+                        "conditions that apply to the task). The contact-model conditions always run in the MuJoCo "
+                        "twin (whatever --simulator says): contact_family draws a contact model per episode from the "
                         "episode seed (friction cone, solref, solimp, foot radius, impratio, time step, friction; "
                         "hsddp_gym.envs.mujoco_twin.ContactModel.sample), contact_<corner> runs one corner of "
                         "CONTACT_CORNERS (softest, stiffest, pyramidal, large_feet, low_friction, coarse_step); "
@@ -171,6 +197,31 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--backend {args.backend}: {exc}")
     if args.max_steps is not None and args.max_steps < 1:
         p.error(f"--max-steps must be >= 1, got {args.max_steps}")
+    if len(set(args.env)) != len(args.env):
+        p.error(f"--env: an env is given twice: {args.env}")
+    if bounding in args.env and len(args.env) > 1:
+        p.error(f"--env: {bounding} runs alone (its tables are the suite's)")
+    tasks = {e: condition_task(e) for e in args.env}
+    env_ids = {e: None if e == bounding else e for e in args.env}  # None: Bounding-v0, as before
+    conditions = {}
+    for e, task in tasks.items():
+        if args.conditions is None:
+            suite = SUITE if env_ids[e] is None else TASK_SUITE
+            conditions[e] = [c for c in suite if CONDITIONS[c].applies_to(task, args.simulator)]
+            left = [c for c in suite if c not in conditions[e]]
+            if left:
+                print(f"not applicable to {e}: {', '.join(left)}", flush=True)
+        else:
+            conditions[e] = list(args.conditions)
+        for c in conditions[e]:
+            reason = CONDITIONS[c].refusal(task, args.simulator)
+            if reason is not None:
+                p.error(f"--conditions: {c!r} does not apply to the task {task.name!r} ({e}): {reason}")
+    if args.policies is None:
+        args.policies = ["mpc", "heuristic"] if env_ids[args.env[0]] is None else ["expert"]
+    lacking = [e for e, task in tasks.items() if task.expert is None]
+    if "expert" in args.policies and lacking:
+        p.error(f"--policies expert: {', '.join(lacking)} has no plan-tracking expert (use --policies mpc)")
     policies: dict = {}
     for name in args.policies:
         if name == "mpc-options":
@@ -211,39 +262,76 @@ def main(argv: list[str] | None = None) -> int:
             continue
         if label not in policies:
             p.error(f"--estimated: {label!r} is not one of the policies run ({sorted(policies)})")
-        if policies[label]["kind"] in ("mpc", "mpc-options"):
-            p.error(f"--estimated: {label!r} is an MPC, which filters and predicts itself")
+        if policies[label]["kind"] in ("mpc", "mpc-options", "expert"):
+            p.error(f"--estimated: {label!r} is an MPC, which filters and predicts itself, or the expert, built for "
+                    "its env")
         policies[f"{label}+est"] = {**policies[label], "estimator": True}
     if not policies:
         p.error("no policy to run: give --policies or a --learned policy whose files exist")
     seeds = list(args.seed_list) if args.seed_list is not None else list(range(args.first_seed,
                                                                                  args.first_seed + args.seeds))
     machine = machine_info()
+    record: dict = {}
+    for e, task in tasks.items():
+        out = Path(args.out) if len(tasks) == 1 else Path(args.out) / task.name
+        results = _run(args, policies, skipped, conditions[e], seeds, env_ids[e], task, out)
+        if env_ids[e] is not None:
+            record[task.name] = ({"push_window": list(task.push_window), "push_size": list(task.push_size),
+                                  "results": task_record_entry(results, conditions[e])}, conditions[e])
+        elif args.record:
+            cells = {pol: {c: {k: v for k, v in cell.items() if k != "runs"} for c, cell in by_cond.items()}
+                     for pol, by_cond in results.items()}
+            write_record(args.record, {"seeds": seeds, "max_steps": args.max_steps, "simulator": args.simulator,
+                                       "policies": policies, "conditions": {c: CONDITIONS[c].as_dict()
+                                                                            for c in conditions[e]},
+                                       "results": cells},
+                         f"Falls, returns and speeds of {', '.join(results)} under the perturbation conditions "
+                         f"({len(seeds)} seeds each, {args.simulator})", machine=machine)
+            print(f"wrote {args.record}")
+    if args.record and record:
+        _record_tasks(args.record, record, seeds, machine, argv)
+    return 0
+
+
+def _run(args, policies: dict, skipped: dict, conditions: list, seeds: list, env_id: str | None, task,
+         out: Path) -> dict:
+    """Run the benchmark in one env (``env_id``, None: Bounding-v0) and write ``OUT/robustness.{json,md,png}``."""
+    from hsddp_gym.envs.perturbations import CONDITIONS
+
     t0 = time.perf_counter()
-    results = run_benchmark(policies, args.conditions, seeds, args.max_steps, args.workers, not args.quiet,
-                            args.backend, args.address, args.simulator)
-    out = Path(args.out)
+    results = run_benchmark(policies, conditions, seeds, args.max_steps, args.workers, not args.quiet,
+                            args.backend, args.address, args.simulator, env_id)
+    task_fields = {} if env_id is None else {"env_id": env_id, "push_window": list(task.push_window),
+                                             "push_size": list(task.push_size)}
     write_json(out / "robustness.json", {
         "command": " ".join(["python", *sys.argv]), "seeds": seeds, "max_steps": args.max_steps,
-        "simulator": args.simulator,
+        "simulator": args.simulator, **task_fields,
         "policies": policies, "skipped": skipped, "wall_time_s": time.perf_counter() - t0,
-        "conditions": {c: CONDITIONS[c].as_dict() for c in args.conditions}, "results": results})
-    table = markdown(results, args.conditions)
+        "conditions": {c: CONDITIONS[c].as_dict() for c in conditions}, "results": results})
+    table = markdown(results, conditions)
     with atomic_path(out / "robustness.md") as tmp:
         tmp.write_text(table)
-    plot_robustness(results, args.conditions, out / "robustness.png")
-    print("\n" + table)
-    if args.record:
-        cells = {pol: {c: {k: v for k, v in cell.items() if k != "runs"} for c, cell in by_cond.items()}
-                 for pol, by_cond in results.items()}
-        write_record(args.record, {"seeds": seeds, "max_steps": args.max_steps, "simulator": args.simulator,
-                                   "policies": policies, "conditions": {c: CONDITIONS[c].as_dict()
-                                                                        for c in args.conditions},
-                                   "results": cells},
-                     f"Falls, returns and speeds of {', '.join(results)} under the perturbation conditions "
-                     f"({len(seeds)} seeds each, {args.simulator})", machine=machine)
-        print(f"wrote {args.record}")
-    return 0
+    plot_robustness(results, conditions, out / "robustness.png")
+    print("\n" + (f"{task.env_id}\n" if env_id is not None else "") + table)
+    return results
+
+
+def _record_tasks(path: str, entries: dict, seeds, machine: dict, argv) -> None:
+    """Put the tasks' entries (``{task: (entry, conditions)}``) into the tasks' record at ``path``: kept are its
+    other tasks and, per task, its other policies, and its other commands (this command, ``argv``, once)."""
+    from hsddp_gym.reports.store import invoked_command
+
+    data, commands = None, []
+    if Path(path).is_file():
+        record = read_record(path)
+        data, commands = record.data, list(record.commands)
+    for name, (entry, conditions) in entries.items():
+        data = merge_task_record(data, name, entry, conditions, seeds)
+    command = invoked_command(argv)
+    commands = [c for c in commands if c != command] + [command]
+    write_record(path, data, f"Successes and falls of the tasks under the perturbation conditions ({len(seeds)} "
+                 "seeds)", command=commands if len(commands) > 1 else command, machine=machine)
+    print(f"wrote {path} ({', '.join(entries)})")
 
 
 if __name__ == "__main__":

@@ -13,6 +13,16 @@ Light on purpose: this module imports only [`hsddp_gym.core.task_constants`][hsd
 Python); entry points, plans, experts and measures are ``"module:attr"`` strings, imported when used
 ([`resolve`][resolve]), as Gymnasium's entry points.
 
+**Pushes.** A task's pushes (the conditions ``push`` and ``push_x3``, and the earliest time of ``push_flight`` and
+``push_stance``, [`hsddp_gym.envs.perturbations.conditions`][hsddp_gym.envs.perturbations.conditions]) come in its
+``push_window`` and are as large as its ``push_size``. The steady gaits of 5 s keep the bound's window, ``t ~ U(1, 4)``
+s: past the start, with a second left to recover (bounding, terrain, and the pronk, whose cycle repeats all episode).
+The planned motions are over within about a second, so their windows span the motion itself, read from their plans'
+phase durations ([`PUSH_WINDOWS`][PUSH_WINDOWS]): a push later than the motion tests only the hold after it, an earlier
+one only the start. The bound's pushes keep their size (bounding and terrain, where the MPC re-plans); the motions'
+experts track one plan and get half the bound's speed changes and 3/5 of its pitch rate
+([`hsddp_gym.core.task_constants.MOTION_PUSH_SIZE`][hsddp_gym.core.task_constants.MOTION_PUSH_SIZE]).
+
 Adding a task: one [`Task`][Task] in [`TASKS`][TASKS] (see ``docs/architecture.md``, "Adding a task").
 """
 
@@ -20,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 
 from hsddp_gym.core import task_constants as tc
 
@@ -71,6 +82,11 @@ class Task:
             ([`hsddp_gym.rollout.measures.Measures`][hsddp_gym.rollout.measures.Measures]), or None.
         first_seed: the first evaluation seed (seeds no dataset uses), or None.
         episode_start: the posture episodes start in, for help texts (``"standing"``, ``"bounding"``).
+        push_window: ``(low, high)`` [s] of episode time in which the task's pushes come (see the module docstring).
+        push_size: ``(3,)`` the largest trunk-velocity change of the task's push, ``[dvx, dvz, dpitch_rate]`` [m/s,
+            m/s, rad/s]; the perturbation conditions scale their own push sizes (given for Bounding-v0) by it.
+        speed_range: ``(low, high)`` [m/s] of the target speeds the task's env may be set to (the target-speed
+            conditions), or None: the task fixes its own speed.
     """
 
     name: str
@@ -91,6 +107,9 @@ class Task:
     measures: str | None = None
     first_seed: int | None = None
     episode_start: str = "bounding"
+    push_window: tuple = tc.BOUND_PUSH_WINDOW
+    push_size: tuple = tc.BOUND_PUSH_SIZE
+    speed_range: tuple | None = None
 
     @property
     def env_id(self) -> str:
@@ -146,6 +165,27 @@ _TRANSITION_AFTER = {"stand_to_bound": "its bounding cycle (phases 5-8), looped"
 """What the transition expert plays after its plan (``hsddp_gym.planners.policies.experts.TRANSITION_LOOPS``)."""
 
 
+PUSH_WINDOWS = {
+    "backflip": (0.1, 1.05),
+    "gap_jump": (0.3, 1.07), "box_jump": (0.3, 1.07),
+    "stand_to_bound": (0.1, 0.55),
+    "bound_pronk_bound": (0.45, 1.15),
+    "bound_to_stop": (0.3, 0.8),
+}
+"""The push windows of the planned motions [s], from their plans' phases (bound cycles of 0.296 s):
+
+* backflip: the push (double stance, 0-0.25 s) from 0.1 s, the take-off (0.25-0.35 s), the flight (0.35-0.75 s) and
+  the landing (0.75-1.05 s);
+* the jumps: the second approach cycle (0.296-0.592 s), the take-off back stance (to 0.672 s), the 0.25 s jump flight
+  and the landing cycle (to 1.066 s);
+* stand to bound: the end of the accelerating double stance (0-0.25 s), the switch into the bound and its first cycle
+  (to 0.546 s);
+* bound, pronk, bound: the end of the bound (to 0.592 s), the two pronk cycles, the double stance that returns to the
+  bound (0.952-1.002 s) and its first flight;
+* bound to stop: the cycle that slows to 0.4 m/s (0.296-0.592 s), the landing on both feet and the first half of the
+  stopping double stance (to 0.992 s)."""
+
+
 def _jump(name: str, env_id: str, what: str) -> Task:
     steps = tc.JUMP_MAX_EPISODE_STEPS
     return Task(
@@ -159,7 +199,8 @@ def _jump(name: str, env_id: str, what: str) -> Task:
         expert_record={"plan": {"motion": name, "speed": 1.0, "cycles": 2, "hold": _HOLD},
                        "plan_file": "expert_plan.npz",
                        "tracking": _HELD_LAW + "its first cycle after the jump, looped", "reset_options": _NO_RESET},
-        success_rule=_JUMP_RULE, measures="hsddp_gym.rollout.measures:JUMP", first_seed=9650)
+        success_rule=_JUMP_RULE, measures="hsddp_gym.rollout.measures:JUMP", first_seed=9650,
+        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE)
 
 
 def _transition(name: str, env_id: str, what: str, start: str) -> Task:
@@ -181,7 +222,8 @@ def _transition(name: str, env_id: str, what: str, start: str) -> Task:
                                     + _TRANSITION_AFTER[name]),
                        "reset_options": _NO_RESET},
         success_rule=f"{_TRANSITION_RULES[name]} (hsddp_gym.envs.transitions.TransitionTask.success)",
-        measures="hsddp_gym.rollout.measures:GAIT", first_seed=9700, episode_start=start)
+        measures="hsddp_gym.rollout.measures:GAIT", first_seed=9700, episode_start=start,
+        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE)
 
 
 TASKS: dict[str, Task] = {
@@ -198,7 +240,7 @@ TASKS: dict[str, Task] = {
         expert_record={"plan": dict(_BOUNDING_PLAN), "plan_file": "expert_plan.npz",
                        "reset_options": "{'state': plan.X[0]} (no reset noise)",
                        "fallback_after_plan": "hsddp_gym.planners.policies.mpc.MPCPolicy (default options)"},
-        dataset_expert="mpc", first_seed=0),
+        dataset_expert="mpc", first_seed=0, speed_range=(0.0, math.inf)),
     "pronking": Task(
         name="pronking",
         env=EnvEntry("hsddp_gym/Pronking-v0", "hsddp_gym.envs.pronking:PronkingEnv", tc.PRONKING_MAX_EPISODE_STEPS),
@@ -214,7 +256,8 @@ TASKS: dict[str, Task] = {
                        "reset_options": _NO_RESET},
         success_rule=("no fall, mean forward speed within 20 % of the target, >= 80 % of control steps with matching "
                       "contact flags (hsddp_gym.envs.pronking.pronking_success)"),
-        measures="hsddp_gym.rollout.measures:PRONK", first_seed=9500),
+        measures="hsddp_gym.rollout.measures:PRONK", first_seed=9500, push_size=tc.MOTION_PUSH_SIZE,
+        speed_range=tc.SPEED_RANGE),
     "backflip": Task(
         name="backflip",
         env=EnvEntry("hsddp_gym/Backflip-v0", "hsddp_gym.envs.backflip:BackflipEnv", tc.BACKFLIP_MAX_EPISODE_STEPS),
@@ -230,7 +273,8 @@ TASKS: dict[str, Task] = {
         success_rule=("no fall (the trunk never touched the ground), a full turn, and at the end upright (pitch within "
                       "0.3 rad of -2 pi, trunk at least 0.15 m high) on both feet and still (trunk speed <= 0.3 m/s, "
                       "pitch rate <= 1 rad/s) (hsddp_gym.envs.backflip.backflip_success)"),
-        measures="hsddp_gym.rollout.measures:FLIP", first_seed=9600, episode_start="standing"),
+        measures="hsddp_gym.rollout.measures:FLIP", first_seed=9600, episode_start="standing",
+        push_window=PUSH_WINDOWS["backflip"], push_size=tc.MOTION_PUSH_SIZE),
     "gap_jump": _jump("gap_jump", "hsddp_gym/GapJump-v0", "over a 0.3 m gap"),
     "box_jump": _jump("box_jump", "hsddp_gym/BoxJump-v0", "onto a 0.1 m box"),
     "terrain": Task(  # no vector entry point: the compiled vector env is flat-ground only
@@ -239,7 +283,7 @@ TASKS: dict[str, Task] = {
                      {"terrain": "random_mixed"}),
         description="Bounding on a seeded random terrain of steps and slopes per episode.",
         start="the paper's initial state with reset noise, on the episode's terrain",
-        dataset_expert="mpc", terrain_aware_mpc=True),
+        dataset_expert="mpc", terrain_aware_mpc=True, speed_range=(0.0, math.inf)),
     "stand_to_bound": _transition("stand_to_bound", "hsddp_gym/StandToBound-v0",
                                   "from standing into a bound at 1 m/s", "standing"),
     "bound_pronk_bound": _transition("bound_pronk_bound", "hsddp_gym/BoundPronkBound-v0",

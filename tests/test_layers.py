@@ -1,5 +1,6 @@
 """The package's import graph, built from the source with ``ast``: no cycles, and imports only point down the layers
-(docs/architecture.md): util <- core <- {optimizer, viz, envs, registry}; optimizer <- policies <- tasks;
+(docs/architecture.md): util <- core <- {optimizer, viz, registry}; registry <- envs (the perturbation conditions
+read the tasks); optimizer <- policies <- tasks;
 everything <- rollout <- datasets <- learning <- workflows <- cli; learning <- reports <- benchmarks."""
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ _BELOW = {
     "registry": {"core"},
     "viz": {"util", "core"},
     "optimizer": {"util", "core"},
-    "envs": {"util", "core", "viz"},
+    "envs": {"util", "core", "viz", "registry"},  # the perturbation conditions build any task's env
     "policies": {"util", "core", "optimizer"},
     "tasks": {"util", "core", "optimizer", "policies"},
     "rollout": {"util", "core", "viz", "optimizer", "policies", "tasks", "envs", "registry"},

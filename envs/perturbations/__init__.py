@@ -1,4 +1,5 @@
-"""Seeded perturbations of ``hsddp_gym/Bounding-v0`` for robustness tests, usable with any policy.
+"""Seeded perturbations of ``hsddp_gym/Bounding-v0`` and of every task's env for robustness tests, usable with any
+policy.
 
 * [`wrappers`][hsddp_gym.envs.perturbations.wrappers]: the Gymnasium wrappers: observation noise and bias
   ([`ObservationNoise`][hsddp_gym.envs.perturbations.wrappers.ObservationNoise],
@@ -22,6 +23,7 @@ Example::
     from hsddp_gym.envs.perturbations import make_env
     env = make_env("push")                    # gym.make("hsddp_gym/Bounding-v0") + RandomPush
     obs, info = env.reset(seed=3)             # info["push"]: the push of this episode
+    env = make_env("push", env_id="hsddp_gym/Backflip-v0")  # a push within the flip (the task's window and size)
 """
 
 from hsddp_gym.util.lazy import lazy_exports
@@ -29,8 +31,9 @@ from hsddp_gym.util.lazy import lazy_exports
 _EXPORTS = {  # module: the public names it defines
     "conditions": (
         "CONDITIONS", "CONTACT_CONDITIONS", "ENV_ID", "HARDWARE_CONDITIONS", "PHASE_PUSH_DELTA_V", "SENSOR_BIAS",
-        "SENSOR_BIAS_RANGE", "SENSOR_BIAS_X2", "SIMULATORS", "SUITE", "Condition", "ContactCondition",
-        "HardwareCondition", "check_conditions", "get_condition", "make_env",
+        "SENSOR_BIAS_RANGE", "SENSOR_BIAS_X2", "SIMULATORS", "SUITE", "TASK_SUITE", "Condition", "ContactCondition",
+        "HardwareCondition", "check_conditions", "condition_task", "get_condition", "make_env", "simulator_env_id",
+        "task_push",
     ),
     "wrappers": (
         "CONTACT_SALT", "PUSH_PHASES", "PUSH_SALT", "ActionDelay", "ObservationBias", "ObservationNoise", "PhasePush",

@@ -13,6 +13,16 @@ corner
   (``contact_family``). They are extra conditions, not in [`SUITE`][SUITE];
 * conditions a real robot has ([`HardwareCondition`][HardwareCondition], [`HARDWARE_CONDITIONS`][HARDWARE_CONDITIONS]):
 a latency other than the announced one, a sensor bias, a push in flight or in stance. Extra conditions too.
+
+**Every task.** A condition is built for Bounding-v0 by default and for any task of the registry with
+``make(env_id=...)`` ([`hsddp_gym.registry.TASKS`][hsddp_gym.registry.TASKS]): the same env arguments and wrappers on
+the task's env, or on its twin of the condition's simulator (the contact conditions: the MuJoCo twin). The pushes'
+descriptions give Bounding-v0's window and sizes; in a task the pushes come in its ``push_window`` and their sizes are
+scaled per component by its ``push_size`` over the bound's ([`task_push`][task_push]). A condition that cannot apply
+to a task is refused ([`Condition.refusal`][Condition.refusal]): a target speed where the task fixes its own speed (the
+backflip, the jumps, the transitions) or outside its range (the pronk: 0.5-1.5 m/s), a simulator the task has no twin in
+(Terrain-v0 has no MuJoCo twin, only Bounding-v0 a KKT twin). [`TASK_SUITE`][TASK_SUITE] is the set a task's
+robustness table runs.
 """
 
 from __future__ import annotations
@@ -22,6 +32,7 @@ from typing import ClassVar
 
 import gymnasium as gym
 
+from hsddp_gym.core.task_constants import BOUND_PUSH_SIZE
 from hsddp_gym.envs.perturbations.wrappers import (
     ActionDelay,
     ObservationBias,
@@ -30,12 +41,52 @@ from hsddp_gym.envs.perturbations.wrappers import (
     RandomContactModel,
     RandomPush,
 )
+from hsddp_gym.registry import TASKS, Task, get_task, task_of_env_id
 
 ENV_ID = "hsddp_gym/Bounding-v0"
 SIMULATORS = {"bounding": "hsddp_gym/Bounding-v0", "mujoco": "hsddp_gym/BoundingMuJoCo-v0",
               "kkt": "hsddp_gym/BoundingKKT-v0"}
 """The simulators a condition runs in (``Condition.make(simulator=...)``): the exact-LCP env (default), its MuJoCo
-twin (soft contacts; the optional extra ``mujoco``) and the planner's own hybrid model (pinned feet)."""
+twin (soft contacts; the optional extra ``mujoco``) and the planner's own hybrid model (pinned feet). In another task
+(``make(env_id=...)``): the task's env and its twins of the same keys ([`simulator_env_id`][simulator_env_id])."""
+
+
+def condition_task(env_id: str | None = None) -> Task:
+    """The task whose env ``env_id`` is (a task's own env id, not a twin's; None: Bounding-v0's task), else
+    ``ValueError`` naming the task envs."""
+    if env_id is None:
+        return TASKS["bounding"]
+    allowed = [t.env_id for t in TASKS.values()]
+    if not isinstance(env_id, str) or env_id not in allowed:
+        raise ValueError(f"env_id must be a task's env id, one of {allowed} (its twins through simulator=), got "
+                         f"{env_id!r}")
+    return task_of_env_id(env_id)
+
+
+def simulator_env_id(task: Task, simulator: str) -> str | None:
+    """The env id of ``task`` in ``simulator`` (a key of [`SIMULATORS`][SIMULATORS]): the task's env for
+    ``"bounding"``, its twin of that key otherwise; None when the task has no such twin."""
+    if simulator not in SIMULATORS:
+        raise ValueError(f"simulator must be one of {sorted(SIMULATORS)}, got {simulator!r}")
+    if simulator == "bounding":
+        return task.env_id
+    twin = task.twins.get(simulator)
+    return None if twin is None else twin.env_id
+
+
+def task_push(push: dict, task: Task, default_size=BOUND_PUSH_SIZE) -> dict:
+    """The keyword arguments of a push wrapper ([`RandomPush`][RandomPush], [`PhasePush`][PhasePush]) for ``task``:
+    ``push`` (a condition's, its ``max_delta_v`` given for Bounding-v0, ``default_size`` when it has none) with the
+    task's ``push_window`` as ``time_range`` (unless ``push`` sets one) and ``max_delta_v`` scaled per component by
+    ``task.push_size / BOUND_PUSH_SIZE`` (Bounding-v0's and Terrain-v0's sizes: unscaled)."""
+    size = tuple(push.get("max_delta_v", default_size))
+    if tuple(task.push_size) != BOUND_PUSH_SIZE:
+        size = tuple(round(v * t / b, 9) for v, t, b in zip(size, task.push_size, BOUND_PUSH_SIZE))
+    return {"time_range": tuple(task.push_window), **push, "max_delta_v": size}
+
+
+def _as_task(task) -> Task:
+    return task if isinstance(task, Task) else get_task(task)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,13 +117,40 @@ class Condition:
         own (`SIMULATOR`) if it has one (``experiments/robustness.py --simulator`` asks for one)."""
         return self.SIMULATOR or requested
 
-    def make(self, simulator: str | None = None, **make_kwargs) -> gym.Env:
+    def refusal(self, task, simulator: str | None = None) -> str | None:
+        """Why the condition cannot run in ``task`` (a [`Task`][hsddp_gym.registry.Task] or its name) when
+        ``simulator`` is asked for (None: the condition's own or ``"bounding"``), or None when it can: the task has no
+        twin in the simulator, or the condition sets a target speed and the task fixes its own speed or does not
+        reach that one (``Task.speed_range``)."""
+        task = _as_task(task)
+        simulator = self.simulator_for("bounding" if simulator is None else simulator)
+        if simulator_env_id(task, simulator) is None:
+            return f"the task has no {simulator} twin"
+        speed = self.env_kwargs.get("target_speed")
+        if speed is not None:
+            if task.speed_range is None:
+                return "the task fixes its own speed"
+            lo, hi = task.speed_range
+            if not lo <= speed <= hi:
+                return f"its target speeds are {lo:g}-{hi:g} m/s, the condition's {speed:g} m/s"
+        return None
+
+    def applies_to(self, task, simulator: str | None = None) -> bool:
+        """The condition can run in ``task`` (a [`Task`][hsddp_gym.registry.Task] or its name) with ``simulator``
+        asked for ([`refusal`][refusal] is None)."""
+        return self.refusal(task, simulator) is None
+
+    def make(self, simulator: str | None = None, env_id: str | None = None, **make_kwargs) -> gym.Env:
         """``gym.make`` the env of ``simulator`` (a key of [`SIMULATORS`][SIMULATORS]; None: the condition's own,
-        `SIMULATOR`, or ``"bounding"``) with `env_kwargs` (``make_kwargs`` may add others, e.g.
-        ``render_mode``, ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it. A condition with
-        its own simulator raises ``ValueError`` for another one."""
+        `SIMULATOR`, or ``"bounding"``) for the task of ``env_id`` (a task's env id, None: Bounding-v0; the task's env
+        or its twin in that simulator, [`simulator_env_id`][simulator_env_id]) with `env_kwargs` (``make_kwargs`` may
+        add others, e.g. ``render_mode``, ``max_episode_steps``; a key of both raises ``ValueError``) and wrap it; the
+        pushes come in the task's window with the task's sizes ([`task_push`][task_push]). A condition with its own
+        simulator raises ``ValueError`` for another one, a condition that cannot apply to the task
+        ([`refusal`][refusal]) ``ValueError`` naming both."""
         import hsddp_gym  # noqa: F401  (registers the env)
 
+        task = condition_task(env_id)
         if simulator is None:
             simulator = self.simulator_for("bounding")
         if simulator not in SIMULATORS:
@@ -80,20 +158,24 @@ class Condition:
         if self.SIMULATOR is not None and simulator != self.SIMULATOR:
             raise ValueError(f"condition {self.name!r} runs in the {self.SIMULATOR!r} simulator only, got "
                              f"simulator={simulator!r}")
+        reason = self.refusal(task, simulator)
+        if reason is not None:
+            raise ValueError(f"condition {self.name!r} does not apply to the task {task.name!r} ({task.env_id}): "
+                             f"{reason}")
         both = sorted(set(make_kwargs) & set(self.env_kwargs))
         if both:
             raise ValueError(f"condition {self.name!r} sets {both} itself; do not pass them to make()")
-        env = gym.make(SIMULATORS[simulator], **self.env_kwargs, **make_kwargs)
+        env = gym.make(simulator_env_id(task, simulator), **self.env_kwargs, **make_kwargs)
         if self.push is not None:
-            env = RandomPush(env, **self.push)
-        env = self._wrap_inner(env)
+            env = RandomPush(env, **task_push(self.push, task))
+        env = self._wrap_inner(env, task)
         env = self._wrap_delay(env)
         if self.observation_noise is not None:
             env = ObservationNoise(env, *self.observation_noise)
         return self._wrap(env)
 
-    def _wrap_inner(self, env: gym.Env) -> gym.Env:
-        """Wrappers right above the pushes (a subclass's own)."""
+    def _wrap_inner(self, env: gym.Env, task: Task) -> gym.Env:
+        """Wrappers right above the pushes (a subclass's own), for ``task``."""
         return env
 
     def _wrap_delay(self, env: gym.Env) -> gym.Env:
@@ -170,8 +252,10 @@ class HardwareCondition(Condition):
     def announced_delay(self) -> int:
         return self.action_delay if self.announced_action_delay is None else self.announced_action_delay
 
-    def _wrap_inner(self, env: gym.Env) -> gym.Env:
-        return env if self.phase_push is None else PhasePush(env, **self.phase_push)
+    def _wrap_inner(self, env: gym.Env, task: Task) -> gym.Env:
+        if self.phase_push is None:
+            return env
+        return PhasePush(env, **task_push(self.phase_push, task, PHASE_PUSH_DELTA_V))
 
     def _wrap_delay(self, env: gym.Env) -> gym.Env:
         if not (self.action_delay or self.announced_action_delay or self.delay_jitter):
@@ -289,6 +373,14 @@ SUITE: tuple[str, ...] = tuple(name for name in CONDITIONS if name != "push_x3" 
 """The robustness benchmark's conditions (every condition of [`CONDITIONS`][CONDITIONS] but ``push_x3``, the contact
 conditions and the hardware ones, target speeds 0.5 and 1.5 m/s included): the default of
 ``experiments/robustness.py`` and ``experiments/imitation_robustness.py``."""
+
+TASK_SUITE: tuple[str, ...] = ("default", "reset_noise_x4", "push", "obs_noise", "delay_5ms", "delay_10ms",
+                               "delay_10ms_announced_5ms", "delay_5ms_announced_10ms", "sensor_bias", "friction_0.4",
+                               "mass_+15", "mass_-15", *CONTACT_CONDITIONS)
+"""The conditions of a task's robustness table (``experiments/robustness.py --env ID``'s default, those that apply):
+nominal, reset noise x4, a push in the task's window, observation noise, 5 and 10 ms of latency announced, latency one
+step longer and one step shorter than announced, a constant sensor bias, friction 0.4, trunk mass +-15 %, and the
+contact models of the MuJoCo twin (the family and its corners). No target speeds: most tasks fix their own."""
 
 
 def get_condition(name: str) -> Condition:

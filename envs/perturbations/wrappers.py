@@ -38,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from hsddp_gym.core.conventions import NQ, NU, Q_NAMES, X_NAMES
+from hsddp_gym.core.task_constants import BOUND_PUSH_SIZE, BOUND_PUSH_WINDOW
 from hsddp_gym.util.validation import check_int, check_positive
 
 
@@ -287,8 +288,8 @@ class PushDistribution:
         component (>= 0). count: pushes per episode (>= 1).
     """
 
-    time_range: tuple = (1.0, 4.0)
-    max_delta_v: tuple = (0.8, 0.8, 5.0)
+    time_range: tuple = BOUND_PUSH_WINDOW
+    max_delta_v: tuple = BOUND_PUSH_SIZE
     count: int = 1
 
     def __post_init__(self) -> None:
@@ -341,7 +342,7 @@ class RandomPush(gym.Wrapper):
     INFO_KEYS = ("push",)
     """The ``info`` keys this wrapper adds (at reset; [`wrapper_info_keys`][wrapper_info_keys])."""
 
-    def __init__(self, env: gym.Env, time_range=(1.0, 4.0), max_delta_v=(0.8, 0.8, 5.0), count: int = 1) -> None:
+    def __init__(self, env: gym.Env, time_range=BOUND_PUSH_WINDOW, max_delta_v=BOUND_PUSH_SIZE, count: int = 1) -> None:
         super().__init__(env)
         self.distribution = PushDistribution(time_range, max_delta_v, count)
         self.time_range = self.distribution.time_range
@@ -395,7 +396,7 @@ class PhasePush(gym.Wrapper):
     """The ``info`` keys this wrapper adds (``phase_push`` at reset, ``push_applied`` at the push's step;
     [`wrapper_info_keys`][wrapper_info_keys])."""
 
-    def __init__(self, env: gym.Env, phase: str = "flight", time_range=(1.0, 4.0),
+    def __init__(self, env: gym.Env, phase: str = "flight", time_range=BOUND_PUSH_WINDOW,
                  max_delta_v=(1.0, 1.0, 7.0)) -> None:
         super().__init__(env)
         if not isinstance(phase, str) or phase not in PUSH_PHASES:

@@ -48,6 +48,17 @@ BACKFLIP_MAX_EPISODE_STEPS = 400
 """400 control steps = 2 s at the default 200 Hz (the flip and its landing take 1.05 s, then a hold)."""
 JUMP_MAX_EPISODE_STEPS = 400
 """400 control steps = 2 s at the default 200 Hz (the approach and the jump take 1 s, then bounding on)."""
+BOUND_PUSH_WINDOW = (1.0, 4.0)
+"""When a push of the bound comes (``RandomPush``'s default ``time_range``, Bounding-v0 and Terrain-v0): ``t ~ U(1, 4)``
+s of the 5 s episode, past the start's transient and at least a second before its end."""
+BOUND_PUSH_SIZE = (0.8, 0.8, 5.0)
+"""The largest trunk-velocity change of a push of the bound (``RandomPush``'s default ``max_delta_v``), ``[dvx, dvz,
+dpitch_rate]`` [m/s, m/s, rad/s]."""
+MOTION_PUSH_SIZE = (0.4, 0.4, 3.0)
+"""The largest trunk-velocity change of a push of the planned motions (pronk, backflip, jumps, transitions), ``[dvx,
+dvz, dpitch_rate]`` [m/s, m/s, rad/s]: their plan-tracking experts follow one plan without re-planning, and a push
+lands within a motion of about a second rather than in a steady gait."""
+
 TRANSITION_MAX_EPISODE_STEPS = {"stand_to_bound": 300, "bound_pronk_bound": 400, "bound_to_stop": 300}
 """Control steps per episode of the gait transitions (1.5 s, 2 s, 1.5 s at 200 Hz: the plan and at least 0.4 s
 more)."""

@@ -30,13 +30,15 @@ def markdown_table(header: list[str], rows: Iterable[list], align: list[str] | N
     return "\n".join(lines)
 
 
-def source_line(store: Store, *rids: str) -> str:
-    """The provenance line under a table: the records and the commands that made them."""
+def source_line(store: Store, *rids: str, commands: bool = True) -> str:
+    """The provenance line under a table: the records and the commands that made them (``commands`` False: only how
+    many, for a long command the page shows once elsewhere)."""
     parts = []
     for rid in rids:
         rec = store[rid]
-        if len(rec.commands) > 2:
-            cmds = f"{len(rec.commands)} commands, listed in the record"
+        if len(rec.commands) > 2 or not commands:
+            n = len(rec.commands)
+            cmds = f"{n} commands, listed in the record" if n > 1 else "its command in the record"
         else:
             cmds = "; ".join(f"`{c}`" for c in rec.commands)
         parts.append(f"`results/{rid}.json` ({cmds})")

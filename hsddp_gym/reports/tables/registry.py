@@ -22,6 +22,10 @@ from hsddp_gym.reports.tables.robustness import (
     robustness_simulators,
     robustness_suite,
     robustness_summary,
+    robustness_tasks_backflip,
+    robustness_tasks_jumps,
+    robustness_tasks_pronking,
+    robustness_tasks_transitions,
 )
 from hsddp_gym.reports.tables.speed import (
     speed_dynamics,
@@ -79,6 +83,10 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/rule_ablations": robustness_rule_ablations,
     "robustness/rule_ablations_pushes": robustness_rule_ablations_pushes,
     "robustness/rule_ablations_push_laws": robustness_rule_ablations_push_laws,
+    "robustness/tasks_pronking": robustness_tasks_pronking,
+    "robustness/tasks_backflip": robustness_tasks_backflip,
+    "robustness/tasks_jumps": robustness_tasks_jumps,
+    "robustness/tasks_transitions": robustness_tasks_transitions,
 }
 """``{table id: renderer}``."""
 

@@ -1,10 +1,12 @@
 """The robustness tables: falls per perturbation of the suite, per simulator, per contact model, over the conditions
-the MPC was not built on (generality), and the fall rates under pushes on many seeds."""
+the MPC was not built on (generality), the fall rates under pushes on many seeds, and the tasks' successes and falls
+per condition."""
 
 from __future__ import annotations
 
+from hsddp_gym.core.task_constants import MOTION_PUSH_SIZE
 from hsddp_gym.reports.store import Store
-from hsddp_gym.reports.tables.markdown import NA, machine_note, markdown_table, source_line
+from hsddp_gym.reports.tables.markdown import NA, fmt, machine_note, markdown_table, source_line
 
 SUITE_LABELS = {"mpc": "MPC", "heuristic": "heuristic", "heuristic+est": "heuristic + estimator",
                 "dagger@ensemble_a": "DAgger ensemble A", "dagger@ensemble_b": "DAgger ensemble B",
@@ -286,3 +288,62 @@ def robustness_pushes(store: Store) -> str:
             + (", ".join(f"`{c}` {', '.join(map(str, v))}" for c, v in mpc_seeds.items()) or "no seed")
             + f". Two episodes at a time on {machine_note(store, 'robustness/pushes')}.")
     return "\n".join([markdown_table(header, rows), "", note, source_line(store, "robustness/pushes")])
+
+
+TASK_RECORD = "robustness/tasks"
+"""The tasks' robustness record (``experiments/robustness.py --env ID --record results/robustness/tasks.json``)."""
+TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC"}
+
+
+def task_robustness(store: Store, tasks: tuple) -> str:
+    """Successes and falls per condition of the tasks ``tasks`` (names of the task registry, one column per task and
+    policy) from the tasks' robustness record, with each task's push window and size; the record's command is shown
+    once, on the perturbations page."""
+    if TASK_RECORD not in store.ids():
+        return (f"No `{TASK_RECORD}` record yet: run `python experiments/robustness.py --env ENV --policies expert "
+                "--first-seed 56000 --record results/robustness/tasks.json`.")
+    d = store.data(TASK_RECORD)
+    missing = [t for t in tasks if t not in d["tasks"]]
+    if missing:
+        raise ValueError(f"{TASK_RECORD}: no entry for the task(s) {missing}")
+    columns = [(t, label) for t in tasks for label in d["tasks"][t]["results"]]
+    several = len({label for _, label in columns}) > 1
+    header = ["condition"] + [t.replace("_", " ") + (f", {TASK_POLICY_LABELS.get(label, label)}" if several else "")
+                              for t, label in columns]
+    rows = []
+    for i, c in enumerate(d["conditions"]):
+        cells = [d["tasks"][t]["results"][label] for t, label in columns]
+        if any(r["falls"][i] is not None for r in cells):  # None: not run
+            rows.append([f"`{c}`"] + [NA if r["falls"][i] is None else f"{fmt(r['successes'][i], 'd')}, {r['falls'][i]}"
+                                      for r in cells])
+    windows = {tuple(d["tasks"][t]["push_window"]) for t in tasks}
+    pushes = "; ".join(("" if len(windows) == 1 else f"{t.replace('_', ' ')} ")
+                       + "t ~ U({:g}, {:g}) s".format(*d["tasks"][t]["push_window"])
+                       for t in (tasks[:1] if len(windows) == 1 else tasks))
+    sizes = {tuple(d["tasks"][t]["push_size"]) for t in tasks}
+    size = "" if sizes == {MOTION_PUSH_SIZE} else ", Δv up to ±{:g} m/s, ±{:g} m/s, ±{:g} rad/s".format(
+        *d["tasks"][tasks[0]]["push_size"])  # the motions' size is on the perturbations page
+    note = (f"Cells: successes, falls of {len(d['seeds'])} episodes (seeds {d['seeds'][0]}-{d['seeds'][-1]}). Push: "
+            f"{pushes}{size}.")
+    return "\n".join([markdown_table(header, rows, ["l"] + ["r"] * len(columns)), "", note,
+                      source_line(store, TASK_RECORD, commands=False)])
+
+
+def robustness_tasks_pronking(store: Store) -> str:
+    """The pronk's expert under the perturbation conditions."""
+    return task_robustness(store, ("pronking",))
+
+
+def robustness_tasks_backflip(store: Store) -> str:
+    """The backflip's expert under the perturbation conditions."""
+    return task_robustness(store, ("backflip",))
+
+
+def robustness_tasks_jumps(store: Store) -> str:
+    """The jumps' expert under the perturbation conditions."""
+    return task_robustness(store, ("gap_jump", "box_jump"))
+
+
+def robustness_tasks_transitions(store: Store) -> str:
+    """The gait transitions' expert under the perturbation conditions."""
+    return task_robustness(store, ("stand_to_bound", "bound_pronk_bound", "bound_to_stop"))
