@@ -207,10 +207,10 @@ class BackflipTask:
         info["success"] = self._success_now()
         return obs, info
 
-    def step(self, action):
+    def _end_step(self, impulse) -> tuple:
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the
         rotation and landing terms (class docstring of [`BackflipEnv`][BackflipEnv])."""
-        obs, reward, terminated, truncated, info = super().step(action)
+        obs, reward, terminated, truncated, info = super()._end_step(impulse)
         x = self.sim.x
         rot = land = 0.0
         if not self._invalid:
@@ -291,8 +291,9 @@ class BackflipEnv(BackflipTask, BoundingEnv):
 
     ## Arguments
     [`BackflipTask`][BackflipTask]'s and every other argument of [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv],
-    all JSON-serializable. No compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or
-    ``"async"``).
+    all JSON-serializable. Vector env: ``gym.make_vec(ID, num_envs=N)`` builds
+    [`BackflipVectorEnv`][hsddp_gym.envs.task_vector.BackflipVectorEnv] (the physics of all robots in one compiled call,
+    bit-identical to N single envs).
 
     ## Version history
     * v0: initial release.

@@ -242,8 +242,9 @@ class BoundingEnv(gym.Env):
     ``ground_height`` (that ``g``). The observation keeps the absolute trunk height and the reward the horizontal speed.
     A string of [`TERRAIN_KINDS`][TERRAIN_KINDS] draws a new profile at every reset from ``self.np_random`` (before the
     reset noise), so the reset seed fixes it (flat until the first reset). Only the energy-consistent scheme simulates a
-    terrain; the compiled vector env does not (``terrain`` must be None there). ``hsddp_gym/Terrain-v0`` is
-    ``"random_mixed"``.
+    terrain; ``gym.make_vec`` of ``hsddp_gym/Terrain-v0`` (``"random_mixed"``) builds
+    [`TaskVectorEnv`][hsddp_gym.envs.task_vector.TaskVectorEnv], which batches the robots standing on the same terrain
+    (the wholly compiled ``Bounding-v0`` vector env simulates the flat ground only).
 
     Every argument is JSON-serializable (a ``terrain`` as its ``to_dict()`` or a string), so Minari can rebuild the
     env from its spec.
@@ -341,6 +342,9 @@ class BoundingEnv(gym.Env):
         self._grf = np.zeros(NGRF)
         self._u = np.zeros(NU)
         self._pushes: list = []  # scheduled pushes, in time order: [(time, delta_v (3,)), ...]
+        self._step_values = [0.0] * NU  # the step in progress (_begin_step): clipped action, trunk x, pushes due
+        self._x_before = 0.0
+        self._due_pushes: list | None = None
         self._x_velocity = 0.0
         self._last_rewards = (0.0, 0.0, 0.0)
         self._figure = None
@@ -415,7 +419,7 @@ class BoundingEnv(gym.Env):
         [`support_heights`][hsddp_gym.core.terrain.Terrain.support_heights] (a gap bridged at its near edge's level)."""
         if self.terrain is None:
             return 0.0
-        return float(self.terrain.support_heights(x))
+        return self.terrain.support_height(float(x))
 
     def foot_clearances(self, q) -> np.ndarray:
         """Heights (2,) [m] of the feet of configuration ``q`` (7,) above the ground under each (the simulated
@@ -548,36 +552,64 @@ class BoundingEnv(gym.Env):
         Returns:
             ``(observation, reward (float), terminated, truncated (always False), info)``.
         """
+        self._begin_step(action)
+        return self._end_step(self._simulate_step())
+
+    # The step in three parts, so that the vector env of the task envs
+    # (hsddp_gym.envs.task_vector.TaskVectorEnv) can run the middle one for many robots in one compiled call:
+    # _begin_step (the action, the pushes due), _simulate_step (the physics), _end_step (reward, termination,
+    # observation, info). A task overrides _begin_step and _end_step, never step.
+    def _begin_step(self, action) -> None:
+        """The step's first part: check and clip ``action`` (its values in ``self._step_values``, the torques in
+        ``self._u``), note the trunk x and pop the pushes due in this control step (``self._due_pushes``)."""
         if self._invalid:
             raise RuntimeError("step() called after the simulation reached an invalid (non-finite or blown-up) "
                                "state; call reset() first (info['invalid_state'] was True)")
         values = self._parse_action(action)
         values = [1.0 if v > 1.0 else (-1.0 if v < -1.0 else v) for v in values]  # clip to the box
+        self._step_values = values
         limit = self.torque_limit
         u = self._u
         u[0], u[1], u[2], u[3] = values[0] * limit, values[1] * limit, values[2] * limit, values[3] * limit
-        sim = self.sim
-        x_before = float(sim.x[IX])
-        n = self.frame_skip
-        due = pop_due_pushes(self._pushes, self.time, n, self.sim_timestep) if self._pushes else None
-        if due:  # split the frame at the first simulation step at or after each push time in it
-            impulse, done = [0.0] * NGRF, 0
-            for k, delta_v in due:
-                if k > done:
-                    impulse = [i + r for i, r in zip(impulse, sim.run(self._u, k - done))]
-                    done = k
-                sim.v[:3] += delta_v
-            if n > done:
-                impulse = [i + r for i, r in zip(impulse, sim.run(self._u, n - done))]
-        else:
-            impulse = sim.run(self._u, n)
+        self._x_before = float(self.sim.x[IX])
+        self._due_pushes = (pop_due_pushes(self._pushes, self.time, self.frame_skip, self.sim_timestep)
+                            if self._pushes else None)
+
+    def _simulate_step(self):
+        """The step's physics: ``frame_skip`` simulation steps with the torques ``self._u``, split at the pushes due.
+
+        Returns:
+            The ground impulses summed over the control step, grf layout (4,) [N s].
+        """
+        sim, n = self.sim, self.frame_skip
+        due = self._due_pushes
+        if not due:
+            return sim.run(self._u, n)
+        impulse, done = [0.0] * NGRF, 0  # split the frame at the first simulation step at or after each push time
+        for k, delta_v in due:
+            if k > done:
+                impulse = [i + r for i, r in zip(impulse, sim.run(self._u, k - done))]
+                done = k
+            sim.v[:3] += delta_v
+        if n > done:
+            impulse = [i + r for i, r in zip(impulse, sim.run(self._u, n - done))]
+        return impulse
+
+    def _end_step(self, impulse) -> tuple:
+        """The step's last part, after the physics left ``impulse`` (4,) [N s]: contact flags, reward, termination,
+        observation and info.
+
+        Returns:
+            ``(observation, reward (float), terminated, truncated (always False), info)``.
+        """
+        sim, values = self.sim, self._step_values
         dt = self.dt
         grf = self._grf
         grf[0], grf[1], grf[2], grf[3] = impulse[0] / dt, impulse[1] / dt, impulse[2] / dt, impulse[3] / dt
         finite = self.valid_state()
         self._invalid = not finite
         self._update_feet(finite)
-        self._x_velocity = (float(sim.x[IX]) - x_before) / dt
+        self._x_velocity = (float(sim.x[IX]) - self._x_before) / dt
         healthy = self._healthy(finite)
         ctrl = -self.ctrl_cost_weight * sum(v * v for v in values)
         if finite:

@@ -105,10 +105,11 @@ class JumpTask:
 
     # ------------------------------------------------------------------ task state
     def _foot_in_gap(self) -> bool:
-        feet = self.robot.foot_positions(self.sim.x[:NQ])
-        over = self.terrain.over_gap(feet[:, 0])
-        rim = self.terrain.support_heights(feet[:, 0])
-        return bool(np.any(over & (feet[:, 1] < rim - GAP_FOOT_DEPTH)))
+        terrain = self.terrain
+        for x, z in self.robot.foot_positions(self.sim.x[:NQ]).tolist():
+            if terrain.gap_at(x) and z < terrain.support_height(x) - GAP_FOOT_DEPTH:
+                return True
+        return False
 
     def _healthy(self, valid: bool) -> bool:
         return super()._healthy(valid) and not self._foot_in_gap()
@@ -149,10 +150,10 @@ class JumpTask:
         info["success"] = self.success()
         return obs, info
 
-    def step(self, action):
+    def _end_step(self, impulse) -> tuple:
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the crossing
         and upright terms (class docstring of [`JumpEnv`][JumpEnv])."""
-        obs, reward, terminated, truncated, info = super().step(action)
+        obs, reward, terminated, truncated, info = super()._end_step(impulse)
         x = self.sim.x
         cross = upright = 0.0
         if not self._invalid:
@@ -236,8 +237,9 @@ class JumpEnv(JumpTask, BoundingEnv):
 
     ## Arguments
     [`JumpTask`][JumpTask]'s and every other argument of [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv] but
-    ``terrain`` (set by ``task``), all JSON-serializable. No compiled vector entry point: ``gym.make_vec(...,
-    vectorization_mode="sync")`` (or ``"async"``).
+    ``terrain`` (set by ``task``), all JSON-serializable. Vector env: ``gym.make_vec(ID, num_envs=N)`` builds
+    [`JumpVectorEnv`][hsddp_gym.envs.task_vector.JumpVectorEnv] (the physics of all robots in one compiled call,
+    bit-identical to N single envs).
 
     ## Version history
     * v0: initial release.

@@ -116,10 +116,13 @@ class PronkingTask:
         self._match_reward = 0.0
         return super().reset(seed=seed, options=options)
 
-    def step(self, action):
-        """The base env's step plus ``contact_match_reward`` on a healthy step whose contact flags are equal."""
+    def _begin_step(self, action) -> None:
         self._match_reward = 0.0
-        obs, reward, terminated, truncated, info = super().step(action)
+        super()._begin_step(action)
+
+    def _end_step(self, impulse) -> tuple:
+        """The base env's step plus ``contact_match_reward`` on a healthy step whose contact flags are equal."""
+        obs, reward, terminated, truncated, info = super()._end_step(impulse)
         if self.is_healthy:
             self._match_reward = self.contact_match_reward if self.contact_match else 0.0
         info["reward_contact_match"] = self._match_reward
@@ -173,8 +176,9 @@ class PronkingEnv(PronkingTask, BoundingEnv):
     ## Arguments
     [`PronkingTask`][PronkingTask]'s (``target_speed`` in [0.5, 1.5] m/s, ``gait_period`` 0.18 s,
     ``contact_match_reward`` 0.5, ``start_at_pronk`` True) and every other argument of
-    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable. No compiled vector entry point:
-    ``gym.make_vec(..., vectorization_mode="sync")`` (or ``"async"``).
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable. Vector env:
+    ``gym.make_vec(ID, num_envs=N)`` builds [`PronkingVectorEnv`][hsddp_gym.envs.task_vector.PronkingVectorEnv] (the
+    physics of all robots in one compiled call, bit-identical to N single envs).
 
     ## Version history
     * v0: initial release.

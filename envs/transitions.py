@@ -164,6 +164,7 @@ class TransitionTask:
         self._double_run = 0
         self._pronk_stances = 0
         self._task_rewards = (0.0, 0.0)
+        self._step_start = 0.0  # task_time at the start of the step in progress
 
     # ------------------------------------------------------------------ task state
     @property
@@ -247,11 +248,15 @@ class TransitionTask:
         info["success"] = self.success()
         return obs, info
 
-    def step(self, action):
+    def _begin_step(self, action) -> None:
+        self._step_start = self.task_time  # the schedule's time of this step's start
+        super()._begin_step(action)
+
+    def _end_step(self, impulse) -> tuple:
         """The base env's step (its control cost; its speed and healthy terms are off by default) plus the speed
         and gait terms (class docstring of [`TransitionEnv`][TransitionEnv])."""
-        t = self.task_time  # the schedule's time of this step's start
-        obs, reward, terminated, truncated, info = super().step(action)
+        t = self._step_start
+        obs, reward, terminated, truncated, info = super()._end_step(impulse)
         x = self.sim.x
         speed = gait = 0.0
         if not self._invalid:
@@ -340,8 +345,10 @@ class TransitionEnv(TransitionTask, BoundingEnv):
 
     ## Arguments
     [`TransitionTask`][TransitionTask]'s and every other argument of
-    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable (``target_speed`` is set to 1 m/s). No
-    compiled vector entry point: ``gym.make_vec(..., vectorization_mode="sync")`` (or ``"async"``).
+    [`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv], all JSON-serializable (``target_speed`` is set to 1 m/s).
+    Vector env: ``gym.make_vec(ID, num_envs=N)`` builds
+    [`TransitionVectorEnv`][hsddp_gym.envs.task_vector.TransitionVectorEnv] (the physics of all robots in one compiled
+    call, bit-identical to N single envs).
 
     ## Version history
     * v0: initial release.

@@ -70,6 +70,36 @@ def env_params(env: BoundingEnv) -> np.ndarray:
 
 
 
+def parse_autoreset_mode(value) -> AutoresetMode:
+    """``autoreset_mode`` of a vector env of this package: ``"next_step"`` / ``"same_step"`` (also Gymnasium's
+    ``"NextStep"`` / ``"SameStep"``, or the `AutoresetMode`); ValueError naming it otherwise (DISABLED is not
+    offered)."""
+    names = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}
+    if isinstance(value, AutoresetMode):
+        mode = value
+    elif isinstance(value, str) and value.replace("_", "").lower() in names:
+        mode = names[value.replace("_", "").lower()]
+    else:
+        mode = None
+    if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        raise ValueError(f"autoreset_mode must be 'next_step' or 'same_step', got {value!r} (DISABLED is not offered)")
+    return mode
+
+
+def robot_seeds(seed, n: int) -> list:
+    """The reset seed of each of ``n`` robots, as ``SyncVectorEnv.reset``: None for all, ``seed + i`` from an int,
+    or a list of ``n`` seeds (TypeError / ValueError naming ``seed`` otherwise)."""
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        return [int(seed) + i for i in range(n)]
+    if isinstance(seed, (list, tuple)):
+        if len(seed) != n:
+            raise ValueError(f"seed as a list must have num_envs={n} entries, got {len(seed)}")
+        return list(seed)
+    raise TypeError(f"seed must be None, an int or a list of num_envs ints, got {type(seed).__name__}")
+
+
 @numba.njit(cache=True)
 def _prepare(actions, values, u, limit, x, x_before, autoreset, next_step, stepped):
     """The per-robot work before a step (BoundingEnv.step's action handling), in one compiled pass: ``values (N, 4)``
@@ -266,23 +296,14 @@ class BoundingVectorEnv(VectorEnv):
         if max_episode_steps is not None:
             max_episode_steps = check_int(max_episode_steps, "max_episode_steps", minimum=1)
         self.max_episode_steps = max_episode_steps
-        names = {"nextstep": AutoresetMode.NEXT_STEP, "samestep": AutoresetMode.SAME_STEP}
-        if isinstance(autoreset_mode, AutoresetMode):
-            mode = autoreset_mode
-        elif isinstance(autoreset_mode, str) and autoreset_mode.replace("_", "").lower() in names:
-            mode = names[autoreset_mode.replace("_", "").lower()]
-        else:
-            mode = None
-        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"autoreset_mode must be 'next_step' or 'same_step', got {autoreset_mode!r} "
-                             "(DISABLED is not offered)")
-        self.autoreset_mode = mode
+        self.autoreset_mode = mode = parse_autoreset_mode(autoreset_mode)
         unsupported = sorted(set(kwargs) & set(UNSUPPORTED_KWARGS))
         if unsupported:
             raise TypeError(f"BoundingVectorEnv does not render; unsupported argument(s) {unsupported}")
         if kwargs.get("terrain") is not None:
             raise ValueError("BoundingVectorEnv simulates the flat ground only: terrain must be None, got "
-                             f"{kwargs['terrain']!r} (use vectorization_mode='sync' on a terrain)")
+                             f"{kwargs['terrain']!r} (use hsddp_gym.envs.task_vector.TaskVectorEnv, which gym.make_vec "
+                             "builds for hsddp_gym/Terrain-v0)")
         if "energy_consistent" in kwargs and kwargs["energy_consistent"] is not True:
             raise ValueError("BoundingVectorEnv compiles only the energy-consistent scheme: energy_consistent must "
                              f"be True, got {kwargs['energy_consistent']!r}")
@@ -363,18 +384,6 @@ class BoundingVectorEnv(VectorEnv):
         return self._rngs[i]
 
     # ------------------------------------------------------------------ reset
-    def _seeds(self, seed) -> list:
-        n = self.num_envs
-        if seed is None:
-            return [None] * n
-        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            return [int(seed) + i for i in range(n)]
-        if isinstance(seed, (list, tuple)):
-            if len(seed) != n:
-                raise ValueError(f"seed as a list must have num_envs={n} entries, got {len(seed)}")
-            return list(seed)
-        raise TypeError(f"seed must be None, an int or a list of num_envs ints, got {type(seed).__name__}")
-
     def _foot_heights(self, q: np.ndarray) -> tuple[float, float]:
         """``template.robot.foot_heights(q)`` (Pinocchio, the same numbers) unchecked, as two floats ``(front,
         back)``: the single env's ``foot_heights_fast`` on the template's simulator."""
@@ -473,7 +482,7 @@ class BoundingVectorEnv(VectorEnv):
         Returns:
             ``(observations (num_envs, obs_dim) float32, info)`` (batched info, every key with its mask).
         """
-        seeds = self._seeds(seed)
+        seeds = robot_seeds(seed, self.num_envs)
         mask, states, t0 = self._parse_options(options)
         for i in range(self.num_envs):
             if mask[i]:

@@ -2,13 +2,18 @@
 
 Times, under random actions with autoreset on (falls reset the robots, as in training):
 
-* the single env ``gym.make("hsddp_gym/Bounding-v0")`` (one robot stepped by Pinocchio calls from Python),
+* the single env ``gym.make(ID)`` (one robot stepped through the compiled kernel from Python),
 * ``HalfCheetah-v5`` (``gym.make``, MuJoCo; needs ``gymnasium[mujoco]``),
-* ``gym.make_vec("hsddp_gym/Bounding-v0", num_envs=N, vectorization_mode="vector_entry_point")`` for each N,
+* ``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")`` for each N,
+* with ``--sync``: ``gym.make_vec(ID, num_envs=N, vectorization_mode="sync")`` (N single envs in a
+  ``SyncVectorEnv``, what a task env had before its compiled vector env) for each N,
 
 interleaved in ``--rounds`` short chunks so that a load change on a shared machine hits all alike, and prints
 env steps (summed over the robots) per CPU second of this process and the ratios to the single env and to
-HalfCheetah-v5, with the goals at N = 64: >= 10x the single env and >= 2x HalfCheetah-v5. Everything runs in
+HalfCheetah-v5, with the goals of ``hsddp_gym/Bounding-v0`` (the default ``--env``) at N = 64: >= 10x the single env
+and >= 2x HalfCheetah-v5. ``--env`` takes several ids (the task envs: their vector env batches the physics only, and
+runs each robot's reward, termination, observation and info in its single env's Python); each env gets its own block
+of rows. Everything runs in
 one thread (the kernel loops over the robots without ``prange``; the single env and MuJoCo are single-threaded
 too), so steps per CPU second are steps per core, and they do not depend on how many other jobs share the
 cores (wall-clock rates, also printed, do). The load average of the machine is printed with the results.
@@ -16,6 +21,7 @@ cores (wall-clock rates, also printed, do). The load average of the machine is p
 Usage::
 
     python experiments/bench_vector_env.py [--seconds 20] [--sizes 1 8 64 256] [--rounds 5] [--seed 0]
+    python experiments/bench_vector_env.py --env hsddp_gym/Backflip-v0 hsddp_gym/Pronking-v0 --sizes 64 --sync
 """
 
 from __future__ import annotations
@@ -63,10 +69,11 @@ class _Single:
 
 
 class _Vector:
-    """The vector env of ``n`` robots with random actions (autoreset is built in)."""
+    """The vector env of ``n`` robots (``mode``: Gymnasium's vectorization mode) with random actions (autoreset is
+    built in)."""
 
-    def __init__(self, n: int, seed: int) -> None:
-        self.env = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point")
+    def __init__(self, env_id: str, n: int, seed: int, mode: str = "vector_entry_point") -> None:
+        self.env = gym.make_vec(env_id, num_envs=n, vectorization_mode=mode)
         self.env.reset(seed=seed)
         rng = np.random.default_rng(seed)
         self.actions = rng.uniform(-1.0, 1.0, size=(64, n, 4)).astype(np.float32)
@@ -94,6 +101,10 @@ def main(argv=None) -> None:
                         help="numbers of robots N of the vector env (default 1 8 64 256)")
     parser.add_argument("--rounds", type=int, default=5, help="interleaved rounds (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the actions and resets (default 0)")
+    parser.add_argument("--env", nargs="+", default=[ENV_ID], metavar="ID",
+                        help=f"the envs, each with a vector entry point (default {ENV_ID}; the goals are its own)")
+    parser.add_argument("--sync", action="store_true",
+                        help="also time N single envs in Gymnasium's SyncVectorEnv for each N")
     parser.add_argument("--record", default=None, metavar="FILE.json",
                         help="also write the measurements as a record of the results store "
                              "(results/speed/vector_env.json)")
@@ -104,15 +115,22 @@ def main(argv=None) -> None:
         parser.error(f"--rounds must be >= 1, got {args.rounds}")
     if any(n < 1 for n in args.sizes):
         parser.error(f"--sizes must be >= 1, got {args.sizes}")
+    for env_id in args.env:
+        if env_id not in gym.registry or gym.spec(env_id).vector_entry_point is None:
+            parser.error(f"--env: {env_id} is not a registered env with a vector entry point")
 
     batch_contact.warm_up()
-    runners = {"single": _Single(ENV_ID, args.seed)}
+    runners: dict = {}
     try:
         runners["halfcheetah"] = _Single("HalfCheetah-v5", args.seed)
     except Exception as exc:  # noqa: BLE001 - a missing optional dependency is reported, not fatal
         print(f"HalfCheetah-v5 not available ({type(exc).__name__}: {exc}); its ratio is not measured")
-    for n in args.sizes:
-        runners[f"vector N={n}"] = _Vector(n, args.seed)
+    for env_id in args.env:
+        runners[(env_id, "single")] = _Single(env_id, args.seed)
+        for n in args.sizes:
+            runners[(env_id, f"vector N={n}")] = _Vector(env_id, n, args.seed)
+            if args.sync:
+                runners[(env_id, f"sync N={n}")] = _Vector(env_id, n, args.seed, "sync")
     for runner in runners.values():  # warm the caches and allocators
         runner.run(0.2)
     totals = {name: [0, 0.0, 0.0] for name in runners}
@@ -133,14 +151,21 @@ def main(argv=None) -> None:
           f"after {load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f}; {os.cpu_count()} cores; "
           f"{args.seconds:g} s per row in {args.rounds} interleaved rounds; one thread each")
     print("env steps per CPU second of this process (per core: everything is single-threaded), and per wall second")
-    print(f"{'configuration':<16} {'steps/CPU-s':>12} {'x single':>9} {'x HalfCheetah':>14} {'steps/wall-s':>13}")
     hc = rate.get("halfcheetah")
-    for name, r in rate.items():
-        vs_hc = f"{r / hc:14.2f}" if hc else f"{'-':>14}"
-        print(f"{name:<16} {r:12,.0f} {r / rate['single']:9.2f} {vs_hc} {wall[name]:13,.0f}")
-    key = f"vector N={GOAL_N}"
+    for env_id in args.env:
+        print(f"{env_id}\n{'configuration':<16} {'steps/CPU-s':>12} {'x single':>9} {'x HalfCheetah':>14} "
+              f"{'steps/wall-s':>13}")
+        single = rate[(env_id, "single")]
+        for key, r in rate.items():
+            if key == "halfcheetah" or key[0] != env_id:
+                continue
+            vs_hc = f"{r / hc:14.2f}" if hc else f"{'-':>14}"
+            print(f"{key[1]:<16} {r:12,.0f} {r / single:9.2f} {vs_hc} {wall[key]:13,.0f}")
+    if hc:
+        print(f"{'HalfCheetah-v5':<16} {hc:12,.0f} {'':>9} {1.0:14.2f} {wall['halfcheetah']:13,.0f}")
+    key = (ENV_ID, f"vector N={GOAL_N}")
     if key in rate:
-        ratio_single = rate[key] / rate["single"]
+        ratio_single = rate[key] / rate[(ENV_ID, "single")]
         print(f"goal at N = {GOAL_N}: >= {GOAL_VS_SINGLE:g}x the single env: {ratio_single:.2f}x "
               f"({'met' if ratio_single >= GOAL_VS_SINGLE else 'NOT met'})")
         if hc:
@@ -148,9 +173,11 @@ def main(argv=None) -> None:
             print(f"goal at N = {GOAL_N}: >= {GOAL_VS_HALFCHEETAH:g}x HalfCheetah-v5: {ratio_hc:.2f}x "
                   f"({'met' if ratio_hc >= GOAL_VS_HALFCHEETAH else 'NOT met'})")
     if args.record:
-        rows = [{"configuration": name, "env_steps_per_cpu_s": rate[name], "env_steps_per_wall_s": wall[name]}
-                for name in rate]
-        write_record(args.record, {"seconds": args.seconds, "rounds": args.rounds, "rows": rows},
+        rows = [{"configuration": key if key == "halfcheetah" else key[1],
+                 **({} if key == "halfcheetah" else {"env_id": key[0]}),
+                 "env_steps_per_cpu_s": rate[key], "env_steps_per_wall_s": wall[key]} for key in rate]
+        write_record(args.record, {"seconds": args.seconds, "rounds": args.rounds, "env_ids": list(args.env),
+                                   "rows": rows},
                      "Env steps per CPU second of the compiled vector env against N, the single env and "
                      "HalfCheetah-v5, timed interleaved in one run", machine=machine)
         print(f"wrote {args.record}")

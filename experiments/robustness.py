@@ -173,6 +173,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--record", default=None, metavar="FILE.json",
                    help="also write the table's cells (no per-episode rows) as a record of the results store, e.g. "
                         "results/robustness/suite.json")
+    p.add_argument("--made-with", nargs="*", default=[], metavar="COMMAND",
+                   help="with --env and --record: the commands that made the --learned policies, put in the record "
+                        "before this one (default: none)")
     args = p.parse_args(argv)
     if args.combine:
         missing = [f for f in args.combine if not Path(f).is_file()]
@@ -289,7 +292,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"({len(seeds)} seeds each, {args.simulator})", machine=machine)
             print(f"wrote {args.record}")
     if args.record and record:
-        _record_tasks(args.record, record, seeds, machine, argv)
+        _record_tasks(args.record, record, seeds, machine, argv, args.made_with)
     return 0
 
 
@@ -316,10 +319,11 @@ def _run(args, policies: dict, skipped: dict, conditions: list, seeds: list, env
     return results
 
 
-def _record_tasks(path: str, entries: dict, seeds, machine: dict, argv) -> None:
+def _record_tasks(path: str, entries: dict, seeds, machine: dict, argv, made_with=()) -> None:
     """Put the tasks' entries (``{task: (entry, conditions)}``) into the tasks' record at ``path``: kept are its
-    other tasks and, per task, its other policies, and its other commands (this command, ``argv``, once)."""
-    from hsddp_gym.reports.store import invoked_command
+    other tasks and, per task, its other policies, and its other commands (``made_with``, the commands that made the
+    learned policies, then this command, ``argv`` without them, each once)."""
+    from hsddp_gym.reports.store import invoked_command, without_option
 
     data, commands = None, []
     if Path(path).is_file():
@@ -327,8 +331,9 @@ def _record_tasks(path: str, entries: dict, seeds, machine: dict, argv) -> None:
         data, commands = record.data, list(record.commands)
     for name, (entry, conditions) in entries.items():
         data = merge_task_record(data, name, entry, conditions, seeds)
-    command = invoked_command(argv)
-    commands = [c for c in commands if c != command] + [command]
+    command = invoked_command(without_option(argv, "--made-with"))
+    new = [*made_with, command]
+    commands = [c for c in commands if c not in new] + new
     write_record(path, data, f"Successes and falls of the tasks under the perturbation conditions ({len(seeds)} "
                  "seeds)", command=commands if len(commands) > 1 else command, machine=machine)
     print(f"wrote {path} ({', '.join(entries)})")

@@ -27,8 +27,9 @@ Usage:
         --time-limit 1500 --eval-freq 10000 --out runs/rl_pronk                           # the pronking task
 
 ``--env`` picks the env every run trains and is evaluated in (hsddp_gym.learning.sb3.ENV_IDS; default
-hsddp_gym/Bounding-v0); hsddp_gym/Pronking-v0 has no compiled vector env and no robustness conditions, so it takes
-neither ``--vector-env`` nor ``--train-condition``.
+hsddp_gym/Bounding-v0); every one of them has a compiled vector env (``--vector-env``) and takes the robustness
+conditions (``--train-condition``; a task's without ``--vector-env``). ``--residual SCALE`` learns a residual on the
+task's plan-tracking expert (``hsddp_gym.learning.residual``).
 
 The machine is shared: one torch thread per run, runs one after the other. Measured throughput on this
 2-core machine (shared) is printed at the end of every run (env steps / wall second).
@@ -41,6 +42,7 @@ import sys
 from pathlib import Path
 
 from hsddp_gym.learning.reporting import mean_ci95
+from hsddp_gym.learning.residual import check_residual_scale
 from hsddp_gym.learning.sb3 import (
     ALGOS,
     ENV_ID,
@@ -93,12 +95,21 @@ def main(argv: list[str] | None = None) -> int:
                         "e.g. push_x3 (three random pushes an episode) or push; the evaluations that pick and score "
                         "the policy stay on the unperturbed task; with --vector-env only conditions of env "
                         "arguments and pushes (default: none)")
+    p.add_argument("--residual", type=float, default=None, metavar="SCALE",
+                   help="learn a residual on the task's plan-tracking expert with this scale in (0, 2] "
+                        "(hsddp_gym.learning.residual; not with --vector-env) (default: the learner acts alone)")
     args = p.parse_args(argv)
-    if args.env != ENV_ID:
-        for flag, given in (("--vector-env", args.vector_env), ("--train-condition", args.train_condition)):
-            if given:
-                p.error(f"{flag}: given with --env {args.env}, only with --env {ENV_ID}")
-    check_env_id(args.env, args.vector_env, args.train_condition)
+    try:
+        check_env_id(args.env, args.vector_env, args.train_condition)
+    except ValueError as e:
+        p.error(f"--train-condition: {e}")
+    if args.residual is not None:
+        try:
+            check_residual_scale(args.residual, "--residual")
+        except ValueError as e:
+            p.error(str(e))
+        if args.vector_env:
+            p.error("--residual: given with --vector-env (the expert acts per robot): train it in single envs")
     if args.train_condition is not None:
         try:
             check_train_condition(args.train_condition, vector_env=args.vector_env)
@@ -144,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
                             eval_episodes=args.select_episodes, final_eval_episodes=args.eval_episodes,
                             progress=args.progress,
                             time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
-                            train_condition=args.train_condition, env_id=args.env)
+                            train_condition=args.train_condition, env_id=args.env, residual_scale=args.residual)
             s = res.summary
             evals = {k: s.get(k) or {} for k in EVALS}
             rows.append((algo, seed, s["steps"], s["wall_time_s"], evals))

@@ -137,6 +137,8 @@ def _twin(env_id: str, entry_point: str, steps: int, kwargs: dict | None = None)
     return {"mujoco": EnvEntry(env_id.replace("-v0", "MuJoCo-v0"), entry_point, steps, dict(kwargs or {}))}
 
 
+_TASK_VECTOR = "hsddp_gym.envs.task_vector:"
+"""The module of the task envs' vector entry points (the physics of N robots in one compiled call)."""
 _BOUNDING = EnvEntry("hsddp_gym/Bounding-v0", "hsddp_gym.envs.bounding:BoundingEnv", tc.BOUNDING_MAX_EPISODE_STEPS,
                      vector_entry_point="hsddp_gym.envs.vector:BoundingVectorEnv")
 _BOUNDING_PLAN = {"method": "al-reb", "cycles": 5}
@@ -189,7 +191,8 @@ PUSH_WINDOWS = {
 def _jump(name: str, env_id: str, what: str) -> Task:
     steps = tc.JUMP_MAX_EPISODE_STEPS
     return Task(
-        name=name, env=EnvEntry(env_id, "hsddp_gym.envs.jumps:JumpEnv", steps, {"task": name}),
+        name=name, env=EnvEntry(env_id, "hsddp_gym.envs.jumps:JumpEnv", steps, {"task": name},
+                     _TASK_VECTOR + "JumpVectorEnv"),
         twins=_twin(env_id, "hsddp_gym.envs.jumps:MuJoCoJumpEnv", steps, {"task": name}),
         description=(f"The jump {what}: the HS-DDP jump expert ({env_id.split('/')[-1]} and its MuJoCo twin) and BC "
                      "from its demonstrations on unseen seeds."),
@@ -207,7 +210,8 @@ def _transition(name: str, env_id: str, what: str, start: str) -> Task:
     steps = tc.TRANSITION_MAX_EPISODE_STEPS[name]
     cycles = _TRANSITION_CYCLES[name]
     return Task(
-        name=name, env=EnvEntry(env_id, "hsddp_gym.envs.transitions:TransitionEnv", steps, {"task": name}),
+        name=name, env=EnvEntry(env_id, "hsddp_gym.envs.transitions:TransitionEnv", steps, {"task": name},
+                     _TASK_VECTOR + "TransitionVectorEnv"),
         twins=_twin(env_id, "hsddp_gym.envs.transitions:MuJoCoTransitionEnv", steps, {"task": name}),
         description=(f"The gait transition {what}: the HS-DDP transition expert ({env_id.split('/')[-1]} and its "
                      "MuJoCo twin) and BC from its demonstrations on unseen seeds."),
@@ -243,7 +247,8 @@ TASKS: dict[str, Task] = {
         dataset_expert="mpc", first_seed=0, speed_range=(0.0, math.inf)),
     "pronking": Task(
         name="pronking",
-        env=EnvEntry("hsddp_gym/Pronking-v0", "hsddp_gym.envs.pronking:PronkingEnv", tc.PRONKING_MAX_EPISODE_STEPS),
+        env=EnvEntry("hsddp_gym/Pronking-v0", "hsddp_gym.envs.pronking:PronkingEnv", tc.PRONKING_MAX_EPISODE_STEPS,
+                     vector_entry_point=_TASK_VECTOR + "PronkingVectorEnv"),
         twins=_twin("hsddp_gym/Pronking-v0", "hsddp_gym.envs.pronking:MuJoCoPronkingEnv",
                     tc.PRONKING_MAX_EPISODE_STEPS),
         description=("The pronking task: the HS-DDP pronk expert (Pronking-v0 and its MuJoCo twin), BC from its "
@@ -260,7 +265,8 @@ TASKS: dict[str, Task] = {
         speed_range=tc.SPEED_RANGE),
     "backflip": Task(
         name="backflip",
-        env=EnvEntry("hsddp_gym/Backflip-v0", "hsddp_gym.envs.backflip:BackflipEnv", tc.BACKFLIP_MAX_EPISODE_STEPS),
+        env=EnvEntry("hsddp_gym/Backflip-v0", "hsddp_gym.envs.backflip:BackflipEnv", tc.BACKFLIP_MAX_EPISODE_STEPS,
+                     vector_entry_point=_TASK_VECTOR + "BackflipVectorEnv"),
         twins=_twin("hsddp_gym/Backflip-v0", "hsddp_gym.envs.backflip:MuJoCoBackflipEnv",
                     tc.BACKFLIP_MAX_EPISODE_STEPS),
         description=("The backflip task: the HS-DDP backflip expert (Backflip-v0 and its MuJoCo twin) and BC (and "
@@ -277,10 +283,10 @@ TASKS: dict[str, Task] = {
         push_window=PUSH_WINDOWS["backflip"], push_size=tc.MOTION_PUSH_SIZE),
     "gap_jump": _jump("gap_jump", "hsddp_gym/GapJump-v0", "over a 0.3 m gap"),
     "box_jump": _jump("box_jump", "hsddp_gym/BoxJump-v0", "onto a 0.1 m box"),
-    "terrain": Task(  # no vector entry point: the compiled vector env is flat-ground only
+    "terrain": Task(
         name="terrain",
         env=EnvEntry("hsddp_gym/Terrain-v0", "hsddp_gym.envs.bounding:BoundingEnv", tc.BOUNDING_MAX_EPISODE_STEPS,
-                     {"terrain": "random_mixed"}),
+                     {"terrain": "random_mixed"}, _TASK_VECTOR + "TaskVectorEnv"),
         description="Bounding on a seeded random terrain of steps and slopes per episode.",
         start="the paper's initial state with reset noise, on the episode's terrain",
         dataset_expert="mpc", terrain_aware_mpc=True, speed_range=(0.0, math.inf)),

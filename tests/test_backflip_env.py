@@ -22,11 +22,11 @@ from hsddp_gym.envs.backflip import (
 ENV_ID = "hsddp_gym/Backflip-v0"
 
 
-def test_registered_with_a_time_limit_and_no_vector_entry_point():
+def test_registered_with_a_time_limit_and_the_task_vector_env():
     spec = gym.spec(ENV_ID)
     assert spec.entry_point == "hsddp_gym.envs.backflip:BackflipEnv"
     assert spec.max_episode_steps == hsddp_gym.BACKFLIP_MAX_EPISODE_STEPS == 400
-    assert spec.vector_entry_point is None
+    assert spec.vector_entry_point == "hsddp_gym.envs.task_vector:BackflipVectorEnv"
     env = gym.make(ENV_ID)
     assert isinstance(env.unwrapped, BackflipEnv)
     assert env.unwrapped.gait_period == pytest.approx(2.0)

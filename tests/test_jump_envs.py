@@ -20,7 +20,7 @@ def test_registered_with_a_time_limit_and_the_task(task):
     spec = gym.spec(ENV_IDS[task])
     assert spec.entry_point == "hsddp_gym.envs.jumps:JumpEnv" and spec.kwargs == {"task": task}
     assert spec.max_episode_steps == hsddp_gym.JUMP_MAX_EPISODE_STEPS == 400
-    assert spec.vector_entry_point is None
+    assert spec.vector_entry_point == "hsddp_gym.envs.task_vector:JumpVectorEnv"
     env = gym.make(ENV_IDS[task])
     assert isinstance(env.unwrapped, JumpEnv) and env.unwrapped.task == task
     assert env.unwrapped.terrain == jump_terrain(task)

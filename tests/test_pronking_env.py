@@ -20,11 +20,11 @@ from hsddp_gym.envs.pronking import (
 ENV_ID = "hsddp_gym/Pronking-v0"
 
 
-def test_registered_with_a_time_limit_and_no_vector_entry_point():
+def test_registered_with_a_time_limit_and_the_task_vector_env():
     spec = gym.spec(ENV_ID)
     assert spec.entry_point == "hsddp_gym.envs.pronking:PronkingEnv"
     assert spec.max_episode_steps == hsddp_gym.PRONKING_MAX_EPISODE_STEPS == 1000
-    assert spec.vector_entry_point is None
+    assert spec.vector_entry_point == "hsddp_gym.envs.task_vector:PronkingVectorEnv"
     env = gym.make(ENV_ID)
     assert isinstance(env.unwrapped, PronkingEnv)
     assert env.unwrapped.gait_period == pytest.approx(0.18)
@@ -171,7 +171,7 @@ def test_dagger_runs_a_tiny_iteration_labelled_by_the_pronking_expert(tmp_path):
         DAggerConfig(env_id=ENV_ID, conditions=("push",))
 
 
-def test_the_cli_trains_sac_in_the_pronking_env_and_refuses_bounding_only_options(tmp_path, capsys):
+def test_the_cli_trains_sac_in_the_pronking_env_and_refuses_what_it_does_not_take(tmp_path, capsys):
     pytest.importorskip("stable_baselines3")
     from hsddp_gym import cli
     from hsddp_gym.workflows import load_policy
@@ -187,10 +187,13 @@ def test_the_cli_trains_sac_in_the_pronking_env_and_refuses_bounding_only_option
     env = gym.make(ENV_ID, max_episode_steps=5)
     obs, _ = env.reset(seed=0)
     assert load_policy(f"sb3:{out}", env)(obs).shape == (4,)
-    for extra in (["--vector-env"], ["--condition", "push"]):
-        assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "10", "--out", str(tmp_path / "x"),
-                         *extra]) == 2
-        assert f"given with --env {ENV_ID}" in capsys.readouterr().err
+    assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "40", "--learning-starts", "20",
+                     "--eval-freq", "0", "--eval-episodes", "1", "--max-episode-steps", "16", "--hidden", "16,16",
+                     "--quiet", "--vector-env", "--out", str(tmp_path / "vec")]) == 0  # the task vector env
+    assert json.loads((tmp_path / "vec" / "summary.json").read_text())["vector_env"] is True
+    assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "10", "--out", str(tmp_path / "x"),
+                     "--condition", "push", "--vector-env"]) == 2  # a task's pushes come in single envs
+    assert f"given with --env {ENV_ID}" in capsys.readouterr().err
     for argv, option in ((["--algo", "dagger", "--expert", "mpc"], "--expert"), (["--algo", "bc"], "--env")):
         assert cli.main(["train", "--env", ENV_ID, *argv, "--out", str(tmp_path / "x")]) == 2
         assert capsys.readouterr().err.startswith(f"error: {option}")

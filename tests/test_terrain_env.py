@@ -102,6 +102,22 @@ def test_a_gap_is_a_deep_drop_bridged_for_the_trunk():
     assert s.support_heights(0.55) == pytest.approx(0.1)
 
 
+@pytest.mark.parametrize("kind", ["steps", "slopes", "mixed"])
+def test_the_scalar_ground_queries_equal_the_vectorized_ones(kind):
+    rng = np.random.default_rng(11)
+    terrains = [Terrain.sample(rng, kind) for _ in range(5)]
+    terrains += [Terrain.gap(0.4, 0.7), Terrain((-0.2, 0.3, 0.9), (0.0, -0.4, 0.1, 0.2), (True, True, False, False),
+                                               (0.0, 0.0, 0.3, -0.1))]
+    for t in terrains:
+        xs = np.concatenate([rng.uniform(-1.0, 4.0, 200), np.array(t.edges)])  # the edges themselves included
+        np.testing.assert_array_equal([t.support_height(float(x)) for x in xs], t.support_heights(xs))
+        np.testing.assert_array_equal([t.gap_at(float(x)) for x in xs], t.over_gap(xs))
+    with pytest.raises(ValueError, match="x must be finite"):
+        Terrain.gap(0.4, 0.7).support_height(float("nan"))
+    with pytest.raises(ValueError, match="x must be finite"):
+        Terrain.gap(0.4, 0.7).gap_at(float("inf"))
+
+
 # ----------------------------------------------------------------------------------------------- seeded profiles
 @pytest.mark.parametrize("kind", ["steps", "slopes", "mixed"])
 def test_random_terrain_is_deterministic_per_seed_and_inside_its_distribution(kind):

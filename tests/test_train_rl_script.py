@@ -27,7 +27,7 @@ def test_select_episodes_sizes_the_evaluations_that_pick_the_best_checkpoint(tmp
         script.main(argv + ["--select-episodes", "0"])
 
 
-def test_env_reaches_train_sb3_and_bounding_only_options_are_refused(tmp_path, experiment, monkeypatch):
+def test_env_reaches_train_sb3_and_options_it_does_not_take_are_refused(tmp_path, experiment, monkeypatch):
     script = experiment("train_rl")
     calls = []
 
@@ -40,7 +40,14 @@ def test_env_reaches_train_sb3_and_bounding_only_options_are_refused(tmp_path, e
     assert script.main(argv) == 0 and calls[-1]["env_id"] == "hsddp_gym/Bounding-v0"  # the default
     assert script.main(argv + ["--env", "hsddp_gym/Pronking-v0"]) == 0
     assert calls[-1]["env_id"] == "hsddp_gym/Pronking-v0"
-    for extra in (["--vector-env"], ["--train-condition", "push_x3"], ["--env", "hsddp_gym/Nope-v0"]):
+    assert script.main(argv + ["--env", "hsddp_gym/Backflip-v0", "--vector-env"]) == 0
+    assert calls[-1]["env_id"] == "hsddp_gym/Backflip-v0" and calls[-1]["vector_env"] is True
+    assert script.main(argv + ["--env", "hsddp_gym/Backflip-v0", "--train-condition", "push", "--residual", "0.2"]) == 0
+    assert calls[-1]["train_condition"] == "push" and calls[-1]["residual_scale"] == 0.2
+    for extra in (["--train-condition", "push_x3", "--vector-env"], ["--residual", "3"],
+                  ["--residual", "0.2", "--vector-env"]):
         with pytest.raises(SystemExit):
-            script.main(argv + ["--env", "hsddp_gym/Pronking-v0", *extra] if extra[0] != "--env" else argv + extra)
-    assert len(calls) == 2
+            script.main(argv + ["--env", "hsddp_gym/Pronking-v0", *extra])
+    with pytest.raises(SystemExit):
+        script.main(argv + ["--env", "hsddp_gym/Nope-v0"])
+    assert len(calls) == 4

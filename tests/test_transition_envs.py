@@ -20,7 +20,7 @@ def test_registered_with_a_time_limit_and_the_task(task):
     assert spec.entry_point == "hsddp_gym.envs.transitions:TransitionEnv" and spec.kwargs == {"task": task}
     assert spec.max_episode_steps == hsddp_gym.TRANSITION_MAX_EPISODE_STEPS[task]
     assert spec.max_episode_steps * 0.005 >= plan_duration(task) + 0.4
-    assert spec.vector_entry_point is None
+    assert spec.vector_entry_point == "hsddp_gym.envs.task_vector:TransitionVectorEnv"
     env = gym.make(ENV_IDS[task])
     assert isinstance(env.unwrapped, TransitionEnv) and env.unwrapped.task == task
     twin = gym.spec(hsddp_gym.TRANSITION_MUJOCO_ENV_IDS[task])

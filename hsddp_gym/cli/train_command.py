@@ -35,6 +35,7 @@ GROUPS = {
                 "--workers": ("dagger",), "--estimator": ("dagger",), "--warm-start": ("dagger",)}),
     "sb3": ("PPO and SAC (ppo, sac: Stable-Baselines3)",
             {"--steps": _SB3, "--eval-freq": _SB3, "--preset": _SB3, "--n-envs": _SB3, "--vector-env": _SB3,
+             "--residual": _SB3,
              "--time-limit": _SB3, "--sde": ("ppo",), "--log-std-init": ("ppo",), "--learning-starts": ("sac",)}),
 }
 """The groups of ``train --help``: ``{key: (title, {option: the algorithms that use it})}``."""
@@ -112,8 +113,9 @@ def _check_train_env(args) -> None:
         args.env = env
     if args.env in (None, DEFAULT_ENV):
         return
-    for flag, given in (("--vector-env", args.vector_env), ("--condition", bool(args.condition)),
-                        ("--estimator", args.estimator), ("--action-queue", bool(args.action_queue))):
+    sb3_condition = args.algo in ("ppo", "sac") and not args.vector_env  # a task's own pushes and windows
+    for flag, given in (("--condition", bool(args.condition) and not sb3_condition), ("--estimator", args.estimator),
+                        ("--action-queue", bool(args.action_queue))):
         if given:
             raise UsageError(flag, f"given with --env {args.env}", f"only with --env {DEFAULT_ENV}")
     from hsddp_gym.learning.sb3 import ENV_IDS
@@ -144,6 +146,12 @@ def _check_train(args) -> None:
             raise UsageError("--condition", f"{condition.name} (observation noise or latency) with --vector-env",
                              "a condition of env arguments and pushes, or no --vector-env")
     _check_train_env(args)
+    if args.residual is not None:
+        if args.vector_env:
+            raise UsageError("--residual", "given with --vector-env", "single envs (no --vector-env): the expert acts "
+                             "per robot")
+        if args.residual > 2.0:
+            raise UsageError("--residual", f"{args.residual}", "a scale in (0, 2]")
     if args.estimator and args.action_queue:
         raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
                          "queue)", "one of them")
@@ -213,7 +221,8 @@ def cmd_train(args) -> int:
                         max_episode_steps=args.max_episode_steps, overrides=overrides or None,
                         eval_freq=args.eval_freq, final_eval_episodes=args.eval_episodes, progress=not args.quiet,
                         time_limit=args.time_limit, preset=args.preset, vector_env=args.vector_env,
-                        train_condition=args.condition[0] if args.condition else None, env_id=args.env)
+                        train_condition=args.condition[0] if args.condition else None, env_id=args.env,
+                        residual_scale=args.residual)
         summary = res.summary
     elif args.algo == "bc":
         from hsddp_gym.learning.bc import BCConfig, run_bc
@@ -289,7 +298,8 @@ def add_parser(sub) -> None:
     add("--env", choices=DATASET_ENVS, default=None, metavar="ID",
         help=f"the env to train and evaluate in (default: {DEFAULT_ENV}; dagger: the env of --dataset's metadata if "
              f"given): dagger any task's env (as `hsddp-gym dataset --env`), ppo/sac {', '.join(ENV_IDS)}; envs "
-             f"other than {DEFAULT_ENV} take no --vector-env, --condition, --estimator or --action-queue")
+             f"other than {DEFAULT_ENV} take no --estimator or --action-queue, and --condition only with ppo/sac "
+             "without --vector-env")
     add("--condition", type=parsing.condition, nargs="+", default=None, metavar="NAME",
         help="dagger: run the relabelling rollouts under perturbations, names of "
              "hsddp_gym.envs.perturbations.CONDITIONS (episode j of a round in the (j mod n)-th); the learner acts on "
@@ -383,11 +393,16 @@ def add_parser(sub) -> None:
     add("--n-envs", type=parsing.positive_int, default=None,
         help="envs stepped together in one DummyVecEnv (default: the preset's, 1)")
     add("--vector-env", action="store_true",
-        help="step the --n-envs training robots with the compiled vector env (hsddp_gym.envs.vector, one numba call "
-             "for all) instead of a DummyVecEnv of single envs")
+        help="step the --n-envs training robots with the env's compiled vector env (hsddp_gym.envs.vector for "
+             "Bounding-v0, hsddp_gym.envs.task_vector for the tasks: the robots' physics in one numba call) instead of "
+             "a DummyVecEnv of single envs")
     add("--time-limit", type=parsing.positive_float, default=None,
         help="wall-clock training budget [s]; training stops there and summary.json records the steps that fit "
              "(--steps is then the upper bound)")
+    add("--residual", type=parsing.positive_float, default=None, metavar="SCALE",
+        help="learn a residual on the task's HS-DDP plan-tracking expert: the env gets clip(expert action + SCALE * "
+             "learner action, -1, 1) and the learner also sees the expert's action (hsddp_gym.learning.residual; "
+             "SCALE in (0, 2]; not with --vector-env) (default: the learner acts alone)")
     add("--sde", action="store_true", help=OPTION_HELP["sde"])
     add("--log-std-init", type=float, default=None, help=OPTION_HELP["log_std_init"])
     add("--learning-starts", type=parsing.nonnegative_int, default=None,

@@ -156,3 +156,79 @@ class CompiledContactSimulator(ContactSimulator):
                self._time_b, self._heights_b, self._counters_b, self._cache_b, self._sc)
         self._heights_valid = True
         return self._total
+
+
+_BATCH_ARRAYS = ("_xb", "_ub", "_states_b", "_contact_b", "_total_b", "_time_b", "_heights_b", "_counters_b",
+                 "_cache_b")
+"""The batch-of-one arrays of a [`CompiledContactSimulator`][CompiledContactSimulator] that a
+[`SimulatorBatch`][SimulatorBatch] turns into rows of its shared arrays."""
+
+
+class SimulatorBatch:
+    """N [`CompiledContactSimulator`][CompiledContactSimulator] stepped together: their kernel arrays become rows of
+    shared ``(N, ...)`` arrays (each simulator keeps working on its own row, [`run`][CompiledContactSimulator.run]
+    included), so that [`run`][SimulatorBatch.run] steps any subset of them in one kernel call per distinct parameter
+    vector (one call when they share robot, friction and terrain). Each robot's numbers are bit-identical to its own
+    ``run``: the kernel steps the robots of a batch independently, in the same arithmetic.
+
+    The simulators' current states, contact states, clocks and counters are carried over into the shared rows. The
+    applied torques of the last step (``_tau``) are not kept per robot by a batched call.
+
+    Args:
+        sims: the simulators (a sequence of N >= 1 [`CompiledContactSimulator`][CompiledContactSimulator], distinct
+            objects).
+    """
+
+    def __init__(self, sims) -> None:
+        sims = list(sims)
+        if not sims:
+            raise ValueError("sims must hold at least one simulator")
+        for i, sim in enumerate(sims):
+            if not isinstance(sim, CompiledContactSimulator):
+                raise TypeError(f"sims[{i}] must be a CompiledContactSimulator, got {type(sim).__name__}")
+        if len({id(sim) for sim in sims}) != len(sims):
+            raise ValueError("sims must be distinct simulators")
+        self.sims = sims
+        n = len(sims)
+        self.arrays = {name: np.zeros((n,) + getattr(sims[0], name).shape[1:], dtype=getattr(sims[0], name).dtype)
+                       for name in _BATCH_ARRAYS}
+        """The shared arrays, by the simulators' attribute names: ``_xb`` (N, 14) states, ``_ub`` (N, 4) commanded
+        torques, ``_states_b``, ``_contact_b``, ``_heights_b`` (N, 2), ``_total_b`` (N, 4) impulses, ``_time_b`` (N,),
+        ``_counters_b`` (N, 4), ``_cache_b`` the model caches."""
+        for i, sim in enumerate(sims):
+            for name, shared in self.arrays.items():
+                row = shared[i:i + 1]
+                row[...] = getattr(sim, name)
+                setattr(sim, name, row)
+            sim._link_views()
+        self._sc = kernel_scratch()
+        self._params: list = [None] * n  # each simulator's parameter vector when last grouped, and its bytes
+        self._keys: list = [b""] * n
+
+    def _groups(self, active: np.ndarray) -> list:
+        """``[(p, on_terrain, mask), ...]``: the robots of ``active`` grouped by equal kernel parameters (``p`` the
+        group's, ``on_terrain`` whether it holds a terrain, ``mask`` (N,) bool the group's robots)."""
+        groups: dict = {}
+        for i in np.flatnonzero(active):
+            sim = self.sims[i]
+            if sim._p is not self._params[i]:  # a new terrain (set_terrain) or a new simulator setting
+                self._params[i] = sim._p
+                self._keys[i] = sim._p.tobytes()
+            key = self._keys[i]
+            if key not in groups:
+                groups[key] = (sim, np.zeros(len(self.sims), dtype=np.bool_))
+            groups[key][1][i] = True
+        return [(sim._p, sim.terrain is not None, mask) for sim, mask in groups.values()]
+
+    def run(self, active: np.ndarray, n: int) -> None:
+        """``n`` simulation steps of the robots with ``active[i]`` ((N,) bool; the others are left untouched), each
+        with its commanded torques (its row of ``arrays["_ub"]``, written by the caller) and its own parameters;
+        afterwards each stepped robot's ``impulse`` holds its impulses summed over the ``n`` steps, as after its own
+        ``run(u, n)``."""
+        a = self.arrays
+        for p, on_terrain, mask in self._groups(active):
+            kernel = step_batch_terrain if on_terrain else step_batch
+            kernel(p, a["_xb"], a["_ub"], n, mask, a["_states_b"], a["_contact_b"], a["_total_b"], a["_time_b"],
+                   a["_heights_b"], a["_counters_b"], a["_cache_b"], self._sc)
+        for i in np.flatnonzero(active):
+            self.sims[i]._heights_valid = True

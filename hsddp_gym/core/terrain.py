@@ -39,6 +39,7 @@ draws seeded random profiles. """
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 import numbers
@@ -110,6 +111,16 @@ class Terrain:
         object.__setattr__(self, "_slopes", np.array(slopes, dtype=np.float64))
         anchors = (edges[0] if edges else 0.0,) + edges
         object.__setattr__(self, "_anchors", np.array(anchors, dtype=np.float64))
+        object.__setattr__(self, "_anchors_t", anchors)
+        bridged = list(levels)  # each segment's support level: a gap bridged at its near edge's level
+        for i, gap in enumerate(gaps):
+            if gap:
+                if i > 0 and not gaps[i - 1]:
+                    bridged[i] = levels[i - 1] + slopes[i - 1] * (edges[i - 1] - anchors[i - 1])
+                elif i + 1 < len(levels):
+                    bridged[i] = levels[i + 1]
+        object.__setattr__(self, "_bridged_t", tuple(bridged))
+        object.__setattr__(self, "_bridged", np.array(bridged, dtype=np.float64))
         object.__setattr__(self, "_surface", None)
 
     # ------------------------------------------------------------------ factories
@@ -332,14 +343,26 @@ class Terrain:
         if not any(self.gaps):
             return h
         seg = self._segments(xs)
-        bridged = np.array(self.levels, dtype=np.float64)
-        for i, gap in enumerate(self.gaps):
-            if gap:
-                if i > 0 and not self.gaps[i - 1]:
-                    bridged[i] = self.levels[i - 1] + self.slopes[i - 1] * (self.edges[i - 1] - self._anchors[i - 1])
-                elif i + 1 < len(self.levels):
-                    bridged[i] = self.levels[i + 1]
-        return np.where(self._gaps[seg], bridged[seg], h)
+        return np.where(self._gaps[seg], self._bridged[seg], h)
+
+    def support_height(self, x: float) -> float:
+        """[`support_heights`][support_heights] of one finite ``x`` [m] (a float, in plain Python arithmetic: the
+        envs' per-step path)."""
+        if not math.isfinite(x):
+            raise ValueError(f"x must be finite [m], got {x!r}")
+        i = bisect.bisect_right(self.edges, x)
+        if self.gaps[i]:
+            return self._bridged_t[i]
+        slope = self.slopes[i]
+        if slope == 0.0:
+            return self.levels[i]
+        return self.levels[i] + slope * (x - self._anchors_t[i])
+
+    def gap_at(self, x: float) -> bool:
+        """[`over_gap`][over_gap] of one finite ``x`` [m] (a float)."""
+        if not math.isfinite(x):
+            raise ValueError(f"x must be finite [m], got {x!r}")
+        return self.gaps[bisect.bisect_right(self.edges, x)]
 
     def over_gap(self, xs) -> np.ndarray:
         """``xs`` any shape [m] -> bools of the same shape: True where there is no ground (inside a gap)."""

@@ -31,6 +31,9 @@ it): the demonstrations' from their datasets' metadata (demonstrations at severa
 from a dataset recorded with the expert's gains, perturbed copies of every demonstration labelled with the expert's
 local law ``u + K dx``.
 
+**Residual RL** ([`hsddp_gym.learning.residual`][hsddp_gym.learning.residual], ``train_sb3(..., residual_scale=)``):
+PPO or SAC learn a bounded correction to the task's plan-tracking expert, on the task's own reward.
+
 **Demonstrations** ([`load_demonstrations`][hsddp_gym.learning.demonstrations.load_demonstrations]) come from a Minari
 dataset (``minari.load_dataset`` / [`hsddp_gym.datasets.storage.load_minari`][hsddp_gym.datasets.storage.load_minari],
 the default) or from a dataset's ``episodes.npz``
@@ -58,6 +61,7 @@ _EXPORTS = {  # module: the public names it defines
     "demonstrations": ("Demonstrations", "load_demonstrations",),
     "features": ("FEATURES", "build_inputs", "gait_clock_features", "make_gait_clock",),
     "reporting": ("evaluate_policy_episodes", "plot_curve",),
+    "residual": ("ResidualEnv", "ResidualPolicy", "residual_action", "residual_observation",),
     "sb3.adapter": ("as_sb3_policy",),
     "sb3.presets": ("ALGOS", "ENV_ID", "hyperparameters",),
     "sb3.runs": ("SB3ModelPolicy", "load_trained_policy", "write_curves",),

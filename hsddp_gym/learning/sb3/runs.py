@@ -175,10 +175,12 @@ class SB3ModelPolicy(Policy):
 
 
 def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_seed: int = 0,
-                        checkpoint: str = "final", noise_scale: float = 1.0) -> SB3ModelPolicy:
+                        checkpoint: str = "final", noise_scale: float = 1.0) -> Policy:
     """The policy of a [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3] run in ``run_dir``, read without
     unpickling: the model is rebuilt from ``summary.json``'s hyperparameters and only the weights of ``model.zip`` are
-    loaded (``set_parameters``); the observation statistics come from ``vecnormalize.npz``.
+    loaded (``set_parameters``); the observation statistics come from ``vecnormalize.npz``. A run with a residual
+    (``summary["residual"]``) gives a [`ResidualPolicy`][hsddp_gym.learning.residual.ResidualPolicy]: the task's expert
+    built for ``env`` plus the learner; any other an [`SB3ModelPolicy`][SB3ModelPolicy].
 
     Args:
         env: the env to act in (None: ``gym.make`` of the run's env, ``summary.json``'s ``env_id``, with its env
@@ -207,14 +209,25 @@ def load_trained_policy(run_dir, env=None, deterministic: bool = True, noise_see
     algo = summary["algo"]
     if env is None:
         env = gym.make(summary.get("env_id", ENV_ID), **summary.get("env_kwargs", {}))
+    residual = summary.get("residual")
+    learner_env = env
+    if residual is not None:  # the learner acts in the residual env: its input carries the expert's action
+        from hsddp_gym.learning.residual import ResidualEnv
+
+        learner_env = ResidualEnv(env, residual["scale"], residual["base"])
     hp = dict(summary["hyperparameters"])
     kw = model_kwargs(hp)
     for name in ("learning_starts", "buffer_size", "n_steps", "batch_size"):  # training only: the weights do not
         kw.pop(name, None)  # depend on them (and a 2,048 batch over one env's 128 steps only raises SB3's warning)
     cls = PPO if algo == "ppo" else SAC
     extra = {"buffer_size": 1} if algo == "sac" else {}
-    model = cls("MlpPolicy", env, device="cpu", **kw, **extra)
+    model = cls("MlpPolicy", learner_env, device="cpu", **kw, **extra)
     model.set_parameters(str(run_dir / weights), exact_match=True, device="cpu")
     stats = read_npz(run_dir / statistics) if (run_dir / statistics).exists() else None
-    return SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats, deterministic=deterministic,
-                          noise_seed=noise_seed, noise_scale=noise_scale)
+    policy = SB3ModelPolicy(EnvInterface.from_env(env), model=model, obs_stats=stats, deterministic=deterministic,
+                            noise_seed=noise_seed, noise_scale=noise_scale)
+    if residual is None:
+        return policy
+    from hsddp_gym.learning.residual import ResidualPolicy
+
+    return ResidualPolicy(learner_env.base, policy, residual["scale"])

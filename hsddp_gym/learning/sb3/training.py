@@ -46,17 +46,17 @@ class TrainResult:
 
 
 def check_env_id(env_id, vector_env: bool = False, train_condition=None) -> str:
-    """``env_id`` (None: `ENV_ID`) if [`train_sb3`][train_sb3] trains in it, else ``ValueError`` naming it; the
-    compiled vector env (``vector_env``) and the robustness conditions (``train_condition``) are Bounding-v0's."""
+    """``env_id`` (None: `ENV_ID`) if [`train_sb3`][train_sb3] trains in it, else ``ValueError`` naming it; every env
+    of [`ENV_IDS`][hsddp_gym.learning.sb3.presets.ENV_IDS] has a compiled vector env (``vector_env``); the robustness
+    conditions (``train_condition``) apply to every one of them, those of pushes and env arguments also through the
+    vector env of Bounding-v0 (the task envs' conditions are drawn in each task's window: single envs)."""
     if env_id is None:
         return ENV_ID
     if not isinstance(env_id, str) or env_id not in ENV_IDS:
         raise ValueError(f"env_id must be one of {ENV_IDS}, got {env_id!r}")
-    if env_id != ENV_ID and vector_env:
-        raise ValueError(f"env_id {env_id!r} has no compiled vector env (vector_env is {ENV_ID}'s only)")
-    if env_id != ENV_ID and train_condition is not None:
-        raise ValueError(f"env_id {env_id!r} takes no train_condition (the conditions perturb {ENV_ID}), got "
-                         f"{train_condition!r}")
+    if env_id != ENV_ID and train_condition is not None and vector_env:
+        raise ValueError(f"env_id {env_id!r} takes a train_condition without vector_env only (its pushes are drawn "
+                         f"in the task's window by the single env's wrapper), got {train_condition!r}")
     return env_id
 
 
@@ -82,24 +82,25 @@ def check_train_condition(name, env_kwargs: dict | None = None, vector_env: bool
 
 
 def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int | None, monitor_path: Path | None,
-               vector_env: bool = False, condition=None, env_id: str = ENV_ID):
+               vector_env: bool = False, condition=None, env_id: str = ENV_ID, residual_scale: float | None = None):
     """The training (or evaluation) envs of ``env_id``; ``condition`` (a checked
-    [`Condition`][hsddp_gym.envs.perturbations.conditions.Condition] or None) perturbs every one of them."""
+    [`Condition`][hsddp_gym.envs.perturbations.conditions.Condition] or None) perturbs every one of them;
+    ``residual_scale``: each is a [`ResidualEnv`][hsddp_gym.learning.residual.ResidualEnv] on the task's expert."""
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 
     import hsddp_gym  # noqa: F401  (registers the env)
 
-    if vector_env:  # the compiled vector env: one call steps all robots; one monitor file for all
-        from hsddp_gym.envs.bounding import DEFAULT_MAX_EPISODE_STEPS
+    if vector_env:  # the compiled vector env: one call steps all robots' physics; one monitor file for all
         from hsddp_gym.learning.vector_sb3 import make_sb3_vec_env
 
-        steps = DEFAULT_MAX_EPISODE_STEPS if max_episode_steps is None else int(max_episode_steps)
+        steps = gym.spec(env_id).max_episode_steps if max_episode_steps is None else int(max_episode_steps)
         extra = {} if condition is None else dict(condition.env_kwargs)
         if condition is not None and condition.push is not None:
             extra["push"] = dict(condition.push)
-        return VecMonitor(make_sb3_vec_env(n_envs, seed=seed, max_episode_steps=steps, **env_kwargs, **extra),
+        return VecMonitor(make_sb3_vec_env(n_envs, seed=seed, max_episode_steps=steps, env_id=env_id, **env_kwargs,
+                                           **extra),
                           filename=None if monitor_path is None else str(monitor_path))
 
     def make(i):
@@ -107,7 +108,11 @@ def _make_venv(n_envs: int, seed: int, env_kwargs: dict, max_episode_steps: int 
             kw = dict(env_kwargs)
             if max_episode_steps is not None:
                 kw["max_episode_steps"] = int(max_episode_steps)
-            env = gym.make(env_id, **kw) if condition is None else condition.make(**kw)
+            env = gym.make(env_id, **kw) if condition is None else condition.make(env_id=env_id, **kw)
+            if residual_scale is not None:
+                from hsddp_gym.learning.residual import ResidualEnv
+
+                env = ResidualEnv(env, residual_scale)
             filename = None
             if monitor_path is not None:
                 filename = str(monitor_path) if n_envs == 1 else str(monitor_path).replace(".monitor.csv",
@@ -133,7 +138,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
               max_episode_steps: int | None = None, overrides: dict | None = None, eval_freq: int | None = None,
               eval_episodes: int = 5, final_eval_episodes: int = 10, threads: int = 1, progress: bool = False,
               verbose: int = 0, time_limit: float | None = None, preset: str = DEFAULT_PRESET,
-              vector_env: bool = False, train_condition: str | None = None,
+              vector_env: bool = False, train_condition: str | None = None, residual_scale: float | None = None,
               env_id: str | None = None) -> TrainResult:
     """Train PPO or SAC on ``Bounding-v0`` (or ``env_id``) and write the files of the module docstring into ``out``.
 
@@ -142,11 +147,12 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         env_kwargs: ``gym.make`` keyword arguments. max_episode_steps: time-limit override (None: 1000).
         overrides: hyperparameters replacing the documented ones (e.g. ``{"learning_starts": 100}``,
             ``{"n_envs": 4}``: that many envs in a ``DummyVecEnv``, stepped together).
-        vector_env: step the ``n_envs`` training robots with the compiled vector env
-            ([`hsddp_gym.envs.vector.BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv] through
+        vector_env: step the ``n_envs`` training robots with the env's compiled vector env
+            ([`BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv] for Bounding-v0,
+            [`TaskVectorEnv`][hsddp_gym.envs.task_vector.TaskVectorEnv] for the tasks, through
             [`hsddp_gym.learning.vector_sb3`][hsddp_gym.learning.vector_sb3], one ``train.monitor.csv`` for all) instead
-            of a ``DummyVecEnv`` of single envs; the evaluation env stays a single env. Same transitions up to round-off
-            (``tests/test_vector_env.py``).
+            of a ``DummyVecEnv`` of single envs. Same transitions (``tests/test_vector_env.py``,
+            ``tests/test_task_vector_env.py``).
         preset: the RL-Zoo hyperparameter set ([`PRESETS`][hsddp_gym.learning.sb3.presets.PRESETS]; default
             ``"hopper"``, a terminating task).
         eval_freq: env steps between deterministic evaluations of ``eval_episodes`` episodes (None:
@@ -163,8 +169,12 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         time_limit: wall-clock budget of the training [s] (None: none). Training stops at the first env step
             after it, so ``summary["steps"]`` is the budget that fit (``"stopped_by_time_limit"`` says so).
             Such a run is not reproducible step for step; rerun it with ``steps = summary["steps"]`` for that.
-        env_id: the env to train and evaluate in, one of [`ENV_IDS`][ENV_IDS] (None: Bounding-v0); Pronking-v0 takes
-            neither ``vector_env`` nor ``train_condition``. Stored in ``summary.json``, so
+        env_id: the env to train and evaluate in, one of [`ENV_IDS`][ENV_IDS] (None: Bounding-v0); the others take a
+            ``train_condition`` without ``vector_env`` only.
+        residual_scale: learn a residual on the task's plan-tracking expert
+            ([`hsddp_gym.learning.residual`][hsddp_gym.learning.residual]: the env gets ``clip(a_expert + scale · r,
+            -1, 1)``, the learner sees the expert's action) with this scale in (0, 2]; None: the learner acts alone.
+            Not with ``vector_env``. Stored in ``summary.json``, so
             [`load_trained_policy`][load_trained_policy] rebuilds the run's env.
     """
     from hsddp_gym.util.extras import require
@@ -183,6 +193,13 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         raise ValueError(f"time_limit must be > 0 seconds or None, got {time_limit!r}")
     env_kwargs = dict(env_kwargs or {})
     env_id = check_env_id(env_id, bool(vector_env), train_condition)
+    if residual_scale is not None:
+        from hsddp_gym.learning.residual import check_residual_scale
+
+        residual_scale = check_residual_scale(residual_scale)
+        if vector_env:
+            raise ValueError("residual_scale is not offered with vector_env (the expert acts per robot): train the "
+                             "residual in single envs")
     condition = check_train_condition(train_condition, env_kwargs, bool(vector_env))
     torch.set_num_threads(int(threads))
     out = Path(out)
@@ -191,16 +208,20 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
     if not isinstance(vector_env, (bool, np.bool_)):
         raise TypeError(f"vector_env must be a bool, got {type(vector_env).__name__}")
     venv = _make_venv(hp["n_envs"], seed, env_kwargs, max_episode_steps, out / "train.monitor.csv",
-                      vector_env=bool(vector_env), condition=condition, env_id=env_id)
+                      vector_env=bool(vector_env), condition=condition, env_id=env_id, residual_scale=residual_scale)
     # the evaluation env is wrapped as the training env (SB3 copies VecNormalize's statistics wrapper by wrapper)
     eval_venv = _make_venv(1, seed + 10_000, env_kwargs, max_episode_steps, None, vector_env=bool(vector_env),
-                           env_id=env_id)
+                           env_id=env_id, residual_scale=residual_scale)
     if hp["normalize"]:
         gamma = hp.get("gamma", 0.99)
         venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=gamma)
         eval_venv = VecNormalize(eval_venv, norm_obs=True, norm_reward=False, gamma=gamma, training=False)
     cls = PPO if algo == "ppo" else SAC
     model = cls("MlpPolicy", venv, seed=seed, device="cpu", verbose=verbose, **model_kwargs(hp))
+    if residual_scale is not None:
+        from hsddp_gym.learning.residual import zero_mean_action
+
+        zero_mean_action(model)  # the learner starts as the expert
     callbacks = []
     eval_freq = max(int(steps) // 10, 1000) if eval_freq is None else int(eval_freq)
     best = None
@@ -234,6 +255,7 @@ def train_sb3(algo: str, steps: int, seed: int, out, env_kwargs: dict | None = N
         "algo": algo, "env_id": env_id, "env_kwargs": env_kwargs, "max_episode_steps": max_episode_steps,
         "seed": int(seed), "steps": int(model.num_timesteps), "requested_steps": int(steps),
         "preset": preset, "hyperparameters": hp, "vector_env": bool(vector_env),
+        "residual": None if residual_scale is None else {"base": "expert", "scale": residual_scale},
         "train_condition": None if condition is None else condition.as_dict(), "wall_time_s": wall,
         "threads": int(threads), "eval_freq": eval_freq,
         "time_limit_s": time_limit, "stopped_by_time_limit": bool(timer is not None and timer.stopped),

@@ -25,6 +25,7 @@ from hsddp_gym.reports.tables.robustness import (
     robustness_tasks_backflip,
     robustness_tasks_jumps,
     robustness_tasks_pronking,
+    robustness_tasks_rl,
     robustness_tasks_transitions,
 )
 from hsddp_gym.reports.tables.speed import (
@@ -35,6 +36,7 @@ from hsddp_gym.reports.tables.speed import (
     speed_solver_horizons,
     speed_summary,
     speed_vector_env,
+    speed_vector_env_tasks,
 )
 from hsddp_gym.reports.tables.tasks import (
     motions_summary,
@@ -56,6 +58,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "env/physics": env_physics,
     "speed/env": speed_env,
     "speed/vector_env": speed_vector_env,
+    "speed/vector_env_tasks": speed_vector_env_tasks,
     "speed/dynamics": speed_dynamics,
     "speed/solver": speed_solver,
     "speed/solver_horizons": speed_solver_horizons,
@@ -87,6 +90,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/tasks_backflip": robustness_tasks_backflip,
     "robustness/tasks_jumps": robustness_tasks_jumps,
     "robustness/tasks_transitions": robustness_tasks_transitions,
+    "robustness/tasks_rl": robustness_tasks_rl,
 }
 """``{table id: renderer}``."""
 

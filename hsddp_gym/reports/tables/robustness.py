@@ -292,20 +292,25 @@ def robustness_pushes(store: Store) -> str:
 
 TASK_RECORD = "robustness/tasks"
 """The tasks' robustness record (``experiments/robustness.py --env ID --record results/robustness/tasks.json``)."""
-TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC"}
+TASK_RL_RECORD = "robustness/tasks_rl"
+"""The record of the learners that use the plan (residual RL) beside RL from scratch and the expert."""
+TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC", "ppo@residual": "PPO residual on the expert",
+                      "ppo@scratch": "PPO from scratch"}
 
 
-def task_robustness(store: Store, tasks: tuple) -> str:
+def task_robustness(store: Store, tasks: tuple | None, record: str = TASK_RECORD) -> str:
     """Successes and falls per condition of the tasks ``tasks`` (names of the task registry, one column per task and
-    policy) from the tasks' robustness record, with each task's push window and size; the record's command is shown
-    once, on the perturbations page."""
-    if TASK_RECORD not in store.ids():
-        return (f"No `{TASK_RECORD}` record yet: run `python experiments/robustness.py --env ENV --policies expert "
-                "--first-seed 56000 --record results/robustness/tasks.json`.")
-    d = store.data(TASK_RECORD)
+    policy; None: every task of the record) from a tasks' robustness record (``record``), with each task's push
+    window and size; the record's command is shown once, on the perturbations page (``record`` other than the tasks'
+    own: under the table)."""
+    if record not in store.ids():
+        return (f"No `{record}` record yet: run `python experiments/robustness.py --env ENV --policies expert "
+                f"--first-seed 56000 --record results/{record}.json`.")
+    d = store.data(record)
+    tasks = tuple(d["tasks"]) if tasks is None else tasks
     missing = [t for t in tasks if t not in d["tasks"]]
     if missing:
-        raise ValueError(f"{TASK_RECORD}: no entry for the task(s) {missing}")
+        raise ValueError(f"{record}: no entry for the task(s) {missing}")
     columns = [(t, label) for t in tasks for label in d["tasks"][t]["results"]]
     several = len({label for _, label in columns}) > 1
     header = ["condition"] + [t.replace("_", " ") + (f", {TASK_POLICY_LABELS.get(label, label)}" if several else "")
@@ -326,7 +331,12 @@ def task_robustness(store: Store, tasks: tuple) -> str:
     note = (f"Cells: successes, falls of {len(d['seeds'])} episodes (seeds {d['seeds'][0]}-{d['seeds'][-1]}). Push: "
             f"{pushes}{size}.")
     return "\n".join([markdown_table(header, rows, ["l"] + ["r"] * len(columns)), "", note,
-                      source_line(store, TASK_RECORD, commands=False)])
+                      source_line(store, record, commands=record != TASK_RECORD)])
+
+
+def robustness_tasks_rl(store: Store) -> str:
+    """The learners that use the plan beside RL from scratch and the expert, per task and condition."""
+    return task_robustness(store, None, TASK_RL_RECORD)
 
 
 def robustness_tasks_pronking(store: Store) -> str:

@@ -44,6 +44,36 @@ def speed_vector_env(store: Store) -> str:
                       f"Machine: {machine_note(store, 'speed/vector_env')}.", source_line(store, "speed/vector_env")])
 
 
+def speed_vector_env_tasks(store: Store) -> str:
+    """Per task env: the single env, its vector env and a ``SyncVectorEnv`` of single envs at each N (env steps per
+    CPU second, and the ratio to the single env of the same run)."""
+    rid = "speed/vector_env_tasks"
+    d = store.data(rid)
+    by_env: dict = {}
+    for r in d["rows"]:
+        if "env_id" in r:
+            by_env.setdefault(r["env_id"], {})[r["configuration"]] = r["env_steps_per_cpu_s"]
+    sizes = sorted({int(c.split("=")[1]) for rates in by_env.values() for c in rates if c.startswith("vector")})
+    has_sync = any(c.startswith("sync") for rates in by_env.values() for c in rates)
+    header = ["env", "single env"]
+    header += [f"vector env, N = {n}" for n in sizes]
+    header += [f"SyncVectorEnv, N = {n}" for n in sizes] if has_sync else []
+    rows = []
+    for env_id, rates in by_env.items():
+        single = rates["single"]
+        row = [f"`{env_id}`", f"{single:,.0f}"]
+        for kind in ("vector", "sync") if has_sync else ("vector",):
+            for n in sizes:
+                v = rates.get(f"{kind} N={n}")
+                row.append(NA if v is None else f"{v:,.0f} ({v / single:.2f}×)")
+        rows.append(row)
+    table = markdown_table(header, rows, ["l"] + ["r"] * (len(header) - 1))
+    return "\n".join([table, "", "Env steps per CPU second (summed over the robots), random actions with autoreset; "
+                      f"in parentheses the ratio to the single env of the same run. {d['seconds']:g} s per row in "
+                      f"{d['rounds']} interleaved rounds, one thread each. Machine: {machine_note(store, rid)}.",
+                      source_line(store, rid)])
+
+
 def speed_dynamics(store: Store) -> str:
     """Microseconds per call by contact mode, and the compiled linearization against Pinocchio's calls."""
     d = store.data("speed/dynamics")
