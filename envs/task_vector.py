@@ -10,8 +10,6 @@ task is served by one mechanism and the numbers cannot drift from the single env
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
@@ -24,12 +22,9 @@ from hsddp_gym.envs.jumps import JumpEnv
 from hsddp_gym.envs.perturbations import PUSH_SALT, PushDistribution, episode_generator
 from hsddp_gym.envs.pronking import PronkingEnv
 from hsddp_gym.envs.transitions import TransitionEnv
-from hsddp_gym.envs.vector import UNSUPPORTED_KWARGS, parse_autoreset_mode, robot_seeds
-from hsddp_gym.util.validation import check_int, check_positive, real_array
+from hsddp_gym.envs.vector import UNSUPPORTED_KWARGS, parse_autoreset_mode, parse_reset_options, robot_seeds
+from hsddp_gym.util.validation import check_int, real_array
 
-RESET_OPTION_KEYS = ("state", "time", "reset_mask")
-"""The reset options of [`TaskVectorEnv`][TaskVectorEnv] (those of
-[`BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv])."""
 _BASE_SCALARS = (int, float, bool)
 
 
@@ -241,43 +236,6 @@ class TaskVectorEnv(VectorEnv):
         self._elapsed[i] = 0
         return info
 
-    def _parse_options(self, options) -> tuple:
-        """``(mask (N,) bool, states (N, 14) or None, times (N,) or None)`` of ``reset``'s ``options``."""
-        n = self.num_envs
-        if options is None:
-            return self._all, None, None
-        if not isinstance(options, dict):
-            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
-        unknown = sorted(set(options) - set(RESET_OPTION_KEYS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown} for {type(self).__name__}; allowed: "
-                             f"{list(RESET_OPTION_KEYS)}")
-        mask = options.get("reset_mask")
-        if mask is None:
-            mask = self._all
-        elif not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
-            raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}")
-        elif not mask.any():
-            raise ValueError("options['reset_mask'] must select at least one robot")
-        states = None
-        if options.get("state") is not None:
-            states = real_array(options["state"], "options['state']")
-            if states.shape[:1] != (n,) or states.ndim != 2:
-                raise ValueError(f"options['state'] must have shape ({n}, 14) (one state per robot), got "
-                                 f"{states.shape}")
-        times = None
-        if options.get("time") is not None:
-            t = options["time"]
-            if isinstance(t, numbers.Real) and not isinstance(t, bool):
-                times = np.full(n, check_positive(t, "options['time']", allow_zero=True))
-            else:
-                times = real_array(t, "options['time']").astype(np.float64)
-                if times.shape != (n,):
-                    raise ValueError(f"options['time'] must be a number or have shape ({n},), got {times.shape}")
-                for i in range(n):
-                    check_positive(float(times[i]), f"options['time'][{i}]", allow_zero=True)
-        return mask, states, times
-
     def reset(self, *, seed=None, options: dict | None = None):
         """Reset every robot (or those of ``options["reset_mask"]``); see the class docstring.
 
@@ -285,7 +243,8 @@ class TaskVectorEnv(VectorEnv):
             ``(observations (num_envs, obs_dim), info)`` (batched info, every key with its mask).
         """
         seeds = robot_seeds(seed, self.num_envs)
-        mask, states, times = self._parse_options(options)
+        mask, states, times = parse_reset_options(options, self.num_envs, type(self).__name__)
+        mask = self._all if mask is None else mask
         entries = [(int(i), self._reset_one(int(i), seeds[i], None if states is None else states[i],
                                             None if times is None else float(times[i])))
                    for i in np.flatnonzero(mask)]

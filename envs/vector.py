@@ -26,7 +26,8 @@ from hsddp_gym.util.validation import check_int, check_positive, real_array
 
 UNSUPPORTED_KWARGS = ("render_mode", "width", "height", "render_grf")
 """BoundingEnv arguments the vector env does not take (it does not render)."""
-_RESET_OPTION_KEYS = ("state", "time", "reset_mask")
+RESET_OPTION_KEYS = ("state", "time", "reset_mask")
+"""The reset options of the vector envs (the single env's ``"push"`` is not offered: their ``push`` argument)."""
 INFO_KEYS = ("x_position", "x_velocity", "reward_forward", "reward_ctrl", "reward_healthy", "contact", "foot_heights",
              "grf", "qpos", "qvel", "time", "invalid_state")
 """The batched ``info`` keys (each with its ``_key`` mask): the single env's keys, one row per robot."""
@@ -98,6 +99,48 @@ def robot_seeds(seed, n: int) -> list:
             raise ValueError(f"seed as a list must have num_envs={n} entries, got {len(seed)}")
         return list(seed)
     raise TypeError(f"seed must be None, an int or a list of num_envs ints, got {type(seed).__name__}")
+
+
+def parse_reset_options(options, n: int, owner: str) -> tuple:
+    """A vector env's ``reset`` ``options`` ([`RESET_OPTION_KEYS`][RESET_OPTION_KEYS]) for ``n`` robots, checked
+    (TypeError / ValueError naming the option and ``owner``, the vector env's name).
+
+    Returns:
+        ``(mask, states, times)``: ``mask`` (n,) bool of the robots to reset (None: all), ``states`` (n, 14) float64
+        (each row still to be checked as a start state by the single env) or None, ``times`` (n,) float64 >= 0 or None.
+    """
+    if options is None:
+        return None, None, None
+    if not isinstance(options, dict):
+        raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+    unknown = sorted(set(options) - set(RESET_OPTION_KEYS))
+    if unknown:
+        raise ValueError(f"unknown reset option(s) {unknown} for {owner}; allowed: {list(RESET_OPTION_KEYS)} (the "
+                         "single env's 'push' is not offered: use the push argument)")
+    mask = options.get("reset_mask")
+    if mask is not None:
+        if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
+            raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}")
+        if not mask.any():
+            raise ValueError("options['reset_mask'] must select at least one robot")
+    states = None
+    if options.get("state") is not None:
+        states = real_array(options["state"], "options['state']").astype(np.float64, copy=False)
+        if states.shape != (n, NX):
+            raise ValueError(f"options['state'] must have shape ({n}, {NX}) (one state per robot), got "
+                             f"{states.shape}")
+    times = None
+    if options.get("time") is not None:
+        t = options["time"]
+        if isinstance(t, numbers.Real) and not isinstance(t, bool):
+            times = np.full(n, check_positive(t, "options['time']", allow_zero=True))
+        else:
+            arr = real_array(t, "options['time']")
+            if arr.shape != (n,):
+                raise ValueError(f"options['time'] must be a number or have shape ({n},), got {arr.shape}")
+            times = np.array([check_positive(float(v), f"options['time'][{i}]", allow_zero=True)
+                              for i, v in enumerate(arr.tolist())])
+    return mask, states, times
 
 
 @numba.njit(cache=True)
@@ -425,30 +468,13 @@ class BoundingVectorEnv(VectorEnv):
                    self._autoreset, self._obs, self._low, self._high, self._skip)
 
     def _parse_options(self, options) -> tuple:
+        """``(mask (N,) bool, states [x (14,) or None per robot] or None, t0 (N,))`` of ``reset``'s ``options``, each
+        start state checked as the single env checks it."""
         n = self.num_envs
-        if options is None:
-            return self._all, None, np.zeros(n)
-        if not isinstance(options, dict):
-            raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
-        unknown = sorted(set(options) - set(_RESET_OPTION_KEYS))
-        if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown} for BoundingVectorEnv; allowed: "
-                             f"{list(_RESET_OPTION_KEYS)} (the single env's 'push' is not offered)")
-        mask = options.get("reset_mask")
-        if mask is None:
-            mask = self._all
-        else:
-            if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (n,):
-                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},), got {mask!r}")
-            if not mask.any():
-                raise ValueError("options['reset_mask'] must select at least one robot")
+        mask, raw, times = parse_reset_options(options, n, "BoundingVectorEnv")
+        mask = self._all if mask is None else mask
         states = None
-        if options.get("state") is not None:
-            raw = np.asarray(options["state"], dtype=np.float64) if not isinstance(options["state"], np.ndarray) \
-                else options["state"]
-            if raw.shape != (n, NX):
-                raise ValueError(f"options['state'] must have shape ({n}, {NX}) (one state per robot), got "
-                                 f"{np.shape(raw)}")
+        if raw is not None:
             states = []
             for i in range(n):
                 if not mask[i]:
@@ -463,18 +489,7 @@ class BoundingVectorEnv(VectorEnv):
                     raise ValueError(f"robot {i}: options['state'] puts a foot {-heights.min():.4g} m below the "
                                      f"ground (at most {_MAX_PENETRATION_AT_RESET} m allowed)")
                 states.append(x)
-        t0 = np.zeros(n)
-        if options.get("time") is not None:
-            t = options["time"]
-            if isinstance(t, numbers.Real) and not isinstance(t, bool):
-                t0[:] = check_positive(t, "options['time']", allow_zero=True)
-            else:
-                arr = np.asarray(t, dtype=np.float64)
-                if arr.shape != (n,):
-                    raise ValueError(f"options['time'] must be a number or have shape ({n},), got {arr.shape}")
-                for i in range(n):
-                    t0[i] = check_positive(float(arr[i]), f"options['time'][{i}]", allow_zero=True)
-        return mask, states, t0
+        return mask, states, np.zeros(n) if times is None else times
 
     def reset(self, *, seed=None, options: dict | None = None):
         """Reset every robot (or those of ``options["reset_mask"]``); see the class docstring.
