@@ -118,7 +118,7 @@ class TaskVectorEnv(VectorEnv):
     runs its three parts ([`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv]'s ``_begin_step``, ``_simulate_step``,
     ``_end_step``) for all robots, the middle one (``frame_skip`` contact-simulation steps, most of the time) for all
     of them in one call of the compiled kernel ([`SimulatorBatch`][hsddp_gym.core.compiled_contact.SimulatorBatch],
-    one call per distinct terrain), the single env's own code for the rest. The transitions are therefore
+    one call per distinct robot, friction and terrain), the single env's own code for the rest. The transitions are therefore
     bit-identical to N single envs ``gym.make(ID)`` in a ``SyncVectorEnv`` (observations, rewards, terminations,
     truncations and the batched info with its masks; ``tests/test_task_vector_env.py``). A robot whose random push
     (``push``) falls in the control step runs its step alone, split at the push, as the single env does.

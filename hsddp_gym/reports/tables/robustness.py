@@ -294,8 +294,11 @@ TASK_RECORD = "robustness/tasks"
 """The tasks' robustness record (``experiments/robustness.py --env ID --record results/robustness/tasks.json``)."""
 TASK_RL_RECORD = "robustness/tasks_rl"
 """The record of the learners that use the plan (residual RL) beside RL from scratch and the expert."""
-TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC", "ppo@residual": "PPO residual on the expert",
-                      "ppo@scratch": "PPO from scratch"}
+TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC",
+                      "ppo@residual_push": "PPO residual, trained under push",
+                      "ppo@residual_obs_noise_s0": "PPO residual, trained under obs. noise, seed 0",
+                      "ppo@residual_obs_noise_s1": "PPO residual, trained under obs. noise, seed 1",
+                      "ppo@scratch_push": "PPO from scratch, trained under push"}
 
 
 def task_robustness(store: Store, tasks: tuple | None, record: str = TASK_RECORD) -> str:
