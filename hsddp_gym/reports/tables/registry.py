@@ -25,7 +25,8 @@ from hsddp_gym.reports.tables.robustness import (
     robustness_tasks_backflip,
     robustness_tasks_jumps,
     robustness_tasks_pronking,
-    robustness_tasks_rl,
+    robustness_tasks_rl_backflip,
+    robustness_tasks_rl_jumps,
     robustness_tasks_transitions,
 )
 from hsddp_gym.reports.tables.speed import (
@@ -90,7 +91,8 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/tasks_backflip": robustness_tasks_backflip,
     "robustness/tasks_jumps": robustness_tasks_jumps,
     "robustness/tasks_transitions": robustness_tasks_transitions,
-    "robustness/tasks_rl": robustness_tasks_rl,
+    "robustness/tasks_rl_backflip": robustness_tasks_rl_backflip,
+    "robustness/tasks_rl_jumps": robustness_tasks_rl_jumps,
 }
 """``{table id: renderer}``."""
 

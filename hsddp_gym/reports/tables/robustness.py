@@ -337,9 +337,19 @@ def task_robustness(store: Store, tasks: tuple | None, record: str = TASK_RECORD
                       source_line(store, record, commands=record != TASK_RECORD)])
 
 
-def robustness_tasks_rl(store: Store) -> str:
-    """The learners that use the plan beside RL from scratch and the expert, per task and condition."""
-    return task_robustness(store, None, TASK_RL_RECORD)
+def robustness_tasks_rl_backflip(store: Store) -> str:
+    """The backflip's learners that use the plan beside RL from scratch and the expert, per condition."""
+    return task_robustness(store, ("backflip",), TASK_RL_RECORD)
+
+
+def robustness_tasks_rl_jumps(store: Store) -> str:
+    """The jumps' learners that use the plan beside RL from scratch and the expert, per condition (the jumps the
+    record holds)."""
+    d = store.data(TASK_RL_RECORD) if TASK_RL_RECORD in store.ids() else {"tasks": {}}
+    jumps = tuple(t for t in ("gap_jump", "box_jump") if t in d["tasks"])
+    if not jumps:
+        return f"No jump in `{TASK_RL_RECORD}` yet."
+    return task_robustness(store, jumps, TASK_RL_RECORD)
 
 
 def robustness_tasks_pronking(store: Store) -> str:
