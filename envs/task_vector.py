@@ -118,10 +118,10 @@ class TaskVectorEnv(VectorEnv):
     runs its three parts ([`BoundingEnv`][hsddp_gym.envs.bounding.BoundingEnv]'s ``_begin_step``, ``_simulate_step``,
     ``_end_step``) for all robots, the middle one (``frame_skip`` contact-simulation steps, most of the time) for all
     of them in one call of the compiled kernel ([`SimulatorBatch`][hsddp_gym.core.compiled_contact.SimulatorBatch],
-    one call per distinct robot, friction and terrain), the single env's own code for the rest. The transitions are therefore
-    bit-identical to N single envs ``gym.make(ID)`` in a ``SyncVectorEnv`` (observations, rewards, terminations,
-    truncations and the batched info with its masks; ``tests/test_task_vector_env.py``). A robot whose random push
-    (``push``) falls in the control step runs its step alone, split at the push, as the single env does.
+    one call per distinct robot, friction and terrain), the single env's own code for the rest. The transitions are
+    therefore bit-identical to N single envs ``gym.make(ID)`` in a ``SyncVectorEnv`` (observations, rewards,
+    terminations, truncations and the batched info with its masks; ``tests/test_task_vector_env.py``). A robot whose
+    random push (``push``) falls in the control step runs its step alone, split at the push, as the single env does.
 
     ``reset(seed=s)`` seeds robot ``i`` with ``s + i`` (a list: one seed per robot), as ``SyncVectorEnv``.
     Autoreset: ``"next_step"`` (default) or ``"same_step"``, as in
@@ -143,8 +143,8 @@ class TaskVectorEnv(VectorEnv):
 
     Spaces: the single env's, batched. Actions ``(num_envs, 4)`` (each row checked and clipped as the single env
     does; another shape, or a row that is not finite, raises ValueError naming ``actions`` (and the robots) before any
-    robot moves). The episode's random pushes are not in ``info`` (as in
-    [`BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv]).
+    robot moves; the row of a robot reset at this step is ignored, as ``SyncVectorEnv`` ignores it). The episode's
+    random pushes are not in ``info`` (as in [`BoundingVectorEnv`][hsddp_gym.envs.vector.BoundingVectorEnv]).
     ``reset(options=...)`` accepts ``"state"`` ((num_envs, 14): one start state per robot, checked by its env),
     ``"time"`` (a float or (num_envs,)) and ``"reset_mask"`` ((num_envs,) bool: reset only those robots).
     [`envs`][TaskVectorEnv.envs] gives the robots' single envs (to read, not to step).
@@ -264,13 +264,13 @@ class TaskVectorEnv(VectorEnv):
         a = real_array(actions, "actions")
         if a.shape != (self.num_envs, NU):
             raise ValueError(f"actions must have shape ({self.num_envs}, {NU}), got {a.shape}")
-        finite = np.isfinite(a).all(axis=1)
-        if not finite.all():  # checked before any robot moves
-            bad = np.flatnonzero(~finite).tolist()
-            raise ValueError(f"actions must be finite: the rows of robots {bad} are not ({a[bad].tolist()})")
         next_step = self.autoreset_mode == AutoresetMode.NEXT_STEP
         envs, batched, impulses = self.envs, self._batched, self._impulses
         resetting = self._autoreset.copy() if next_step else np.zeros(self.num_envs, dtype=np.bool_)
+        finite = np.isfinite(a).all(axis=1) | resetting  # a resetting robot's action is ignored, as SyncVectorEnv does
+        if not finite.all():  # checked before any robot moves
+            bad = np.flatnonzero(~finite).tolist()
+            raise ValueError(f"actions must be finite: the rows of robots {bad} are not ({a[bad].tolist()})")
         batched[:] = False
         for i, env in enumerate(envs):  # the steps' first parts; the robots without a push due run batched
             if resetting[i]:

@@ -43,6 +43,10 @@ def test_the_composition_and_its_checks():
         with pytest.raises(ValueError, match="residual_scale"):
             check_residual_scale(bad)
     assert check_residual_scale(2) == 2.0
+    for bad, message in ((0.5, r"shape \(4,\)"), ([0.1, 0.2], r"shape \(4,\)"), ([0.0, np.nan, 0.0, 0.0], "finite"),
+                         (["a"] * 4, "residual")):
+        with pytest.raises((ValueError, TypeError), match=message):
+            residual_action(np.zeros(4), bad, 0.3)
 
 
 def test_a_zero_residual_is_the_expert_step_for_step():

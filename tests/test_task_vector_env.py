@@ -156,6 +156,9 @@ def test_bad_inputs_raise_naming_the_argument_before_any_robot_moves():
     with pytest.raises(TypeError, match="actions"):
         vec.step([["a"] * 4] * N)
     np.testing.assert_array_equal(np.stack([env.sim.x for env in vec.envs]), states)  # nobody moved
+    vec._autoreset[2] = True  # a robot that resets at this step: its action is ignored, as in SyncVectorEnv
+    vec.step(bad)
+    vec.reset(seed=0)
     with pytest.raises(ValueError, match="reset_mask"):
         vec.reset(options={"reset_mask": np.ones(N + 1, dtype=bool)})
     with pytest.raises(ValueError, match="reset_mask"):

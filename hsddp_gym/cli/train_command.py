@@ -150,8 +150,12 @@ def _check_train(args) -> None:
         if args.vector_env:
             raise UsageError("--residual", "given with --vector-env", "single envs (no --vector-env): the expert acts "
                              "per robot")
-        if args.residual > 2.0:
-            raise UsageError("--residual", f"{args.residual}", "a scale in (0, 2]")
+        from hsddp_gym.learning.residual import check_residual_scale
+
+        try:
+            check_residual_scale(args.residual, "--residual")
+        except ValueError:
+            raise UsageError("--residual", f"{args.residual}", "a scale in (0, 2]") from None
     if args.estimator and args.action_queue:
         raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
                          "queue)", "one of them")

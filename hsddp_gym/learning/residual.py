@@ -25,6 +25,7 @@ import numpy as np
 
 from hsddp_gym.core.conventions import NU
 from hsddp_gym.planners.policies.base import Policy
+from hsddp_gym.util.validation import real_array
 
 RESIDUAL_BASES = ("expert",)
 """The policies a residual can be added to: the task's plan-tracking expert."""
@@ -42,8 +43,14 @@ def check_residual_scale(scale, name: str = "residual_scale") -> float:
 
 
 def residual_action(base_action, residual, scale: float) -> np.ndarray:
-    """The action the env receives: ``clip(base_action + scale * residual, -1, 1)``, float32 (4,)."""
-    a = np.asarray(base_action, dtype=np.float64) + scale * np.clip(np.asarray(residual, dtype=np.float64), -1.0, 1.0)
+    """The action the env receives: ``clip(base_action + scale * clip(residual, -1, 1), -1, 1)``, float32 (4,).
+    ``residual`` must be 4 finite numbers (ValueError naming ``residual`` otherwise: nothing is broadcast)."""
+    r = real_array(residual, "residual").astype(np.float64, copy=False)
+    if r.shape != (NU,):
+        raise ValueError(f"residual must have shape ({NU},), got {r.shape}")
+    if not np.isfinite(r).all():
+        raise ValueError(f"residual must be finite, got {r}")
+    a = np.asarray(base_action, dtype=np.float64) + scale * np.clip(r, -1.0, 1.0)
     return np.clip(a, -1.0, 1.0).astype(np.float32)
 
 
