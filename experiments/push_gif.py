@@ -1,14 +1,19 @@
-"""A side-by-side GIF of one push: the contact-event heuristic (left) and the default HS-DDP MPC (right), same
-seed, same push, from shortly before the push until ``--after`` seconds after it (or the fall).
+"""A side-by-side GIF of one push: two policies (by default the contact-event heuristic, left, and the default
+HS-DDP MPC, right) in one env, same seed, same push, from shortly before the push until ``--after`` seconds after it
+(or the fall).
 
 Each panel is :func:`hsddp_gym.viz.render.render_state` of the episode's states, captioned with the policy, the
 env time and, once it has happened, "FELL". Every ``--stride``-th control step is drawn and the GIF plays in
-real time. The default is a +8 rad/s nose-down push at t = 1.05 s on seed 100, one of the README's push sweep
-(``experiments/push_robustness.py``) where the heuristic falls and the MPC bounds on.
+real time. The default is a +8 rad/s nose-down push at t = 1.05 s on seed 100 of Bounding-v0, one of the README's
+push sweep (``experiments/push_robustness.py``) where the heuristic falls and the MPC bounds on. ``--env`` runs
+another task's env (its ``mpc`` and ``expert``, ``hsddp_gym.rollout.policies.make_policy``), ``--policies`` names
+the two panels' policies.
 
 Usage::
 
     python experiments/push_gif.py --out docs/figures/push_nose_down.gif [--seed 100] [--push 1.05 0 0 8]
+    python experiments/push_gif.py --env hsddp_gym/Backflip-v0 --policies expert mpc --seed 58300 \\
+        --push 0.5 -0.3 0.3 3 --before 0.5 --after 1.2 --stride 4 --out docs/figures/backflip_mpc_push.gif
 """
 
 from __future__ import annotations
@@ -19,19 +24,23 @@ from pathlib import Path
 
 import numpy as np
 
+PANELS = {"heuristic": "contact-event heuristic", "mpc": "HS-DDP MPC", "expert": "plan-tracking expert"}
+"""The policies a panel can show, and their captions."""
 
-def episode_states(policy_name: str, seed: int, push: dict, steps: int) -> tuple[np.ndarray, bool, float]:
-    """``(states (T+1, 14), fell, control period [s])`` of one pushed episode of ``policy_name`` ("heuristic" or
-    "mpc")."""
+
+def episode_states(policy_name: str, seed: int, push: dict, steps: int, env_id: str = "hsddp_gym/Bounding-v0"
+                   ) -> tuple[np.ndarray, bool, float]:
+    """``(states (T+1, 14), fell, control period [s])`` of one pushed episode of ``policy_name`` (a key of
+    [`PANELS`][PANELS]) in ``env_id``."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
     from hsddp_gym.rollout.episodes import run_episode
     from hsddp_gym.rollout.policies import make_policy
 
-    env = gym.make("hsddp_gym/Bounding-v0")
-    policy = make_policy("heuristic" if policy_name == "heuristic" else "mpc", env)
-    res = run_episode(env, policy, seed, options={"push": push}, max_steps=steps)
+    env = gym.make(env_id)
+    policy = make_policy(policy_name, env)
+    res = run_episode(env, policy, seed, options={"push": push}, max_steps=steps)  # with the policy's reset options
     dt = env.unwrapped.dt
     env.close()
     return res.states, res.fell, dt
@@ -46,6 +55,10 @@ def main(argv=None) -> int:
     p.add_argument("--before", type=float, default=0.2, help="seconds shown before the push (default: %(default)s)")
     p.add_argument("--after", type=float, default=1.0, help="seconds shown after the push (default: %(default)s)")
     p.add_argument("--stride", type=int, default=4, help="control steps per frame (default: %(default)s)")
+    p.add_argument("--env", default="hsddp_gym/Bounding-v0", help="the env (a task's env id; default: %(default)s)")
+    p.add_argument("--policies", nargs=2, default=("heuristic", "mpc"), choices=sorted(PANELS),
+                   metavar=("LEFT", "RIGHT"), help=f"the two panels' policies, of {sorted(PANELS)} (default: "
+                                                   "%(default)s)")
     args = p.parse_args(argv)
     t_push = args.push[0]
     if not (0 <= args.before <= t_push):
@@ -59,10 +72,11 @@ def main(argv=None) -> int:
 
     push = {"delta_v": list(args.push[1:]), "time": t_push}
     panels = []
-    for name, label in (("heuristic", "contact-event heuristic"), ("mpc", "HS-DDP MPC")):
+    for name in args.policies:
+        label = PANELS[name]
         steps = int(round((t_push + args.after) / (DEFAULT_FRAME_SKIP * DEFAULT_SIM_TIMESTEP)))
-        states, fell, dt = episode_states(name, args.seed, push, steps)
-        print(f"{label}: {'fell' if fell else 'bounded on'} ({states.shape[0] - 1} steps)", flush=True)
+        states, fell, dt = episode_states(name, args.seed, push, steps, args.env)
+        print(f"{label}: {'fell' if fell else 'did not fall'} ({states.shape[0] - 1} steps)", flush=True)
         panels.append((label, states, fell))
     first = int(round((t_push - args.before) / dt))
     last = int(round((t_push + args.after) / dt))

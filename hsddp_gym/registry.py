@@ -77,6 +77,9 @@ class Task:
         expert_record: what a dataset's metadata says of the expert's options (``PolicySpec.describe``).
         dataset_expert: the policy a dataset of the task is recorded with by default (``"mpc"`` or ``"expert"``).
         terrain_aware_mpc: the task's ``mpc`` is given each episode's terrain (``env_terrain(env)``).
+        motion: the planned motion the task's ``mpc`` re-plans online (a key of
+            [`MOTION_PROBLEMS`][hsddp_gym.planners.motions.references.MOTION_PROBLEMS]; its ``mpc`` is then a
+            [`MotionMPCPolicy`][hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy]), or None: the bounding MPC.
         success_rule: the success rule in words (the env computes ``info["success"]``), or None.
         measures: ``"module:attr"`` of the per-episode measures of the task's evaluation
             ([`hsddp_gym.rollout.measures.Measures`][hsddp_gym.rollout.measures.Measures]), or None.
@@ -103,6 +106,7 @@ class Task:
     expert_record: dict = dataclasses.field(default_factory=dict)
     dataset_expert: str = "expert"
     terrain_aware_mpc: bool = False
+    motion: str | None = None
     success_rule: str | None = None
     measures: str | None = None
     first_seed: int | None = None
@@ -279,7 +283,7 @@ TASKS: dict[str, Task] = {
         success_rule=("no fall (the trunk never touched the ground), a full turn, and at the end upright (pitch within "
                       "0.3 rad of -2 pi, trunk at least 0.15 m high) on both feet and still (trunk speed <= 0.3 m/s, "
                       "pitch rate <= 1 rad/s) (hsddp_gym.envs.backflip.backflip_success)"),
-        measures="hsddp_gym.rollout.measures:FLIP", first_seed=9600, episode_start="standing",
+        measures="hsddp_gym.rollout.measures:FLIP", first_seed=9600, episode_start="standing", motion="backflip",
         push_window=PUSH_WINDOWS["backflip"], push_size=tc.MOTION_PUSH_SIZE),
     "gap_jump": _jump("gap_jump", "hsddp_gym/GapJump-v0", "over a 0.3 m gap"),
     "box_jump": _jump("box_jump", "hsddp_gym/BoxJump-v0", "onto a 0.1 m box"),

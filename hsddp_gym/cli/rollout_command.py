@@ -76,6 +76,7 @@ def add_parser(sub) -> None:
     bounding = TASKS["bounding"]
     no_expert = [t.env_id for t in TASKS.values() if t.expert is None]
     terrain_aware = [t.env_id for t in TASKS.values() if t.terrain_aware_mpc]
+    motions = [t.env_id for t in TASKS.values() if t.motion is not None]
     p = sub.add_parser("rollout", help="run a policy in any registered env for seeded episodes",
                        description="Run --episodes seeded episodes (seeds --seed, --seed+1, ...) of a policy in "
                                    "--env (hsddp_gym/Bounding-v0 by default) with its default reset noise and time "
@@ -85,7 +86,8 @@ def add_parser(sub) -> None:
                                    "policy runs in the env it was trained in (another one only with --transfer).")
     p.add_argument("--policy", default="mpc", metavar="{mpc,expert,heuristic,random,bc:DIR,dagger:DIR,sb3:DIR}",
                    help="mpc: HS-DDP model-predictive control (the bounding MPC; in "
-                        f"{', '.join(terrain_aware)} the terrain-aware MPC, given each episode's terrain); expert: "
+                        f"{', '.join(terrain_aware)} the terrain-aware MPC, given each episode's terrain; in "
+                        f"{', '.join(motions)} the motion's MPC, which re-plans what remains of it); expert: "
                         "the task's HS-DDP plan tracker (in Bounding-v0 it tracks a 5-cycle al-reb plan and its "
                         f"episodes start at the plan's initial state; none in {', '.join(no_expert)}); heuristic: "
                         "the warm-start controller; random: uniform actions; bc:DIR / dagger:DIR / sb3:DIR (or "

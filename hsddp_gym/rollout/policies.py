@@ -32,6 +32,9 @@ LEARNED_LOADERS = {"bc": "hsddp_gym.learning.ensemble:load_mlp_learner",
                    "sac": "hsddp_gym.learning.sb3:load_trained_policy"}
 """The loader of each learned kind (``"module:attr"``): ``load_mlp_learner(run_dirs, interface)`` for the MLP
 learners, ``load_trained_policy(run_dir, env, **options)`` for SB3's."""
+MOTION_MPC = "hsddp_gym.planners.motions.references:motion_mpc_policy"
+"""The factory of the ``mpc`` of a task with a planned motion (``Task.motion``): a
+[`MotionMPCPolicy`][hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy]."""
 CLASSES = {"mpc": "hsddp_gym.planners.policies.mpc:MPCPolicy",
            "heuristic": "hsddp_gym.planners.policies.heuristic:HeuristicPolicy",
            "random": "hsddp_gym.planners.policies.random_policy:RandomPolicy"}
@@ -140,6 +143,9 @@ class PolicySpec:
         d = {"name": self.name, "class": CLASSES.get(self.name, self.name).replace(":", ".")}
         if self.name == "mpc":
             d["options"] = dataclasses.asdict(_mpc_options(self.options))
+            if task.motion is not None:
+                d["class"] = "hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy"
+                d["motion"] = task.motion
             if task.terrain_aware_mpc:
                 d["terrain"] = ("env_terrain(env): the episode's terrain (privileged information), read at every "
                                 "reset")
@@ -159,8 +165,8 @@ def task_policy_spec(name: str, env_id: str | None = None, options: dict | None 
     task = task_of_env_id(env_id or TASKS["bounding"].env_id)
     if name == "expert":
         return PolicySpec("expert", plan_path=plan_path, env_id=None if task is TASKS["bounding"] else task.env_id)
-    return PolicySpec(name, options=dict(options or {}),
-                      env_id=task.env_id if name == "mpc" and task.terrain_aware_mpc else None)
+    own = name == "mpc" and (task.terrain_aware_mpc or task.motion is not None)
+    return PolicySpec(name, options=dict(options or {}), env_id=task.env_id if own else None)
 
 
 def _mpc_options(options):
@@ -210,6 +216,11 @@ def make_policy(spec, env=None, seed: int = 0, interface=None):
         return make_expert(env, solution, task=spec.task)
     cls = resolve(CLASSES[spec.name])
     kwargs = {"seed": int(seed)} if spec.name == "random" else {}
+    if spec.name == "mpc" and spec.task.motion is not None:  # the task's motion, re-planned online
+        from hsddp_gym.planners.policies.base import EnvInterface
+
+        return resolve(MOTION_MPC)(interface if interface is not None else EnvInterface.from_env(env),
+                                   spec.task.motion, _mpc_options(spec.options))
     if spec.name == "mpc":
         from hsddp_gym.planners.policies.mpc import env_terrain
 

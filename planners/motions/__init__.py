@@ -2,7 +2,9 @@
 
 [`problems`][hsddp_gym.planners.motions.problems] builds each motion's phases, references, problem and warm start;
 [`planning`][hsddp_gym.planners.motions.planning] solves them (``plan_pronk``, ``plan_transition``, ``plan_jump``,
-``plan_backflip``, ``plan_motion`` by name, the experts' held plans ``plan_*_held``) and checks every plan's limits.
+``plan_backflip``, ``plan_motion`` by name, the experts' held plans ``plan_*_held``) and checks every plan's limits;
+[`references`][hsddp_gym.planners.motions.references] solves the motions the MPC re-plans online on its grid and
+builds their MPC.
 The constants the envs share are [`hsddp_gym.core.task_constants`][hsddp_gym.core.task_constants]'.
 """
 
@@ -23,6 +25,7 @@ _EXPORTS = {  # module: the public names it defines (or imports from the core's 
         "motion_limits", "plan_backflip", "plan_pronk", "plan_transition", "plan_jump", "plan_motion",
         "plan_backflip_held", "plan_jump_held", "plan_transition_held",
     ),
+    "references": ("MOTION_PROBLEMS", "motion_reference", "motion_mpc_policy"),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -391,6 +391,12 @@ class HybridProblem:
         return HybridProblem(self.dynamics, self.schedule, self.costs, x0, self.constraints, self.restitution,
                              knots=self.knots, terrain=self.terrain)
 
+    def with_constraints(self, constraints: ConstraintSpec) -> HybridProblem:
+        """The same problem under other ``constraints`` (a [`ConstraintSpec`][ConstraintSpec], e.g. a friction
+        margin)."""
+        return HybridProblem(self.dynamics, self.schedule, self.costs, self.x0, constraints, self.restitution,
+                             knots=self.knots, terrain=self.terrain)
+
     def sub_problem(self, start: int, stop: int, x0: np.ndarray | None = None) -> HybridProblem:
         """Phases ``start`` to ``stop - 1`` as a problem of their own: the same dynamics, costs, constraints and
         knots; the mode entered after phase ``stop - 1`` is its final mode, so a touchdown there keeps its switching

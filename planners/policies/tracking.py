@@ -140,6 +140,12 @@ class PlanTracker:
                     self.finished = True
         self._loop()
 
+    def carry_evidence(self, other: PlanTracker) -> None:
+        """Start this tracker's first phase with the touchdown evidence ``other`` holds for its current phase (a
+        re-plan that begins in the phase ``other``'s cursor is in: a foot seen clear before it still counts)."""
+        self._phase_seen = self.phase
+        self._seen = list(other._seen) if other._phase_seen == other.phase else [False, False]
+
     def advance(self, dt: float) -> None:
         """Move the cursor by ``dt`` seconds of plan time (waiting before touchdowns, returning to ``loop_phase`` at
         the end of the cycle when it is set)."""

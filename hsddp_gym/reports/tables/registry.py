@@ -15,6 +15,7 @@ from hsddp_gym.reports.tables.learned import learning_imitation, policies_protoc
 from hsddp_gym.reports.tables.paper import paper_sto_periodic, paper_sto_variants, paper_task1
 from hsddp_gym.reports.tables.physics import env_physics
 from hsddp_gym.reports.tables.robustness import (
+    robustness_backflip_mpc,
     robustness_contact_models,
     robustness_generality,
     robustness_generality_summary,
@@ -93,6 +94,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/tasks_transitions": robustness_tasks_transitions,
     "robustness/tasks_rl_backflip": robustness_tasks_rl_backflip,
     "robustness/tasks_rl_jumps": robustness_tasks_rl_jumps,
+    "robustness/backflip_mpc": robustness_backflip_mpc,
 }
 """``{table id: renderer}``."""
 

@@ -294,7 +294,10 @@ TASK_RECORD = "robustness/tasks"
 """The tasks' robustness record (``experiments/robustness.py --env ID --record results/robustness/tasks.json``)."""
 TASK_RL_RECORD = "robustness/tasks_rl"
 """The record of the learners that use the plan (residual RL) beside RL from scratch and the expert."""
-TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC",
+BACKFLIP_MPC_RECORD = "robustness/backflip_mpc"
+"""The backflip's MPC beside its plan-tracking expert, the same seeds (the MPC with fixed and with online landing
+timing)."""
+TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC", "mpc-retimed": "MPC, online landing timing",
                       "ppo@residual_push": "PPO residual, trained under push",
                       "ppo@residual_obs_noise_s0": "PPO residual, trained under obs. noise, seed 0",
                       "ppo@residual_obs_noise_s1": "PPO residual, trained under obs. noise, seed 1",
@@ -350,6 +353,11 @@ def robustness_tasks_rl_jumps(store: Store) -> str:
     if not jumps:
         return f"No jump in `{TASK_RL_RECORD}` yet."
     return task_robustness(store, jumps, TASK_RL_RECORD)
+
+
+def robustness_backflip_mpc(store: Store) -> str:
+    """The backflip's MPC (fixed and online timing of the landing) beside its plan-tracking expert, per condition."""
+    return task_robustness(store, ("backflip",), BACKFLIP_MPC_RECORD)
 
 
 def robustness_tasks_pronking(store: Store) -> str:

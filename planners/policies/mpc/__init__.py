@@ -11,6 +11,8 @@ the planner (HS-DDP re-plans, warm starts, restarts);
 * [`law`][hsddp_gym.planners.policies.mpc.law]: the policy between re-plans (the latest plan's feedback law);
 * [`speed`][hsddp_gym.planners.policies.mpc.speed], [`ground`][hsddp_gym.planners.policies.mpc.ground]: the speed
 reference and the ground the plans stand on;
+* [`motion`][hsddp_gym.planners.policies.mpc.motion]: the MPC of a planned motion (the backflip), the same parts on
+  what remains of the motion;
 * [`options`][hsddp_gym.planners.policies.mpc.options]:
 [`MPCOptions`][hsddp_gym.planners.policies.mpc.options.MPCOptions]. """
 
@@ -21,8 +23,9 @@ _EXPORTS = {  # module: the public names it defines
     "clock": ("CYCLE", "DOUBLE_STANCE_PHASE", "GaitClock", "stance_elapsed"),
     "ground": ("GroundModel", "env_terrain"),
     "law": ("FeedbackLaw",),
-    "options": ("EstimatorOptions", "FAST_BOUNDING_DURATIONS", "MPCOptions", "PlanOptions", "ReplanOptions",
-                "ScheduleOptions", "SpeedOptions"),
+    "motion": ("MotionMPCPolicy", "MotionReference"),
+    "options": ("EstimatorOptions", "FAST_BOUNDING_DURATIONS", "MPCOptions", "MotionOptions", "PlanOptions",
+                "ReplanOptions", "ScheduleOptions", "SpeedOptions"),
     "planner": ("MPCPlanner", "Plan"),
     "schedule": ("ContactScheduleEstimator", "late_landing"),
     "speed": ("SpeedReference",),

@@ -199,8 +199,34 @@ class EstimatorOptions:
         check_int(self.delay_search, "delay_search", minimum=0)
 
 
+@dataclasses.dataclass(frozen=True)
+class MotionOptions:
+    """The MPC of a planned motion ([`MotionMPCPolicy`][hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy]; the
+    bounding MPC does not use them).
+
+    Attributes:
+        retime: a flight's time left from the ballistic centre of mass
+            ([`flight_time_to_go`][hsddp_gym.planners.policies.mpc.motion.flight_time_to_go]); False (the default,
+            measured the more robust on the backflip): its nominal duration less the time spent in it (fixed timing;
+            the landing itself is the contacts' either way).
+        hold_horizon: the least planned duration [s] of the motion's last phase (after the motion, the plans hold its
+            final reference).
+        max_flight_stretch: a retimed flight lasts at most this many times its nominal duration.
+    """
+
+    retime: bool = False
+    hold_horizon: float = 0.25
+    max_flight_stretch: float = 2.0
+
+    def __post_init__(self) -> None:
+        _check_bool(self.retime, "retime")
+        check_positive(self.hold_horizon, "hold_horizon")
+        if not check_positive(self.max_flight_stretch, "max_flight_stretch") >= 1.0:
+            raise ValueError(f"max_flight_stretch must be >= 1, got {self.max_flight_stretch!r}")
+
+
 GROUPS = {"plan": PlanOptions, "replan": ReplanOptions, "speed": SpeedOptions, "schedule": ScheduleOptions,
-          "estimator": EstimatorOptions}
+          "estimator": EstimatorOptions, "motion": MotionOptions}
 """The option groups by their field name in [`MPCOptions`][MPCOptions]."""
 
 
@@ -215,6 +241,7 @@ class MPCOptions:
         speed: [`SpeedOptions`][SpeedOptions], the plans' speed reference.
         schedule: [`ScheduleOptions`][ScheduleOptions], the contact-schedule estimator.
         estimator: [`EstimatorOptions`][EstimatorOptions], the state estimator.
+        motion: [`MotionOptions`][MotionOptions], the MPC of a planned motion.
         min_stance_force: the least normal force [N] every planned stance foot must push with, the torques projected
             onto that set (None: the feedback law's torques as they are).
 
@@ -227,6 +254,7 @@ class MPCOptions:
     speed: SpeedOptions = SpeedOptions()
     schedule: ScheduleOptions = ScheduleOptions()
     estimator: EstimatorOptions = EstimatorOptions()
+    motion: MotionOptions = MotionOptions()
     min_stance_force: float | None = 0.0
 
     def __post_init__(self) -> None:
@@ -326,6 +354,9 @@ FLAT_FIELDS = {
     "filter_acceleration_noise": ("estimator", "acceleration_noise"),
     "filter_innovation_gate": ("estimator", "innovation_gate"), "filter_restart_steps": ("estimator", "restart_steps"),
     "bias_memory": ("estimator", "bias_memory"), "delay_search": ("estimator", "delay_search"),
+    # motion
+    "retime": ("motion", "retime"), "hold_horizon": ("motion", "hold_horizon"),
+    "max_flight_stretch": ("motion", "max_flight_stretch"),
     # the feedback law
     "min_stance_force": (None, "min_stance_force"),
 }

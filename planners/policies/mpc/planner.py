@@ -29,6 +29,7 @@ import numpy as np
 from hsddp_gym.core.conventions import NU
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.objective import ConstraintState
 from hsddp_gym.planners.optimizer.problem import ConstraintSpec, HybridProblem
@@ -100,6 +101,22 @@ class MPCPlanner:
         params = self.dynamics.robot.params
         self.constraints = None if plan.friction is None else ConstraintSpec(torque_limit=params.torque_limit,
                                                                              friction=plan.friction)
+        self.touchdown = None
+        """The touchdown rule of the plans' trackers (None: every contact flag counts)."""
+        self.sigma_max = SIGMA_MAX
+        """The cap of the AL penalty a warm-started re-plan starts with."""
+        self.barrier = None
+        """The relaxed barriers' ``(delta_torque, delta_grf, eps_torque, eps_grf)`` in every warm-started re-plan (None:
+        [`REB_DELTA`][REB_DELTA] and [`REB_EPS`][REB_EPS])."""
+        """The cap of the AL penalty a warm-started re-plan starts with."""
+        self.hold = 1
+        """Knots per control period the plans' feedback laws hold their control over (1: per-knot gains, the
+        bound's; above 1: [`held_input_gains`][hsddp_gym.planners.optimizer.hold.held_input_gains] and
+        [`held_feedforward`][hsddp_gym.planners.optimizer.hold.held_feedforward])."""
+        self.cold_start = None
+        """None, or a function ``problem -> (U (N, 4), X (N+1, 14) or None, K (N, 4, 14) or None)``: the guess a plan
+        from scratch starts from, with the feedback law of its first rollout when ``X`` and ``K`` are given (default:
+        the bounding heuristic's rollout's controls)."""
         self._warm_controller = HeuristicBoundingController(
             gains=HeuristicGains(speed=target_speed, kd=(WARM_START_KD,) * 4), height_offset=plan.height_offset)
         self.reset()
@@ -130,12 +147,19 @@ class MPCPlanner:
         """A plan of ``schedule`` from ``x`` (14,) (see [`problem`][problem]), warm-started from ``previous`` (its
         tracker's cursor is now); ``feedback``: a feedback re-plan, solved further when warm-started. None when it
         fails (counted in `stats`, the reason in `last_failure`)."""
+        return self.solve(self.problem(x, schedule, speed, height), x, previous, feedback)
+
+    def solve(self, problem: HybridProblem, x: np.ndarray, previous: Plan | None, feedback: bool = False
+              ) -> Plan | None:
+        """A plan of ``problem`` (from ``x`` (14,)), warm-started from ``previous`` shifted onto it (its tracker's
+        cursor is now; None or a plan that does not cover the problem: from scratch, ``cold_start``);
+        ``feedback``: a feedback re-plan, solved further when warm-started. None when it fails (counted in `stats`,
+        the reason in `last_failure`)."""
         o = self.replan_options
         t0 = time.perf_counter()
-        problem = self.problem(x, schedule, speed, height)
         try:
             ws = None if previous is None else shift_plan(problem, x, previous.tracker, previous.solution,
-                                                          previous.multipliers)
+                                                          previous.multipliers, previous.problem)
         except ValueError:
             ws = None
         cold = ws is None
@@ -165,13 +189,18 @@ class MPCPlanner:
             # when a restart from scratch was kept: its multipliers are this state's updates too)
             cs = cs.copy()
             cs.lam = ws[3].copy()
-            cs.sigma = min(self._cs.sigma, SIGMA_MAX)
+            cs.sigma = min(self._cs.sigma, self.sigma_max)
         self._cs = cs
         self.stats["replans"] += 1
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
         self.stats["solve_ms"].append(1e3 * (time.perf_counter() - t0))
         self.stats["iterations"].append(sol.ddp_iterations)
-        return Plan(PlanTracker.from_solution(sol, problem), sol, problem, cs.lam.copy() if cs is not None else None)
+        law = sol
+        if self.hold > 1:  # the law of a control held over the control period (the solver just made sol)
+            law = dataclasses.replace(sol, K=held_input_gains(self._solver, problem, self.hold),
+                                      U=held_feedforward(sol.U, problem.phase_start, self.hold))
+        return Plan(PlanTracker.from_solution(law, problem, touchdown=self.touchdown), sol, problem,
+                    cs.lam.copy() if cs is not None else None)
 
     def _solve(self, problem: HybridProblem, ws) -> Solution:
         """Solve from the shifted plan ``ws`` (``(U, X, K, lam)``), most informed first: with its feedback law, then
@@ -181,22 +210,28 @@ class MPCPlanner:
             cs = self._cs.copy() if self._cs is not None else None
             if cs is not None:
                 cs.lam = lam
-                cs.sigma = min(cs.sigma, SIGMA_MAX)
-                cs.delta_torque = cs.delta_grf = REB_DELTA
-                cs.eps_torque = cs.eps_grf = REB_EPS
+                cs.sigma = min(cs.sigma, self.sigma_max)
+                if self.barrier is None:
+                    cs.delta_torque = cs.delta_grf = REB_DELTA
+                    cs.eps_torque = cs.eps_grf = REB_EPS
+                else:
+                    cs.delta_torque, cs.delta_grf, cs.eps_torque, cs.eps_grf = self.barrier
             U = np.clip(U, -self.torque_limit, self.torque_limit)
             for X_init, K_init in ((X, K), (None, None)):
                 try:
                     return self._solver.solve(problem, U, X_init=X_init, K_init=K_init, constraint_state=cs)
                 except ValueError:
                     pass
-        return self._solver.solve(problem, self._cold_controls(problem))
+        return self._solver.solve(problem, *self._cold_start(problem))
 
-    def _cold_controls(self, problem: HybridProblem) -> np.ndarray:
-        """Controls ``(N, 4)`` to solve ``problem`` from scratch: the warm-start heuristic's rollout, or zero torques
-        if that rollout diverges from this state."""
+    def _cold_start(self, problem: HybridProblem) -> tuple:
+        """``(U (N, 4), X_init, K_init)`` to solve ``problem`` from scratch: ``cold_start(problem)`` when set, else the
+        warm-start heuristic's rollout's controls (zero torques if that rollout diverges from this state), no
+        feedback law."""
         from hsddp_gym.core.rollout import rollout
 
+        if self.cold_start is not None:
+            return self.cold_start(problem)
         ctrl = self._warm_controller.as_schedule_controller(problem.schedule)
         try:
             # the planner's dynamics do not depend on the ground's height: the heuristic acts from its level
@@ -204,8 +239,8 @@ class MPCPlanner:
         except RuntimeError:
             traj = None
         if traj is None or not traj.is_finite or traj.U.shape[0] != problem.n_knots:
-            return np.zeros((problem.n_knots, NU))
-        return traj.U
+            return np.zeros((problem.n_knots, NU)), None, None
+        return traj.U, None, None
 
     def _restart(self, problem: HybridProblem, sol: Solution) -> Solution:
         """Solve ``problem`` again from scratch after the warm-started ``sol`` ended far above the previous plan's
@@ -219,7 +254,7 @@ class MPCPlanner:
                                        time_limit=self.replan_options.time_budget,
                                        max_al_iterations=WARM_UP_AL_ITERATIONS)
         try:
-            fresh = solver.solve(problem, self._cold_controls(problem))
+            fresh = solver.solve(problem, *self._cold_start(problem))
         except ValueError:
             return sol
         if (fresh.status != "diverged" and np.all(np.isfinite(fresh.X)) and np.all(np.isfinite(fresh.K))

@@ -1,0 +1,319 @@
+"""The MPC of a planned motion (planners/policies/mpc/motion.py): what remains of the motion as a problem, the flight's
+timing from the ballistic centre of mass, the planner's held laws and barriers, the multipliers of simultaneous
+touchdowns carried by the warm start, and the policy in the backflip env."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import hsddp_gym  # noqa: F401  (registers the envs)
+from hsddp_gym.core.conventions import NQ, NX, Mode
+from hsddp_gym.planners.motions.references import motion_mpc_policy, motion_reference
+from hsddp_gym.planners.optimizer.hold import held_input_gains
+from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.mpc import MotionOptions, MPCOptions
+from hsddp_gym.planners.policies.mpc.motion import (
+    GRF_RELAXATION,
+    MotionMPCPolicy,
+    MotionReference,
+    com_state,
+    flight_time_to_go,
+    held_knots,
+    reference_knots,
+    remaining_problem,
+)
+from hsddp_gym.planners.policies.mpc.warm_start import shift_plan
+from hsddp_gym.planners.policies.touchdown import FootClearance
+from hsddp_gym.planners.policies.tracking import PlanTracker
+from hsddp_gym.rollout.policies import PolicySpec, make_policy, task_policy_spec
+
+DT = MPCOptions().plan.planner_dt
+FLIGHT = 2  # the backflip's phases: push (double stance), take-off (back stance), flight, landing (double stance)
+LANDING = 3
+
+
+FRICTION = MPCOptions().plan.friction
+
+
+@pytest.fixture(scope="module")
+def reference() -> MotionReference:
+    return motion_reference("backflip", DT, 2, FRICTION)
+
+
+@pytest.fixture(scope="module")
+def interface() -> EnvInterface:
+    env = gym.make("hsddp_gym/Backflip-v0")
+    out = EnvInterface.from_env(env)
+    env.close()
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- the reference
+def test_reference_flips_and_lands_on_both_feet(reference):
+    sol, pb = reference.solution, reference.problem
+    assert sol.converged
+    assert sol.X[-1, 2] == pytest.approx(-2.0 * np.pi, abs=0.1)
+    # the flight ends in a touchdown of both feet: two switching-constraint rows in its phase
+    assert list(pb.switch_phase).count(FLIGHT) == 2
+    assert np.isfinite(reference.touchdown_com_height[FLIGHT])
+    assert np.isnan(reference.touchdown_com_height[[0, 1, LANDING]]).all()
+
+
+def test_flight_time_to_go_is_the_ballistic_time_left_of_the_reference_flight(reference):
+    """Over the reference's own flight, the time left predicted from the centre of mass is the time the plan has
+    left, to the discretization (the centre of mass of a robot in flight is ballistic; the plan's semi-implicit Euler
+    steps put it lower by about ``g h T / 2``, a few knots of time)."""
+    pb, sol = reference.problem, reference.solution
+    robot = pb.dynamics.robot
+    a, b = int(pb.phase_start[FLIGHT]), int(pb.phase_start[FLIGHT + 1])
+    z_td = float(reference.touchdown_com_height[FLIGHT])
+    for k in range(a, b, 16):
+        z, vz = com_state(robot, sol.X[k])
+        left = flight_time_to_go(z, vz, z_td, robot.params.gravity)
+        assert left == pytest.approx((b - k) * pb.dt, abs=3 * pb.dt)
+
+
+def test_flight_time_to_go_cases():
+    g = 9.81
+    assert flight_time_to_go(1.0, 0.0, 1.0, g) == pytest.approx(0.0)
+    assert flight_time_to_go(1.0, 2.0, 1.0, g) == pytest.approx(2 * 2.0 / g)  # up and back down
+    assert flight_time_to_go(0.5, 0.1, 1.0, g) == 0.0  # below the touchdown height, cannot rise to it
+    assert flight_time_to_go(1.0, -1.0, 0.5, g) == pytest.approx((-1.0 + np.sqrt(1.0 + 2 * g * 0.5)) / g)
+
+
+def test_com_state_checks_the_state(reference):
+    with pytest.raises(ValueError, match="x"):
+        com_state(reference.problem.dynamics.robot, np.zeros(NQ))
+
+
+# ---------------------------------------------------------------------------------------------- what remains
+def test_remaining_problem_keeps_the_phases_left_and_their_references(reference):
+    ref = reference.problem
+    x = reference.solution.X[int(ref.phase_start[1]) + 8].copy()
+    pb = remaining_problem(reference, 1, 0.07, x, last_duration=0.4, elapsed=0.03)
+    assert [m.name for m in pb.schedule.modes] == [m.name for m in ref.schedule.modes[1:]]
+    assert pb.schedule.final_mode == ref.schedule.final_mode
+    assert pb.schedule.durations[0] == pytest.approx(0.07)
+    assert pb.schedule.durations[-1] == pytest.approx(0.4)
+    assert pb.schedule.durations[1] == pytest.approx(ref.schedule.durations[FLIGHT])
+    assert pb.knots.tolist() == [28, int(ref.knots[FLIGHT]), 160]
+    np.testing.assert_array_equal(pb.x0, x)
+    # the running references are the reference's trajectory at the same point of the motion: 30 ms into the
+    # take-off for the first knot, the flight's first knot for the flight's
+    first, take_off = reference.solution.X[int(ref.phase_start[1]) + 12], reference.solution.X[int(ref.phase_start[2])]
+    np.testing.assert_array_equal(pb.XR[0, 1:], first[1:])
+    np.testing.assert_array_equal(pb.XR[pb.phase_start[1], 1:], take_off[1:])
+    assert pb.XR[0, 0] == pytest.approx(x[0])  # the trunk x of the references is moved to the state's
+    assert pb.XR[pb.phase_start[1], 0] - pb.XR[0, 0] == pytest.approx(take_off[0] - first[0])
+    np.testing.assert_array_equal(pb.YR[0], reference.solution.GRF[int(ref.phase_start[1]) + 12])
+    # the terminal references stay the phases' own
+    np.testing.assert_array_equal(pb.XF, ref.XF[1:])
+
+
+def test_a_retimed_flight_follows_the_reference_flight_by_its_fraction(reference):
+    ref = reference.problem
+    n_flight = int(ref.knots[FLIGHT])
+    x = reference.solution.X[int(ref.phase_start[FLIGHT])]
+    T = float(ref.schedule.durations[FLIGHT])
+    half = remaining_problem(reference, FLIGHT, 0.25 * T, x, elapsed=0.5 * T)  # half gone, half the rest left
+    idx = reference_knots(reference, FLIGHT, 0.5 * T, half)
+    a = int(ref.phase_start[FLIGHT])
+    flight = idx[:half.phase_start[1]]
+    assert flight[0] == a + n_flight // 2
+    assert flight[-1] >= a + n_flight - 3 and flight[-1] < a + n_flight
+    assert np.all(np.diff(flight) >= 1)  # twice as fast: the reference's knots at every other knot or more
+    # the last phase beyond its nominal end holds the reference's last knot
+    longer = remaining_problem(reference, LANDING, 0.5, reference.solution.X[-1], elapsed=0.1)
+    tail = reference_knots(reference, LANDING, 0.1, longer)
+    assert tail[-1] == reference.problem.n_knots - 1
+    assert tail[0] == int(ref.phase_start[LANDING]) + 40
+
+
+@pytest.mark.parametrize("kwargs, match", [({"phase": 4}, "phase"), ({"duration": 0.0}, "duration"),
+                                           ({"last_duration": -1.0}, "last_duration")])
+def test_remaining_problem_rejects_bad_arguments(reference, kwargs, match):
+    args = {"phase": 1, "duration": 0.05, "x": reference.problem.x0, "last_duration": None}
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=match):
+        remaining_problem(reference, **args)
+
+
+# ---------------------------------------------------------------------------------------------- the warm start
+def test_the_warm_start_keeps_the_multipliers_of_each_landing_foot(reference):
+    """The flight lands both feet: its two switching-constraint rows keep their own multipliers when the reference
+    is shifted onto what remains of the motion from the take-off."""
+    ref, sol = reference.problem, reference.solution
+    lam = np.arange(1.0, ref.n_switching + 1.0)  # a distinct value per row
+    tracker = reference.tracker(1, 0.0)
+    pb = remaining_problem(reference, 1, float(ref.schedule.durations[1]), sol.X[int(ref.phase_start[1])])
+    U, X, K, out = shift_plan(pb, pb.x0, tracker, sol, lam, ref)
+    assert out.shape == (pb.n_switching,)
+    for r, (j, f) in enumerate(zip(pb.switch_phase, pb.switch_foot)):
+        source = [i for i, (p, g) in enumerate(zip(ref.switch_phase, ref.switch_foot)) if p == j + 1 and g == f]
+        assert out[r] == lam[source[0]]
+    np.testing.assert_array_equal(U, sol.U[int(ref.phase_start[1]):])
+
+
+def test_carry_evidence_keeps_a_foot_seen_clear_in_the_same_phase(reference):
+    old = reference.tracker(FLIGHT, 0.1, touchdown=FootClearance())
+    x = reference.solution.X[int(reference.problem.phase_start[FLIGHT]) + 40]
+    old.sync(Mode.FLIGHT, x)
+    assert old._seen == [True, True]
+    new = reference.tracker(0, 0.0, touchdown=FootClearance())
+    new.carry_evidence(old)
+    assert new._seen == [True, True]
+    old.phase = LANDING  # a cursor that has moved on: its evidence is of another phase
+    newer = reference.tracker(0, 0.0, touchdown=FootClearance())
+    newer.carry_evidence(old)
+    assert newer._seen == [False, False]
+
+
+# ---------------------------------------------------------------------------------------------- the policy
+@pytest.fixture
+def policy(interface) -> MotionMPCPolicy:
+    return motion_mpc_policy(interface, "backflip")
+
+
+def test_the_plans_act_with_held_laws_and_the_references_barriers(policy, reference):
+    assert policy.hold == 2 and policy.planner.hold == 2
+    c = policy.reference.constraint_state
+    assert c.delta_grf < GRF_RELAXATION
+    assert policy.planner.barrier == (c.delta_torque, GRF_RELAXATION, c.eps_torque, c.eps_grf)
+    assert policy.reference.problem.constraints.friction == FRICTION  # the plans' friction margin
+    assert policy.law.pushing.friction == FRICTION
+    x = reference.solution.X[int(reference.problem.phase_start[1]) + 4].copy()
+    policy.phase, policy._phase_time = 1, 4 * DT
+    policy.law.plan.tracker.phase, policy.law.plan.tracker.local_time = 1, 4 * DT
+    assert policy.replan(x)
+    plan = policy.law.plan
+    np.testing.assert_array_equal(plan.tracker.K, held_input_gains(policy.planner._solver, plan.problem, 2))
+    assert not np.array_equal(plan.tracker.K, plan.solution.K)  # the warm starts keep the per-knot gains
+
+
+def test_a_stance_plan_starts_with_its_feet_still(policy, reference):
+    """Planned from a landing whose feet still move, a double stance starts from the state after the touchdown's
+    impact (its feet held from the first knot), not from one whose held feet would drift."""
+    x = reference.solution.X_pre[FLIGHT].copy()
+    x[NQ + 3:] += np.array([2.0, -3.0, 1.5, 2.5])  # the legs swing on
+    robot = policy.robot
+    assert np.abs(robot.foot_velocities(x)).max() > 0.3
+    policy.phase, policy._phase_time = LANDING, 0.0
+    policy.law.plan = dataclasses.replace(policy.law.plan, tracker=reference.tracker(LANDING, 0.0, law=True))
+    assert policy.replan(x)
+    x0 = policy.law.plan.problem.x0
+    np.testing.assert_allclose(robot.foot_velocities(x0), 0.0, atol=1e-9)
+    np.testing.assert_array_equal(x0[:NQ], x[:NQ])
+
+
+def test_no_landing_is_counted_early_in_a_flight(policy):
+    flight = float(policy.reference.problem.schedule.durations[FLIGHT])
+    policy.phase = FLIGHT
+    policy._phase_time = 0.2 * flight
+    assert policy._in_early_flight()
+    policy._phase_time = 0.5 * flight
+    assert not policy._in_early_flight()
+    policy.phase = LANDING
+    policy._phase_time = 0.0
+    assert not policy._in_early_flight()
+
+
+def test_online_timing_is_an_mpc_option(interface):
+    assert MPCOptions().motion.retime is False  # fixed timing by default
+    options = MPCOptions().replace(retime=True)
+    assert options.motion == MotionOptions(retime=True)
+    assert motion_mpc_policy(interface, "backflip", options).motion_options.retime is True
+    assert MPCOptions.from_record({"motion": {"retime": True}}) == options
+
+
+def test_policy_rejects_bad_arguments(interface, reference):
+    with pytest.raises(ValueError, match="name"):
+        motion_mpc_policy(interface, "cartwheel")
+    with pytest.raises(ValueError, match="planner_dt"):
+        motion_mpc_policy(interface, "backflip", MPCOptions().replace(planner_dt=0.003))
+    with pytest.raises(ValueError, match="planner_dt"):
+        held_knots(0.005, 0.002)
+    assert held_knots(0.005, 0.00125) == 4
+    with pytest.raises(TypeError, match="options"):
+        motion_mpc_policy(interface, "backflip", {"retime": False})
+    with pytest.raises(TypeError, match="reference"):
+        MotionMPCPolicy(interface, "backflip")
+    with pytest.raises(ValueError, match="grid"):  # a reference of another grid
+        MotionMPCPolicy(interface, reference, MPCOptions().replace(planner_dt=0.00125))
+    with pytest.raises(TypeError, match="retime"):
+        MotionOptions(retime="no")
+    with pytest.raises(ValueError, match="max_flight_stretch"):
+        MotionOptions(max_flight_stretch=0.5)
+
+
+def _actions(env, policy, steps: int, seed: int) -> np.ndarray:
+    obs, _ = env.reset(seed=seed)
+    policy.reset()
+    out = []
+    for _ in range(steps):
+        a = policy.act(obs)
+        out.append(a)
+        obs, _, term, trunc, _ = env.step(a)
+        if term or trunc:
+            break
+    return np.array(out)
+
+
+def test_the_policy_is_deterministic(policy):
+    env = gym.make("hsddp_gym/Backflip-v0")
+    a = _actions(env, policy, 30, 3)
+    b = _actions(env, policy, 30, 3)
+    np.testing.assert_array_equal(a, b)
+    assert policy.stats["replans"] >= 30 // 4
+    env.close()
+
+
+def test_the_mpc_flips_from_the_plans_start():
+    """From the reference's start (no reset noise), the MPC turns the robot over and lands it on its feet."""
+    env = gym.make("hsddp_gym/Backflip-v0", reset_noise_scale=0.0)
+    policy = make_policy("mpc", env)
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    info = {}
+    while True:
+        obs, _, term, trunc, info = env.step(policy.act(obs))
+        if term or trunc:
+            break
+    assert info["success"], info
+    assert policy.stats["planner_failures"] == 0
+    assert policy.stats["phase_replans"] == 3  # take-off, flight, landing
+    env.close()
+
+
+def test_the_backflip_tasks_mpc_is_the_motion_mpc():
+    env = gym.make("hsddp_gym/Backflip-v0")
+    policy = make_policy("mpc", env)
+    assert isinstance(policy, MotionMPCPolicy) and policy.motion == "backflip"
+    assert policy.reference is motion_reference("backflip", DT, 2, FRICTION)  # solved once per process
+    spec = task_policy_spec("mpc", "hsddp_gym/Backflip-v0")
+    assert spec.env_id == "hsddp_gym/Backflip-v0"
+    described = spec.describe()
+    assert described["class"].endswith("MotionMPCPolicy") and described["motion"] == "backflip"
+    assert not isinstance(make_policy(PolicySpec("mpc"), gym.make("hsddp_gym/Bounding-v0")), MotionMPCPolicy)
+    env.close()
+
+
+def test_shapes_of_the_reference(reference):
+    assert reference.solution.X.shape == (reference.problem.n_knots + 1, NX)
+    assert reference.law.K.shape == reference.solution.K.shape
+    assert isinstance(reference.tracker(0, 0.0), PlanTracker)
+
+
+def test_a_dataset_of_the_backflip_mpc_records_it(tmp_path):
+    from hsddp_gym.datasets.generation import generate_dataset
+
+    result = generate_dataset("mpc", 1, tmp_path / "flip", seed=58400, env_id="hsddp_gym/Backflip-v0",
+                              max_episode_steps=40, progress=False)
+    meta = result.metadata
+    assert result.total_steps == 40
+    assert meta["policy"]["class"] == "hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy"
+    assert meta["policy"]["motion"] == "backflip"
+    assert meta["policy"]["options"]["motion"]["retime"] is False
