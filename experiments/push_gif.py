@@ -1,19 +1,19 @@
 """A side-by-side GIF of one push: two policies (by default the contact-event heuristic, left, and the default
-HS-DDP MPC, right) in one env, same seed, same push, from shortly before the push until ``--after`` seconds after it
-(or the fall).
+HS-DDP MPC, right; or one) in one env, same seed, same push, from shortly before the push until ``--after`` seconds
+after it (or the fall).
 
 Each panel is :func:`hsddp_gym.viz.render.render_state` of the episode's states, captioned with the policy, the
 env time and, once it has happened, "FELL". Every ``--stride``-th control step is drawn and the GIF plays in
 real time. The default is a +8 rad/s nose-down push at t = 1.05 s on seed 100 of Bounding-v0, one of the README's
 push sweep (``experiments/push_robustness.py``) where the heuristic falls and the MPC bounds on. ``--env`` runs
 another task's env (its ``mpc`` and ``expert``, ``hsddp_gym.rollout.policies.make_policy``), ``--policies`` names
-the two panels' policies.
+the panels' policies.
 
 Usage::
 
     python experiments/push_gif.py --out docs/figures/push_nose_down.gif [--seed 100] [--push 1.05 0 0 8]
-    python experiments/push_gif.py --env hsddp_gym/Backflip-v0 --policies expert mpc --seed 58300 \\
-        --push 0.5 -0.3 0.3 3 --before 0.5 --after 1.2 --stride 4 --out docs/figures/backflip_mpc_push.gif
+    python experiments/push_gif.py --env hsddp_gym/Backflip-v0 --policies mpc --seed 58300 --push 0.5 0.4 0.4 3 \\
+        --before 0.1 --after 0.8 --stride 10 --out docs/figures/backflip_mpc_push.gif
 """
 
 from __future__ import annotations
@@ -56,10 +56,12 @@ def main(argv=None) -> int:
     p.add_argument("--after", type=float, default=1.0, help="seconds shown after the push (default: %(default)s)")
     p.add_argument("--stride", type=int, default=4, help="control steps per frame (default: %(default)s)")
     p.add_argument("--env", default="hsddp_gym/Bounding-v0", help="the env (a task's env id; default: %(default)s)")
-    p.add_argument("--policies", nargs=2, default=("heuristic", "mpc"), choices=sorted(PANELS),
-                   metavar=("LEFT", "RIGHT"), help=f"the two panels' policies, of {sorted(PANELS)} (default: "
-                                                   "%(default)s)")
+    p.add_argument("--policies", nargs="+", default=("heuristic", "mpc"), choices=sorted(PANELS), metavar="POLICY",
+                   help=f"the panels' policies, one or two of {sorted(PANELS)}, left to right (default: "
+                        "%(default)s)")
     args = p.parse_args(argv)
+    if len(args.policies) > 2:
+        p.error(f"--policies takes one or two policies, got {len(args.policies)}")
     t_push = args.push[0]
     if not (0 <= args.before <= t_push):
         p.error(f"--before must be in [0, push time {t_push}], got {args.before}")

@@ -317,3 +317,37 @@ def test_a_dataset_of_the_backflip_mpc_records_it(tmp_path):
     assert meta["policy"]["class"] == "hsddp_gym.planners.policies.mpc.motion.MotionMPCPolicy"
     assert meta["policy"]["motion"] == "backflip"
     assert meta["policy"]["options"]["motion"]["retime"] is False
+
+
+# ---------------------------------------------------------------------------------------------- bound to stop
+def test_a_reference_whose_heuristic_rollout_diverges_starts_from_the_1ms_plan(monkeypatch):
+    """On the plans' 2.5 ms grid the bound's heuristic rollout diverges (too stiff for explicit steps): the reference
+    of bound-to-stop starts from the transition solved on the 1 ms grid, sampled onto the plans' knots with its
+    feedback law, and converges."""
+    from hsddp_gym.core.dynamics import HybridDynamics
+    from hsddp_gym.planners.motions import references
+    from hsddp_gym.planners.motions.problems import motion_warm_start
+    from hsddp_gym.planners.tasks import WarmStartDivergedError
+
+    problem, phases = references.MOTION_PROBLEMS["bound_to_stop"][0](HybridDynamics(dt=DT, integrator="semi_implicit"))
+    with pytest.raises(WarmStartDivergedError):
+        motion_warm_start(problem, phases)
+    calls = []
+    original = references._fine_guess
+    monkeypatch.setattr(references, "_fine_guess", lambda *a: calls.append(1) or original(*a))
+    references._reference.cache_clear()
+    ref = motion_reference("bound_to_stop", DT, 2, FRICTION, cycles=2)
+    assert calls == [1]
+    assert ref.solution.converged
+    assert ref.problem.schedule.final_mode == Mode.DOUBLE_STANCE
+    assert np.abs(ref.solution.X[-1, NQ:]).max() < 0.3  # it ends at rest
+
+
+def test_the_bound_to_stop_tasks_mpc_is_the_motion_mpc():
+    env = gym.make("hsddp_gym/BoundToStop-v0")
+    policy = make_policy("mpc", env)
+    assert isinstance(policy, MotionMPCPolicy) and policy.motion == "bound_to_stop"
+    assert policy.reference is motion_reference("bound_to_stop", DT, 2, FRICTION, cycles=2)
+    # the transitions that end in a bound keep the bounding MPC
+    assert not isinstance(make_policy("mpc", gym.make("hsddp_gym/StandToBound-v0")), MotionMPCPolicy)
+    env.close()

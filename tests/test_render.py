@@ -174,3 +174,20 @@ def test_rollout_video_says_its_playback_speed(tmp_path, capsys):
     assert f"writing {out / 'episode0.gif'}" in printed and "real time" in printed
     # 13 frames (the reset and 12 steps): every 4th of them, 0, 4, 8, 12
     assert _gif_durations(out / "episode0.gif") == [20, 20, 20, 20] and s["video_frames"] == 4
+
+
+def test_a_gif_of_drawings_keeps_their_colours_in_one_small_palette(tmp_path):
+    """Frames of a few flat colours come back exactly from the GIF (one shared palette, no dithering)."""
+    from PIL import Image
+
+    from hsddp_gym.viz.render import GIF_COLORS, save_gif
+
+    colours = np.array([[245, 243, 238], [40, 70, 160], [200, 80, 40], [60, 140, 60], [0, 0, 0]], dtype=np.uint8)
+    rng = np.random.default_rng(0)
+    frames = [colours[rng.integers(0, len(colours), size=(24, 32))] for _ in range(6)]
+    path = save_gif(frames, tmp_path / "flat.gif", fps=50.0)
+    with Image.open(path) as gif:
+        for i in range(gif.n_frames):
+            gif.seek(i)
+            np.testing.assert_array_equal(np.asarray(gif.convert("RGB")), frames[i])
+            assert len(gif.convert("RGB").getcolors(GIF_COLORS + 1)) <= GIF_COLORS

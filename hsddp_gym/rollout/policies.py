@@ -219,8 +219,9 @@ def make_policy(spec, env=None, seed: int = 0, interface=None):
     if spec.name == "mpc" and spec.task.motion is not None:  # the task's motion, re-planned online
         from hsddp_gym.planners.policies.base import EnvInterface
 
+        kwargs = {k: v for k, v in spec.task.plan_kwargs.items() if k != "motion"}  # e.g. the cycles before a stop
         return resolve(MOTION_MPC)(interface if interface is not None else EnvInterface.from_env(env),
-                                   spec.task.motion, _mpc_options(spec.options))
+                                   spec.task.motion, _mpc_options(spec.options), **kwargs)
     if spec.name == "mpc":
         from hsddp_gym.planners.policies.mpc import env_terrain
 

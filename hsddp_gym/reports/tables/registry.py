@@ -16,6 +16,7 @@ from hsddp_gym.reports.tables.paper import paper_sto_periodic, paper_sto_variant
 from hsddp_gym.reports.tables.physics import env_physics
 from hsddp_gym.reports.tables.robustness import (
     robustness_backflip_mpc,
+    robustness_bound_to_stop_mpc,
     robustness_contact_models,
     robustness_generality,
     robustness_generality_summary,
@@ -95,6 +96,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/tasks_rl_backflip": robustness_tasks_rl_backflip,
     "robustness/tasks_rl_jumps": robustness_tasks_rl_jumps,
     "robustness/backflip_mpc": robustness_backflip_mpc,
+    "robustness/bound_to_stop_mpc": robustness_bound_to_stop_mpc,
 }
 """``{table id: renderer}``."""
 

@@ -360,6 +360,15 @@ def robustness_backflip_mpc(store: Store) -> str:
     return task_robustness(store, ("backflip",), BACKFLIP_MPC_RECORD)
 
 
+BOUND_TO_STOP_MPC_RECORD = "robustness/bound_to_stop_mpc"
+"""Bound to stop's MPC beside its plan-tracking expert, the same seeds."""
+
+
+def robustness_bound_to_stop_mpc(store: Store) -> str:
+    """Bound to stop's MPC beside its plan-tracking expert, per condition."""
+    return task_robustness(store, ("bound_to_stop",), BOUND_TO_STOP_MPC_RECORD)
+
+
 def robustness_tasks_pronking(store: Store) -> str:
     """The pronk's expert under the perturbation conditions."""
     return task_robustness(store, ("pronking",))
