@@ -29,7 +29,7 @@ from hsddp_gym.core.schedule import PAPER_BOUNDING_DURATIONS
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.heuristic import HeuristicBoundingController, HeuristicGains
 from hsddp_gym.planners.policies.mpc.ground import GroundModel
-from hsddp_gym.planners.policies.mpc.law import FeedbackLaw
+from hsddp_gym.planners.policies.mpc.law import FeedbackLaw, feedback_torques
 from hsddp_gym.planners.policies.mpc.options import MPCOptions
 from hsddp_gym.planners.policies.mpc.planner import MPCPlanner
 from hsddp_gym.planners.policies.mpc.schedule import ContactScheduleEstimator
@@ -168,15 +168,9 @@ class MPCPolicy(Policy):
         if self.law.plan is None:
             u = self._startup_controller.torque(self.ground.level(x), eff)
         else:
-            u = self.law.control(x)
-            threshold = self.options.replan.feedback_threshold
-            if threshold is not None and self._since_replan > 0.0 and self.law.saturates(u, threshold):
-                # far from the plan the feedback law alone would saturate the motors: plan again from here
-                self.stats["feedback_replans"] += 1
+            u, tried = feedback_torques(self.law, x, self.options.replan.feedback_threshold, self._feedback_replan())
+            if tried:
                 self._since_replan = 0.0
-                if self.replan(x, feedback=True):
-                    u = self.law.control(x)
-            u = self.law.project(x, u)
             self.law.advance(dt)
         self.schedule.tick()
         self._since_replan += dt
@@ -184,6 +178,17 @@ class MPCPolicy(Policy):
         action = self.interface.action_from_torque(u)
         self.estimator.record_sent(action)
         return action
+
+    def _feedback_replan(self):
+        """The feedback re-plan ``feedback_torques`` may make now (counted in ``stats``), or None: not in the step of
+        a periodic re-plan."""
+        if not self._since_replan > 0.0:
+            return None
+
+        def replan(x: np.ndarray) -> bool:
+            self.stats["feedback_replans"] += 1
+            return self.replan(x, feedback=True)
+        return replan
 
     def note_sent_action(self, action) -> None:
         """Tell the MPC that ``action`` (4,) (normalized, as [`act`][act] returns them) was sent to the env in place

@@ -68,3 +68,16 @@ class FeedbackLaw:
     def advance(self, dt: float) -> None:
         """Move the cursor by ``dt`` [s] of plan time."""
         self.plan.tracker.advance(dt)
+
+
+def feedback_torques(law: FeedbackLaw, x: np.ndarray, threshold: float | None, replan) -> tuple[np.ndarray, bool]:
+    """The torques (4,) the MPC sends for the state ``x`` (14,): ``law``'s at its cursor, projected
+    ([`FeedbackLaw.project`][FeedbackLaw.project]). When the feedback term alone asks a motor for more than
+    ``threshold`` times the torque limit, the state is too far from the plan for its linearization: ``replan(x)``
+    (True on success; None: no re-plan allowed now) plans again from it first, and the new plan's law acts. Returns
+    ``(torques, whether a feedback re-plan was tried)``."""
+    u = law.control(x)
+    tried = replan is not None and threshold is not None and law.saturates(u, threshold)
+    if tried and replan(x):
+        u = law.control(x)
+    return law.project(x, u), tried

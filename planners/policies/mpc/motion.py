@@ -37,7 +37,8 @@ from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import Solution
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
-from hsddp_gym.planners.policies.mpc.law import FeedbackLaw
+from hsddp_gym.planners.policies.mpc.agent import MPCPolicy
+from hsddp_gym.planners.policies.mpc.law import FeedbackLaw, feedback_torques
 from hsddp_gym.planners.policies.mpc.options import MotionOptions, MPCOptions
 from hsddp_gym.planners.policies.mpc.planner import MPCPlanner, Plan
 from hsddp_gym.planners.policies.mpc.state import StateEstimator
@@ -348,14 +349,9 @@ class MotionMPCPolicy(Policy):
         if self._since_replan >= self.options.replan.period - 1e-9:
             self._since_replan = 0.0
             self.replan(x)
-        u = self.law.control(x)
-        threshold = self.options.replan.feedback_threshold
-        if threshold is not None and self._since_replan > 0.0 and self.law.saturates(u, threshold):
-            self.stats["feedback_replans"] += 1
+        u, tried = feedback_torques(self.law, x, self.options.replan.feedback_threshold, self._feedback_replan())
+        if tried:
             self._since_replan = 0.0
-            if self.replan(x, feedback=True):
-                u = self.law.control(x)
-        u = self.law.project(x, u)
         tracker = self.law.plan.tracker
         tracker.advance(dt)
         self._phase_time += dt
@@ -364,6 +360,8 @@ class MotionMPCPolicy(Policy):
         action = self.interface.action_from_torque(u)
         self.estimator.record_sent(action)
         return action
+
+    _feedback_replan = MPCPolicy._feedback_replan
 
     def _in_early_flight(self) -> bool:
         """Whether the motion is in a flight of which less than ``ScheduleOptions.min_flight`` of its nominal
