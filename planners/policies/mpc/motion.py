@@ -259,8 +259,7 @@ class MotionMPCPolicy(Policy):
 
     def reset(self) -> None:
         ref = self.reference
-        self.planner.reset()
-        self.planner._cs = ref.constraint_state.copy()
+        self.planner.reset(ref.constraint_state)
         self.estimator.reset(None)
         self.law.plan = Plan(ref.tracker(0, 0.0, self.touchdown, law=True), ref.solution, ref.problem,
                              ref.multipliers.copy())

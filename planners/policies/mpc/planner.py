@@ -121,12 +121,14 @@ class MPCPlanner:
             gains=HeuristicGains(speed=target_speed, kd=(WARM_START_KD,) * 4), height_offset=plan.height_offset)
         self.reset()
 
-    def reset(self) -> None:
+    def reset(self, constraint_state: ConstraintState | None = None) -> None:
+        """Forget the episode; the first warm-started re-plan continues from ``constraint_state`` (the AL penalty and
+        the barriers of a plan solved offline; None: the solver's defaults)."""
         self._solver = HSDDP(SolverOptions())
         self._restart_solver = HSDDP(SolverOptions())
         """Solves the restarts; swapped with [`_solver`][_solver] when its plan is kept, so that [`_solver`][_solver]
         always holds the kept plan's backward pass and outer-loop state."""
-        self._cs: ConstraintState | None = None
+        self._cs: ConstraintState | None = None if constraint_state is None else constraint_state.copy()
         self.last_failure: str | None = None
         self.stats = {"replans": 0, "restarts": 0, "restarts_kept": 0, "planner_failures": 0, "solve_ms": [],
                       "iterations": [], "time_budget_stops": 0}
