@@ -351,3 +351,23 @@ def test_the_bound_to_stop_tasks_mpc_is_the_motion_mpc():
     # the transitions that end in a bound keep the bounding MPC
     assert not isinstance(make_policy("mpc", gym.make("hsddp_gym/StandToBound-v0")), MotionMPCPolicy)
     env.close()
+
+
+def test_dagger_relabels_with_the_motion_mpc(tmp_path, capsys):
+    """In a task whose ``mpc`` re-plans its motion, DAgger takes that MPC as its labelling expert (elsewhere in a
+    task the plan tracker is the only expert)."""
+    pytest.importorskip("torch")
+    import json
+
+    from hsddp_gym import cli
+
+    out = tmp_path / "dagger"
+    assert cli.main(["train", "--algo", "dagger", "--env", "hsddp_gym/Backflip-v0", "--expert", "mpc", "--rounds", "1",
+                     "--episodes-per-round", "1", "--rollout-steps", "20", "--epochs", "1", "--hidden", "16,16",
+                     "--eval-episodes", "0", "--quiet", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["expert"]["class"].endswith("MotionMPCPolicy") and summary["expert"]["motion"] == "backflip"
+    assert summary["expert_labels"] > 0
+    assert cli.main(["train", "--algo", "dagger", "--env", "hsddp_gym/Backflip-v0", "--expert", "heuristic",
+                     "--out", str(tmp_path / "x")]) == 2
+    assert "or mpc (its MPC)" in capsys.readouterr().err

@@ -126,9 +126,11 @@ def _check_train_env(args) -> None:
         if args.expert == "expert":
             raise UsageError("--expert", f"expert with --env {args.env}", "mpc (the terrain-aware MPC) or heuristic")
         return
-    if args.algo == "dagger" and args.expert != "expert":
+    motion_mpc = task_of_env_id(args.env).motion is not None  # the task's mpc re-plans its motion
+    if args.algo == "dagger" and args.expert != "expert" and not (motion_mpc and args.expert == "mpc"):
         raise UsageError("--expert", f"{args.expert} with --env {args.env}",
-                         f"expert (the task's HS-DDP plan tracker) with --env {args.env}")
+                         f"expert (the task's HS-DDP plan tracker){' or mpc (its MPC)' if motion_mpc else ''} with "
+                         f"--env {args.env}")
 
 
 def _check_train(args) -> None:

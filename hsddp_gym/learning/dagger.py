@@ -383,9 +383,9 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     if any(check_env_id(e) != env_id for e in given):
         raise ValueError(f"env_id: the env given, config.env_id and the dataset's env differ: {given}")
     task = task_of_env_id(env_id)
-    if task.dataset_expert != "mpc" and expert != "expert":
+    if task.dataset_expert != "mpc" and expert != "expert" and not (expert == "mpc" and task.motion is not None):
         raise ValueError(f"expert {expert!r} is a {ENV_ID} controller; in {env_id} the expert is 'expert' (the "
-                         "task's plan tracker)")
+                         "task's plan tracker)" + (" or 'mpc' (its motion's MPC)" if task.motion is not None else ""))
     if task.expert is None and expert == "expert":
         raise ValueError(f"in {env_id} the expert is 'mpc' (the terrain-aware MPC), not a plan tracker")
     out = Path(out)
