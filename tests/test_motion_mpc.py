@@ -83,6 +83,10 @@ def test_flight_time_to_go_cases():
     assert flight_time_to_go(1.0, 2.0, 1.0, g) == pytest.approx(2 * 2.0 / g)  # up and back down
     assert flight_time_to_go(0.5, 0.1, 1.0, g) == 0.0  # below the touchdown height, cannot rise to it
     assert flight_time_to_go(1.0, -1.0, 0.5, g) == pytest.approx((-1.0 + np.sqrt(1.0 + 2 * g * 0.5)) / g)
+    with pytest.raises(ValueError, match="vz"):
+        flight_time_to_go(1.0, float("nan"), 0.5, g)
+    with pytest.raises(ValueError, match="gravity"):
+        flight_time_to_go(1.0, 0.0, 0.5, 0.0)
 
 
 def test_com_state_checks_the_state(reference):

@@ -38,6 +38,7 @@ from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import Solution
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.planners.policies.mpc.agent import MPCPolicy
+from hsddp_gym.planners.policies.mpc.ground import GroundModel
 from hsddp_gym.planners.policies.mpc.law import FeedbackLaw, feedback_torques
 from hsddp_gym.planners.policies.mpc.options import MotionOptions, MPCOptions
 from hsddp_gym.planners.policies.mpc.planner import MPCPlanner, Plan
@@ -143,7 +144,15 @@ def com_state(robot, x: np.ndarray, data=None) -> tuple[float, float]:
 def flight_time_to_go(z: float, vz: float, z_touchdown: float, gravity: float) -> float:
     """The time [s] until a ballistic centre of mass at height ``z`` [m] rising at ``vz`` [m/s] comes down to
     ``z_touchdown`` [m]: the later root of ``z + vz t - g t^2 / 2 = z_touchdown``; 0 when it is below that height
-    and cannot rise to it."""
+    and cannot rise to it.
+
+    Raises:
+        ValueError: a value that is not finite, or ``gravity`` not positive.
+    """
+    for name, value in (("z", z), ("vz", vz), ("z_touchdown", z_touchdown)):
+        if not math.isfinite(value):
+            raise ValueError(f"{name} must be finite, got {value!r}")
+    gravity = check_positive(gravity, "gravity")
     disc = vz * vz + 2.0 * gravity * (z - z_touchdown)
     if disc < 0.0:
         return 0.0
@@ -252,7 +261,8 @@ class MotionMPCPolicy(Policy):
         self.planner.cold_start = self._cold_start
         self.estimator = StateEstimator(i, o.estimator, robot)
         friction = self.reference.problem.constraints.friction
-        self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction, _FlatGround(), robot)
+        self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction, GroundModel(None, robot.params.hip_offset),
+                               robot)
 
     def _reset_copy_state(self) -> None:
         self._build()
@@ -384,9 +394,3 @@ class MotionMPCPolicy(Policy):
     def note_sent_action(self, action) -> None:
         """As [`MPCPolicy.note_sent_action`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy.note_sent_action]."""
         self.estimator.replace_sent(action)
-
-
-class _FlatGround:
-    """The feedback law's ground for a motion on flat ground (no terrain)."""
-
-    terrain = None

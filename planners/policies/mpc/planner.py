@@ -103,12 +103,9 @@ class MPCPlanner:
                                                                              friction=plan.friction)
         self.touchdown = None
         """The touchdown rule of the plans' trackers (None: every contact flag counts)."""
-        self.sigma_max = SIGMA_MAX
-        """The cap of the AL penalty a warm-started re-plan starts with."""
         self.barrier = None
         """The relaxed barriers' ``(delta_torque, delta_grf, eps_torque, eps_grf)`` in every warm-started re-plan (None:
         [`REB_DELTA`][REB_DELTA] and [`REB_EPS`][REB_EPS])."""
-        """The cap of the AL penalty a warm-started re-plan starts with."""
         self.hold = 1
         """Knots per control period the plans' feedback laws hold their control over (1: per-knot gains, the
         bound's; above 1: [`held_input_gains`][hsddp_gym.planners.optimizer.hold.held_input_gains] and
@@ -191,7 +188,7 @@ class MPCPlanner:
             # when a restart from scratch was kept: its multipliers are this state's updates too)
             cs = cs.copy()
             cs.lam = ws[3].copy()
-            cs.sigma = min(self._cs.sigma, self.sigma_max)
+            cs.sigma = min(self._cs.sigma, SIGMA_MAX)
         self._cs = cs
         self.stats["replans"] += 1
         self.stats["time_budget_stops"] += int(sol.status == "time_limit")
@@ -212,7 +209,7 @@ class MPCPlanner:
             cs = self._cs.copy() if self._cs is not None else None
             if cs is not None:
                 cs.lam = lam
-                cs.sigma = min(cs.sigma, self.sigma_max)
+                cs.sigma = min(cs.sigma, SIGMA_MAX)
                 if self.barrier is None:
                     cs.delta_torque = cs.delta_grf = REB_DELTA
                     cs.eps_torque = cs.eps_grf = REB_EPS
