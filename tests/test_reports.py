@@ -218,3 +218,14 @@ def test_the_pushes_table_counts_blocks_where_the_mpc_fell_more(tmp_path):
                  command="python experiments/robustness.py --record results/robustness/pushes.json")
     with pytest.raises(ValueError, match="missing \\['heuristic'\\]"):
         robustness_pushes(Store(tmp_path))
+
+
+def test_records_keep_eight_significant_digits(tmp_path):
+    """Floats (also in NumPy arrays and scalars) are written to 8 significant digits; ints and strings as they are."""
+    import numpy as np
+
+    raw = {"t": 0.5650000000000001, "a": np.array([1 / 3, 2e-9 / 3]), "s": np.float64(16287.792324226368),
+           "n": 12345678901, "w": "1.23456789"}
+    path = write_record(tmp_path / "x" / "y.json", raw, "d", command="python a.py", machine={})
+    data = read_record(path).data
+    assert data == {"t": 0.565, "a": [0.33333333, 6.6666667e-10], "s": 16287.792, "n": 12345678901, "w": "1.23456789"}

@@ -121,9 +121,25 @@ def write_record(path, data: dict, description: str, command: str | list[str] | 
 _NUMBER_LIST = re.compile(r"\[\s*(-?[0-9][^\[\]{}\"]*?)\s*\]", re.S)
 
 
+SIGNIFICANT_DIGITS = 8
+"""Significant digits a record keeps of a float (no measurement here is finer; the rest is noise that costs bytes)."""
+
+
+def _rounded(value):
+    if isinstance(value, float):
+        return float(f"{value:.{SIGNIFICANT_DIGITS}g}")
+    if isinstance(value, list):
+        return [_rounded(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    return value
+
+
 def dumps(payload) -> str:
-    """JSON with one key per line but every list of numbers on one line (records stay small and diffable)."""
-    text = json.dumps(payload, indent=1, default=json_default, allow_nan=False)
+    """JSON with one key per line but every list of numbers on one line, floats to
+    [`SIGNIFICANT_DIGITS`][SIGNIFICANT_DIGITS] (records stay small and diffable)."""
+    plain = json.loads(json.dumps(payload, default=json_default, allow_nan=False))
+    text = json.dumps(_rounded(plain), indent=1, allow_nan=False)
     return _NUMBER_LIST.sub(lambda m: "[" + re.sub(r"\s*\n\s*", " ", m.group(1)) + "]", text)
 
 
