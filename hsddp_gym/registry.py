@@ -165,9 +165,6 @@ _TRANSITION_CYCLES = {"stand_to_bound": 3, "bound_pronk_bound": 2, "bound_to_sto
 to bound plans a third cycle at 1 m/s so that the looped cycle (phases 5-8) is not the plan's last (its schedule and
 speed profile are those of the two-cycle plan with its last cycle repeated, what the env rewards)."""
 """Cycles of bounding around each transition in its expert's plan."""
-_TRANSITION_MPC = {"bound_to_stop": "bound_to_stop"}
-"""The gait transitions whose ``mpc`` re-plans the transition online (``Task.motion``); the others end in a bound,
-which their MPC does not hand over to yet."""
 _TRANSITION_AFTER = {"stand_to_bound": "its bounding cycle (phases 5-8), looped",
                      "bound_pronk_bound": "its bounding cycle (phases 13-16), looped",
                      "bound_to_stop": "its last control plus a joint PD to its last knot's joint angles"}
@@ -210,7 +207,7 @@ def _jump(name: str, env_id: str, what: str) -> Task:
                        "plan_file": "expert_plan.npz",
                        "tracking": _HELD_LAW + "its first cycle after the jump, looped", "reset_options": _NO_RESET},
         success_rule=_JUMP_RULE, measures="hsddp_gym.rollout.measures:JUMP", first_seed=9650,
-        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE)
+        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE, motion=name)
 
 
 def _transition(name: str, env_id: str, what: str, start: str) -> Task:
@@ -234,7 +231,7 @@ def _transition(name: str, env_id: str, what: str, start: str) -> Task:
                        "reset_options": _NO_RESET},
         success_rule=f"{_TRANSITION_RULES[name]} (hsddp_gym.envs.transitions.TransitionTask.success)",
         measures="hsddp_gym.rollout.measures:GAIT", first_seed=9700, episode_start=start,
-        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE, motion=_TRANSITION_MPC.get(name))
+        push_window=PUSH_WINDOWS[name], push_size=tc.MOTION_PUSH_SIZE, motion=name)
 
 
 TASKS: dict[str, Task] = {

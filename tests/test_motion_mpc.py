@@ -15,7 +15,7 @@ from hsddp_gym.core.conventions import NQ, NX, Mode
 from hsddp_gym.planners.motions.references import motion_mpc_policy, motion_reference
 from hsddp_gym.planners.optimizer.hold import held_input_gains
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.mpc import MotionOptions, MPCOptions
+from hsddp_gym.planners.policies.mpc import MotionOptions, MPCOptions, MPCPolicy
 from hsddp_gym.planners.policies.mpc.motion import (
     GRF_RELAXATION,
     MotionMPCPolicy,
@@ -213,6 +213,46 @@ def test_a_stance_plan_starts_with_its_feet_still(policy, reference):
     np.testing.assert_array_equal(x0[:NQ], x[:NQ])
 
 
+def test_the_tracker_waits_only_at_a_touchdown_past_its_phase(reference):
+    flight = float(reference.problem.schedule.durations[FLIGHT])
+    tracker = reference.tracker(FLIGHT, flight - 0.01)
+    assert not tracker.waiting
+    tracker.advance(0.02)  # past the flight's end, no touchdown seen: the cursor waits on the flight's last knot
+    assert tracker.waiting and tracker.phase == FLIGHT
+    tracker.sync(Mode.DOUBLE_STANCE, None)  # the landing (both feet: the late fraction counts them)
+    assert tracker.phase == LANDING and not tracker.waiting
+    push = reference.tracker(1, 0.0)  # the take-off ends in a lift-off: the cursor moves on by time
+    push.advance(float(reference.problem.schedule.durations[1]) + 0.01)
+    assert push.phase == FLIGHT and not push.waiting
+
+
+def test_a_late_landing_is_replanned_at_every_control_step():
+    """A flight whose feet have not landed at its nominal end is re-planned from every state until they do: the law
+    does not hold the plan's last knot before the touchdown (the feet hovering above the ground)."""
+    env = gym.make("hsddp_gym/Backflip-v0")
+    options = MPCOptions().replace(replan_feedback=None)  # no feedback re-plans: re-plans by the period and phases
+    policy = make_policy(PolicySpec("mpc", options, env_id="hsddp_gym/Backflip-v0"), env)
+    ref = policy.reference
+    flight = float(ref.problem.schedule.durations[FLIGHT])
+    x = ref.solution.X[int(ref.problem.phase_start[LANDING]) - 2].copy()
+    x[1] += 0.03  # 3 cm higher than the reference at the flight's end: the feet land late
+    obs, _ = env.reset(seed=0, options={"state": x})
+    policy.reset()
+    policy.phase, policy._phase_time, policy._tracker_phase, policy._since_replan = FLIGHT, flight - 0.004, FLIGHT, 0.0
+    policy.law.plan = dataclasses.replace(policy.law.plan, tracker=ref.tracker(FLIGHT, flight - 0.004,
+                                                                               policy.touchdown, law=True))
+    replans, waited = [policy.stats["replans"]], []
+    for _ in range(6):
+        obs, _, terminated, _, info = env.step(policy.act(obs))
+        replans.append(policy.stats["replans"])
+        waited.append(policy.law.plan.tracker.waiting)
+        if policy.phase != FLIGHT:
+            break
+    assert policy.phase == LANDING and waited[0], "the test's flight must be late"
+    # a cursor that waits after a step is re-planned at the next (the period alone: once in 4 steps)
+    assert all(replans[k + 2] > replans[k + 1] for k in range(len(waited) - 1) if waited[k])
+
+
 def test_no_landing_is_counted_early_in_a_flight(policy):
     flight = float(policy.reference.problem.schedule.durations[FLIGHT])
     policy.phase = FLIGHT
@@ -352,9 +392,82 @@ def test_the_bound_to_stop_tasks_mpc_is_the_motion_mpc():
     policy = make_policy("mpc", env)
     assert isinstance(policy, MotionMPCPolicy) and policy.motion == "bound_to_stop"
     assert policy.reference is motion_reference("bound_to_stop", DT, 2, FRICTION, cycles=2)
-    # the transitions that end in a bound keep the bounding MPC
-    assert not isinstance(make_policy("mpc", gym.make("hsddp_gym/StandToBound-v0")), MotionMPCPolicy)
+    assert policy.gait is None and policy.reference.hand_over is None  # it ends standing, held
     env.close()
+
+
+@pytest.mark.parametrize("env_id, motion, hand_over", [("hsddp_gym/StandToBound-v0", "stand_to_bound", 5),
+                                                       ("hsddp_gym/BoundPronkBound-v0", "bound_pronk_bound", 13)])
+def test_the_transitions_into_a_bound_are_handed_to_the_bounding_mpc(env_id, motion, hand_over):
+    """A transition into a bound is re-planned until its first steady bounding cycle, then the bounding MPC acts,
+    with the same state estimator (its action history and filter carry over) and one statistics dict."""
+    env = gym.make(env_id)
+    policy = make_policy("mpc", env)
+    assert isinstance(policy, MotionMPCPolicy) and policy.motion == motion
+    assert policy.reference.hand_over == hand_over and isinstance(policy.gait, MPCPolicy)
+    assert policy.gait.estimator is policy.estimator
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    gait_replans, motion_replans, sent = None, None, None
+    for _ in range(env.spec.max_episode_steps):
+        was = policy.handed_over
+        action = policy.act(obs)
+        if policy.handed_over and not was:  # the step that reached the hand-over phase: the motion still acted
+            assert policy.phase == hand_over
+            motion_replans, sent = policy.stats["replans"], action.copy()
+        elif was and gait_replans is None:  # the gait's first step: it predicts with the motion's last action
+            assert policy.gait.last_prediction is not None
+            gait_replans = policy.stats["replans"]
+            assert np.array_equal(policy.estimator.sent[-2], sent)
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    assert motion_replans is not None and info["success"]
+    assert policy.stats is policy.gait.stats is policy.gait.planner.stats
+    assert policy.stats["replans"] > gait_replans >= motion_replans  # the bounding MPC re-planned into the same dict
+    policy.reset()  # a new episode starts with the motion again
+    assert not policy.handed_over and policy.phase == 0 and policy.gait.estimator is policy.estimator
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def gap_jump() -> MotionReference:
+    return motion_reference("gap_jump", DT, 2, FRICTION)
+
+
+def test_a_jump_is_planned_where_its_terrain_is(gap_jump):
+    """On a terrain the motion is tied to the world: what remains of it keeps the reference's trunk x (the take-off
+    before the gap's rim wherever the state is), where on flat ground the references move with the state."""
+    ref = gap_jump.problem
+    assert ref.terrain is not None and ref.terrain.gaps[1]
+    k = int(ref.phase_start[8]) + 4  # in the take-off's back stance
+    x = gap_jump.solution.X[k].copy()
+    x[0] -= 0.05  # 5 cm short of where the reference is
+    pb = remaining_problem(gap_jump, 8, 0.07, x, elapsed=4 * DT)
+    assert pb.terrain is ref.terrain
+    np.testing.assert_array_equal(pb.XR[:, 0], gap_jump.solution.X[reference_knots(gap_jump, 8, 4 * DT, pb), 0])
+
+
+@pytest.mark.parametrize("env_id", ["hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0"])
+def test_the_jumps_mpc_knows_the_terrain_and_hands_over_after_the_landing(env_id):
+    env = gym.make(env_id)
+    policy = make_policy("mpc", env)
+    assert isinstance(policy, MotionMPCPolicy) and policy.motion == env.unwrapped.task
+    terrain = policy.reference.problem.terrain
+    assert terrain == env.unwrapped.terrain  # the env puts the terrain where the plan has it
+    assert policy.reference.hand_over == 12  # the first bounding cycle after the jump
+    env.reset(seed=0)
+    policy.reset()
+    assert policy.estimator.terrain is terrain and policy.gait.terrain is terrain  # world x by odometry, both
+    assert policy.law.ground.terrain is terrain
+    env.close()
+
+
+def test_a_hand_over_must_start_a_bounding_cycle(reference):
+    with pytest.raises(ValueError, match="hand_over must be a back stance"):
+        dataclasses.replace(reference, hand_over=LANDING)  # the backflip's landing is a double stance
+    with pytest.raises(ValueError, match="hand_over"):
+        dataclasses.replace(reference, hand_over=0)
 
 
 def test_dagger_relabels_with_the_motion_mpc(tmp_path, capsys):

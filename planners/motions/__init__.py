@@ -25,7 +25,7 @@ _EXPORTS = {  # module: the public names it defines (or imports from the core's 
         "motion_limits", "plan_backflip", "plan_pronk", "plan_transition", "plan_jump", "plan_motion",
         "plan_backflip_held", "plan_jump_held", "plan_transition_held",
     ),
-    "references": ("MOTION_PROBLEMS", "motion_reference", "motion_mpc_policy"),
+    "references": ("Motion", "MOTION_PROBLEMS", "motion_reference", "motion_mpc_policy"),
 }
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 __all__ = sorted(name for names in _EXPORTS.values() for name in names)

@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
+from typing import NamedTuple
 
 from hsddp_gym.core.dynamics import HybridDynamics
 from hsddp_gym.planners.motions.problems import (
     BACKFLIP_OPTIONS,
     backflip_problem,
+    jump_problem,
     motion_warm_start,
     transition_problem,
 )
@@ -26,6 +29,7 @@ from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface
+from hsddp_gym.planners.policies.experts import JUMP_LOOP, TRANSITION_LOOPS
 from hsddp_gym.planners.policies.mpc.motion import MotionMPCPolicy, MotionReference, held_knots, reference_from_solve
 from hsddp_gym.planners.policies.mpc.options import MPCOptions
 from hsddp_gym.planners.policies.mpc.warm_start import shift_plan
@@ -34,15 +38,37 @@ from hsddp_gym.planners.tasks import WarmStartDivergedError
 from hsddp_gym.util.validation import check_int, check_positive
 
 
-def _bound_to_stop(dynamics: HybridDynamics, cycles: int = 2):
-    return transition_problem("bound_to_stop", 1.0, cycles, dynamics)
+class Motion(NamedTuple):
+    """A motion the MPC re-plans online."""
+
+    build: Callable
+    """``(dynamics, **kwargs) -> (problem, phases)``: its problem (``kwargs``: the task's plan arguments,
+    ``hsddp_gym.registry.Task.plan_kwargs``, e.g. the cycles of bounding before the stop)."""
+    options: SolverOptions
+    """The solver options of its reference."""
+    hand_over: int | None = None
+    """The phase at which the bounding MPC takes over (``MotionReference.hand_over``; None: the motion's last stance
+    is held)."""
 
 
-MOTION_PROBLEMS = {"backflip": (backflip_problem, BACKFLIP_OPTIONS),
-                   "bound_to_stop": (_bound_to_stop, SolverOptions())}
-"""The motions with an MPC: name -> (the function ``(dynamics, **kwargs) -> (problem, phases)`` building its problem,
-its solver options). ``kwargs`` are the task's plan arguments (``hsddp_gym.registry.Task.plan_kwargs``, e.g. the
-cycles of bounding before the stop)."""
+def _at_1_m_s(problem, name: str):
+    """A builder of the motion ``name`` of ``problem`` (a jump or a gait transition) at 1 m/s (the tasks' speed)."""
+    def build(dynamics: HybridDynamics, cycles: int = 2):
+        return problem(name, 1.0, cycles, dynamics)
+    return build
+
+
+MOTION_PROBLEMS = {"backflip": Motion(backflip_problem, BACKFLIP_OPTIONS),
+                   "gap_jump": Motion(_at_1_m_s(jump_problem, "gap_jump"), SolverOptions(), JUMP_LOOP[0]),
+                   "box_jump": Motion(_at_1_m_s(jump_problem, "box_jump"), SolverOptions(), JUMP_LOOP[0]),
+                   "bound_to_stop": Motion(_at_1_m_s(transition_problem, "bound_to_stop"), SolverOptions()),
+                   "stand_to_bound": Motion(_at_1_m_s(transition_problem, "stand_to_bound"), SolverOptions(),
+                                            TRANSITION_LOOPS["stand_to_bound"][0]),
+                   "bound_pronk_bound": Motion(_at_1_m_s(transition_problem, "bound_pronk_bound"), SolverOptions(),
+                                               TRANSITION_LOOPS["bound_pronk_bound"][0])}
+"""The motions with an MPC, by name. The jumps and the transitions into a bound are handed to the bounding MPC at their
+first steady bounding cycle (the cycle their experts loop, ``hsddp_gym.planners.policies.experts.JUMP_LOOP`` and
+``TRANSITION_LOOPS``); the backflip and bound to stop end standing."""
 
 
 def motion_reference(name: str, planner_dt: float, hold: int, friction: float | None = None,
@@ -64,7 +90,7 @@ def motion_reference(name: str, planner_dt: float, hold: int, friction: float | 
 
 @functools.lru_cache(maxsize=8)
 def _reference(name: str, planner_dt: float, hold: int, friction: float | None, kwargs: tuple) -> MotionReference:
-    build, options = MOTION_PROBLEMS[name]
+    build, options, hand_over = MOTION_PROBLEMS[name]
     problem, phases = build(HybridDynamics(dt=planner_dt, integrator="semi_implicit"), **dict(kwargs))
     if friction is not None:
         problem = problem.with_constraints(dataclasses.replace(problem.constraints, friction=friction))
@@ -74,7 +100,7 @@ def _reference(name: str, planner_dt: float, hold: int, friction: float | None, 
     except WarmStartDivergedError:
         guess = _fine_guess(problem, build(HybridDynamics(), **dict(kwargs)), options)
     solution = solver.solve(problem, **guess)
-    return reference_from_solve(name, problem, solver, solution, hold)
+    return reference_from_solve(name, problem, solver, solution, hold, hand_over)
 
 
 def _fine_guess(problem: HybridProblem, fine, options: SolverOptions) -> dict:
@@ -103,4 +129,4 @@ def motion_mpc_policy(interface: EnvInterface, motion: str, options: MPCOptions 
     return MotionMPCPolicy(interface, reference, options)
 
 
-__all__ = ["MOTION_PROBLEMS", "motion_reference", "motion_mpc_policy"]
+__all__ = ["Motion", "MOTION_PROBLEMS", "motion_reference", "motion_mpc_policy"]

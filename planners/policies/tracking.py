@@ -107,6 +107,13 @@ class PlanTracker:
         """Plan time at the cursor [s]."""
         return float(np.sum((np.diff(self.phase_start) * self.phase_dt)[:self.phase]) + self.local_time)
 
+    @property
+    def waiting(self) -> bool:
+        """Whether the cursor waits on its phase's last knot for a touchdown that has not come (a late landing)."""
+        i = self.phase
+        return (not self.finished and self._ends_in_touchdown(i)
+                and self.local_time >= self._phase_length(i) - 0.5 * self.phase_dt[i] - 1e-12)
+
     def _ends_in_touchdown(self, i: int) -> bool:
         before, after = self.modes[i], self.next_modes[i]
         return any(after.in_contact(f) and not before.in_contact(f) for f in (0, 1))

@@ -18,7 +18,11 @@ re-plans), the feedback law between re-plans (projected onto pushing stance feet
   ([`flight_time_to_go`][flight_time_to_go]): a push or a mistimed take-off moves the touchdown of the remaining flight
   with the state. Without it the flight keeps its nominal duration (fixed timing).
 * **the end**: the last phase (a stance) is planned at least ``hold_horizon`` long, so after the motion the plans hold
-  its final reference (a receding horizon on the last stance).
+  its final reference (a receding horizon on the last stance). A motion that ends in a bound (``hand_over`` of its
+  [`MotionReference`][MotionReference]) is handed to the bounding MPC
+  ([`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], the same options) when its phase ``hand_over``
+  begins: the bound's schedule estimator picks the gait up from the observed contacts, with the state estimator the
+  motion used (its filter, bias and action history carry on).
 * **starts and restarts**: the first plan of an episode is warm-started from the reference (its feedback law from its
   first knot); a plan from scratch starts from the reference at the motion's current phase and time.
 """
@@ -70,6 +74,8 @@ class MotionReference:
             solution (NaN for a phase without one).
         law: the solution with the feedback law of a control held over ``hold`` knots (the first plan's law).
         hold: knots per control period.
+        hand_over: the phase at whose start the bounding MPC takes over (None: the motion ends in its last stance,
+            held): the first steady bounding cycle of a motion that ends in a bound.
     """
 
     name: str
@@ -80,6 +86,15 @@ class MotionReference:
     touchdown_com_height: np.ndarray
     law: Solution
     hold: int
+    hand_over: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.hand_over is not None:
+            self.hand_over = check_int(self.hand_over, "hand_over", minimum=1)
+            modes = self.problem.schedule.modes
+            if self.hand_over >= self.problem.n_phases or modes[self.hand_over] != Mode.BACK_STANCE:
+                raise ValueError(f"hand_over must be a back stance of the motion (a bounding cycle's first phase), got "
+                                 f"{self.hand_over}")
 
     @property
     def n_phases(self) -> int:
@@ -92,10 +107,11 @@ class MotionReference:
         return tr
 
 
-def reference_from_solve(name: str, problem: HybridProblem, solver, solution: Solution, hold: int) -> MotionReference:
+def reference_from_solve(name: str, problem: HybridProblem, solver, solution: Solution, hold: int,
+                         hand_over: int | None = None) -> MotionReference:
     """The [`MotionReference`][MotionReference] of motion ``name`` from ``solver``'s last solve of ``problem``, which
     gave ``solution`` (its multipliers and barrier settings; its law for a control held over ``hold`` knots, from the
-    same backward pass).
+    same backward pass), handed to the bounding MPC at phase ``hand_over`` (None: never).
 
     Raises:
         ValueError: ``solver`` has not just solved ``problem``.
@@ -116,7 +132,7 @@ def reference_from_solve(name: str, problem: HybridProblem, solver, solution: So
             heights[i] = com_state(robot, solution.X_pre[i], data)[0]
     law = dataclasses.replace(solution, K=held_input_gains(solver, problem, hold),
                               U=held_feedforward(solution.U, problem.phase_start, hold))
-    return MotionReference(name, problem, solution, cs.lam.copy(), cs.copy(), heights, law, hold)
+    return MotionReference(name, problem, solution, cs.lam.copy(), cs.copy(), heights, law, hold, hand_over)
 
 
 def held_knots(control_dt: float, planner_dt: float) -> int:
@@ -183,7 +199,8 @@ def remaining_problem(reference: MotionReference, phase: int, duration: float, x
                             knots=knots, terrain=full.terrain)
     idx = reference_knots(reference, phase, elapsed, problem)
     problem.XR = reference.solution.X[idx].copy()
-    problem.XR[:, 0] += x[0] - reference.solution.X[idx[0], 0]
+    if full.terrain is None:  # on flat ground the motion is the same wherever it starts; on a terrain it is not
+        problem.XR[:, 0] += x[0] - reference.solution.X[idx[0], 0]
     problem.YR = reference.solution.GRF[idx].copy()
     return problem
 
@@ -226,7 +243,10 @@ class MotionMPCPolicy(Policy):
     Attributes:
         reference: the [`MotionReference`][MotionReference]. phase: the motion's current phase (index into its phases).
         stats: the planner's statistics (``replans``, ``planner_failures``, ``solve_ms``, ...), and ``phase_replans``
-            (re-plans made at a phase change) and ``feedback_replans``.
+            (re-plans made at a phase change) and ``feedback_replans``; after a hand-over the bounding MPC's add to
+            them (one dict per episode).
+        gait: the bounding MPC the motion is handed to (None: a motion without ``hand_over``).
+        handed_over: whether the bounding MPC acts (the motion reached its ``hand_over`` phase).
     """
 
     def __init__(self, interface: EnvInterface, reference: MotionReference, options: MPCOptions = MPCOptions()) -> None:
@@ -261,8 +281,13 @@ class MotionMPCPolicy(Policy):
         self.planner.cold_start = self._cold_start
         self.estimator = StateEstimator(i, o.estimator, robot)
         friction = self.reference.problem.constraints.friction
-        self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction, GroundModel(None, robot.params.hip_offset),
-                               robot)
+        terrain = self.reference.problem.terrain
+        self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction,
+                               GroundModel(terrain, robot.params.hip_offset), robot)
+        self.gait = None
+        if self.reference.hand_over is not None:
+            self.gait = MPCPolicy(i, o, terrain=terrain)
+            self.gait.estimator = self.estimator  # one estimate of the state over the hand-over
 
     def _reset_copy_state(self) -> None:
         self._build()
@@ -270,7 +295,9 @@ class MotionMPCPolicy(Policy):
     def reset(self) -> None:
         ref = self.reference
         self.planner.reset(ref.constraint_state)
-        self.estimator.reset(None)
+        if self.gait is not None:
+            self.gait.reset()
+        self.estimator.reset(self.law.ground.reset())  # the motion's terrain (None: flat)
         self.law.plan = Plan(ref.tracker(0, 0.0, self.touchdown, law=True), ref.solution, ref.problem,
                              ref.multipliers.copy())
         self._plan_phase = 0
@@ -285,6 +312,10 @@ class MotionMPCPolicy(Policy):
         then (while the take-off foot still pushes, the centre of mass is still gaining speed)."""
         self.stats = self.planner.stats
         self.stats.update(phase_replans=0, feedback_replans=0)
+        self.handed_over = False
+        if self.gait is not None:
+            self.stats.update(delay_changes=0)
+            self.gait.stats = self.gait.planner.stats = self.stats
         self.last_estimate: np.ndarray | None = None
         self.last_prediction: np.ndarray | None = None
         self.flight_time_to_go: float | None = None
@@ -342,6 +373,10 @@ class MotionMPCPolicy(Policy):
 
     # ------------------------------------------------------------------ the loop
     def act(self, obs: np.ndarray) -> np.ndarray:
+        if self.handed_over:
+            action = self.gait.act(obs)
+            self.last_estimate, self.last_prediction = self.gait.last_estimate, self.gait.last_prediction
+            return action
         x_obs, mode, _ = self._parse(obs)
         x_est = self.estimator.update(x_obs, mode)
         self.last_estimate = x_est
@@ -366,6 +401,8 @@ class MotionMPCPolicy(Policy):
         self._phase_time += dt
         self._since_replan += dt
         self._follow(tracker)  # a lift-off on plan time
+        if tracker.waiting:  # a late landing: re-plan it from each state, not hover at the plan's last flight knot
+            self._since_replan = np.inf
         action = self.interface.action_from_torque(u)
         self.estimator.record_sent(action)
         return action
@@ -390,7 +427,8 @@ class MotionMPCPolicy(Policy):
             self.phase = phase
             self._phase_time = 0.0
             self.stats["phase_replans"] += 1
+            self.handed_over = self.gait is not None and phase >= self.reference.hand_over
 
     def note_sent_action(self, action) -> None:
         """As [`MPCPolicy.note_sent_action`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy.note_sent_action]."""
-        self.estimator.replace_sent(action)
+        self.estimator.replace_sent(action)  # the estimator the bounding MPC shares after a hand-over
