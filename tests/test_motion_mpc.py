@@ -488,3 +488,22 @@ def test_dagger_relabels_with_the_motion_mpc(tmp_path, capsys):
     assert cli.main(["train", "--algo", "dagger", "--env", "hsddp_gym/Backflip-v0", "--expert", "heuristic",
                      "--out", str(tmp_path / "x")]) == 2
     assert "or mpc (its MPC)" in capsys.readouterr().err
+
+
+def test_the_mpc_benchmark_measures_a_tasks_mpc_beside_the_bounds(tmp_path, experiment, capsys):
+    """``bench_mpc.py --env``: the task's MPC and the bound's in one run, each re-plan's knots counted."""
+    from hsddp_gym.reports.store import read_record
+
+    bench = experiment("bench_mpc")
+    record = tmp_path / "speed" / "task_mpc.json"
+    assert bench.main(["--env", "hsddp_gym/StandToBound-v0", "--seconds", "0.05", "--record", str(record)]) == 0
+    data = read_record(record).data
+    assert data["reference"] == "hsddp_gym/Bounding-v0"
+    row = data["envs"]["hsddp_gym/StandToBound-v0"]
+    assert row["policy"] == "MotionMPCPolicy" and row["replans"] >= 2 and row["seconds"] == pytest.approx(0.05)
+    assert row["knots_mean"] > data["envs"]["hsddp_gym/Bounding-v0"]["knots_mean"]  # the whole motion left to plan
+    assert data["envs"]["hsddp_gym/Bounding-v0"]["per_knot_ratio_to_bound"] == 1.0
+    assert "StandToBound-v0" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        bench.main(["--env", "hsddp_gym/NoSuchEnv-v0"])
+    assert "unknown env" in capsys.readouterr().err
