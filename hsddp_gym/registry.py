@@ -266,7 +266,7 @@ TASKS: dict[str, Task] = {
         success_rule=("no fall, mean forward speed within 20 % of the target, >= 80 % of control steps with matching "
                       "contact flags (hsddp_gym.envs.pronking.pronking_success)"),
         measures="hsddp_gym.rollout.measures:PRONK", first_seed=9500, push_size=tc.MOTION_PUSH_SIZE,
-        speed_range=tc.SPEED_RANGE),
+        speed_range=tc.SPEED_RANGE, motion="pronk"),
     "backflip": Task(
         name="backflip",
         env=EnvEntry("hsddp_gym/Backflip-v0", "hsddp_gym.envs.backflip:BackflipEnv", tc.BACKFLIP_MAX_EPISODE_STEPS,

@@ -220,8 +220,10 @@ def make_policy(spec, env=None, seed: int = 0, interface=None):
         from hsddp_gym.planners.policies.base import EnvInterface
 
         kwargs = {k: v for k, v in spec.task.plan_kwargs.items() if k != "motion"}  # e.g. the cycles before a stop
-        return resolve(MOTION_MPC)(interface if interface is not None else EnvInterface.from_env(env),
-                                   spec.task.motion, _mpc_options(spec.options), **kwargs)
+        interface = interface if interface is not None else EnvInterface.from_env(env)
+        if "speed" in spec.task.plan_inputs:  # a motion planned at the env's target speed (the pronk)
+            kwargs["speed"] = float(interface.target_speed)
+        return resolve(MOTION_MPC)(interface, spec.task.motion, _mpc_options(spec.options), **kwargs)
     if spec.name == "mpc":
         from hsddp_gym.planners.policies.mpc import env_terrain
 

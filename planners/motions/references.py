@@ -23,13 +23,14 @@ from hsddp_gym.planners.motions.problems import (
     backflip_problem,
     jump_problem,
     motion_warm_start,
+    pronk_problem,
     transition_problem,
 )
 from hsddp_gym.planners.optimizer.hsddp import HSDDP
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import SolverOptions
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.experts import JUMP_LOOP, TRANSITION_LOOPS
+from hsddp_gym.planners.policies.experts import JUMP_LOOP, PRONK_LOOP_PHASE, TRANSITION_LOOPS
 from hsddp_gym.planners.policies.mpc.motion import MotionMPCPolicy, MotionReference, held_knots, reference_from_solve
 from hsddp_gym.planners.policies.mpc.options import MPCOptions
 from hsddp_gym.planners.policies.mpc.warm_start import shift_plan
@@ -49,6 +50,12 @@ class Motion(NamedTuple):
     hand_over: int | None = None
     """The phase at which the bounding MPC takes over (``MotionReference.hand_over``; None: the motion's last stance
     is held)."""
+    loop_phase: int | None = None
+    """A periodic gait's phase to go on at after its last (``MotionReference.loop_phase``; None: not periodic)."""
+
+
+def _pronk(dynamics: HybridDynamics, cycles: int = 4, speed: float = 1.0):
+    return pronk_problem(cycles, speed, dynamics=dynamics)
 
 
 def _at_1_m_s(problem, name: str):
@@ -59,6 +66,7 @@ def _at_1_m_s(problem, name: str):
 
 
 MOTION_PROBLEMS = {"backflip": Motion(backflip_problem, BACKFLIP_OPTIONS),
+                   "pronk": Motion(_pronk, SolverOptions(), loop_phase=PRONK_LOOP_PHASE),
                    "gap_jump": Motion(_at_1_m_s(jump_problem, "gap_jump"), SolverOptions(), JUMP_LOOP[0]),
                    "box_jump": Motion(_at_1_m_s(jump_problem, "box_jump"), SolverOptions(), JUMP_LOOP[0]),
                    "bound_to_stop": Motion(_at_1_m_s(transition_problem, "bound_to_stop"), SolverOptions()),
@@ -68,7 +76,8 @@ MOTION_PROBLEMS = {"backflip": Motion(backflip_problem, BACKFLIP_OPTIONS),
                                                TRANSITION_LOOPS["bound_pronk_bound"][0])}
 """The motions with an MPC, by name. The jumps and the transitions into a bound are handed to the bounding MPC at their
 first steady bounding cycle (the cycle their experts loop, ``hsddp_gym.planners.policies.experts.JUMP_LOOP`` and
-``TRANSITION_LOOPS``); the backflip and bound to stop end standing."""
+``TRANSITION_LOOPS``); the backflip and bound to stop end standing; the pronk is periodic from its second cycle
+(``PRONK_LOOP_PHASE``, the cycle its expert loops), at the env's target speed."""
 
 
 def motion_reference(name: str, planner_dt: float, hold: int, friction: float | None = None,
@@ -90,7 +99,7 @@ def motion_reference(name: str, planner_dt: float, hold: int, friction: float | 
 
 @functools.lru_cache(maxsize=8)
 def _reference(name: str, planner_dt: float, hold: int, friction: float | None, kwargs: tuple) -> MotionReference:
-    build, options, hand_over = MOTION_PROBLEMS[name]
+    build, options, hand_over, loop_phase = MOTION_PROBLEMS[name]
     problem, phases = build(HybridDynamics(dt=planner_dt, integrator="semi_implicit"), **dict(kwargs))
     if friction is not None:
         problem = problem.with_constraints(dataclasses.replace(problem.constraints, friction=friction))
@@ -100,7 +109,7 @@ def _reference(name: str, planner_dt: float, hold: int, friction: float | None, 
     except WarmStartDivergedError:
         guess = _fine_guess(problem, build(HybridDynamics(), **dict(kwargs)), options)
     solution = solver.solve(problem, **guess)
-    return reference_from_solve(name, problem, solver, solution, hold, hand_over)
+    return reference_from_solve(name, problem, solver, solution, hold, hand_over, loop_phase)
 
 
 def _fine_guess(problem: HybridProblem, fine, options: SolverOptions) -> dict:

@@ -85,13 +85,17 @@ class SeenAirborne(TouchdownRule):
 
 
 class FootClearance(TouchdownRule):
-    """A flagged foot counts if it was seen at least ``clearance`` above ``z = 0`` during the current phase (its
+    """A flagged foot counts if it was seen at least ``clearance`` above the ground during the current phase (its
     height from the observed state; without a state no foot is seen clear).
 
     Args:
         clearance: [m] ([`TOUCHDOWN_CLEARANCE`][TOUCHDOWN_CLEARANCE]; [`plan_clearance`][plan_clearance] for a plan
             whose flights are low).
         robot: the kinematics for the feet's heights (None: the default model).
+
+    Attributes:
+        ground: the ground's height [m] in the state's frame (0: ``z = 0``; a policy with a sensor-bias estimate sets
+            it to where the measurement puts the ground).
     """
 
     def __init__(self, clearance: float = TOUCHDOWN_CLEARANCE, robot: CheetahModel | None = None) -> None:
@@ -99,11 +103,12 @@ class FootClearance(TouchdownRule):
         if robot is not None and not isinstance(robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel or None, got {type(robot).__name__}")
         self.robot = robot if robot is not None else CheetahModel()
+        self.ground = 0.0
 
     def evidence(self, mode: Mode, x: np.ndarray | None) -> tuple[bool, bool]:
         if x is None:
             return False, False
-        heights = self.robot.foot_heights(np.asarray(x, dtype=np.float64)[:NQ])
+        heights = self.robot.foot_heights(np.asarray(x, dtype=np.float64)[:NQ]) - self.ground
         return bool(heights[0] >= self.clearance), bool(heights[1] >= self.clearance)
 
     def __repr__(self) -> str:

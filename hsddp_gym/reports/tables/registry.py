@@ -15,8 +15,7 @@ from hsddp_gym.reports.tables.learned import learning_imitation, policies_protoc
 from hsddp_gym.reports.tables.paper import paper_sto_periodic, paper_sto_variants, paper_task1
 from hsddp_gym.reports.tables.physics import env_physics
 from hsddp_gym.reports.tables.robustness import (
-    robustness_backflip_mpc,
-    robustness_bound_to_stop_mpc,
+    TASK_MPC_TASKS,
     robustness_contact_models,
     robustness_generality,
     robustness_generality_summary,
@@ -24,12 +23,14 @@ from hsddp_gym.reports.tables.robustness import (
     robustness_simulators,
     robustness_suite,
     robustness_summary,
+    robustness_task_mpc_summary,
     robustness_tasks_backflip,
     robustness_tasks_jumps,
     robustness_tasks_pronking,
     robustness_tasks_rl_backflip,
     robustness_tasks_rl_jumps,
     robustness_tasks_transitions,
+    task_mpc_table,
 )
 from hsddp_gym.reports.tables.speed import (
     speed_dynamics,
@@ -95,8 +96,8 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "robustness/tasks_transitions": robustness_tasks_transitions,
     "robustness/tasks_rl_backflip": robustness_tasks_rl_backflip,
     "robustness/tasks_rl_jumps": robustness_tasks_rl_jumps,
-    "robustness/backflip_mpc": robustness_backflip_mpc,
-    "robustness/bound_to_stop_mpc": robustness_bound_to_stop_mpc,
+    "robustness/task_mpc_summary": robustness_task_mpc_summary,
+    **{f"robustness/task_mpc_{task}": task_mpc_table(task) for task in TASK_MPC_TASKS},
 }
 """``{table id: renderer}``."""
 

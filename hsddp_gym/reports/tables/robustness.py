@@ -4,6 +4,8 @@ per condition."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from hsddp_gym.core.task_constants import MOTION_PUSH_SIZE
 from hsddp_gym.reports.store import Store
 from hsddp_gym.reports.tables.markdown import NA, fmt, machine_note, markdown_table, source_line
@@ -294,9 +296,9 @@ TASK_RECORD = "robustness/tasks"
 """The tasks' robustness record (``experiments/robustness.py --env ID --record results/robustness/tasks.json``)."""
 TASK_RL_RECORD = "robustness/tasks_rl"
 """The record of the learners that use the plan (residual RL) beside RL from scratch and the expert."""
-BACKFLIP_MPC_RECORD = "robustness/backflip_mpc"
-"""The backflip's MPC beside its plan-tracking expert, the same seeds (the MPC with fixed and with online landing
-timing)."""
+TASK_MPC_RECORD = "robustness/task_mpc"
+"""Each motion's MPC beside its plan-tracking expert on the same seeds, and the MPC with online landing timing on the
+push and latency cells."""
 TASK_POLICY_LABELS = {"expert": "expert", "mpc": "MPC", "mpc-retimed": "MPC, online landing timing",
                       "ppo@residual_push": "PPO residual, trained under push",
                       "ppo@residual_obs_noise_s0": "PPO residual, trained under obs. noise, seed 0",
@@ -355,18 +357,51 @@ def robustness_tasks_rl_jumps(store: Store) -> str:
     return task_robustness(store, jumps, TASK_RL_RECORD)
 
 
-def robustness_backflip_mpc(store: Store) -> str:
-    """The backflip's MPC (fixed and online timing of the landing) beside its plan-tracking expert, per condition."""
-    return task_robustness(store, ("backflip",), BACKFLIP_MPC_RECORD)
+def task_mpc_table(task: str) -> Callable[[Store], str]:
+    """The table of ``task``'s MPC beside its plan-tracking expert (and the MPC with online landing timing where it
+    ran), per condition, from [`TASK_MPC_RECORD`][TASK_MPC_RECORD]."""
+    def table(store: Store) -> str:
+        return task_robustness(store, (task,), TASK_MPC_RECORD)
+    table.__doc__ = f"The {task.replace('_', ' ')} MPC beside its plan-tracking expert, per condition."
+    return table
 
 
-BOUND_TO_STOP_MPC_RECORD = "robustness/bound_to_stop_mpc"
-"""Bound to stop's MPC beside its plan-tracking expert, the same seeds."""
+TASK_MPC_TASKS = ("backflip", "gap_jump", "box_jump", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+"""The tasks whose motion MPC [`TASK_MPC_RECORD`][TASK_MPC_RECORD] holds (a table ``robustness/task_mpc_TASK``
+each)."""
 
 
-def robustness_bound_to_stop_mpc(store: Store) -> str:
-    """Bound to stop's MPC beside its plan-tracking expert, per condition."""
-    return task_robustness(store, ("bound_to_stop",), BOUND_TO_STOP_MPC_RECORD)
+def robustness_task_mpc_summary(store: Store) -> str:
+    """Per motion, the MPC against its plan-tracking expert: successes of 20 nominal, under a push, observation noise,
+    the worst latency cell, the contact family, and the worst cell of all with its condition."""
+    if TASK_MPC_RECORD not in store.ids():
+        return f"No `{TASK_MPC_RECORD}` record yet."
+    d = store.data(TASK_MPC_RECORD)
+    conditions = d["conditions"]
+    latency = [i for i, c in enumerate(conditions) if c.startswith("delay_")]
+
+    def cell(results: dict, label: str, idx: list[int]) -> str:
+        values = [results[label]["successes"][i] for i in idx if label in results]
+        values = [v for v in values if v is not None]
+        return NA if not values else str(min(values))
+
+    def worst(results: dict, label: str) -> str:
+        pairs = [(v, conditions[i]) for i, v in enumerate(results[label]["successes"]) if v is not None]
+        v, c = min(pairs)
+        return f"{v} (`{c}`)"
+
+    header = ["motion", "nominal", "push", "obs. noise", "worst latency", "contact family", "worst cell"]
+    rows = []
+    index = {c: i for i, c in enumerate(conditions)}
+    for t in [t for t in TASK_MPC_TASKS if t in d["tasks"]]:
+        r = d["tasks"][t]["results"]
+        rows.append([t.replace("_", " ")] + [
+            f"{cell(r, 'mpc', idx)} / {cell(r, 'expert', idx)}"
+            for idx in ([index["default"]], [index["push"]], [index["obs_noise"]], latency, [index["contact_family"]])
+        ] + [f"{worst(r, 'mpc')} / {worst(r, 'expert')}"])
+    note = (f"Cells: successes of {len(d['seeds'])} episodes (seeds {d['seeds'][0]}-{d['seeds'][-1]}), the MPC / the "
+            "plan-tracking expert; worst latency: the least of the four latency cells.")
+    return "\n".join([markdown_table(header, rows, ["l"] + ["r"] * 6), "", note, source_line(store, TASK_MPC_RECORD)])
 
 
 def robustness_tasks_pronking(store: Store) -> str:

@@ -17,9 +17,13 @@ re-plans), the feedback law between re-plans (projected onto pushing stance feet
   ballistic centre of mass reaches the height it has at the reference's touchdown
   ([`flight_time_to_go`][flight_time_to_go]): a push or a mistimed take-off moves the touchdown of the remaining flight
   with the state. Without it the flight keeps its nominal duration (fixed timing).
+* **the ground**: where the sensor-bias estimate puts it (the calibrated height bias, as the bound's plans): a
+  measurement that reads the trunk 2 cm low plans its landings 2 cm lower, not above the ground.
 * **the end**: the last phase (a stance) is planned at least ``hold_horizon`` long, so after the motion the plans hold
-  its final reference (a receding horizon on the last stance). A motion that ends in a bound (``hand_over`` of its
-  [`MotionReference`][MotionReference]) is handed to the bounding MPC
+  its final reference (a receding horizon on the last stance). A periodic gait (``loop_phase`` of its
+  [`MotionReference`][MotionReference], the pronk) goes on at ``loop_phase`` at the touchdown that ends its last
+  phase: its reference's cycles from there on are steady, and the plans cover what remains of them. A motion that
+  ends in a bound (``hand_over`` of its [`MotionReference`][MotionReference]) is handed to the bounding MPC
   ([`MPCPolicy`][hsddp_gym.planners.policies.mpc.agent.MPCPolicy], the same options) when its phase ``hand_over``
   begins: the bound's schedule estimator picks the gait up from the observed contacts, with the state estimator the
   motion used (its filter, bias and action history carry on).
@@ -35,8 +39,9 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from hsddp_gym.core.conventions import NQ, NX, Mode
+from hsddp_gym.core.conventions import IZ, NQ, NX, Mode
 from hsddp_gym.core.schedule import ModeSchedule
+from hsddp_gym.core.terrain import Terrain
 from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import Solution
@@ -76,6 +81,8 @@ class MotionReference:
         hold: knots per control period.
         hand_over: the phase at whose start the bounding MPC takes over (None: the motion ends in its last stance,
             held): the first steady bounding cycle of a motion that ends in a bound.
+        loop_phase: a periodic gait's (None: a motion that ends): the phase the gait goes on at after the touchdown
+            that ends the last phase (its reference's cycles from there on are steady).
     """
 
     name: str
@@ -87,8 +94,17 @@ class MotionReference:
     law: Solution
     hold: int
     hand_over: int | None = None
+    loop_phase: int | None = None
 
     def __post_init__(self) -> None:
+        if self.loop_phase is not None:
+            if self.hand_over is not None:
+                raise ValueError("a motion has a hand_over or a loop_phase, not both")
+            self.loop_phase = check_int(self.loop_phase, "loop_phase")
+            modes = self.problem.schedule.modes
+            if self.loop_phase >= self.problem.n_phases or modes[self.loop_phase] != self.problem.schedule.final_mode:
+                raise ValueError(f"loop_phase must be a phase of the mode the last phase lands in "
+                                 f"({Mode(self.problem.schedule.final_mode).name}), got {self.loop_phase}")
         if self.hand_over is not None:
             self.hand_over = check_int(self.hand_over, "hand_over", minimum=1)
             modes = self.problem.schedule.modes
@@ -108,10 +124,11 @@ class MotionReference:
 
 
 def reference_from_solve(name: str, problem: HybridProblem, solver, solution: Solution, hold: int,
-                         hand_over: int | None = None) -> MotionReference:
+                         hand_over: int | None = None, loop_phase: int | None = None) -> MotionReference:
     """The [`MotionReference`][MotionReference] of motion ``name`` from ``solver``'s last solve of ``problem``, which
     gave ``solution`` (its multipliers and barrier settings; its law for a control held over ``hold`` knots, from the
-    same backward pass), handed to the bounding MPC at phase ``hand_over`` (None: never).
+    same backward pass), handed to the bounding MPC at phase ``hand_over`` (None: never), periodic from
+    ``loop_phase`` (None: not periodic).
 
     Raises:
         ValueError: ``solver`` has not just solved ``problem``.
@@ -132,7 +149,8 @@ def reference_from_solve(name: str, problem: HybridProblem, solver, solution: So
             heights[i] = com_state(robot, solution.X_pre[i], data)[0]
     law = dataclasses.replace(solution, K=held_input_gains(solver, problem, hold),
                               U=held_feedforward(solution.U, problem.phase_start, hold))
-    return MotionReference(name, problem, solution, cs.lam.copy(), cs.copy(), heights, law, hold, hand_over)
+    return MotionReference(name, problem, solution, cs.lam.copy(), cs.copy(), heights, law, hold, hand_over,
+                           loop_phase)
 
 
 def held_knots(control_dt: float, planner_dt: float) -> int:
@@ -176,10 +194,11 @@ def flight_time_to_go(z: float, vz: float, z_touchdown: float, gravity: float) -
 
 
 def remaining_problem(reference: MotionReference, phase: int, duration: float, x: np.ndarray,
-                      last_duration: float | None = None, elapsed: float = 0.0) -> HybridProblem:
+                      last_duration: float | None = None, elapsed: float = 0.0, ground: float = 0.0) -> HybridProblem:
     """What remains of the motion from ``phase``, ``elapsed`` [s] into it: its phases ``phase .. n - 1`` from the state
     ``x`` (14,), the first ``duration`` [s] long (the others nominal; ``last_duration``: the last one's duration when
-    it is not the first, None: nominal). Knots: ``max(1, round(T / h))`` per phase (``h`` the reference's grid).
+    it is not the first, None: nominal), on the ground (or the motion's terrain) raised by ``ground`` [m] (where the
+    measurement puts it). Knots: ``max(1, round(T / h))`` per phase (``h`` the reference's grid).
 
     The running references are the reference's trajectory (states and ground forces at the same point of the
     motion, [`reference_knots`][reference_knots]), not the phases' end references: a re-plan keeps to the motion the
@@ -195,12 +214,19 @@ def remaining_problem(reference: MotionReference, phase: int, duration: float, x
         durations[-1] = check_positive(last_duration, "last_duration")
     knots = np.maximum(1, np.round(durations / full.dt)).astype(np.int64)
     schedule = ModeSchedule(s.modes[phase:], durations, final_mode=s.final_mode)
+    ground = float(ground)
+    if not math.isfinite(ground):
+        raise ValueError(f"ground must be finite, got {ground!r}")
+    terrain = full.terrain
+    if ground != 0.0:
+        terrain = (Terrain.flat() if terrain is None else terrain).raised(ground)
     problem = HybridProblem(full.dynamics, schedule, full.costs[phase:], x, full.constraints, full.restitution,
-                            knots=knots, terrain=full.terrain)
+                            knots=knots, terrain=terrain)
     idx = reference_knots(reference, phase, elapsed, problem)
     problem.XR = reference.solution.X[idx].copy()
     if full.terrain is None:  # on flat ground the motion is the same wherever it starts; on a terrain it is not
         problem.XR[:, 0] += x[0] - reference.solution.X[idx[0], 0]
+    problem.XR[:, IZ] += ground
     problem.YR = reference.solution.GRF[idx].copy()
     return problem
 
@@ -340,10 +366,12 @@ class MotionMPCPolicy(Policy):
                            mo.max_flight_stretch * nominal)
             self.flight_time_to_go = duration
         duration = max(duration, self.options.plan.min_phase)
-        if k == last:
-            return remaining_problem(ref, k, max(duration, mo.hold_horizon), x, elapsed=self._phase_time)
+        ground = self.estimator.model_ground()
+        if k == last and ref.loop_phase is None:
+            return remaining_problem(ref, k, max(duration, mo.hold_horizon), x, elapsed=self._phase_time,
+                                     ground=ground)
         return remaining_problem(ref, k, duration, x, float(ref.problem.schedule.durations[last]),
-                                 elapsed=self._phase_time)
+                                 elapsed=self._phase_time, ground=ground)
 
     def _cold_start(self, problem: HybridProblem) -> tuple:
         """The reference at the motion's current phase and time on ``problem``'s knots: ``(U, X, K)``, its controls,
@@ -387,6 +415,7 @@ class MotionMPCPolicy(Policy):
         tracker = self.law.plan.tracker
         if self._in_early_flight():
             eff = tracker.modes[tracker.phase]  # a contact this early in a flight is a scuff, not its landing
+        self.touchdown.ground = self.estimator.model_ground()  # feet seen clear of the ground where it is measured
         tracker.sync(eff, x)
         self._follow(tracker)
         dt = self.interface.control_dt
@@ -417,7 +446,14 @@ class MotionMPCPolicy(Policy):
                 and self._phase_time < self.options.schedule.min_flight * float(schedule.durations[self.phase]))
 
     def _follow(self, tracker: PlanTracker) -> None:
-        """Take the motion's phase from the plan's cursor; a new phase of the plan re-plans at once."""
+        """Take the motion's phase from the plan's cursor; a new phase of the plan re-plans at once (a periodic gait:
+        the touchdown that ends its last phase starts ``loop_phase``)."""
+        loop = self.reference.loop_phase
+        if loop is not None and tracker.finished and self.phase == self.reference.n_phases - 1:
+            self.phase, self._phase_time, self._since_replan = loop, 0.0, np.inf
+            self._tracker_phase = -1  # the plan acted on is over: the re-plan from loop_phase replaces it
+            self.stats["phase_replans"] += 1
+            return
         if tracker.phase == self._tracker_phase:
             return
         self._tracker_phase = tracker.phase
