@@ -507,3 +507,59 @@ def test_the_mpc_benchmark_measures_a_tasks_mpc_beside_the_bounds(tmp_path, expe
     with pytest.raises(SystemExit):
         bench.main(["--env", "hsddp_gym/NoSuchEnv-v0"])
     assert "unknown env" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------------------------ the ground, periodic gaits
+def test_what_remains_is_planned_on_the_measured_ground(reference):
+    """A calibrated height bias lowers (or raises) the plans' ground and their trunk references with it."""
+    ref = reference.problem
+    x = reference.solution.X[int(ref.phase_start[FLIGHT]) + 10]
+    flat = remaining_problem(reference, FLIGHT, 0.2, x)
+    low = remaining_problem(reference, FLIGHT, 0.2, x, ground=-0.02)
+    assert flat.terrain is None
+    assert low.terrain.support_heights(np.array([0.0, 0.5]))[0] == pytest.approx(-0.02)
+    np.testing.assert_allclose(low.XR[:, 1], flat.XR[:, 1] - 0.02)
+    np.testing.assert_array_equal(np.delete(low.XR, 1, axis=1), np.delete(flat.XR, 1, axis=1))
+    with pytest.raises(ValueError, match="ground must be finite"):
+        remaining_problem(reference, FLIGHT, 0.2, x, ground=np.nan)
+
+
+def test_feet_are_seen_clear_of_the_measured_ground(reference):
+    rule = FootClearance(0.005)
+    x = reference.solution.X[int(reference.problem.phase_start[FLIGHT]) - 1]  # the take-off: the back foot down
+    assert rule.evidence(Mode.BACK_STANCE, x)[1] is False
+    rule.ground = -0.01  # the measurement reads the trunk 1 cm low: a foot at z = 0 is 1 cm above the ground
+    assert rule.evidence(Mode.BACK_STANCE, x)[1] is True
+
+
+@pytest.fixture(scope="module")
+def pronk() -> MotionReference:
+    return motion_reference("pronk", DT, 2, FRICTION, cycles=4, speed=1.0)
+
+
+def test_a_periodic_gait_goes_on_at_its_loop_phase(pronk):
+    assert pronk.loop_phase == 2 and pronk.hand_over is None
+    assert pronk.problem.schedule.modes[2] == pronk.problem.schedule.final_mode == Mode.DOUBLE_STANCE
+    with pytest.raises(ValueError, match="loop_phase must be a phase of the mode"):
+        dataclasses.replace(pronk, loop_phase=1)  # a flight: the last flight lands in a double stance
+    with pytest.raises(ValueError, match="not both"):
+        dataclasses.replace(pronk, hand_over=2)
+
+
+def test_the_pronks_mpc_loops_at_the_touchdown_that_ends_its_reference():
+    env = gym.make("hsddp_gym/Pronking-v0", target_speed=1.2)
+    policy = make_policy("mpc", env)
+    assert isinstance(policy, MotionMPCPolicy) and policy.motion == "pronk"
+    assert policy.reference.solution.X[0, NQ] == pytest.approx(1.2)  # planned at the env's target speed
+    last = policy.reference.n_phases - 1
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    phases = []
+    for _ in range(300):  # 1.5 s: the reference's 4 cycles are 0.69 s
+        obs, _, terminated, _, info = env.step(policy.act(obs))
+        assert not terminated
+        phases.append(policy.phase)
+    wraps = [k for k in range(1, len(phases)) if phases[k - 1] == last and phases[k] == policy.reference.loop_phase]
+    assert len(wraps) >= 2 and max(phases) == last  # it went round twice, and never past the reference's end
+    assert info["x_velocity"] == pytest.approx(1.2, abs=0.3)
+    env.close()
