@@ -46,6 +46,7 @@ from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
 from hsddp_gym.planners.optimizer.problem import HybridProblem
 from hsddp_gym.planners.optimizer.solution import Solution
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
+from hsddp_gym.planners.policies.estimation import terrain_clearance
 from hsddp_gym.planners.policies.mpc.agent import MPCPolicy
 from hsddp_gym.planners.policies.mpc.ground import GroundModel
 from hsddp_gym.planners.policies.mpc.law import FeedbackLaw, feedback_torques
@@ -416,6 +417,8 @@ class MotionMPCPolicy(Policy):
         if self._in_early_flight():
             eff = tracker.modes[tracker.phase]  # a contact this early in a flight is a scuff, not its landing
         self.touchdown.ground = self.estimator.model_ground()  # feet seen clear of the ground where it is measured
+        if tracker.waiting:
+            eff = self._late_landing(eff, x, tracker)
         tracker.sync(eff, x)
         self._follow(tracker)
         dt = self.interface.control_dt
@@ -437,6 +440,25 @@ class MotionMPCPolicy(Policy):
         return action
 
     _feedback_replan = MPCPolicy._feedback_replan
+
+    def _late_landing(self, mode: Mode, x: np.ndarray, tracker: PlanTracker) -> Mode:
+        """``mode`` with the landing feet of a late flight (the cursor waits at its end) added where the state ``x``
+        (14,) puts them within ``ScheduleOptions.touchdown_height`` of the measured ground, as the bound's schedule
+        estimator does ([`late_landing`][hsddp_gym.planners.policies.mpc.schedule.late_landing]): on a stiff contact a
+        landing foot can touch and leave within every control step, so no flag reports the touchdown and the flight
+        would wait while the trunk sinks."""
+        height = self.options.schedule.touchdown_height
+        if height is None:
+            return mode
+        i = tracker.phase
+        ground = self.estimator.model_ground()
+        terrain = self.reference.problem.terrain
+        for foot in (0, 1):
+            if (tracker.next_modes[i].in_contact(foot) and not tracker.modes[i].in_contact(foot)
+                    and not mode.in_contact(foot)
+                    and terrain_clearance(self.robot, x[:NQ], foot, terrain) - ground < height):
+                mode = Mode(int(mode) | (1 << foot))
+        return mode
 
     def _in_early_flight(self) -> bool:
         """Whether the motion is in a flight of which less than ``ScheduleOptions.min_flight`` of its nominal
