@@ -563,3 +563,21 @@ def test_the_pronks_mpc_loops_at_the_touchdown_that_ends_its_reference():
     assert len(wraps) >= 2 and max(phases) == last  # it went round twice, and never past the reference's end
     assert info["x_velocity"] == pytest.approx(1.2, abs=0.3)
     env.close()
+
+
+def test_a_late_flights_landing_foot_at_the_ground_has_landed(policy, reference):
+    """From a flight's nominal end on, a landing foot within ``touchdown_height`` of the measured ground counts as down
+    (a stiff contact bounces it off within a control step, and no flag reports the touchdown)."""
+    flight = float(reference.problem.schedule.durations[FLIGHT])
+    tracker = reference.tracker(FLIGHT, flight, policy.touchdown)
+    tracker.advance(0.005)
+    assert tracker.waiting
+    x = reference.solution.X_pre[FLIGHT].copy()  # both feet at the ground: the reference's touchdown
+    assert policy._late_landing(Mode.FLIGHT, x, tracker) == Mode.DOUBLE_STANCE
+    high = x.copy()
+    high[1] += 0.03  # 3 cm above it: still in the air
+    assert policy._late_landing(Mode.FLIGHT, high, tracker) == Mode.FLIGHT
+    policy.estimator.model_ground = lambda: 0.03  # the measurement puts the ground 3 cm higher
+    assert policy._late_landing(Mode.FLIGHT, high, tracker) == Mode.DOUBLE_STANCE
+    off = motion_mpc_policy(policy.interface, "backflip", MPCOptions().replace(touchdown_height=None))
+    assert off._late_landing(Mode.FLIGHT, x, tracker) == Mode.FLIGHT  # the rule off: the flags alone
