@@ -12,7 +12,7 @@ the panels' policies.
 Usage::
 
     python experiments/push_gif.py --out docs/figures/push_nose_down.gif [--seed 100] [--push 1.05 0 0 8]
-    python experiments/push_gif.py --env hsddp_gym/Backflip-v0 --policies mpc --seed 58300 --push 0.5 0.4 0.4 3 \\
+    python experiments/push_gif.py --env hsddp_gym/Backflip-v0 --policies mpc --seed 58300 --push 0.5 0.4 0.4 2 \\
         --before 0.1 --after 0.8 --stride 10 --out docs/figures/backflip_mpc_push.gif
 """
 

@@ -39,6 +39,7 @@ from hsddp_gym.reports.tables.speed import (
     speed_solver,
     speed_solver_horizons,
     speed_summary,
+    speed_task_mpc,
     speed_vector_env,
     speed_vector_env_tasks,
 )
@@ -67,6 +68,7 @@ TABLES: dict[str, Callable[[Store], str]] = {
     "speed/solver": speed_solver,
     "speed/solver_horizons": speed_solver_horizons,
     "speed/mpc": speed_mpc,
+    "speed/task_mpc": speed_task_mpc,
     "speed/summary": speed_summary,
     "robustness/suite": robustness_suite,
     "robustness/summary": robustness_summary,

@@ -366,7 +366,8 @@ def task_mpc_table(task: str) -> Callable[[Store], str]:
     return table
 
 
-TASK_MPC_TASKS = ("backflip", "gap_jump", "box_jump", "stand_to_bound", "bound_pronk_bound", "bound_to_stop")
+TASK_MPC_TASKS = ("pronking", "backflip", "gap_jump", "box_jump", "stand_to_bound", "bound_pronk_bound",
+                  "bound_to_stop")
 """The tasks whose motion MPC [`TASK_MPC_RECORD`][TASK_MPC_RECORD] holds (a table ``robustness/task_mpc_TASK``
 each)."""
 
@@ -386,9 +387,12 @@ def robustness_task_mpc_summary(store: Store) -> str:
         return NA if not values else str(min(values))
 
     def worst(results: dict, label: str) -> str:
-        pairs = [(v, conditions[i]) for i, v in enumerate(results[label]["successes"]) if v is not None]
-        v, c = min(pairs)
-        return f"{v} (`{c}`)"
+        cells = [(v, conditions[i]) for i, v in enumerate(results[label]["successes"]) if v is not None]
+        low = min(v for v, _ in cells)
+        at = [c for v, c in cells if v == low]
+        if len(at) == len(cells):
+            return f"{low} (every cell)"
+        return f"{low} (`{at[0]}`" + (f" and {len(at) - 1} more)" if len(at) > 1 else ")")
 
     header = ["motion", "nominal", "push", "obs. noise", "worst latency", "contact family", "worst cell"]
     rows = []

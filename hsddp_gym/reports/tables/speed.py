@@ -156,6 +156,26 @@ def speed_mpc(store: Store) -> str:
                       source_line(store, "speed/mpc")])
 
 
+def speed_task_mpc(store: Store) -> str:
+    """Each task's MPC for one episode: real-time factor, re-plan time and cost per plan knot beside the bound's MPC
+    in the same run (``bench_mpc.py --env``)."""
+    record = "speed/task_mpc"
+    if record not in store.ids():
+        return f"No `{record}` record yet (`python experiments/bench_mpc.py --env ID ... --record FILE`)."
+    d = store.data(record)
+    rows = []
+    for env_id, r in d["envs"].items():
+        name = env_id.split("/")[-1] + (" (the reference)" if env_id == d["reference"] else "")
+        rows.append([f"`{name}`", f"{r['seconds']:.2f}", f"{r['real_time_factor']:.2f}",
+                     f"{r['replan_ms']['mean']:.1f}", f"{r['replan_ms']['max']:.0f}", f"{r['knots_mean']:.0f}",
+                     f"{r['us_per_knot']:.1f}",
+                     f"{r['per_knot_ratio_to_bound']:.2f}"])
+    table = markdown_table(["env", "simulated s", "real-time factor", "re-plan ms, mean", "max", "knots per re-plan",
+                            "us per knot", "per knot / the bound's"], rows, ["l"] + ["r"] * 7)
+    return "\n".join([table, "", f"One episode per env (seed {d['seed']}), one after the other in one process; the "
+                      f"bound's MPC runs 3 s. Machine: {machine_note(store, record)}.", source_line(store, record)])
+
+
 def speed_summary(store: Store) -> str:
     """One row per benchmark: the figure and its ratio to a reference measured in the same run (README)."""
     env = store.data("speed/env")
