@@ -92,14 +92,14 @@ def test_up_to_five_cycles_the_warm_start_is_the_heuristic_unchanged(cycles):
 
 
 def test_the_five_cycle_plan_is_the_published_one_to_round_off():
-    """The paper reproduction's al-reb row (results/paper/task1.json) comes from this call: the same iterations and,
-    to round-off, the same objective and cost (bit for bit on the machine that recorded it; another CPU rounds the
-    compiled kernels' arithmetic differently in the last bits)."""
+    """The paper reproduction's al-reb row (results/paper/task1.json) comes from this call: the same iterations and
+    the same objective and cost to the record's 8 significant digits (``SIGNIFICANT_DIGITS``; another CPU rounds the
+    compiled kernels' arithmetic differently only in the last bits)."""
     published = json.loads((ROOT / "results/paper/task1.json").read_text())["data"]["methods"]["al-reb"]
     result = plan_bounding(cycles=5)
     assert result.summary["warm_start"] == "heuristic"
-    assert result.summary["objective"] == pytest.approx(published["objective"], rel=1e-9, abs=0.0)
-    assert result.summary["cost"] == pytest.approx(published["cost"], rel=1e-9, abs=0.0)
+    assert result.summary["objective"] == pytest.approx(published["objective"], rel=1e-7, abs=0.0)
+    assert result.summary["cost"] == pytest.approx(published["cost"], rel=1e-7, abs=0.0)
     assert result.summary["ddp_iterations"] == published["ddp_iterations"]
 
 
