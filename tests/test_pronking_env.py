@@ -165,8 +165,8 @@ def test_dagger_runs_a_tiny_iteration_labelled_by_the_pronking_expert(tmp_path):
     assert summary["expert"]["class"].endswith("experts.pronking_expert")
     assert summary["expert_labels"] == len(load_dagger_data(tmp_path / "dagger")) <= 60
     assert [h["round"] for h in summary["history"]] == [0, 1] and summary["eval"]["episodes"] == 1
-    with pytest.raises(ValueError, match="expert 'mpc'"):  # the MPC is a bounding controller
-        run_dagger("mpc", tmp_path / "mpc", config=config, eval_episodes=0, progress=False, env_id=ENV_ID)
+    with pytest.raises(ValueError, match="expert 'heuristic'.*or 'mpc'"):  # the heuristic is a bounding controller
+        run_dagger("heuristic", tmp_path / "h", config=config, eval_episodes=0, progress=False, env_id=ENV_ID)
     with pytest.raises(ValueError, match="conditions"):
         DAggerConfig(env_id=ENV_ID, conditions=("push",))
 
@@ -194,6 +194,6 @@ def test_the_cli_trains_sac_in_the_pronking_env_and_refuses_what_it_does_not_tak
     assert cli.main(["train", "--algo", "sac", "--env", ENV_ID, "--steps", "10", "--out", str(tmp_path / "x"),
                      "--condition", "push", "--vector-env"]) == 2  # a task's pushes come in single envs
     assert f"given with --env {ENV_ID}" in capsys.readouterr().err
-    for argv, option in ((["--algo", "dagger", "--expert", "mpc"], "--expert"), (["--algo", "bc"], "--env")):
+    for argv, option in ((["--algo", "dagger", "--expert", "heuristic"], "--expert"), (["--algo", "bc"], "--env")):
         assert cli.main(["train", "--env", ENV_ID, *argv, "--out", str(tmp_path / "x")]) == 2
         assert capsys.readouterr().err.startswith(f"error: {option}")
