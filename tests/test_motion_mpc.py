@@ -29,6 +29,7 @@ from hsddp_gym.planners.policies.mpc.motion import (
 from hsddp_gym.planners.policies.mpc.warm_start import shift_plan
 from hsddp_gym.planners.policies.touchdown import FootClearance
 from hsddp_gym.planners.policies.tracking import PlanTracker
+from hsddp_gym.registry import TASKS
 from hsddp_gym.rollout.policies import PolicySpec, make_policy, task_policy_spec
 
 DT = MPCOptions().plan.planner_dt
@@ -581,3 +582,20 @@ def test_a_late_flights_landing_foot_at_the_ground_has_landed(policy, reference)
     assert policy._late_landing(Mode.FLIGHT, high, tracker) == Mode.DOUBLE_STANCE
     off = motion_mpc_policy(policy.interface, "backflip", MPCOptions().replace(touchdown_height=None))
     assert off._late_landing(Mode.FLIGHT, x, tracker) == Mode.FLIGHT  # the rule off: the flags alone
+
+
+def test_the_push_failures_experiment_reports_each_push(tmp_path, experiment, capsys):
+    """``push_failures.py``: the push drawn, the outcome, the state at the push and the best plan's violation."""
+    import json
+
+    script = experiment("push_failures")
+    out = tmp_path / "pushes.json"
+    assert script.main(["--env", "hsddp_gym/StandToBound-v0", "--first-seed", "3", "--seeds", "1", "--window", "0.1",
+                        "--out", str(out)]) == 0
+    row = json.loads(out.read_text())["rows"][0]
+    lo, hi = TASKS["stand_to_bound"].push_window
+    assert row["seed"] == 3 and lo <= row["push_time"] <= hi and len(row["delta_v"]) == 3
+    assert row["at_push"]["phase"] >= 0 and row["plans_after_push"] >= 1 and row["best_switching_violation"] >= 0.0
+    assert "StandToBound-v0" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        script.main(["--env", "hsddp_gym/Bounding-v0"])  # no motion MPC
