@@ -531,6 +531,8 @@ def test_feet_are_seen_clear_of_the_measured_ground(reference):
     assert rule.evidence(Mode.BACK_STANCE, x)[1] is False
     rule.ground = -0.01  # the measurement reads the trunk 1 cm low: a foot at z = 0 is 1 cm above the ground
     assert rule.evidence(Mode.BACK_STANCE, x)[1] is True
+    with pytest.raises(ValueError, match="ground must be a finite height"):
+        rule.ground = np.nan
 
 
 @pytest.fixture(scope="module")

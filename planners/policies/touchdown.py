@@ -103,7 +103,18 @@ class FootClearance(TouchdownRule):
         if robot is not None and not isinstance(robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel or None, got {type(robot).__name__}")
         self.robot = robot if robot is not None else CheetahModel()
-        self.ground = 0.0
+        self._ground = 0.0
+
+    @property
+    def ground(self) -> float:
+        return self._ground
+
+    @ground.setter
+    def ground(self, value: float) -> None:
+        value = float(value)
+        if not np.isfinite(value):
+            raise ValueError(f"ground must be a finite height [m], got {value!r}")
+        self._ground = value
 
     def evidence(self, mode: Mode, x: np.ndarray | None) -> tuple[bool, bool]:
         if x is None:
