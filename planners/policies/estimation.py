@@ -283,6 +283,100 @@ class MeasurementBias:
         return y - self.update(y, mode)
 
 
+class Odometry:
+    """The trunk x where the observation lacks it: the measured forward speed integrated, less its constant bias
+    estimated from the feet on the ground.
+
+    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, is at rest:
+    its forward velocity computed from the measurement ``y`` (``J_x(q) v``, the trunk's forward speed, its pitch rate
+    and the joints' rates) is then the measurement's forward-speed bias ``b`` (a bias of the pitch rate or of a joint
+    rate would show as one too; the trunk's is the one that moves the integral). ``b`` is the mean of those samples,
+    the older ones forgotten with the time constant ``memory``, from a prior of zero worth ``prior_steps`` samples; a
+    sample further than ``gate`` [m/s] from the estimate (a slipping foot) is not used; the estimate is bounded by
+    ``limit``. The bias being constant, the correction applies to the whole integral: ``x = int v dt - b t``
+    (trapezoidal, from 0 at the first observation), so what the integral gathered before the estimate settled is taken
+    back too. Without ``memory`` (None) the bias is not estimated (``x = int v dt``).
+
+    Args:
+        robot: the model (its kinematics).
+        control_dt: period of the observations [s].
+        memory: time constant of the forgetting [s] (> 0), or None.
+        settle_steps: observations a foot must have been in contact before it is used (>= 1).
+        prior_steps: weight of the zero-bias prior, in samples of one foot (> 0).
+        gate: residual [m/s] beyond which a sample is not used (> 0).
+        limit: bound [m/s] of the estimate (> 0).
+
+    Attributes:
+        speed_bias: the estimate ``b`` [m/s].
+        samples: foot samples used since [`reset`][reset].
+    """
+
+    def __init__(self, robot: CheetahModel, control_dt: float, memory: float | None = 1.0, settle_steps: int = 2,
+                 prior_steps: float = 1.0, gate: float = 0.5, limit: float = 0.3) -> None:
+        if not isinstance(robot, CheetahModel):
+            raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
+        self.robot = robot
+        self.dt = check_positive(control_dt, "control_dt")
+        self.forget = None if memory is None else math.exp(-self.dt / check_positive(memory, "memory"))
+        self.settle_steps = check_int(settle_steps, "settle_steps", minimum=1)
+        self.prior = check_positive(prior_steps, "prior_steps")
+        self.gate = check_positive(gate, "gate")
+        self.limit = check_positive(limit, "limit")
+        self.reset()
+
+    def reset(self) -> None:
+        """Start at x = 0 with no bias."""
+        self.speed_bias = 0.0
+        self.samples = 0
+        self._integral: float | None = None
+        self._speed = 0.0
+        self._time = 0.0
+        self._in_contact = [0, 0]
+        self._weight, self._sum = 0.0, 0.0
+
+    def update(self, y: np.ndarray, mode: Mode) -> float:
+        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return the trunk x [m]."""
+        y = check_vector(y, NX, "y")
+        vx = float(y[NQ])
+        if self._integral is None:
+            self._integral = 0.0
+        else:
+            self._integral += 0.5 * (self._speed + vx) * self.dt
+            self._time += self.dt
+        self._speed = vx
+        if self.forget is not None:
+            self._fold(y, Mode(mode))
+        return self.x
+
+    @property
+    def integral(self) -> float:
+        """The measured forward speed's integral [m] (trapezoidal, 0 before the first observation)."""
+        return 0.0 if self._integral is None else self._integral
+
+    @property
+    def x(self) -> float:
+        """The trunk x [m]: [`integral`][integral] less the speed bias over the time since the first observation."""
+        return self.integral - self.speed_bias * self._time
+
+    def _fold(self, y: np.ndarray, mode: Mode) -> None:
+        self._weight *= self.forget
+        self._sum *= self.forget
+        used = False
+        for f in (FRONT, BACK):
+            self._in_contact[f] = self._in_contact[f] + 1 if mode.in_contact(f) else 0
+            if self._in_contact[f] <= self.settle_steps:
+                continue
+            v = float(self.robot.foot_jacobian(y[:NQ], f)[0] @ y[NQ:])
+            if abs(v - self.speed_bias) > self.gate:
+                continue
+            self._weight += 1.0
+            self._sum += v
+            self.samples += 1
+            used = True
+        if used:
+            self.speed_bias = float(np.clip(self._sum / (self._weight + self.prior), -self.limit, self.limit))
+
+
 def _noise_model(dt: float, position_noise: float, velocity_noise: float, acceleration_noise: float):
     """``(A, Q, R)`` (2, 2) each of one coordinate ``(q, v)``: transition, process and measurement covariances."""
     dt = check_positive(dt, "dt")

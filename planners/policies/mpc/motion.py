@@ -307,6 +307,7 @@ class MotionMPCPolicy(Policy):
         self.planner.barrier = (c.delta_torque, max(c.delta_grf, GRF_RELAXATION), c.eps_torque, c.eps_grf)
         self.planner.cold_start = self._cold_start
         self.estimator = StateEstimator(i, o.estimator, robot)
+        self.estimator.correct_bias = self.motion_options.bias_correction
         friction = self.reference.problem.constraints.friction
         terrain = self.reference.problem.terrain
         self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction,

@@ -212,14 +212,21 @@ class MotionOptions:
         hold_horizon: the least planned duration [s] of the motion's last phase (after the motion, the plans hold its
             final reference).
         max_flight_stretch: a retimed flight lasts at most this many times its nominal duration.
+        bias_correction: the motion's plans start from the state less the estimated pitch bias
+            ([`MeasurementBias`][hsddp_gym.planners.policies.estimation.MeasurementBias], once calibrated) and
+            forward-speed bias ([`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]); the height bias stays
+            where the model puts the ground. A landing placed in the world moves with both (a gap's far rim); the
+            bounding MPC keeps the measured state (its speed integral takes up the speed bias) and does not use it.
     """
 
     retime: bool = False
     hold_horizon: float = 0.25
     max_flight_stretch: float = 2.0
+    bias_correction: bool = True
 
     def __post_init__(self) -> None:
         _check_bool(self.retime, "retime")
+        _check_bool(self.bias_correction, "bias_correction")
         check_positive(self.hold_horizon, "hold_horizon")
         if not check_positive(self.max_flight_stretch, "max_flight_stretch") >= 1.0:
             raise ValueError(f"max_flight_stretch must be >= 1, got {self.max_flight_stretch!r}")
@@ -356,7 +363,7 @@ FLAT_FIELDS = {
     "bias_memory": ("estimator", "bias_memory"), "delay_search": ("estimator", "delay_search"),
     # motion
     "retime": ("motion", "retime"), "hold_horizon": ("motion", "hold_horizon"),
-    "max_flight_stretch": ("motion", "max_flight_stretch"),
+    "max_flight_stretch": ("motion", "max_flight_stretch"), "bias_correction": ("motion", "bias_correction"),
     # the feedback law
     "min_stance_force": (None, "min_stance_force"),
 }

@@ -4,10 +4,12 @@ Every control step [`StateEstimator.update`][StateEstimator.update] takes the st
 ([`state_from_observation`][hsddp_gym.core.observation.state_from_observation]) and
 
 1. on a terrain without the trunk x in the observation, puts in the trunk x integrated from the measured forward
-   speed ([`StateEstimator.trunk_x`][StateEstimator.trunk_x]);
+   speed (the motion MPC's: less the speed's bias the feet on the ground show,
+   [`StateEstimator.trunk_x`][StateEstimator.trunk_x]);
 2. folds it into the estimate of a constant sensor bias of the trunk height and pitch from the feet on the ground
    ([`MeasurementBias`][hsddp_gym.planners.policies.estimation.MeasurementBias]; once calibrated, its height is where
-   the model puts the ground, [`StateEstimator.model_ground`][StateEstimator.model_ground]);
+   the model puts the ground, [`StateEstimator.model_ground`][StateEstimator.model_ground]); the motion MPC then
+   subtracts the pitch and forward-speed biases from the state ([`StateEstimator.corrected`][StateEstimator.corrected]);
 3. re-estimates the executed action delay from the robot's response to the actions already sent
    ([`DelayEstimator`][hsddp_gym.planners.policies.latency.DelayEstimator]);
 4. filters it with the contact model under the executed torque
@@ -24,10 +26,10 @@ import collections
 
 import numpy as np
 
-from hsddp_gym.core.conventions import IZ, NQ, NU, Mode
+from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NU, Mode
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, StateFilter
+from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, Odometry, StateFilter
 from hsddp_gym.planners.policies.latency import DelayEstimator
 from hsddp_gym.planners.policies.mpc.options import EstimatorOptions
 
@@ -47,6 +49,10 @@ class StateEstimator:
         announced_delay: the action delay the env announces [control steps].
         action_delay: the delay compensated for: the announced one, or its online estimate (``delay_search``).
         bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
+        odometry: the trunk x on a terrain and the forward-speed bias (an ``Odometry``, its memory ``bias_memory``).
+        correct_bias: whether [`update`][update] subtracts the pitch and forward-speed biases from the state
+            ([`corrected`][corrected]) and the speed bias from the odometry's trunk x (False, the bounding MPC's; the
+            motion MPC's ``MotionOptions.bias_correction``).
         delay_changes: how often the delay estimate moved since [`reset`][reset].
     """
 
@@ -65,6 +71,8 @@ class StateEstimator:
                                    o.innovation_gate, o.restart_steps)
         self.bias = None if o.bias_memory is None else \
             MeasurementBias(self.robot, self.interface.control_dt, o.bias_memory)
+        self.odometry = Odometry(self.robot, self.interface.control_dt, o.bias_memory)
+        self.correct_bias = False
 
     def _predictor(self) -> ContactModelPredictor:
         i = self.interface
@@ -92,7 +100,7 @@ class StateEstimator:
                 predictor.set_terrain(terrain)
         if self.bias is not None:
             self.bias.terrain = terrain
-        self._odometry: tuple[float, float] | None = None
+        self.odometry.reset()
         self._first = True
         self.delay_changes = 0
 
@@ -103,28 +111,36 @@ class StateEstimator:
         bias = self.bias
         return float(bias.bias[IZ]) if bias is not None and bias.calibrated else 0.0
 
-    def trunk_x(self, x_obs: np.ndarray) -> np.ndarray:
-        """On a terrain, without the trunk x in the observation: ``x_obs`` (14,) with its x set to the trapezoidal
-        integral of the measured forward speed since the first observation (at x = 0, the env's start up to its reset
-        noise). The MPC needs to know where it is on the terrain."""
+    def trunk_x(self, x_obs: np.ndarray, mode: Mode) -> np.ndarray:
+        """Fold ``x_obs`` (14,) into the [`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]; on a terrain,
+        without the trunk x in the observation, return ``x_obs`` with its x set to the odometry's (a new array; the MPC
+        needs to know where it is on the terrain): the measured forward speed integrated since the first observation
+        (at x = 0, the env's start up to its reset noise), with [`correct_bias`][correct_bias] less the speed's bias the
+        feet on the ground show."""
+        self.odometry.update(x_obs, mode)
         if self.terrain is None or not self.interface.layout.exclude_current_positions:
             return x_obs
-        vx = float(x_obs[NQ])
-        if self._odometry is None:
-            self._odometry = (0.0, vx)
-        else:
-            x0, v0 = self._odometry
-            self._odometry = (x0 + 0.5 * (v0 + vx) * self.interface.control_dt, vx)
         x_obs = x_obs.copy()
-        x_obs[0] = self._odometry[0]
+        x_obs[0] = self.odometry.x if self.correct_bias else self.odometry.integral
+        return x_obs
+
+    def corrected(self, x_obs: np.ndarray) -> np.ndarray:
+        """``x_obs`` (14,) less the estimated pitch bias (once calibrated) and forward-speed bias, a new array (the
+        height bias is left to [`model_ground`][model_ground])."""
+        x_obs = x_obs.copy()
+        if self.bias is not None and self.bias.calibrated:
+            x_obs[IPITCH] -= self.bias.bias[IPITCH]
+        x_obs[IVX] -= self.odometry.speed_bias
         return x_obs
 
     def update(self, x_obs: np.ndarray, mode: Mode) -> np.ndarray:
         """The estimate (14,) from the observed state ``x_obs`` (14,) and contact ``mode`` (steps 1-4 of the module
-        docstring)."""
-        x_obs = self.trunk_x(x_obs)
+        docstring; with [`correct_bias`][correct_bias], the state [`corrected`][corrected] after step 2)."""
+        x_obs = self.trunk_x(x_obs, mode)
         if self.bias is not None:
             self.bias.update(x_obs, mode)
+        if self.correct_bias:
+            x_obs = self.corrected(x_obs)
         ground = self.model_ground()
         torque_limit = self.interface.torque_limit
         if self._delay_estimator is not None:
