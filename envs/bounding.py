@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import numbers
 
@@ -320,12 +319,7 @@ class BoundingEnv(gym.Env):
         self.terrain: Terrain | None = self.terrain_option if isinstance(self.terrain_option, Terrain) else None
         """The profile simulated now (None: flat ground; a random kind draws one at every reset)."""
 
-        params = DEFAULT_PARAMS
-        if self.trunk_mass_scale != 1.0:
-            trunk = dataclasses.replace(params.trunk, mass=params.trunk.mass * self.trunk_mass_scale,
-                                        inertia_yy=params.trunk.inertia_yy * self.trunk_mass_scale)
-            params = dataclasses.replace(params, trunk=trunk)
-        self.robot = CheetahModel(params)
+        self.robot = CheetahModel(DEFAULT_PARAMS.with_trunk_mass_scale(self.trunk_mass_scale))
         self.sim = self._make_simulator(friction, gravity, contact_erp, motor_speed_limits, energy_consistent)
         self.observation_layout = ObservationLayout(exclude_current_positions=exclude)
         low, high = self.observation_layout.bounds()

@@ -348,13 +348,13 @@ def test_odometry_averages_noise_ignores_slipping_feet_and_validates(mpc_boundin
     assert noisy.speed_bias == pytest.approx(0.05, abs=0.02)
     flight, xs = _odometry(states, [Mode.FLIGHT] * len(states), 0.05)  # no foot on the ground: nothing to learn
     assert flight.samples == 0 and flight.speed_bias == 0.0
-    slipping, _ = _odometry(states, modes, 0.8)  # every sample beyond the 0.5 m/s gate from the zero start
+    slipping, _ = _odometry(states, modes, 0.8)  # every sample beyond the 0.2 m/s gate from the zero start
     assert slipping.samples == 0 and slipping.speed_bias == 0.0
     bounded, _ = _odometry(states, modes, 0.8, gate=2.0)
     assert bounded.speed_bias == pytest.approx(0.3)  # the limit
     robot = CheetahModel()
     for kwargs, name in (({"memory": 0.0}, "memory"), ({"settle_steps": 0}, "settle_steps"), ({"gate": 0.0}, "gate"),
-                         ({"limit": -1.0}, "limit"), ({"prior_steps": 0.0}, "prior_steps")):
+                         ({"limit": -1.0}, "limit"), ({"min_samples": 0}, "min_samples")):
         with pytest.raises(ValueError, match=name):
             Odometry(robot, 0.005, **kwargs)
     with pytest.raises(TypeError, match="robot"):

@@ -75,6 +75,16 @@ class RobotParams:
         """Trunk + 2 thighs + 2 shanks [kg] (8.252 kg by default)."""
         return self.trunk.mass + 2.0 * (self.thigh.mass + self.shank.mass)
 
+    def with_trunk_mass_scale(self, scale: float) -> RobotParams:
+        """These parameters with the trunk's mass and pitch inertia times ``scale`` (> 0; a payload at the trunk's
+        centre of mass): a new ``RobotParams`` (``self`` for 1)."""
+        if not (math.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"scale must be a positive finite number, got {scale!r}")
+        if scale == 1.0:
+            return self
+        trunk = dataclasses.replace(self.trunk, mass=self.trunk.mass * scale, inertia_yy=self.trunk.inertia_yy * scale)
+        return dataclasses.replace(self, trunk=trunk)
+
     @property
     def leg_length(self) -> float:
         """Thigh + shank length [m] (0.404 m): hip height with straight legs standing on the ground."""

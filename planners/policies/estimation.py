@@ -17,12 +17,14 @@ gives the state at the moment a new action will act: the MPC's latency compensat
 
 from __future__ import annotations
 
+import collections
 import math
 
 import numpy as np
+import pinocchio as pin
 
 from hsddp_gym.core.compiled_contact import CompiledContactSimulator
-from hsddp_gym.core.conventions import BACK, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
+from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
@@ -287,23 +289,24 @@ class Odometry:
     """The trunk x where the observation lacks it: the measured forward speed integrated, less its constant bias
     estimated from the feet on the ground.
 
-    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, is at rest:
-    its forward velocity computed from the measurement ``y`` (``J_x(q) v``, the trunk's forward speed, its pitch rate
-    and the joints' rates) is then the measurement's forward-speed bias ``b`` (a bias of the pitch rate or of a joint
-    rate would show as one too; the trunk's is the one that moves the integral). ``b`` is the mean of those samples,
-    the older ones forgotten with the time constant ``memory``, from a prior of zero worth ``prior_steps`` samples; a
-    sample further than ``gate`` [m/s] from the estimate (a slipping foot) is not used; the estimate is bounded by
-    ``limit``. The bias being constant, the correction applies to the whole integral: ``x = int v dt - b t``
-    (trapezoidal, from 0 at the first observation), so what the integral gathered before the estimate settled is taken
-    back too. Without ``memory`` (None) the bias is not estimated (``x = int v dt``).
+    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, is at rest
+    unless it slips: its forward velocity computed from the measurement ``y`` (``J_x(q) v``, the trunk's forward speed,
+    its pitch rate and the joints' rates) is then the measurement's forward-speed bias ``b`` (a bias of the pitch rate
+    or of a joint rate would show as one too; the trunk's is the one that moves the integral). ``b`` is the median of
+    the last ``memory / control_dt`` such samples (at least ``min_samples``; 0 before) within ``gate`` of the estimate:
+    a foot that slips (friction 0.4 slides a whole first stance back at 0.2-1 m/s) or lifts while still flagged on the
+    ground is not at rest, and is left out or, a minority, ignored by the median, where a mean would take it for a
+    bias. It is bounded by ``limit``. The bias being constant, the correction applies to
+    the whole integral: ``x = int v dt - b t`` (trapezoidal, from 0 at the first observation), so what the integral
+    gathered before the estimate settled is taken back too. Without ``memory`` (None) the bias is not estimated.
 
     Args:
         robot: the model (its kinematics).
         control_dt: period of the observations [s].
-        memory: time constant of the forgetting [s] (> 0), or None.
+        memory: the samples of how many seconds of observations the median is over [s] (> 0), or None.
         settle_steps: observations a foot must have been in contact before it is used (>= 1).
-        prior_steps: weight of the zero-bias prior, in samples of one foot (> 0).
-        gate: residual [m/s] beyond which a sample is not used (> 0).
+        min_samples: the fewest samples a median is taken of (>= 1).
+        gate: a sample further than this [m/s] from the estimate is not used (> 0).
         limit: bound [m/s] of the estimate (> 0).
 
     Attributes:
@@ -312,14 +315,14 @@ class Odometry:
     """
 
     def __init__(self, robot: CheetahModel, control_dt: float, memory: float | None = 1.0, settle_steps: int = 2,
-                 prior_steps: float = 1.0, gate: float = 0.5, limit: float = 0.3) -> None:
+                 min_samples: int = 10, gate: float = 0.2, limit: float = 0.3) -> None:
         if not isinstance(robot, CheetahModel):
             raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
         self.robot = robot
         self.dt = check_positive(control_dt, "control_dt")
-        self.forget = None if memory is None else math.exp(-self.dt / check_positive(memory, "memory"))
+        self.window = None if memory is None else max(1, round(check_positive(memory, "memory") / self.dt))
         self.settle_steps = check_int(settle_steps, "settle_steps", minimum=1)
-        self.prior = check_positive(prior_steps, "prior_steps")
+        self.min_samples = check_int(min_samples, "min_samples", minimum=1)
         self.gate = check_positive(gate, "gate")
         self.limit = check_positive(limit, "limit")
         self.reset()
@@ -332,10 +335,10 @@ class Odometry:
         self._speed = 0.0
         self._time = 0.0
         self._in_contact = [0, 0]
-        self._weight, self._sum = 0.0, 0.0
+        self._recent: collections.deque = collections.deque(maxlen=self.window or 1)
 
     def update(self, y: np.ndarray, mode: Mode) -> float:
-        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return the trunk x [m]."""
+        """Fold in the measurement ``y`` (14,) with the contact ``mode``; return the trunk x [m] ([`x`][x])."""
         y = check_vector(y, NX, "y")
         vx = float(y[NQ])
         if self._integral is None:
@@ -344,7 +347,7 @@ class Odometry:
             self._integral += 0.5 * (self._speed + vx) * self.dt
             self._time += self.dt
         self._speed = vx
-        if self.forget is not None:
+        if self.window is not None:
             self._fold(y, Mode(mode))
         return self.x
 
@@ -359,8 +362,6 @@ class Odometry:
         return self.integral - self.speed_bias * self._time
 
     def _fold(self, y: np.ndarray, mode: Mode) -> None:
-        self._weight *= self.forget
-        self._sum *= self.forget
         used = False
         for f in (FRONT, BACK):
             self._in_contact[f] = self._in_contact[f] + 1 if mode.in_contact(f) else 0
@@ -369,12 +370,127 @@ class Odometry:
             v = float(self.robot.foot_jacobian(y[:NQ], f)[0] @ y[NQ:])
             if abs(v - self.speed_bias) > self.gate:
                 continue
-            self._weight += 1.0
-            self._sum += v
+            self._recent.append(v)
             self.samples += 1
             used = True
-        if used:
-            self.speed_bias = float(np.clip(self._sum / (self._weight + self.prior), -self.limit, self.limit))
+        if used and len(self._recent) >= self.min_samples:
+            self.speed_bias = float(np.clip(np.median(self._recent), -self.limit, self.limit))
+
+
+class MassEstimate:
+    """The trunk's mass relative to the model's, from the vertical impulse of the stances.
+
+    A stance leg's joint torques ``tau`` hold the ground's force on its foot, ``tau = -J^T F`` (``J`` the foot's
+    (2, 2) Jacobian in the leg's joints; the legs' own inertia neglected), so the executed torques give the vertical
+    impulse of a stance up to each observation, ``I_k = sum F_z dt`` (over the observations of a contact mode held,
+    counted from ``settle_steps`` after it began: the impact is not). For a robot of total mass ``M'`` the centre of
+    mass's vertical velocity is then ``vz_k = v_0 - g t_k + I_k / M'``; the model's mass is ``M``. With
+    ``P_k = I_k / M`` (the change the model expects) and ``Y_k = vz_k + g t_k`` (measured), ``r = M / M'`` is the slope
+    of ``Y`` on ``P`` within each stance (least squares, each stance its own ``v_0``; every observation counts, not only
+    the ends), pooled over the stances (``sum S_PY / sum S_PP``), the older stances forgotten with the time constant
+    ``memory``, from a prior of ``r = 1`` worth ``prior`` [(m/s)^2] of ``S_PP``; a stance shorter than ``min_steps``
+    is not used. It is read as the trunk's mass (and pitch inertia) scale, the legs as the model has them:
+    ``scale = 1 + (M / m_trunk)(1 / r - 1)``, bounded by ``limits``.
+
+    Args:
+        robot: the model (its kinematics, masses and gravity).
+        control_dt: period of the observations [s].
+        memory: time constant of the forgetting [s] (> 0).
+        settle_steps: observations in a contact mode before its stance is counted (>= 1).
+        min_steps: the fewest counted observations of a stance that is used (>= 1).
+        prior: weight of the prior ``r = 1`` [(m/s)^2] (> 0).
+        limits: ``(lowest, highest)`` trunk mass scale (0 < lowest < 1 < highest).
+
+    Attributes:
+        scale: the estimate of the trunk's mass scale (1 before any stance).
+        stances: stances used since [`reset`][reset].
+    """
+
+    def __init__(self, robot: CheetahModel, control_dt: float, memory: float = 5.0, settle_steps: int = 3,
+                 min_steps: int = 5, prior: float = 0.2, limits: tuple = (0.7, 1.4)) -> None:
+        if not isinstance(robot, CheetahModel):
+            raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
+        self.robot = robot
+        self.dt = check_positive(control_dt, "control_dt")
+        self.forget = math.exp(-self.dt / check_positive(memory, "memory"))
+        self.settle_steps = check_int(settle_steps, "settle_steps", minimum=1)
+        self.min_steps = check_int(min_steps, "min_steps", minimum=1)
+        self.prior = check_positive(prior, "prior")
+        lo, hi = check_vector(limits, 2, "limits")
+        if not 0.0 < lo < 1.0 < hi:
+            raise ValueError(f"limits must satisfy 0 < lowest < 1 < highest, got {limits!r}")
+        self.limits = (float(lo), float(hi))
+        params = robot.params
+        self.gravity = float(params.gravity)
+        self.total_mass = float(params.total_mass)
+        self.mass_ratio = self.total_mass / float(params.trunk.mass)
+        self._data = robot.new_data()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the stances (scale 1)."""
+        self.scale = 1.0
+        self.stances = 0
+        self._mode: Mode | None = None
+        self._run = 0
+        self._stance = np.zeros(6)  # this stance's n, sum P, sum Y, sum PY, sum PP, and P (the impulse / M so far)
+        self._t = 0.0
+        self._spy = 0.0
+        self._spp = 0.0
+
+    def vertical_force(self, q: np.ndarray, torque: np.ndarray, mode: Mode) -> float:
+        """The ground's vertical force [N] on the feet ``mode`` has on the ground, held by the joint ``torque`` (4,)
+        [N m] at the configuration ``q`` (7,) (``-J^{-T} tau`` per stance leg)."""
+        total = 0.0
+        for f in (FRONT, BACK):
+            if mode.in_contact(f):
+                joints = list(FOOT_JOINTS[f])
+                jac = self.robot.foot_jacobian(q, f)[:, joints]
+                total -= float(np.linalg.solve(jac.T, torque[[j - 3 for j in joints]])[1])
+        return total
+
+    def update(self, y: np.ndarray, torque: np.ndarray | None, mode: Mode) -> float:
+        """Fold in one observation: the measured state ``y`` (14,), the joint torque (4,) [N m] executed over the last
+        control period (None: not known), the measured contact ``mode``; return [`scale`][scale]."""
+        mode = Mode(mode)
+        self._spy *= self.forget
+        self._spp *= self.forget
+        if mode != self._mode:
+            self._close()
+            self._mode, self._run = mode, 0
+        if mode == Mode.FLIGHT:
+            return self.scale
+        self._run += 1
+        if self._run < self.settle_steps:
+            return self.scale
+        st = self._stance
+        if self._run > self.settle_steps:
+            try:
+                if torque is None:
+                    raise np.linalg.LinAlgError
+                force = self.vertical_force(y[:NQ], np.asarray(torque, dtype=np.float64), mode)
+            except np.linalg.LinAlgError:  # no torque known, or a leg stretched straight: a new stance from here
+                self._close()
+            else:
+                st[5] += force / self.total_mass * self.dt
+                self._t += self.dt
+        pin.centerOfMass(self.robot.model, self._data, y[:NQ], y[NQ:])
+        p, v = st[5], float(self._data.vcom[0][2]) + self.gravity * self._t
+        st[:5] += (1.0, p, v, p * v, p * p)
+        return self.scale
+
+    def _close(self) -> None:
+        """End the stance being counted: fold it in when long enough."""
+        n, sp, sy, spy, spp, _ = self._stance
+        if n >= self.min_steps:
+            self._spy += spy - sp * sy / n
+            self._spp += spp - sp * sp / n
+            self.stances += 1
+            r = (self._spy + self.prior) / (self._spp + self.prior)
+            scale = 1.0 + self.mass_ratio * (1.0 / max(r, 1e-3) - 1.0)
+            self.scale = float(np.clip(scale, *self.limits))
+        self._stance[:] = 0.0
+        self._t = 0.0
 
 
 def _noise_model(dt: float, position_noise: float, velocity_noise: float, acceleration_noise: float):
@@ -463,6 +579,9 @@ class StateFilter:
         outliers: the observations beyond the gate that did not restart the estimate (a run shorter than
             ``restart_steps``) since [`reset`][reset].
         last_nis: the normalized innovation squared of the last corrected observation (None before one).
+        predicted_change: the model's change of the state (14,) over the last control period, from the last estimate
+            under the executed torque (None when the last observation was taken as it is, or the model's contact
+            mode differs from the measured one).
     """
 
     def __init__(self, predictor: ContactModelPredictor, position_noise: float = 0.01, velocity_noise: float = 0.1,
@@ -487,8 +606,10 @@ class StateFilter:
         self.last_nis: float | None = None
         self._beyond = 0  # consecutive observations beyond the gate
         self._ground = 0.0  # the ground [m] of the last update (the estimate moves with it)
+        self.predicted_change: np.ndarray | None = None
 
     def _take(self, y: np.ndarray, mode: Mode, ground: float = 0.0) -> np.ndarray:
+        self.predicted_change = None
         self._ground = ground
         self.x = project_onto_contacts(self.predictor.robot, y, mode, self.predictor.terrain, ground)
         self.covariance = self._R.copy()
@@ -512,6 +633,7 @@ class StateFilter:
             prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64), ground=ground)
         except (ArithmeticError, ValueError, RuntimeError):
             return self._take(y, mode, ground)
+        self.predicted_change = None if prior_mode != mode else prior - self.x
         A = self._A
         P_prior = A @ self.covariance @ A.T + self._Q
         S = P_prior + self._R
@@ -527,7 +649,7 @@ class StateFilter:
         self._beyond = self._beyond + 1 if nis > self.innovation_gate else 0
         if self._beyond >= self.restart_steps:
             self.restarts += 1
-            x = self._take(y, mode, ground)
+            x = self._take(y, mode, ground)  # (no predicted change: the model could not follow)
         else:
             self.outliers += int(self._beyond > 0)
             L = P_prior @ si

@@ -40,6 +40,8 @@ import numpy as np
 import pinocchio as pin
 
 from hsddp_gym.core.conventions import IZ, NQ, NX, Mode
+from hsddp_gym.core.dynamics import HybridDynamics
+from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.core.schedule import ModeSchedule
 from hsddp_gym.core.terrain import Terrain
 from hsddp_gym.planners.optimizer.hold import held_feedforward, held_input_gains
@@ -195,11 +197,13 @@ def flight_time_to_go(z: float, vz: float, z_touchdown: float, gravity: float) -
 
 
 def remaining_problem(reference: MotionReference, phase: int, duration: float, x: np.ndarray,
-                      last_duration: float | None = None, elapsed: float = 0.0, ground: float = 0.0) -> HybridProblem:
+                      last_duration: float | None = None, elapsed: float = 0.0, ground: float = 0.0,
+                      dynamics: HybridDynamics | None = None) -> HybridProblem:
     """What remains of the motion from ``phase``, ``elapsed`` [s] into it: its phases ``phase .. n - 1`` from the state
     ``x`` (14,), the first ``duration`` [s] long (the others nominal; ``last_duration``: the last one's duration when
     it is not the first, None: nominal), on the ground (or the motion's terrain) raised by ``ground`` [m] (where the
-    measurement puts it). Knots: ``max(1, round(T / h))`` per phase (``h`` the reference's grid).
+    measurement puts it), with ``dynamics`` (None: the reference's; another robot on the same grid: a trunk of
+    another mass). Knots: ``max(1, round(T / h))`` per phase (``h`` the reference's grid).
 
     The running references are the reference's trajectory (states and ground forces at the same point of the
     motion, [`reference_knots`][reference_knots]), not the phases' end references: a re-plan keeps to the motion the
@@ -221,7 +225,12 @@ def remaining_problem(reference: MotionReference, phase: int, duration: float, x
     terrain = full.terrain
     if ground != 0.0:
         terrain = (Terrain.flat() if terrain is None else terrain).raised(ground)
-    problem = HybridProblem(full.dynamics, schedule, full.costs[phase:], x, full.constraints, full.restitution,
+    if dynamics is None:
+        dynamics = full.dynamics
+    elif not isinstance(dynamics, HybridDynamics) or dynamics.dt != full.dynamics.dt:
+        raise ValueError(f"dynamics must be a HybridDynamics on the reference's grid ({full.dynamics.dt} s), "
+                         f"got {dynamics!r}")
+    problem = HybridProblem(dynamics, schedule, full.costs[phase:], x, full.constraints, full.restitution,
                             knots=knots, terrain=terrain)
     idx = reference_knots(reference, phase, elapsed, problem)
     problem.XR = reference.solution.X[idx].copy()
@@ -308,6 +317,7 @@ class MotionMPCPolicy(Policy):
         self.planner.cold_start = self._cold_start
         self.estimator = StateEstimator(i, o.estimator, robot)
         self.estimator.correct_bias = self.motion_options.bias_correction
+        self._models: dict[float, HybridDynamics] = {}  # the plans' models by trunk mass scale (plan_dynamics)
         friction = self.reference.problem.constraints.friction
         terrain = self.reference.problem.terrain
         self.law = FeedbackLaw(i.torque_limit, o.min_stance_force, friction,
@@ -369,11 +379,28 @@ class MotionMPCPolicy(Policy):
             self.flight_time_to_go = duration
         duration = max(duration, self.options.plan.min_phase)
         ground = self.estimator.model_ground()
+        dynamics = self.plan_dynamics()
         if k == last and ref.loop_phase is None:
             return remaining_problem(ref, k, max(duration, mo.hold_horizon), x, elapsed=self._phase_time,
-                                     ground=ground)
+                                     ground=ground, dynamics=dynamics)
         return remaining_problem(ref, k, duration, x, float(ref.problem.schedule.durations[last]),
-                                 elapsed=self._phase_time, ground=ground)
+                                 elapsed=self._phase_time, ground=ground, dynamics=dynamics)
+
+    def plan_dynamics(self) -> HybridDynamics:
+        """The plans' model: the reference's, its trunk's mass scaled by the estimate
+        ([`MotionOptions.mass_estimate`][hsddp_gym.planners.policies.mpc.options.MotionOptions]) rounded to a
+        multiple of ``mass_step`` (built once per multiple)."""
+        nominal = self.reference.problem.dynamics
+        mo = self.motion_options
+        if not mo.mass_estimate:
+            return nominal
+        scale = round(round(self.estimator.mass.scale / mo.mass_step) * mo.mass_step, 6)
+        if scale == 1.0:
+            return nominal
+        if scale not in self._models:
+            robot = CheetahModel(nominal.robot.params.with_trunk_mass_scale(scale))
+            self._models[scale] = HybridDynamics(robot, nominal.dt, nominal.integrator)
+        return self._models[scale]
 
     def _cold_start(self, problem: HybridProblem) -> tuple:
         """The reference at the motion's current phase and time on ``problem``'s knots: ``(U, X, K)``, its controls,
@@ -391,7 +418,7 @@ class MotionMPCPolicy(Policy):
         first = problem.schedule.modes[0]
         if first != Mode.FLIGHT:
             # the plan's stance feet are held from its first knot: their velocities go, as at a touchdown
-            problem.x0 = self.planner.dynamics.reset_map(x, first)[0]
+            problem.x0 = problem.dynamics.reset_map(x, first)[0]
         plan = self.planner.solve(problem, problem.x0, old, feedback)
         if plan is None:
             return False

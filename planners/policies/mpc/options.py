@@ -217,16 +217,24 @@ class MotionOptions:
             forward-speed bias ([`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]); the height bias stays
             where the model puts the ground. A landing placed in the world moves with both (a gap's far rim); the
             bounding MPC keeps the measured state (its speed integral takes up the speed bias) and does not use it.
+        mass_estimate: the motion's plans use a model whose trunk has the mass the stances show
+            ([`MassEstimate`][hsddp_gym.planners.policies.estimation.MassEstimate]), rounded to a multiple of
+            ``mass_step`` (one model per multiple, built once); False: the nominal model.
+        mass_step: the grid [fraction of the nominal trunk mass] of the plans' trunk mass (> 0).
     """
 
     retime: bool = False
     hold_horizon: float = 0.25
     max_flight_stretch: float = 2.0
     bias_correction: bool = True
+    mass_estimate: bool = True
+    mass_step: float = 0.01
 
     def __post_init__(self) -> None:
         _check_bool(self.retime, "retime")
         _check_bool(self.bias_correction, "bias_correction")
+        _check_bool(self.mass_estimate, "mass_estimate")
+        check_positive(self.mass_step, "mass_step")
         check_positive(self.hold_horizon, "hold_horizon")
         if not check_positive(self.max_flight_stretch, "max_flight_stretch") >= 1.0:
             raise ValueError(f"max_flight_stretch must be >= 1, got {self.max_flight_stretch!r}")
@@ -364,6 +372,7 @@ FLAT_FIELDS = {
     # motion
     "retime": ("motion", "retime"), "hold_horizon": ("motion", "hold_horizon"),
     "max_flight_stretch": ("motion", "max_flight_stretch"), "bias_correction": ("motion", "bias_correction"),
+    "mass_estimate": ("motion", "mass_estimate"), "mass_step": ("motion", "mass_step"),
     # the feedback law
     "min_stance_force": (None, "min_stance_force"),
 }

@@ -29,7 +29,13 @@ import numpy as np
 from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NU, Mode
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.planners.policies.base import EnvInterface
-from hsddp_gym.planners.policies.estimation import ContactModelPredictor, MeasurementBias, Odometry, StateFilter
+from hsddp_gym.planners.policies.estimation import (
+    ContactModelPredictor,
+    MassEstimate,
+    MeasurementBias,
+    Odometry,
+    StateFilter,
+)
 from hsddp_gym.planners.policies.latency import DelayEstimator
 from hsddp_gym.planners.policies.mpc.options import EstimatorOptions
 
@@ -73,6 +79,7 @@ class StateEstimator:
             MeasurementBias(self.robot, self.interface.control_dt, o.bias_memory)
         self.odometry = Odometry(self.robot, self.interface.control_dt, o.bias_memory)
         self.correct_bias = False
+        self.mass = MassEstimate(self.robot, self.interface.control_dt)
 
     def _predictor(self) -> ContactModelPredictor:
         i = self.interface
@@ -101,6 +108,7 @@ class StateEstimator:
         if self.bias is not None:
             self.bias.terrain = terrain
         self.odometry.reset()
+        self.mass.reset()
         self._first = True
         self.delay_changes = 0
 
@@ -153,7 +161,9 @@ class StateEstimator:
             self._last_observed = x_obs.copy()
         executed = None if self._first else self.sent[-1 - self.action_delay].astype(np.float64) * torque_limit
         self._first = False
-        return self._filter.update(x_obs, mode, executed, ground)
+        x = self._filter.update(x_obs, mode, executed, ground)
+        self.mass.update(x_obs, executed, mode)
+        return x
 
     def predict(self, x: np.ndarray, mode: Mode) -> list[tuple[np.ndarray, Mode]] | None:
         """The states (14,) and contact modes of the ``action_delay`` control steps after the estimate ``x`` (14,) in
