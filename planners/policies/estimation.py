@@ -13,6 +13,9 @@ gives the state at the moment a new action will act: the MPC's latency compensat
   for ``restart_steps`` observations in a row (a push, another model) restarts it from the measurement. The contact
   flags of the observation (clean) set the prior's mode; at a measured mode change the correction is complete for
   the velocities (the impact is where the model is least sure).
+* [`MeasurementBias`][MeasurementBias], [`Odometry`][Odometry] and [`MassEstimate`][MassEstimate]: what the feet on the
+  ground tell of the sensors and the robot: a constant bias of the measured trunk height and pitch, of the measured
+  forward speed (and the trunk x integrated from it), and the trunk's mass.
 """
 
 from __future__ import annotations
@@ -579,9 +582,6 @@ class StateFilter:
         outliers: the observations beyond the gate that did not restart the estimate (a run shorter than
             ``restart_steps``) since [`reset`][reset].
         last_nis: the normalized innovation squared of the last corrected observation (None before one).
-        predicted_change: the model's change of the state (14,) over the last control period, from the last estimate
-            under the executed torque (None when the last observation was taken as it is, or the model's contact
-            mode differs from the measured one).
     """
 
     def __init__(self, predictor: ContactModelPredictor, position_noise: float = 0.01, velocity_noise: float = 0.1,
@@ -606,10 +606,8 @@ class StateFilter:
         self.last_nis: float | None = None
         self._beyond = 0  # consecutive observations beyond the gate
         self._ground = 0.0  # the ground [m] of the last update (the estimate moves with it)
-        self.predicted_change: np.ndarray | None = None
 
     def _take(self, y: np.ndarray, mode: Mode, ground: float = 0.0) -> np.ndarray:
-        self.predicted_change = None
         self._ground = ground
         self.x = project_onto_contacts(self.predictor.robot, y, mode, self.predictor.terrain, ground)
         self.covariance = self._R.copy()
@@ -633,7 +631,6 @@ class StateFilter:
             prior, prior_mode = self.predictor.step(self.x, np.asarray(u_executed, dtype=np.float64), ground=ground)
         except (ArithmeticError, ValueError, RuntimeError):
             return self._take(y, mode, ground)
-        self.predicted_change = None if prior_mode != mode else prior - self.x
         A = self._A
         P_prior = A @ self.covariance @ A.T + self._Q
         S = P_prior + self._R
@@ -649,7 +646,7 @@ class StateFilter:
         self._beyond = self._beyond + 1 if nis > self.innovation_gate else 0
         if self._beyond >= self.restart_steps:
             self.restarts += 1
-            x = self._take(y, mode, ground)  # (no predicted change: the model could not follow)
+            x = self._take(y, mode, ground)
         else:
             self.outliers += int(self._beyond > 0)
             L = P_prior @ si

@@ -13,7 +13,9 @@ Every control step [`StateEstimator.update`][StateEstimator.update] takes the st
 3. re-estimates the executed action delay from the robot's response to the actions already sent
    ([`DelayEstimator`][hsddp_gym.planners.policies.latency.DelayEstimator]);
 4. filters it with the contact model under the executed torque
-   ([`StateFilter`][hsddp_gym.planners.policies.estimation.StateFilter]).
+   ([`StateFilter`][hsddp_gym.planners.policies.estimation.StateFilter]);
+5. folds it and the executed torque into the estimate of the trunk's mass
+   ([`MassEstimate`][hsddp_gym.planners.policies.estimation.MassEstimate]; the motion MPC plans with it).
 
 [`StateEstimator.predict`][StateEstimator.predict] then steps the estimate over the action delay under the actions sent
 and not yet
@@ -56,6 +58,7 @@ class StateEstimator:
         action_delay: the delay compensated for: the announced one, or its online estimate (``delay_search``).
         bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
         odometry: the trunk x on a terrain and the forward-speed bias (an ``Odometry``, its memory ``bias_memory``).
+        mass: the trunk-mass estimate (a ``MassEstimate``).
         correct_bias: whether [`update`][update] subtracts the pitch and forward-speed biases from the state
             ([`corrected`][corrected]) and the speed bias from the odometry's trunk x (False, the bounding MPC's; the
             motion MPC's ``MotionOptions.bias_correction``).
