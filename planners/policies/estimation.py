@@ -292,30 +292,38 @@ class Odometry:
     """The trunk x where the observation lacks it: the measured forward speed integrated, less its constant bias
     estimated from the feet on the ground.
 
-    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, is at rest
-    unless it slips: its forward velocity computed from the measurement ``y`` (``J_x(q) v``, the trunk's forward speed,
-    its pitch rate and the joints' rates) is then the measurement's forward-speed bias ``b`` (a bias of the pitch rate
-    or of a joint rate would show as one too; the trunk's is the one that moves the integral). ``b`` is the median of
-    the last ``memory / control_dt`` such samples (at least ``min_samples``; 0 before) within ``gate`` of the estimate:
-    a foot that slips (friction 0.4 slides a whole first stance back at 0.2-1 m/s) or lifts while still flagged on the
-    ground is not at rest, and is left out or, a minority, ignored by the median, where a mean would take it for a
-    bias. It is bounded by ``limit``. The bias being constant, the correction applies to
-    the whole integral: ``x = int v dt - b t`` (trapezoidal, from 0 at the first observation), so what the integral
-    gathered before the estimate settled is taken back too. Without ``memory`` (None) the bias is not estimated.
+    A foot the (clean) contact flags report on the ground, after ``settle_steps`` observations in contact, touches it
+    at a point at rest unless it slips. The foot frame's forward velocity computed from the measurement ``y``
+    (``J_x(q) v``) is then the measurement's forward-speed bias ``b`` plus, for a round foot larger than the model's
+    point, its rolling: the frame (the foot's centre) moves at ``rho w`` with ``w`` the shank's angular rate
+    (pitch + hip + knee rates) and ``rho`` how much larger its radius is. ``b`` and ``rho`` are fitted by least squares
+    to the last ``memory / control_dt`` samples (at least ``min_samples``; 0 before; ridge priors of zero, worth one
+    sample for ``b`` and [`ROLLING_PRIOR`][ROLLING_PRIOR] for ``rho``) within ``gate`` of the fit: a foot that slips
+    (friction 0.4 slides a whole first stance back at 0.2-1 m/s) or lifts while still flagged on the ground is not at
+    rest and is left out, where a mean would take it for a bias, and a rolling foot (0.085 m/s on the large-feet
+    MuJoCo contact) is not a bias either. ``b`` is bounded by ``limit``. The bias being constant, the correction
+    applies to the whole integral: ``x = int v dt - b t`` (trapezoidal, from 0 at the first observation), so what the
+    integral gathered before the estimate settled is taken back too. Without ``memory`` (None) the bias is not
+    estimated.
 
     Args:
         robot: the model (its kinematics).
         control_dt: period of the observations [s].
-        memory: the samples of how many seconds of observations the median is over [s] (> 0), or None.
+        memory: the samples of how many seconds of observations the fit is over [s] (> 0), or None.
         settle_steps: observations a foot must have been in contact before it is used (>= 1).
-        min_samples: the fewest samples a median is taken of (>= 1).
-        gate: a sample further than this [m/s] from the estimate is not used (> 0).
+        min_samples: the fewest samples a fit is made of (>= 2).
+        gate: a sample further than this [m/s] from the fit is not used (> 0).
         limit: bound [m/s] of the estimate (> 0).
 
     Attributes:
         speed_bias: the estimate ``b`` [m/s].
+        rolling: the estimate ``rho`` [m] (how much a stance foot's centre moves per rad of its shank's rotation).
         samples: foot samples used since [`reset`][reset].
     """
+
+    ROLLING_PRIOR = 50.0
+    """Weight [(rad/s)^2] of the prior ``rho = 0``: the samples of one stance turn their shank at nearly one rate, and
+    a rolling the data do not separate from the bias is none."""
 
     def __init__(self, robot: CheetahModel, control_dt: float, memory: float | None = 1.0, settle_steps: int = 2,
                  min_samples: int = 10, gate: float = 0.2, limit: float = 0.3) -> None:
@@ -323,9 +331,9 @@ class Odometry:
             raise TypeError(f"robot must be a CheetahModel, got {type(robot).__name__}")
         self.robot = robot
         self.dt = check_positive(control_dt, "control_dt")
-        self.window = None if memory is None else max(1, round(check_positive(memory, "memory") / self.dt))
+        self.window = None if memory is None else max(2, round(check_positive(memory, "memory") / self.dt))
         self.settle_steps = check_int(settle_steps, "settle_steps", minimum=1)
-        self.min_samples = check_int(min_samples, "min_samples", minimum=1)
+        self.min_samples = check_int(min_samples, "min_samples", minimum=2)
         self.gate = check_positive(gate, "gate")
         self.limit = check_positive(limit, "limit")
         self.reset()
@@ -333,12 +341,13 @@ class Odometry:
     def reset(self) -> None:
         """Start at x = 0 with no bias."""
         self.speed_bias = 0.0
+        self.rolling = 0.0
         self.samples = 0
         self._integral: float | None = None
         self._speed = 0.0
         self._time = 0.0
         self._in_contact = [0, 0]
-        self._recent: collections.deque = collections.deque(maxlen=self.window or 1)
+        self._recent: collections.deque = collections.deque(maxlen=self.window or 2)  # (w, v) pairs
 
     def update(self, y: np.ndarray, mode: Mode) -> float:
         """Fold in the measurement ``y`` (14,) with the contact ``mode``; return the trunk x [m] ([`x`][x])."""
@@ -371,13 +380,19 @@ class Odometry:
             if self._in_contact[f] <= self.settle_steps:
                 continue
             v = float(self.robot.foot_jacobian(y[:NQ], f)[0] @ y[NQ:])
-            if abs(v - self.speed_bias) > self.gate:
+            hip, knee = FOOT_JOINTS[f]
+            w = float(y[NQ + IPITCH] + y[NQ + hip] + y[NQ + knee])
+            if abs(v - self.speed_bias - self.rolling * w) > self.gate:
                 continue
-            self._recent.append(v)
+            self._recent.append((w, v))
             self.samples += 1
             used = True
         if used and len(self._recent) >= self.min_samples:
-            self.speed_bias = float(np.clip(np.median(self._recent), -self.limit, self.limit))
+            w, v = np.array(self._recent).T
+            normal = np.array([[w.size + 1.0, w.sum()], [w.sum(), w @ w + self.ROLLING_PRIOR]])
+            b, rho = np.linalg.solve(normal, np.array([v.sum(), w @ v]))
+            self.speed_bias = float(np.clip(b, -self.limit, self.limit))
+            self.rolling = float(rho)
 
 
 class MassEstimate:

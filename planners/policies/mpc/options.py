@@ -212,11 +212,11 @@ class MotionOptions:
         hold_horizon: the least planned duration [s] of the motion's last phase (after the motion, the plans hold its
             final reference).
         max_flight_stretch: a retimed flight lasts at most this many times its nominal duration.
-        bias_correction: the motion's plans start from the state less the estimated pitch bias
-            ([`MeasurementBias`][hsddp_gym.planners.policies.estimation.MeasurementBias], once calibrated) and
-            forward-speed bias ([`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]); the height bias stays
-            where the model puts the ground. A landing placed in the world moves with both (a gap's far rim); the
-            bounding MPC keeps the measured state (its speed integral takes up the speed bias) and does not use it.
+        bias_correction: the motion's plans start from the state less the estimated forward-speed bias
+            ([`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]), and on a terrain the trunk x is integrated
+            without it; the height bias stays where the model puts the ground. A landing placed in the world moves
+            with it (a gap's far rim); the bounding MPC keeps the measured state (its speed integral takes up the speed
+            bias) and does not use it.
         mass_estimate: the motion's plans use a model whose trunk has the mass the stances show
             ([`MassEstimate`][hsddp_gym.planners.policies.estimation.MassEstimate]), rounded to a multiple of
             ``mass_step`` (one model per multiple, built once); False: the nominal model.

@@ -9,7 +9,7 @@ Every control step [`StateEstimator.update`][StateEstimator.update] takes the st
 2. folds it into the estimate of a constant sensor bias of the trunk height and pitch from the feet on the ground
    ([`MeasurementBias`][hsddp_gym.planners.policies.estimation.MeasurementBias]; once calibrated, its height is where
    the model puts the ground, [`StateEstimator.model_ground`][StateEstimator.model_ground]); the motion MPC then
-   subtracts the pitch and forward-speed biases from the state ([`StateEstimator.corrected`][StateEstimator.corrected]);
+   subtracts the forward-speed bias from the state ([`StateEstimator.corrected`][StateEstimator.corrected]);
 3. re-estimates the executed action delay from the robot's response to the actions already sent
    ([`DelayEstimator`][hsddp_gym.planners.policies.latency.DelayEstimator]);
 4. filters it with the contact model under the executed torque
@@ -28,7 +28,7 @@ import collections
 
 import numpy as np
 
-from hsddp_gym.core.conventions import IPITCH, IVX, IZ, NU, Mode
+from hsddp_gym.core.conventions import IVX, IZ, NU, Mode
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.planners.policies.base import EnvInterface
 from hsddp_gym.planners.policies.estimation import (
@@ -59,7 +59,7 @@ class StateEstimator:
         bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
         odometry: the trunk x on a terrain and the forward-speed bias (an ``Odometry``, its memory ``bias_memory``).
         mass: the trunk-mass estimate (a ``MassEstimate``).
-        correct_bias: whether [`update`][update] subtracts the pitch and forward-speed biases from the state
+        correct_bias: whether [`update`][update] subtracts the forward-speed bias from the state
             ([`corrected`][corrected]) and the speed bias from the odometry's trunk x (False, the bounding MPC's; the
             motion MPC's ``MotionOptions.bias_correction``).
         delay_changes: how often the delay estimate moved since [`reset`][reset].
@@ -136,11 +136,10 @@ class StateEstimator:
         return x_obs
 
     def corrected(self, x_obs: np.ndarray) -> np.ndarray:
-        """``x_obs`` (14,) less the estimated pitch bias (once calibrated) and forward-speed bias, a new array (the
-        height bias is left to [`model_ground`][model_ground])."""
+        """``x_obs`` (14,) less the estimated forward-speed bias, a new array (the height bias is left to
+        [`model_ground`][model_ground]; the pitch bias is not taken off: the feet that estimate it on a compliant or
+        round-footed contact read their sinking or rolling as a pitch, and taking it off lost more than it gained)."""
         x_obs = x_obs.copy()
-        if self.bias is not None and self.bias.calibrated:
-            x_obs[IPITCH] -= self.bias.bias[IPITCH]
         x_obs[IVX] -= self.odometry.speed_bias
         return x_obs
 
