@@ -97,7 +97,8 @@ def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word:
             label = f"BC (training seed {fields['training_seed']})"
         else:
             n = fields["rounds"]
-            label = f"DAgger, {n} {rounds_word}{'s' if n != 1 else ''} (training seed {fields['training_seed']})"
+            by = ", MPC labels" if fields.get("labeller") == "mpc" else ""
+            label = f"DAgger, {n} {rounds_word}{'s' if n != 1 else ''}{by} (training seed {fields['training_seed']})"
         rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet), **fields})
     return rows
 

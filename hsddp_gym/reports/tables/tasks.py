@@ -62,16 +62,23 @@ def _imitation_rows(d: dict, cells, seeds_row, dagger_unit: str) -> list:
                           f"{r['train_wall_time_s']:.0f} s"))
     if d["bc"]:
         rows.append(seeds_row("BC", d["bc"]))
-    for rounds in dict.fromkeys(r["rounds"] for r in d.get("dagger", [])):
-        group = [r for r in d["dagger"] if r["rounds"] == rounds]
+    for rounds, labeller in dict.fromkeys((r["rounds"], _labeller(r)) for r in d.get("dagger", [])):
+        group = [r for r in d["dagger"] if r["rounds"] == rounds and _labeller(r) == labeller]
         for r in group:
             rollouts = r["rounds"] * r["episodes_per_round"]
             first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
                      f"{r['episodes_per_round']} expert episodes")
-            rows.append(cells(r, f"{r['expert_labels']:,} expert labels ({first} + {rollouts} relabelled "
+            rows.append(cells(r, f"{r['expert_labels']:,} {labeller} labels ({first} + {rollouts} relabelled "
                                  f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
-        rows.append(seeds_row(f"DAgger, {rounds} {dagger_unit}{'s' if rounds != 1 else ''}", group))
+        by = ", MPC labels" if labeller == "MPC" else ""
+        rows.append(seeds_row(f"DAgger, {rounds} {dagger_unit}{'s' if rounds != 1 else ''}{by}", group))
     return rows
+
+
+def _labeller(row: dict) -> str:
+    """Who labelled a DAgger row's rollouts, as a table names it: ``"MPC"`` or ``"expert"`` (the records before
+    the labeller was kept: the expert)."""
+    return "MPC" if row.get("labeller") == "mpc" else "expert"
 
 
 def tasks_pronking(store: Store) -> str:
@@ -279,8 +286,10 @@ def tasks_summary(store: Store) -> str:
         own = expert.get(env_id)
         twin = [r for e, r in expert.items() if e != env_id]
         dagger = d.get("dagger", [])
-        by_iterations = {n: [r for r in dagger if r["rounds"] == n] for n in sorted({r["rounds"] for r in dagger})}
-        dagger_cell = "; ".join(f"{total(group)[:-1]}, {n} iterations)" for n, group in by_iterations.items()) or "–"
+        kinds = sorted({(r["rounds"], _labeller(r)) for r in dagger})
+        dagger_cell = "; ".join(
+            f"{total([r for r in dagger if (r['rounds'], _labeller(r)) == (n, who)])[:-1]}, {n} iterations"
+            f"{', MPC labels' if who == 'MPC' else ''})" for n, who in kinds) or "–"
         if "target_speed" in d:
             what = f"{what} at {d['target_speed']:g} m/s"
         rows.append([what, f"`{env_id.split('/')[-1]}`",
@@ -293,7 +302,7 @@ def tasks_summary(store: Store) -> str:
             "samples and training time are on its page ([Pronking-v0](docs/env/pronking.md), "
             "[Backflip-v0](docs/env/backflip.md), [the jumps](docs/env/jumps.md), "
             "[the gait transitions](docs/env/transitions.md)). BC and DAgger: summed over their "
-            "training seeds, DAgger per number of iterations. The expert tracks the task's HS-DDP plan with the plan's "
-            "feedback gains (the pronk: a periodic plan).")
+            "training seeds, DAgger per number of iterations and labeller (the expert, or the task's MPC). The expert "
+            "tracks the task's HS-DDP plan with the plan's feedback gains (the pronk: a periodic plan).")
     return "\n".join([markdown_table(header, rows, ["l", "l", "r", "r", "r", "r", "l"]), "", note,
                       source_line(store, *used)])
