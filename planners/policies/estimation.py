@@ -469,7 +469,7 @@ class MassEstimate:
 
     def update(self, y: np.ndarray, torque: np.ndarray | None, mode: Mode) -> float:
         """Fold in one observation: the measured state ``y`` (14,), the joint torque (4,) [N m] executed over the last
-        control period (None: not known), the measured contact ``mode``; return [`scale`][scale]."""
+        control period (None: not known), the measured contact ``mode``; return ``scale``."""
         mode = Mode(mode)
         self._spy *= self.forget
         self._spp *= self.forget

@@ -126,7 +126,7 @@ class StateEstimator:
         """Fold ``x_obs`` (14,) into the [`Odometry`][hsddp_gym.planners.policies.estimation.Odometry]; on a terrain,
         without the trunk x in the observation, return ``x_obs`` with its x set to the odometry's (a new array; the MPC
         needs to know where it is on the terrain): the measured forward speed integrated since the first observation
-        (at x = 0, the env's start up to its reset noise), with [`correct_bias`][correct_bias] less the speed's bias the
+        (at x = 0, the env's start up to its reset noise), with ``correct_bias`` less the speed's bias the
         feet on the ground show."""
         self.odometry.update(x_obs, mode)
         if self.terrain is None or not self.interface.layout.exclude_current_positions:
@@ -145,7 +145,7 @@ class StateEstimator:
 
     def update(self, x_obs: np.ndarray, mode: Mode) -> np.ndarray:
         """The estimate (14,) from the observed state ``x_obs`` (14,) and contact ``mode`` (steps 1-4 of the module
-        docstring; with [`correct_bias`][correct_bias], the state [`corrected`][corrected] after step 2)."""
+        docstring; with ``correct_bias``, the state [`corrected`][corrected] after step 2)."""
         x_obs = self.trunk_x(x_obs, mode)
         if self.bias is not None:
             self.bias.update(x_obs, mode)
