@@ -54,7 +54,7 @@ def test_options_from_a_record_grouped_or_flat():
     assert MPCOptions.from_record(stored) == fast
     flat = json.loads(json.dumps(fast.flat()))
     assert MPCOptions.from_record(flat) == fast
-    assert set(flat) == set(MPCOptions().flat()) and len(flat) == 37  # 34 of the bound, 3 of a motion
+    assert set(flat) == set(MPCOptions().flat()) and len(flat) == 40  # 34 of the bound, 6 of a motion
     same = {**flat, "method": "al-reb", "weights": "later", "fine_dt": None, "reb_delta": 0.2, "latency_steps": 0}
     assert MPCOptions.from_record(same) == fast
     with pytest.warns(UserWarning, match="weights=.paper.*plan_retouch"):
