@@ -15,11 +15,10 @@ from hsddp_gym.planners.policies.estimation import MeasurementBias
 from hsddp_gym.planners.policies.heuristic import HeuristicPolicy
 
 
-@pytest.fixture(scope="module")
-def bounding_trajectory():
-    """Exact states (n, 14) and contact modes of 2 s of the heuristic bounding in Bounding-v0."""
+def _bounding(policy_class):
+    """Exact states (n, 14) and contact modes of 2 s of ``policy_class.from_env`` bounding in Bounding-v0."""
     env = gym.make("hsddp_gym/Bounding-v0")
-    policy = HeuristicPolicy.from_env(env)
+    policy = policy_class.from_env(env)
     obs, info = env.reset(seed=3)
     policy.reset()
     states, modes = [], []
@@ -30,6 +29,12 @@ def bounding_trajectory():
         assert not (terminated or truncated)
     env.close()
     return np.array(states), modes
+
+
+@pytest.fixture(scope="module")
+def bounding_trajectory():
+    """Exact states (n, 14) and contact modes of 2 s of the heuristic bounding in Bounding-v0."""
+    return _bounding(HeuristicPolicy)
 
 
 def _estimate(states, modes, bias, noise=0.0, seed=0, **kwargs):
@@ -295,18 +300,7 @@ def test_the_state_filter_on_the_measured_ground_sees_a_biased_height_as_the_exa
 def mpc_bounding_trajectory():
     """Exact states (n, 14) and contact modes of 2 s of the bounding MPC in Bounding-v0 (its stance feet at rest to
     a few mm/s; the heuristic's back foot slips)."""
-    env = gym.make("hsddp_gym/Bounding-v0")
-    policy = MPCPolicy.from_env(env)
-    obs, info = env.reset(seed=3)
-    policy.reset()
-    states, modes = [], []
-    for _ in range(400):
-        obs, _, terminated, truncated, info = env.step(policy.act(obs))
-        states.append(np.concatenate([info["qpos"], info["qvel"]]))
-        modes.append(mode_from_contacts(*info["contact"]))
-        assert not (terminated or truncated)
-    env.close()
-    return np.array(states), modes
+    return _bounding(MPCPolicy)
 
 
 def _odometry(states, modes, speed_bias, noise=0.0, seed=0, **kwargs):
