@@ -83,6 +83,11 @@ def test_the_estimate_is_bounded_and_validates_its_arguments():
             MassEstimate(robot, 0.005, **kwargs)
     with pytest.raises(TypeError, match="robot"):
         MassEstimate(None, 0.005)
+    est = MassEstimate(robot, 0.005)
+    with pytest.raises(ValueError, match="y"):
+        est.update(np.zeros(7), None, Mode.FLIGHT)
+    with pytest.raises(ValueError, match="torque"):
+        est.update(states[0], np.array([np.nan, 0.0, 0.0, 0.0]), modes[0])
     with pytest.raises(ValueError, match="scale"):
         DEFAULT_PARAMS.with_trunk_mass_scale(0.0)
 
@@ -108,8 +113,7 @@ def test_the_motion_mpc_plans_on_a_model_of_the_estimated_trunk_mass():
     x = mpc.reference.solution.X[0]
     assert mpc._remaining(x).dynamics is heavy
     off = make_policy(PolicySpec("mpc", env_id="hsddp_gym/GapJump-v0", options={"mass_estimate": False}), env)
-    off.estimator.mass.scale = 1.127
-    assert off.plan_dynamics() is off.reference.problem.dynamics
+    assert off.estimator.mass is None and off.plan_dynamics() is off.reference.problem.dynamics
     with pytest.raises(ValueError, match="mass_step"):
         from hsddp_gym.planners.policies.mpc.options import MotionOptions
 

@@ -395,8 +395,7 @@ def test_the_motion_mpc_plans_from_the_state_less_the_speed_bias_the_bound_does_
     bias[[IZ, IPITCH, IVX]] = [-0.02, 0.03, 0.05]
     estimators = {}
     for correct in (True, False):
-        est = StateEstimator(EnvInterface(), MPCOptions().estimator, CheetahModel())
-        est.correct_bias = correct
+        est = StateEstimator(EnvInterface(), MPCOptions().estimator, CheetahModel(), correct_bias=correct)
         est.reset()
         for x, m in zip(states, modes):
             y = x + bias
@@ -407,8 +406,11 @@ def test_the_motion_mpc_plans_from_the_state_less_the_speed_bias_the_bound_does_
     corrected = estimators[True].corrected(y)
     np.testing.assert_allclose(corrected - states[-1], [0, -0.02, 0.03, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], atol=0.015)
     assert estimators[True].model_ground() == pytest.approx(-0.02, abs=2e-3)
+    assert estimators[False].odometry.speed_bias == 0.0  # not estimated without the correction
     bound = MPCPolicy(EnvInterface(), MPCOptions())
-    assert bound.estimator.correct_bias is False
+    assert bound.estimator.correct_bias is False and bound.estimator.mass is None
+    with pytest.raises(TypeError, match="correct_bias"):
+        StateEstimator(EnvInterface(), MPCOptions().estimator, CheetahModel(), correct_bias=1)
     env = gym.make("hsddp_gym/GapJump-v0")
     from hsddp_gym.workflows import make_policy
 

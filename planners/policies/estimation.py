@@ -27,7 +27,19 @@ import numpy as np
 import pinocchio as pin
 
 from hsddp_gym.core.compiled_contact import CompiledContactSimulator
-from hsddp_gym.core.conventions import BACK, FOOT_JOINTS, FRONT, IPITCH, IZ, NQ, NU, NX, Mode, mode_from_contacts
+from hsddp_gym.core.conventions import (
+    BACK,
+    FOOT_JOINTS,
+    FRONT,
+    IPITCH,
+    IZ,
+    JOINT_DOFS,
+    NQ,
+    NU,
+    NX,
+    Mode,
+    mode_from_contacts,
+)
 from hsddp_gym.core.model import CheetahModel
 from hsddp_gym.util.validation import check_in_range, check_int, check_positive, check_vector
 
@@ -458,18 +470,28 @@ class MassEstimate:
 
     def vertical_force(self, q: np.ndarray, torque: np.ndarray, mode: Mode) -> float:
         """The ground's vertical force [N] on the feet ``mode`` has on the ground, held by the joint ``torque`` (4,)
-        [N m] at the configuration ``q`` (7,) (``-J^{-T} tau`` per stance leg)."""
+        [N m] at the configuration ``q`` (7,) (``-J^{-T} tau`` per stance leg).
+
+        Raises:
+            numpy.linalg.LinAlgError: a stance leg stretched straight (its Jacobian singular).
+        """
         total = 0.0
         for f in (FRONT, BACK):
             if mode.in_contact(f):
                 joints = list(FOOT_JOINTS[f])
                 jac = self.robot.foot_jacobian(q, f)[:, joints]
-                total -= float(np.linalg.solve(jac.T, torque[[j - 3 for j in joints]])[1])
+                total -= float(np.linalg.solve(jac.T, torque[[j - JOINT_DOFS.start for j in joints]])[1])
         return total
 
     def update(self, y: np.ndarray, torque: np.ndarray | None, mode: Mode) -> float:
         """Fold in one observation: the measured state ``y`` (14,), the joint torque (4,) [N m] executed over the last
-        control period (None: not known), the measured contact ``mode``; return ``scale``."""
+        control period (None: not known), the measured contact ``mode``; return ``scale``.
+
+        Raises:
+            ValueError: ``y`` or ``torque`` not finite vectors of their shapes.
+        """
+        y = check_vector(y, NX, "y")
+        torque = None if torque is None else check_vector(torque, NU, "torque")
         mode = Mode(mode)
         self._spy *= self.forget
         self._spp *= self.forget
@@ -483,11 +505,8 @@ class MassEstimate:
             return self.scale
         st = self._stance
         if self._run > self.settle_steps:
-            try:
-                if torque is None:
-                    raise np.linalg.LinAlgError
-                force = self.vertical_force(y[:NQ], np.asarray(torque, dtype=np.float64), mode)
-            except np.linalg.LinAlgError:  # no torque known, or a leg stretched straight: a new stance from here
+            force = None if torque is None else self._stance_force(y[:NQ], torque, mode)
+            if force is None:  # no torque known, or a leg stretched straight: a new stance from here
                 self._close()
             else:
                 st[5] += force / self.total_mass * self.dt
@@ -496,6 +515,13 @@ class MassEstimate:
         p, v = st[5], float(self._data.vcom[0][2]) + self.gravity * self._t
         st[:5] += (1.0, p, v, p * v, p * p)
         return self.scale
+
+    def _stance_force(self, q: np.ndarray, torque: np.ndarray, mode: Mode) -> float | None:
+        """[`vertical_force`][vertical_force], None where a stance leg's Jacobian is singular (stretched straight)."""
+        try:
+            return self.vertical_force(q, torque, mode)
+        except np.linalg.LinAlgError:
+            return None
 
     def _close(self) -> None:
         """End the stance being counted: fold it in when long enough."""

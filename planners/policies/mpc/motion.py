@@ -315,8 +315,9 @@ class MotionMPCPolicy(Policy):
         # the re-plans keep the relaxed barriers the reference converged with (GRF_RELAXATION)
         self.planner.barrier = (c.delta_torque, max(c.delta_grf, GRF_RELAXATION), c.eps_torque, c.eps_grf)
         self.planner.cold_start = self._cold_start
-        self.estimator = StateEstimator(i, o.estimator, robot)
-        self.estimator.correct_bias = self.motion_options.bias_correction
+        mo = self.motion_options
+        self.estimator = StateEstimator(i, o.estimator, robot, correct_bias=mo.bias_correction,
+                                        estimate_mass=mo.mass_estimate)
         self._models: dict[float, HybridDynamics] = {}  # the plans' models by trunk mass scale (plan_dynamics)
         friction = self.reference.problem.constraints.friction
         terrain = self.reference.problem.terrain
@@ -392,7 +393,7 @@ class MotionMPCPolicy(Policy):
         multiple of ``mass_step`` (built once per multiple)."""
         nominal = self.reference.problem.dynamics
         mo = self.motion_options
-        if not mo.mass_estimate:
+        if self.estimator.mass is None:
             return nominal
         scale = round(round(self.estimator.mass.scale / mo.mass_step) * mo.mass_step, 6)
         if scale == 1.0:

@@ -52,22 +52,30 @@ class StateEstimator:
         interface: the env's public settings (control period, torque limit, motor limits, layout, announced delay).
         options: [`EstimatorOptions`][hsddp_gym.planners.policies.mpc.options.EstimatorOptions].
         robot: the model whose kinematics the bias estimate uses.
+        correct_bias: subtract the forward-speed bias the feet on the ground show from the state and from the odometry's
+            trunk x ([`corrected`][corrected]; False, the bounding MPC's: the speed bias is then not estimated; the
+            motion MPC's ``MotionOptions.bias_correction``).
+        estimate_mass: estimate the trunk's mass from the stances (False, the bounding MPC's: ``mass`` is None; the
+            motion MPC's ``MotionOptions.mass_estimate``).
 
     Attributes:
         announced_delay: the action delay the env announces [control steps].
         action_delay: the delay compensated for: the announced one, or its online estimate (``delay_search``).
         bias: the sensor-bias estimate (a ``MeasurementBias``; None without ``bias_memory``).
-        odometry: the trunk x on a terrain and the forward-speed bias (an ``Odometry``, its memory ``bias_memory``).
-        mass: the trunk-mass estimate (a ``MassEstimate``).
-        correct_bias: whether [`update`][update] subtracts the forward-speed bias from the state
-            ([`corrected`][corrected]) and the speed bias from the odometry's trunk x (False, the bounding MPC's; the
-            motion MPC's ``MotionOptions.bias_correction``).
+        odometry: the trunk x on a terrain and, with ``correct_bias``, the forward-speed bias (an ``Odometry``, its
+            memory ``bias_memory``).
+        mass: the trunk-mass estimate (a ``MassEstimate``; None without ``estimate_mass``).
+        correct_bias: the argument.
         delay_changes: how often the delay estimate moved since [`reset`][reset].
     """
 
-    def __init__(self, interface: EnvInterface, options: EstimatorOptions, robot: CheetahModel) -> None:
+    def __init__(self, interface: EnvInterface, options: EstimatorOptions, robot: CheetahModel,
+                 correct_bias: bool = False, estimate_mass: bool = False) -> None:
         if not isinstance(options, EstimatorOptions):
             raise TypeError(f"options must be an EstimatorOptions, got {type(options).__name__}")
+        for name, value in (("correct_bias", correct_bias), ("estimate_mass", estimate_mass)):
+            if not isinstance(value, bool):
+                raise TypeError(f"{name} must be a bool, got {value!r}")
         self.interface = interface
         self.options = options
         self.robot = robot
@@ -80,9 +88,9 @@ class StateEstimator:
                                    o.innovation_gate, o.restart_steps)
         self.bias = None if o.bias_memory is None else \
             MeasurementBias(self.robot, self.interface.control_dt, o.bias_memory)
-        self.odometry = Odometry(self.robot, self.interface.control_dt, o.bias_memory)
-        self.correct_bias = False
-        self.mass = MassEstimate(self.robot, self.interface.control_dt)
+        self.correct_bias = correct_bias
+        self.odometry = Odometry(self.robot, self.interface.control_dt, o.bias_memory if correct_bias else None)
+        self.mass = MassEstimate(self.robot, self.interface.control_dt) if estimate_mass else None
 
     def _predictor(self) -> ContactModelPredictor:
         i = self.interface
@@ -111,7 +119,8 @@ class StateEstimator:
         if self.bias is not None:
             self.bias.terrain = terrain
         self.odometry.reset()
-        self.mass.reset()
+        if self.mass is not None:
+            self.mass.reset()
         self._first = True
         self.delay_changes = 0
 
@@ -132,7 +141,7 @@ class StateEstimator:
         if self.terrain is None or not self.interface.layout.exclude_current_positions:
             return x_obs
         x_obs = x_obs.copy()
-        x_obs[0] = self.odometry.x if self.correct_bias else self.odometry.integral
+        x_obs[0] = self.odometry.x  # (without correct_bias the bias is not estimated: x is the plain integral)
         return x_obs
 
     def corrected(self, x_obs: np.ndarray) -> np.ndarray:
@@ -164,7 +173,8 @@ class StateEstimator:
         executed = None if self._first else self.sent[-1 - self.action_delay].astype(np.float64) * torque_limit
         self._first = False
         x = self._filter.update(x_obs, mode, executed, ground)
-        self.mass.update(x_obs, executed, mode)
+        if self.mass is not None:
+            self.mass.update(x_obs, executed, mode)
         return x
 
     def predict(self, x: np.ndarray, mode: Mode) -> list[tuple[np.ndarray, Mode]] | None:
