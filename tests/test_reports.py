@@ -229,3 +229,17 @@ def test_records_keep_eight_significant_digits(tmp_path):
     path = write_record(tmp_path / "x" / "y.json", raw, "d", command="python a.py", machine={})
     data = read_record(path).data
     assert data == {"t": 0.565, "a": [0.33333333, 6.6666667e-10], "s": 16287.792, "n": 12345678901, "w": "1.23456789"}
+
+
+def test_a_record_puts_one_episode_and_one_row_of_numbers_per_line(tmp_path):
+    """An object of scalars and a list of numbers take one line each; a list of strings one line per string; nesting
+    keeps one key per line; the data read back is the data written."""
+    data = {"rows": [{"label": "mpc", "per_episode": [{"seed": 1, "fell": False, "x": None}, {"seed": 2, "fell": True,
+                                                                                          "x": 0.5}]}],
+            "seeds": [1, 2], "conditions": ["push", "obs_noise"], "empty": {}, "nested": [[1, 2], [3]]}
+    path = write_record(tmp_path / "x" / "y.json", data, "d", command=["a", "b"], machine={})
+    lines = path.read_text().splitlines()
+    assert '     {"seed": 1, "fell": false, "x": null},' in lines
+    assert '  "seeds": [1, 2],' in lines and '  "empty": {},' in lines and '   [1, 2],' in lines
+    assert '   "push",' in lines and ' "command": [' in lines and '  "a",' in lines
+    assert read_record(path).data == data

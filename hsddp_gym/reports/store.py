@@ -22,7 +22,6 @@ from __future__ import annotations
 import json
 import os
 import platform
-import re
 import shlex
 import sys
 from dataclasses import dataclass
@@ -118,9 +117,6 @@ def write_record(path, data: dict, description: str, command: str | list[str] | 
     return Path(path)
 
 
-_NUMBER_LIST = re.compile(r"\[\s*(-?[0-9][^\[\]{}\"]*?)\s*\]", re.S)
-
-
 SIGNIFICANT_DIGITS = 8
 """Significant digits a record keeps of a float (no measurement here is finer; the rest is noise that costs bytes)."""
 
@@ -135,12 +131,33 @@ def _rounded(value):
     return value
 
 
+def _is_leaf(value) -> bool:
+    """An object of scalars or a list of non-string scalars (goes on one line; a list of strings, such as commands,
+    keeps one per line)."""
+    if isinstance(value, dict):
+        return all(not isinstance(v, (list, dict)) for v in value.values())
+    return all(not isinstance(v, (list, dict, str)) for v in value)
+
+
+def _layout(value, depth: int) -> str:
+    if isinstance(value, (list, dict)) and (not value or _is_leaf(value)):
+        return json.dumps(value, allow_nan=False, separators=(", ", ": "))
+    pad, inner = " " * depth, " " * (depth + 1)
+    if isinstance(value, list):
+        body = ",\n".join(inner + _layout(v, depth + 1) for v in value)
+        return "[\n" + body + "\n" + pad + "]"
+    if isinstance(value, dict):
+        body = ",\n".join(f"{inner}{json.dumps(k)}: {_layout(v, depth + 1)}" for k, v in value.items())
+        return "{\n" + body + "\n" + pad + "}"
+    return json.dumps(value, allow_nan=False)
+
+
 def dumps(payload) -> str:
-    """JSON with one key per line but every list of numbers on one line, floats to
-    [`SIGNIFICANT_DIGITS`][SIGNIFICANT_DIGITS] (records stay small and diffable)."""
+    """JSON with one key per line, except that an object of scalars (one episode's fields) and a list of numbers go on
+    one line; floats to [`SIGNIFICANT_DIGITS`][SIGNIFICANT_DIGITS] (records stay small and
+    diffable)."""
     plain = json.loads(json.dumps(payload, default=json_default, allow_nan=False))
-    text = json.dumps(_rounded(plain), indent=1, allow_nan=False)
-    return _NUMBER_LIST.sub(lambda m: "[" + re.sub(r"\s*\n\s*", " ", m.group(1)) + "]", text)
+    return _layout(_rounded(plain), 0)
 
 
 @dataclass(frozen=True)
