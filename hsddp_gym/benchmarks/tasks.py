@@ -45,9 +45,17 @@ def task_summary(task: Task, episodes: list[dict]) -> dict:
             **task_measures(task).summarize(episodes)}
 
 
-def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet: bool) -> dict:
+TWIN = "mujoco_twin"
+"""The key of a row's ``conditions`` that counts its episodes in the task's MuJoCo twin."""
+
+
+def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet: bool, conditions=(),
+                         twin: bool = False) -> dict:
     """The row of policy ``spec`` (a name or [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec],
-    [`make_policy`][hsddp_gym.rollout.policies.make_policy]) in ``env_id`` (the task's env or a twin) on ``seeds``."""
+    [`make_policy`][hsddp_gym.rollout.policies.make_policy]) in ``env_id`` (the task's env or a twin) on ``seeds``;
+    with ``conditions`` (names of [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS])
+    or ``twin``, the row's ``conditions`` holds the policy's successes on the same seeds in each condition and (key
+    [`TWIN`][TWIN]) in the task's MuJoCo twin ([`condition_counts`][condition_counts])."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
@@ -62,10 +70,49 @@ def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet
     keep = measures.per_episode
     row = {"label": label, "env_id": env_id, **task_summary(task, eps), "wall_time_s": time.perf_counter() - t,
            "per_episode": eps if keep is None else [{k: e[k] for k in keep} for e in eps]}
+    if conditions or twin:
+        row["conditions"] = condition_counts(task, spec, seeds, conditions, twin)
     if not quiet:
+        extra = "".join(f"  {k} {c['successes']}/{c['episodes']}" for k, c in row.get("conditions", {}).items())
         print(f"{label:28s} {env_id:30s} return {row['mean_return']:8.1f} ± {row['std_return']:6.1f}  success "
-              f"{row['successes']}/{row['episodes']}  falls {row['falls']}  {measures.describe(row)}", flush=True)
+              f"{row['successes']}/{row['episodes']}  falls {row['falls']}  {measures.describe(row)}{extra}",
+              flush=True)
     return row
+
+
+def condition_counts(task: Task, spec, seeds, conditions=(), twin: bool = False) -> dict:
+    """``{name: {"successes", "falls", "episodes"}}`` of policy ``spec`` playing one episode per seed in each
+    condition of ``conditions`` (built for the task's env,
+    [`make_env`][hsddp_gym.envs.perturbations.conditions.make_env]; a fresh policy per condition, told the
+    condition's env) and, with
+    ``twin``, in the task's MuJoCo twin (key [`TWIN`][TWIN]); ``ValueError`` for a condition that does not apply to
+    the task or a task without a MuJoCo twin."""
+    import gymnasium as gym
+
+    import hsddp_gym  # noqa: F401  (registers the envs)
+    from hsddp_gym.envs.perturbations import check_conditions, get_condition, make_env
+    from hsddp_gym.rollout.policies import make_policy
+
+    names = check_conditions(list(conditions)) if len(conditions) else ()
+    for name in names:
+        reason = get_condition(name).refusal(task)
+        if reason is not None:
+            raise ValueError(f"condition {name!r} does not apply to the task {task.name!r}: {reason}")
+    if twin and task.twin_id is None:
+        raise ValueError(f"twin: the task {task.name!r} has no MuJoCo twin")
+    builders = [(n, lambda n=n: make_env(n, env_id=task.env_id)) for n in dict.fromkeys(names)]
+    if twin:
+        builders.append((TWIN, lambda: gym.make(task.twin_id)))
+    out = {}
+    for name, build in builders:
+        env = build()
+        try:
+            eps = run_task_episodes(task, env, make_policy(spec, env), seeds)
+        finally:
+            env.close()
+        out[name] = {"successes": int(sum(e["success"] for e in eps)), "falls": int(sum(e["fell"] for e in eps)),
+                     "episodes": len(eps)}
+    return out
 
 
 def check_learner_runs(error, task: Task, runs_by_flag: dict, env_checked=("bc", "dagger", "sac")) -> None:
@@ -83,11 +130,13 @@ def check_learner_runs(error, task: Task, runs_by_flag: dict, env_checked=("bc",
                       f"{task.env_id}")
 
 
-def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word: str = "iteration") -> list[dict]:
+def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word: str = "iteration", conditions=(),
+                   twin: bool = False) -> list[dict]:
     """The rows of the ``hsddp-gym train --algo bc|dagger`` runs ``runs`` (final weights), each with what the
     record keeps of its run
-    ([`hsddp_gym.learning.reporting.imitation_run_fields`][hsddp_gym.learning.reporting.imitation_run_fields]); DAgger's
-    label counts its rounds as ``rounds_word``."""
+    ([`hsddp_gym.learning.reporting.imitation_run_fields`][hsddp_gym.learning.reporting.imitation_run_fields]) and its
+    successes in ``conditions`` and the ``twin`` ([`evaluate_task_policy`][evaluate_task_policy]); DAgger's label
+    counts its rounds as ``rounds_word``."""
     from hsddp_gym.learning.reporting import imitation_run_fields
 
     rows = []
@@ -99,13 +148,15 @@ def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word:
             n = fields["rounds"]
             by = ", MPC labels" if fields.get("labeller") == "mpc" else ""
             label = f"DAgger, {n} {rounds_word}{'s' if n != 1 else ''}{by} (training seed {fields['training_seed']})"
-        rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet), **fields})
+        rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet, conditions, twin),
+                     **fields})
     return rows
 
 
-def sac_rows(task: Task, runs, seeds, quiet: bool) -> list[dict]:
+def sac_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = False) -> list[dict]:
     """The rows of the ``hsddp-gym train --algo sac`` runs ``runs``: each with its final weights and its best
-    checkpoint (when it has one), both with the mean action."""
+    checkpoint (when it has one), both with the mean action (and their successes in ``conditions`` and the
+    ``twin``)."""
     from hsddp_gym.rollout.policies import PolicySpec
 
     rows = []
@@ -116,7 +167,8 @@ def sac_rows(task: Task, runs, seeds, quiet: bool) -> list[dict]:
                 continue
             name = "final weights" if checkpoint == "final" else "best checkpoint"
             row = evaluate_task_policy(task, f"SAC (training seed {train['seed']}, {name})", task.env_id,
-                                       PolicySpec(f"sac:{run}", options={"checkpoint": checkpoint}), seeds, quiet)
+                                       PolicySpec(f"sac:{run}", options={"checkpoint": checkpoint}), seeds, quiet,
+                                       conditions, twin)
             best = train.get("best_checkpoint") or {}
             row.update(run=str(run), training_seed=int(train["seed"]), checkpoint=checkpoint,
                        env_steps=int(train["steps"]) if checkpoint == "final" else int(best["env_step"]),
@@ -127,9 +179,10 @@ def sac_rows(task: Task, runs, seeds, quiet: bool) -> list[dict]:
     return rows
 
 
-def expert_rows(task: Task, seeds, quiet: bool, mujoco: bool) -> list[dict]:
-    """The expert's rows: in the task's env and, with ``mujoco``, in its MuJoCo twin."""
-    rows = [evaluate_task_policy(task, "expert", task.env_id, "expert", seeds, quiet)]
+def expert_rows(task: Task, seeds, quiet: bool, mujoco: bool, conditions=()) -> list[dict]:
+    """The expert's rows: in the task's env (with its successes in ``conditions``) and, with ``mujoco``, in its
+    MuJoCo twin."""
+    rows = [evaluate_task_policy(task, "expert", task.env_id, "expert", seeds, quiet, conditions)]
     if mujoco:
         rows.append(evaluate_task_policy(task, "expert", task.twin_id, "expert", seeds, quiet))
     return rows
@@ -140,7 +193,8 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
                          env_checked=("bc", "dagger")) -> int:
     """The command line of a task evaluation: the expert (and, with ``--mujoco``, in the twin), ``--bc`` and
     ``--dagger`` runs (``--sac`` runs with ``sac``) on ``--episodes`` seeds from ``--seed`` (default: the task's
-    ``first_seed``), and the record ``--record``.
+    ``first_seed``), each also in the ``--conditions`` (and the learners, with ``--mujoco``, in the twin), and the
+    record ``--record``.
 
     Args:
         description: the script's help text.
@@ -170,7 +224,12 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
         p.add_argument("--sac", nargs="*", default=[], help="SAC runs (hsddp-gym train --algo sac --env TASK_ENV "
                                                             "--out DIR), one per training seed; final weights and "
                                                             "best checkpoint")
-    p.add_argument("--mujoco", action="store_true", help="also run the expert in the task's MuJoCo twin")
+    p.add_argument("--mujoco", action="store_true",
+                   help="also run the expert (a row of its own) and every learner (its successes) in the task's "
+                        "MuJoCo twin")
+    p.add_argument("--conditions", nargs="*", default=[], metavar="NAME",
+                   help="conditions of the perturbation suite (e.g. push obs_noise; names: experiments/robustness.py "
+                        "--help) every policy also plays on the same seeds; the record keeps its successes in each")
     p.add_argument("--record", default=None, help="write the results record (results/tasks/TASK.json)")
     p.add_argument("--made-with", nargs="*", default=[],
                    help="the commands that made the dataset and the learners' runs (stored in the record)")
@@ -183,10 +242,15 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
     check_learner_runs(p.error, spec, learners, env_checked)
     first = spec.first_seed if args.seed is None else args.seed
     seeds = list(range(first, first + args.episodes))
-    rows = expert_rows(spec, seeds, args.quiet, args.mujoco)
-    bc = imitation_rows(spec, args.bc, "bc", seeds, args.quiet)
-    dagger = imitation_rows(spec, args.dagger, "dagger", seeds, args.quiet, rounds_word)
-    sac_part = {"sac": sac_rows(spec, args.sac, seeds, args.quiet)} if sac else {}
+    conditions = tuple(args.conditions)
+    try:
+        condition_counts(spec, "expert", [], conditions)  # checks the names and that each applies, plays nothing
+    except ValueError as exc:
+        p.error(f"--conditions: {exc}")
+    rows = expert_rows(spec, seeds, args.quiet, args.mujoco, conditions)
+    bc = imitation_rows(spec, args.bc, "bc", seeds, args.quiet, conditions=conditions, twin=args.mujoco)
+    dagger = imitation_rows(spec, args.dagger, "dagger", seeds, args.quiet, rounds_word, conditions, args.mujoco)
+    sac_part = {"sac": sac_rows(spec, args.sac, seeds, args.quiet, conditions, args.mujoco)} if sac else {}
     if args.record:
         from hsddp_gym.reports.store import invoked_command, without_option, write_record
 

@@ -262,47 +262,101 @@ def tasks_bound_to_stop(store: Store) -> str:
     return _tasks_transition(store, "bound_to_stop", "from bounding at 0.9 m/s")
 
 
+TASK_TABLE_ORDER = (("tasks/pronking", "pronk"), ("tasks/backflip", "backflip from standing"),
+                    ("tasks/gap_jump", "jump over a 0.3 m gap"), ("tasks/box_jump", "jump onto a 0.1 m box"),
+                    ("tasks/stand_to_bound", "stand to bound"), ("tasks/bound_pronk_bound", "bound, pronk, bound"),
+                    ("tasks/bound_to_stop", "bound to stop"))
+"""The task records of the task x learner table, in its order, with how the table names each task."""
+TWIN_KEY = "mujoco_twin"
+"""The key of a row's ``conditions`` that counts its episodes in the MuJoCo twin
+([`hsddp_gym.benchmarks.tasks.TWIN`][hsddp_gym.benchmarks.tasks.TWIN])."""
+
+
+def learner_groups(d: dict) -> list[tuple[str, list]]:
+    """A task record's learners as ``(name, rows)``, one row per training seed: BC, DAgger per number of iterations
+    and labeller, SAC per checkpoint."""
+    groups = [("BC", d.get("bc", []))] if d.get("bc") else []
+    dagger = d.get("dagger", [])
+    for rounds, who in sorted({(r["rounds"], _labeller(r)) for r in dagger}):
+        by = ", MPC labels" if who == "MPC" else ""
+        groups.append((f"DAgger, {rounds} iterations{by}",
+                       [r for r in dagger if (r["rounds"], _labeller(r)) == (rounds, who)]))
+    for checkpoint, name in (("final", "final weights"), ("best", "best checkpoint")):
+        group = [r for r in d.get("sac", []) if r["checkpoint"] == checkpoint]
+        if group:
+            groups.append((f"SAC ({name})", group))
+    return groups
+
+
+def success_cell(group: list) -> str:
+    """Successes summed over a learner's training seeds, with the 95 % Student-t interval of the success rate over
+    the seeds (one rate per seed; clipped to 0-100 %) when there are at least two."""
+    from hsddp_gym.learning.reporting import mean_ci95
+
+    ok, n = sum(r["successes"] for r in group), sum(r["episodes"] for r in group)
+    if len(group) < 2:
+        return f"{ok}/{n}"
+    mean, half = mean_ci95([r["successes"] / r["episodes"] for r in group])
+    lo, hi = round(100 * max(mean - half, 0.0)), round(100 * min(mean + half, 1.0))
+    return f"{ok}/{n} ({lo} % every seed)" if lo == hi else f"{ok}/{n} ({lo}-{hi} %)"
+
+
+def condition_cell(group: list, name: str) -> str:
+    """Successes in condition ``name`` summed over the rows (``–`` unless every row was run in it)."""
+    cells = [r.get("conditions", {}).get(name) for r in group]
+    if not group or any(c is None for c in cells):
+        return "–"
+    return f"{sum(c['successes'] for c in cells)}/{sum(c['episodes'] for c in cells)}"
+
+
+def _mean_int(values) -> str:
+    return f"{round(sum(values) / len(values)):,}"
+
+
 def tasks_summary(store: Store) -> str:
-    """Every task beyond bounding in one table: its expert's successes in the env and in the MuJoCo twin, and the
-    learners' from its datasets, over all training seeds (the task records ``tasks/*``)."""
-    tasks = [("tasks/pronking", "pronk"), ("tasks/backflip", "backflip from standing"),
-             ("tasks/gap_jump", "jump over a 0.3 m gap"), ("tasks/box_jump", "jump onto a 0.1 m box"),
-             ("tasks/stand_to_bound", "stand to bound"), ("tasks/bound_pronk_bound", "bound, pronk, bound"),
-             ("tasks/bound_to_stop", "bound to stop")]
-    header = ["task", "env", "expert", "expert in the MuJoCo twin", "BC", "DAgger", "seeds"]
+    """Every task beyond bounding, task x learner: the plan-tracking expert and each learner from its demonstrations
+    (BC, DAgger per iterations and labeller, SAC) on unseen seeds, under a push and observation noise and in the MuJoCo
+    twin, with the expert labels, env steps, training time and training seeds each used (the task records
+    ``tasks/*``)."""
+    header = ["task", "policy", "success", "push", "obs. noise", "MuJoCo twin", "expert labels", "env steps",
+              "training time", "training seeds"]
     rows, used = [], []
-
-    def total(group):
-        return (f"{sum(r['successes'] for r in group)}/{sum(r['episodes'] for r in group)} "
-                f"({len(group)} training seed{'s' if len(group) != 1 else ''})") if group else "–"
-
-    for rid, what in tasks:
+    for rid, what in TASK_TABLE_ORDER:
         if rid not in store.ids():
             continue
         used.append(rid)
         d = store.data(rid)
         env_id = d["env_id"]
+        if "target_speed" in d:
+            what = f"{what} at {d['target_speed']:g} m/s"
+        task = f"{what} (`{env_id.split('/')[-1]}`, seeds {d['seeds'][0]}-{d['seeds'][-1]})"
         expert = {r["env_id"]: r for r in d["rows"] if r["label"] == "expert"}
         own = expert.get(env_id)
         twin = [r for e, r in expert.items() if e != env_id]
-        dagger = d.get("dagger", [])
-        kinds = sorted({(r["rounds"], _labeller(r)) for r in dagger})
-        dagger_cell = "; ".join(
-            f"{total([r for r in dagger if (r['rounds'], _labeller(r)) == (n, who)])[:-1]}, {n} iterations"
-            f"{', MPC labels' if who == 'MPC' else ''})" for n, who in kinds) or "–"
-        if "target_speed" in d:
-            what = f"{what} at {d['target_speed']:g} m/s"
-        rows.append([what, f"`{env_id.split('/')[-1]}`",
-                     f"{own['successes']}/{own['episodes']}" if own else "–",
-                     f"{twin[0]['successes']}/{twin[0]['episodes']}" if twin else "–",
-                     total(d.get("bc", [])), dagger_cell, f"{d['seeds'][0]}-{d['seeds'][-1]}"])
+        if own is not None:
+            rows.append([task, "expert (plan tracking)", f"{own['successes']}/{own['episodes']}",
+                         condition_cell([own], "push"), condition_cell([own], "obs_noise"),
+                         f"{twin[0]['successes']}/{twin[0]['episodes']}" if twin else "–", "–", "–", "–", "–"])
+        for name, group in learner_groups(d):
+            if name.startswith("SAC"):
+                labels, steps = "0", _mean_int([r["env_steps"] for r in group])
+            else:
+                labels = _mean_int([r.get("expert_labels", r["transitions"]) for r in group])
+                steps = _mean_int([r["transitions"] for r in group])
+            rows.append(["" if any(row[0] == task for row in rows) else task, name, success_cell(group),
+                         condition_cell(group, "push"), condition_cell(group, "obs_noise"),
+                         condition_cell(group, TWIN_KEY), labels, steps,
+                         f"{sum(r['train_wall_time_s'] for r in group) / len(group):.0f} s", str(len(group))])
     if not rows:
         return "No task record yet: run `python experiments/tasks.py --task backflip`."
-    note = ("Successes / episodes on seeds used by no dataset or training run; each task's success rule, the learners' "
-            "samples and training time are on its page ([Pronking-v0](docs/env/pronking.md), "
-            "[Backflip-v0](docs/env/backflip.md), [the jumps](docs/env/jumps.md), "
-            "[the gait transitions](docs/env/transitions.md)). BC and DAgger: summed over their "
-            "training seeds, DAgger per number of iterations and labeller (the expert, or the task's MPC). The expert "
-            "tracks the task's HS-DDP plan with the plan's feedback gains (the pronk: a periodic plan).")
-    return "\n".join([markdown_table(header, rows, ["l", "l", "r", "r", "r", "r", "l"]), "", note,
+    note = ("Successes / episodes on seeds used by no dataset or training run (push, observation noise and the "
+            "MuJoCo twin: the same seeds; – where the record has no such run); each task's success rule and the "
+            "per-seed rows are on its page ([Pronking-v0](docs/env/pronking.md), [Backflip-v0](docs/env/backflip.md), "
+            "[the jumps](docs/env/jumps.md), [the gait transitions](docs/env/transitions.md)). Learners: summed over "
+            "their training seeds, with the 95 % interval of the success rate over the seeds (Student t); expert "
+            "labels (the labelled pairs learned from; DAgger's include its first demonstrations) and env steps (the "
+            "states visited: demonstrations and rollouts, or SAC's steps) and training time (wall clock, 2-core "
+            "machine): means per training seed. DAgger's labeller: the plan-tracking expert, or the task's MPC. The "
+            "expert tracks the task's HS-DDP plan with the plan's feedback gains (the pronk: a periodic plan).")
+    return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, *used)])
