@@ -21,8 +21,8 @@ from hsddp_gym.benchmarks.tasks import task_evaluation_main
 
 
 def main(argv=None) -> int:
-    return task_evaluation_main(argv, __doc__, task="pronking", sac=True, record_settings={"target_speed": 1.0},
-                                rounds_word="round", env_checked=("dagger", "sac"))
+    return task_evaluation_main(argv, __doc__, task="pronking", record_settings={"target_speed": 1.0},
+                                rounds_word="round", env_checked=("dagger",))
 
 
 if __name__ == "__main__":

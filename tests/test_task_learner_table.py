@@ -48,7 +48,11 @@ def test_the_table_sums_training_seeds_with_their_interval_and_each_condition(tm
                      _row("expert", "hsddp_gym/StandToBoundMuJoCo-v0", 17)],
             "bc": [_row("BC", env, s, transitions=100, demonstrations=4, train_wall_time_s=3.0) for s in (0, 10)],
             "dagger": [_row("DAgger", env, s, {"push": p, "obs_noise": 20, TWIN_KEY: 16}, transitions=1000 + s,
-                            expert_labels=900, **dagger) for s, p in ((20, 15), (18, 16), (19, 17))]}
+                            expert_labels=900, **dagger) for s, p in ((20, 15), (18, 16), (19, 17))],
+            "ppo": [_row("PPO", env, s, algo="ppo", residual=None, checkpoint="final", env_steps=5000 + s,
+                         total_env_steps=5000, train_wall_time_s=120.0) for s in (0, 2)],
+            "sac": [_row("SAC", env, 5, {TWIN_KEY: 4}, algo="sac", residual={"base": "expert", "scale": 0.2},
+                         checkpoint="best", env_steps=3000, total_env_steps=4000, train_wall_time_s=60.0)]}
     write_record(tmp_path / "results" / "tasks" / "stand_to_bound.json", data, "a test record",
                  command="python experiments/tasks.py --task stand_to_bound --record results/tasks/x.json")
     text = tasks_summary(Store(tmp_path))
@@ -59,6 +63,9 @@ def test_the_table_sums_training_seeds_with_their_interval_and_each_condition(tm
     mpc = rows["DAgger, 8 iterations, MPC labels"]
     assert mpc[0] == "" and mpc[2].startswith("57/60 (") and mpc[3:6] == ["48/60", "60/60", "48/60"]
     assert mpc[6:] == ["900", "1,019", "100 s", "3"]
+    assert rows["PPO (final weights)"][2:] == ["2/40 (0-69 %)", "–", "–", "–", "0", "5,001", "120 s", "2"]
+    residual = rows["SAC, residual on the expert (scale 0.2) (best checkpoint)"]
+    assert residual[2] == "5/20" and residual[5] == "4/20" and residual[7] == "3,000"
 
 
 def test_the_success_interval_is_the_t_interval_of_the_seed_rates():

@@ -53,8 +53,9 @@ def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet
                          twin: bool = False) -> dict:
     """The row of policy ``spec`` (a name or [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec],
     [`make_policy`][hsddp_gym.rollout.policies.make_policy]) in ``env_id`` (the task's env or a twin) on ``seeds``;
-    with ``conditions`` (names of [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS])
-    or ``twin``, the row's ``conditions`` holds the policy's successes on the same seeds in each condition and (key
+    with ``conditions`` (names of
+    [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS]) or ``twin``, the
+    row's ``conditions`` holds the policy's successes on the same seeds in each condition and (key
     [`TWIN`][TWIN]) in the task's MuJoCo twin ([`condition_counts`][condition_counts])."""
     import gymnasium as gym
 
@@ -153,12 +154,25 @@ def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word:
     return rows
 
 
-def sac_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = False) -> list[dict]:
-    """The rows of the ``hsddp-gym train --algo sac`` runs ``runs``: each with its final weights and its best
-    checkpoint (when it has one), both with the mean action (and their successes in ``conditions`` and the
+RL_ALGOS = ("sac", "ppo")
+"""The reinforcement-learning algorithms a task evaluation takes runs of (``--sac``, ``--ppo``)."""
+
+
+def rl_label(algo: str, train: dict) -> str:
+    """How a table names an ``hsddp-gym train --algo sac|ppo`` run: ``SAC`` / ``PPO``, ``residual on the expert`` for a
+    run with ``--residual``."""
+    residual = train.get("residual")
+    return algo.upper() + (f", residual on the expert (scale {residual['scale']:g})" if residual else "")
+
+
+def rl_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = False, algo: str = "sac") -> list[dict]:
+    """The rows of the ``hsddp-gym train --algo sac|ppo`` runs ``runs`` (``algo``): each with its final weights and its
+    best checkpoint (when it has one), both with the mean action (and their successes in ``conditions`` and the
     ``twin``)."""
     from hsddp_gym.rollout.policies import PolicySpec
 
+    if algo not in RL_ALGOS:
+        raise ValueError(f"algo must be one of {RL_ALGOS}, got {algo!r}")
     rows = []
     for run in runs:
         train = json.loads((Path(run) / "summary.json").read_text())
@@ -166,11 +180,12 @@ def sac_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = F
             if checkpoint == "best" and not train.get("best_checkpoint"):
                 continue
             name = "final weights" if checkpoint == "final" else "best checkpoint"
-            row = evaluate_task_policy(task, f"SAC (training seed {train['seed']}, {name})", task.env_id,
-                                       PolicySpec(f"sac:{run}", options={"checkpoint": checkpoint}), seeds, quiet,
-                                       conditions, twin)
+            row = evaluate_task_policy(task, f"{rl_label(algo, train)} (training seed {train['seed']}, {name})",
+                                       task.env_id, PolicySpec(f"{algo}:{run}", options={"checkpoint": checkpoint}),
+                                       seeds, quiet, conditions, twin)
             best = train.get("best_checkpoint") or {}
-            row.update(run=str(run), training_seed=int(train["seed"]), checkpoint=checkpoint,
+            row.update(run=str(run), algo=algo, residual=train.get("residual"), training_seed=int(train["seed"]),
+                       checkpoint=checkpoint,
                        env_steps=int(train["steps"]) if checkpoint == "final" else int(best["env_step"]),
                        total_env_steps=int(train["steps"]), train_wall_time_s=float(train["wall_time_s"]),
                        time_limit_s=train.get("time_limit_s"), preset=train.get("preset"),
@@ -188,11 +203,11 @@ def expert_rows(task: Task, seeds, quiet: bool, mujoco: bool, conditions=()) -> 
     return rows
 
 
-def task_evaluation_main(argv, description: str, task: str | None = None, sac: bool = False,
+def task_evaluation_main(argv, description: str, task: str | None = None,
                          record_settings: dict | None = None, rounds_word: str = "iteration",
                          env_checked=("bc", "dagger")) -> int:
     """The command line of a task evaluation: the expert (and, with ``--mujoco``, in the twin), ``--bc`` and
-    ``--dagger`` runs (``--sac`` runs with ``sac``) on ``--episodes`` seeds from ``--seed`` (default: the task's
+    ``--dagger``, ``--sac`` and ``--ppo`` runs on ``--episodes`` seeds from ``--seed`` (default: the task's
     ``first_seed``), each also in the ``--conditions`` (and the learners, with ``--mujoco``, in the twin), and the
     record ``--record``.
 
@@ -202,7 +217,7 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
         record_settings: the settings the record stores after the seeds (default: the task's time limit,
             ``{"max_episode_steps": ...}``).
         rounds_word: how DAgger's rows count its rounds.
-        env_checked: the algorithms whose runs must be of the task's env.
+        env_checked: the imitation algorithms whose runs must be of the task's env (RL runs always must).
     """
     import argparse
 
@@ -220,10 +235,11 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
                                                        "of the task's env, one per training seed")
     p.add_argument("--dagger", nargs="*", default=[], help="DAgger runs (hsddp-gym train --algo dagger --env "
                                                            "TASK_ENV --out DIR), one per training seed")
-    if sac:
-        p.add_argument("--sac", nargs="*", default=[], help="SAC runs (hsddp-gym train --algo sac --env TASK_ENV "
-                                                            "--out DIR), one per training seed; final weights and "
-                                                            "best checkpoint")
+    for algo in RL_ALGOS:
+        p.add_argument(f"--{algo}", nargs="*", default=[],
+                       help=f"{algo.upper()} runs (hsddp-gym train --algo {algo} --env TASK_ENV --out DIR, from "
+                            "scratch or --residual on the expert), one per training seed; final weights and best "
+                            "checkpoint")
     p.add_argument("--mujoco", action="store_true",
                    help="also run the expert (a row of its own) and every learner (its successes) in the task's "
                         "MuJoCo twin")
@@ -236,10 +252,9 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
     spec = TASKS[task if task is not None else args.task]
-    learners = {"--bc": (args.bc, "bc"), "--dagger": (args.dagger, "dagger")}
-    if sac:
-        learners["--sac"] = (args.sac, "sac")
-    check_learner_runs(p.error, spec, learners, env_checked)
+    learners = {"--bc": (args.bc, "bc"), "--dagger": (args.dagger, "dagger"),
+                **{f"--{algo}": (getattr(args, algo), algo) for algo in RL_ALGOS}}
+    check_learner_runs(p.error, spec, learners, tuple(env_checked) + RL_ALGOS)
     first = spec.first_seed if args.seed is None else args.seed
     seeds = list(range(first, first + args.episodes))
     conditions = tuple(args.conditions)
@@ -250,13 +265,14 @@ def task_evaluation_main(argv, description: str, task: str | None = None, sac: b
     rows = expert_rows(spec, seeds, args.quiet, args.mujoco, conditions)
     bc = imitation_rows(spec, args.bc, "bc", seeds, args.quiet, conditions=conditions, twin=args.mujoco)
     dagger = imitation_rows(spec, args.dagger, "dagger", seeds, args.quiet, rounds_word, conditions, args.mujoco)
-    sac_part = {"sac": sac_rows(spec, args.sac, seeds, args.quiet, conditions, args.mujoco)} if sac else {}
+    rl_part = {algo: rl_rows(spec, getattr(args, algo), seeds, args.quiet, conditions, args.mujoco, algo)
+               for algo in RL_ALGOS if getattr(args, algo)}
     if args.record:
         from hsddp_gym.reports.store import invoked_command, without_option, write_record
 
         settings = record_settings if record_settings is not None else {"max_episode_steps": spec.max_episode_steps}
         data = {"env_id": spec.env_id, "seeds": seeds, **settings, "rows": rows, "bc": bc, "dagger": dagger,
-                **sac_part, "success_rule": spec.success_rule}
+                **rl_part, "success_rule": spec.success_rule}
         write_record(args.record, data, spec.description,
                      command=list(args.made_with) + [invoked_command(without_option(argv, "--made-with"))])
         print(f"wrote {args.record}")

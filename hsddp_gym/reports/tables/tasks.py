@@ -81,6 +81,53 @@ def _labeller(row: dict) -> str:
     return "MPC" if row.get("labeller") == "mpc" else "expert"
 
 
+def _rl_name(row: dict) -> str:
+    """How the tables name an RL row's learner: ``SAC`` / ``PPO``, with its residual scale when it learned a residual
+    on the expert (the records before the algorithm was kept: SAC)."""
+    residual = row.get("residual")
+    return row.get("algo", "sac").upper() + (
+        f", residual on the expert (scale {residual['scale']:g})" if residual else "")
+
+
+def rl_groups(d: dict) -> list[tuple[str, list]]:
+    """A task record's RL runs (``d["sac"]``, ``d["ppo"]``) as ``(name, rows)`` per learner and checkpoint, one row
+    per training seed."""
+    rows = [r for algo in ("sac", "ppo") for r in d.get(algo, [])]
+    groups = {}
+    for r in rows:
+        name = "final weights" if r["checkpoint"] == "final" else "best checkpoint"
+        groups.setdefault(f"{_rl_name(r)} ({name})", []).append(r)
+    return list(groups.items())
+
+
+def _rl_rows(d: dict, cells, seeds_row) -> list:
+    """A task record's RL rows, one per training seed and checkpoint, then one summing the seeds per learner and
+    checkpoint (when there are several)."""
+    out = []
+    for _, group in rl_groups(d):
+        for r in group:
+            steps = (f"{r['env_steps']:,} env steps" if r["checkpoint"] == "final" else
+                     f"{r['env_steps']:,} of {r['total_env_steps']:,} env steps")
+            out.append(cells(r, steps, f"{r['train_wall_time_s']:.0f} s"))
+    for name, group in rl_groups(d):
+        if len(group) > 1:
+            out.append(seeds_row(name, group))
+    return out
+
+
+def _rl_note(d: dict) -> str:
+    """The note on a record's RL runs: their wall-clock budgets and how they act."""
+    rl = [r for algo in ("sac", "ppo") for r in d.get(algo, [])]
+    limits = sorted({r["time_limit_s"] for r in rl if r.get("time_limit_s")})
+    if not limits:
+        return ""
+    residual = (" A residual learner adds its action, scaled, to the plan-tracking expert's."
+                if any(r.get("residual") for r in rl) else "")
+    return (f" RL trained for a wall-clock budget of {', '.join(f'{t:g}' for t in limits)} s (RL-Zoo settings, "
+            "`hsddp-gym train --algo sac|ppo --time-limit`); both its final weights and its best checkpoint act with "
+            f"the mean action.{residual}")
+
+
 def tasks_pronking(store: Store) -> str:
     """The pronking task: the expert (Pronking-v0 and its MuJoCo twin), BC and DAgger per training seed and SAC per
     training seed and checkpoint on unseen seeds, with the samples and training time each learner used
@@ -103,27 +150,14 @@ def tasks_pronking(store: Store) -> str:
         return _seeds_row(label, group, "`Pronking-v0`", 4)
 
     rows = [cells(r, "–", "–") for r in d["rows"]] + _imitation_rows(d, cells, seeds_row, "round")
-    for r in d.get("sac", []):
-        steps = (f"{r['env_steps']:,} env steps" if r["checkpoint"] == "final" else
-                 f"{r['env_steps']:,} of {r['total_env_steps']:,} env steps")
-        rows.append(cells(r, steps, f"{r['train_wall_time_s']:.0f} s"))
-    for checkpoint, name in (("final", "final weights"), ("best", "best checkpoint")):
-        group = [r for r in d.get("sac", []) if r["checkpoint"] == checkpoint]
-        if len(group) > 1:
-            rows.append(seeds_row(f"SAC ({name})", group))
+    rows += _rl_rows(d, cells, seeds_row)
     seeds = d["seeds"]
     note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), target speed "
             f"{d['target_speed']:g} m/s, 1000 steps (5 s); return: mean ± std over the episodes. Success: "
             f"{d['success_rule']}. Samples: the expert's labelled (observation, action) pairs BC and DAgger learned "
-            "from (DAgger's include BC's demonstrations, its round 0), or SAC's env steps (of its best checkpoint: "
+            "from (DAgger's include BC's demonstrations, its round 0), or RL's env steps (of its best checkpoint: "
             "the steps when it was saved). Training time: wall-clock seconds on the shared 2-core machine.")
-    sac = d.get("sac", [])
-    if sac:
-        limits = sorted({r["time_limit_s"] for r in sac if r.get("time_limit_s")})
-        if limits:
-            note += (f" SAC trained for a wall-clock budget of {', '.join(f'{t:g}' for t in limits)} s (RL-Zoo "
-                     "settings, `hsddp-gym train --algo sac --time-limit`); both its final weights and its best "
-                     "checkpoint act with the mean action.")
+    note += _rl_note(d)
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, rid)])
 
@@ -146,12 +180,14 @@ def _plan_task_table(store: Store, rid: str, command: str, measures: list, measu
         return _seeds_row(label, group, env_name, len(measures) + 2)
 
     rows = [cells(r, "–", "–") for r in d["rows"]] + _imitation_rows(d, cells, seeds_row, "iteration")
+    rows += _rl_rows(d, cells, seeds_row)
     seeds = d["seeds"]
     note = (f"{len(seeds)} episodes, seeds {seeds[0]}-{seeds[-1]} (used by no dataset or training run), "
             f"{d['max_episode_steps']} steps ({d['max_episode_steps'] * 0.005:g} s) {episodes_note}. "
             f"Success: {d['success_rule']}. "
             "Samples: the expert's labelled (observation, action) pairs BC and DAgger learned from (DAgger's include "
-            "BC's demonstrations). Training time: wall-clock seconds on the shared 2-core machine.")
+            "BC's demonstrations), or RL's env steps. Training time: wall-clock seconds on the shared 2-core "
+            "machine." + _rl_note(d))
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, rid)])
 
@@ -274,18 +310,14 @@ TWIN_KEY = "mujoco_twin"
 
 def learner_groups(d: dict) -> list[tuple[str, list]]:
     """A task record's learners as ``(name, rows)``, one row per training seed: BC, DAgger per number of iterations
-    and labeller, SAC per checkpoint."""
+    and labeller, RL per algorithm, residual and checkpoint ([`rl_groups`][rl_groups])."""
     groups = [("BC", d.get("bc", []))] if d.get("bc") else []
     dagger = d.get("dagger", [])
     for rounds, who in sorted({(r["rounds"], _labeller(r)) for r in dagger}):
         by = ", MPC labels" if who == "MPC" else ""
         groups.append((f"DAgger, {rounds} iterations{by}",
                        [r for r in dagger if (r["rounds"], _labeller(r)) == (rounds, who)]))
-    for checkpoint, name in (("final", "final weights"), ("best", "best checkpoint")):
-        group = [r for r in d.get("sac", []) if r["checkpoint"] == checkpoint]
-        if group:
-            groups.append((f"SAC ({name})", group))
-    return groups
+    return groups + rl_groups(d)
 
 
 def success_cell(group: list) -> str:
@@ -338,7 +370,7 @@ def tasks_summary(store: Store) -> str:
                          condition_cell([own], "push"), condition_cell([own], "obs_noise"),
                          f"{twin[0]['successes']}/{twin[0]['episodes']}" if twin else "–", "–", "–", "–", "–"])
         for name, group in learner_groups(d):
-            if name.startswith("SAC"):
+            if "checkpoint" in group[0]:  # RL: no expert labels (a residual learner's expert acts, labels none)
                 labels, steps = "0", _mean_int([r["env_steps"] for r in group])
             else:
                 labels = _mean_int([r.get("expert_labels", r["transitions"]) for r in group])
