@@ -383,12 +383,12 @@ def tasks_summary(store: Store) -> str:
         return "No task record yet: run `python experiments/tasks.py --task backflip`."
     note = ("Successes / episodes on seeds used by no dataset or training run (push, observation noise and the "
             "MuJoCo twin: the same seeds; – where the record has no such run); each task's success rule and the "
-            "per-seed rows are on its page ([Pronking-v0](docs/env/pronking.md), [Backflip-v0](docs/env/backflip.md), "
-            "[the jumps](docs/env/jumps.md), [the gait transitions](docs/env/transitions.md)). Learners: summed over "
-            "their training seeds, with the 95 % interval of the success rate over the seeds (Student t); expert "
-            "labels (the labelled pairs learned from; DAgger's include its first demonstrations) and env steps (the "
-            "states visited: demonstrations and rollouts, or SAC's steps) and training time (wall clock, 2-core "
-            "machine): means per training seed. DAgger's labeller: the plan-tracking expert, or the task's MPC. The "
-            "expert tracks the task's HS-DDP plan with the plan's feedback gains (the pronk: a periodic plan).")
+            "per-seed rows are on its page (Pronking-v0, Backflip-v0, the jumps, the gait transitions). Learners: "
+            "summed over their training seeds, with the 95 % interval of the success rate over the seeds (Student "
+            "t); expert labels (the labelled pairs learned from; DAgger's include its first demonstrations) and env "
+            "steps (the states visited: demonstrations and rollouts, or RL's steps) and training time (wall clock, "
+            "2-core machine): means per training seed. DAgger's labeller: the plan-tracking expert, or the task's "
+            "MPC. The expert tracks the task's HS-DDP plan with the plan's feedback gains (the pronk: a periodic "
+            "plan).")
     return "\n".join([markdown_table(header, rows, ["l", "l"] + ["r"] * (len(header) - 2)), "", note,
                       source_line(store, *used)])
