@@ -535,3 +535,17 @@ def test_rl_presets():
         hyperparameters("sac", preset="parallel")
     with pytest.raises(ValueError, match="preset must be one of"):
         hyperparameters("ppo", preset="walker")
+
+
+def test_rl_trains_in_bounding_and_every_task_with_an_expert():
+    """PPO / SAC take Bounding-v0 and every task env whose task has a plan-tracking expert (what ``--residual``
+    builds on); the terrain task (no expert) is refused by name."""
+    from hsddp_gym.learning.sb3 import ENV_ID, ENV_IDS
+    from hsddp_gym.learning.sb3.training import check_env_id
+    from hsddp_gym.registry import TASKS
+
+    assert set(ENV_IDS) == {ENV_ID} | {t.env_id for t in TASKS.values() if t.expert is not None}
+    for env_id in ENV_IDS:
+        assert check_env_id(env_id) == env_id
+    with pytest.raises(ValueError, match="Terrain-v0"):
+        check_env_id("hsddp_gym/Terrain-v0")

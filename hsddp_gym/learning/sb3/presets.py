@@ -12,10 +12,12 @@ import json
 import numpy as np
 
 ENV_ID = "hsddp_gym/Bounding-v0"
-ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0")
-"""The envs [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3] trains in (``env_id``): Bounding-v0 (the default),
-the pronking task Pronking-v0, the backflip task Backflip-v0 and the jumps GapJump-v0 and BoxJump-v0, which offer no
-compiled vector env and no robustness conditions."""
+ENV_IDS = (ENV_ID, "hsddp_gym/Pronking-v0", "hsddp_gym/Backflip-v0", "hsddp_gym/GapJump-v0", "hsddp_gym/BoxJump-v0",
+           "hsddp_gym/StandToBound-v0", "hsddp_gym/BoundPronkBound-v0", "hsddp_gym/BoundToStop-v0")
+"""The envs [`train_sb3`][hsddp_gym.learning.sb3.training.train_sb3] trains in (``env_id``): Bounding-v0 (the default)
+and every task with a plan-tracking expert: the pronk, the backflip, the jumps and the three gait transitions (each
+has a compiled vector env and the robustness conditions; ``tests/test_learning.py`` checks that these are the
+registry's)."""
 ALGOS = ("ppo", "sac")
 
 PPO_HYPERPARAMS: dict = {
