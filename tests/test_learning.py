@@ -88,6 +88,31 @@ def test_dagger_counts_expert_labels(dataset):
                                   res.data.actions[len(initial):len(initial) + len(first)])
 
 
+def test_dagger_keep_best_returns_the_round_that_fell_least(dataset):
+    """keep="best": the learner of the round whose evaluation fell least (ties: the higher mean return, then the
+    earlier round) is the result; "last" the last round's; "best" without an evaluation is refused."""
+    cfg = DAggerConfig(rounds=3, episodes_per_round=1, max_episode_steps=10, keep="best",
+                       bc=BCConfig(hidden=(16,), epochs=2))
+    initial = load_demonstrations(dataset, episodes=1)
+    scripted = iter([{"falls": 5, "mean_return": 9.0}, {"falls": 1, "mean_return": 2.0},
+                     {"falls": 1, "mean_return": 3.0}, {"falls": 1, "mean_return": 3.0}])
+    seen = []
+
+    def evaluate(p):
+        seen.append(p)
+        return next(scripted)
+
+    res = train_dagger(PolicySpec("heuristic"), cfg, initial=initial, evaluate=evaluate, progress=False)
+    assert res.selected_round == 2 and res.policy is seen[2] and res.policy.info["selected_round"] == 2
+    last = train_dagger(PolicySpec("heuristic"), dataclasses.replace(cfg, keep="last"), initial=initial,
+                        evaluate=lambda p: {"falls": 0, "mean_return": 0.0}, progress=False)
+    assert last.selected_round == 3
+    with pytest.raises(ValueError, match="keep='best' needs evaluate"):
+        train_dagger(PolicySpec("heuristic"), cfg, initial=initial, progress=False)
+    with pytest.raises(ValueError, match="keep must be one of"):
+        DAggerConfig(keep="first")
+
+
 def test_dagger_without_initial_data_starts_from_expert_episodes():
     cfg = DAggerConfig(rounds=1, episodes_per_round=1, max_episode_steps=10,
                        bc=BCConfig(hidden=(16,), epochs=2))

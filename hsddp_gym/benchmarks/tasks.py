@@ -148,6 +148,8 @@ def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word:
         else:
             n = fields["rounds"]
             by = ", MPC labels" if fields.get("labeller") == "mpc" else ""
+            if fields.get("keep") == "best":
+                by += f", best round ({fields['selected_round']})"
             label = f"DAgger, {n} {rounds_word}{'s' if n != 1 else ''}{by} (training seed {fields['training_seed']})"
         rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet, conditions, twin),
                      **fields})

@@ -32,7 +32,8 @@ GROUPS = {
     "dagger": ("DAgger (dagger)",
                {"--expert": ("dagger",), "--rounds": ("dagger",), "--episodes-per-round": ("dagger",),
                 "--beta-decay": ("dagger",), "--rollout-noise": ("dagger",), "--rollout-steps": ("dagger",),
-                "--workers": ("dagger",), "--estimator": ("dagger",), "--warm-start": ("dagger",)}),
+                "--workers": ("dagger",), "--estimator": ("dagger",), "--warm-start": ("dagger",),
+                "--keep": ("dagger",)}),
     "sb3": ("PPO and SAC (ppo, sac: Stable-Baselines3)",
             {"--steps": _SB3, "--eval-freq": _SB3, "--preset": _SB3, "--n-envs": _SB3, "--vector-env": _SB3,
              "--residual": _SB3,
@@ -162,6 +163,9 @@ def _check_train(args) -> None:
         raise UsageError("--action-queue", "given with --estimator (its prediction over the delay replaces the "
                          "queue)", "one of them")
     parsing.check_conditions(args)
+    if getattr(args, "keep", "last") == "best" and not args.eval_episodes:
+        raise UsageError("--keep", "best with --eval-episodes 0 (it chooses the round by that evaluation)",
+                         "--eval-episodes N (N >= 1) or --keep last")
     if args.gain_noise is not None and not args.gain_copies:
         raise UsageError("--gain-noise", "given without --gain-copies", "with --gain-copies N (N >= 1)")
     if isinstance(args.lr, str) and args.algo not in ("ppo", "sac"):
@@ -248,7 +252,7 @@ def cmd_train(args) -> int:
                               beta_decay=args.beta_decay, seed=args.seed, max_episode_steps=args.max_episode_steps,
                               rollout_noise=args.rollout_noise, warm_start=bool(args.warm_start),
                               rollout_steps=args.rollout_steps, conditions=tuple(args.condition or ()),
-                              estimator=bool(args.estimator),
+                              estimator=bool(args.estimator), keep=args.keep,
                               bc=BCConfig(epochs=args.epochs, batch_size=args.batch_size, lr=_bc_lr(args),
                                           seed=args.seed, **_bc_extra(args)))
         summary = run_dagger(args.expert, out, seed=args.seed, config=config,
@@ -387,6 +391,10 @@ def add_parser(sub) -> None:
     add("--warm-start", action="store_true",
         help="rounds >= 1 fine-tune the previous round's network (and keep its input standardization) for --epochs "
              "instead of retraining from scratch")
+    add("--keep", choices=("last", "best"), default="last",
+        help="the learner the run writes: the last round's, or the best round's by its evaluation (--eval-episodes "
+             "on seeds 0.., fewest falls, then highest mean return; needs --eval-episodes > 0) (default: "
+             "%(default)s)")
     # PPO and SAC
     add("--steps", type=parsing.positive_int, default=None, help="(required) env steps to train for")
     add("--eval-freq", type=parsing.nonnegative_int, default=None,

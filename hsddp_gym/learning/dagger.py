@@ -17,8 +17,18 @@ from hsddp_gym.learning.reporting import eval_brief, evaluate_policy_episodes, p
 from hsddp_gym.planners.policies.base import EnvInterface, Policy
 from hsddp_gym.util.io import write_npz
 
-
 # ================================================================================================ DAgger
+KEEP = ("last", "best")
+"""The learners a DAgger run can return (``DAggerConfig.keep``)."""
+
+
+def round_rank(evaluation: dict) -> tuple:
+    """The key a ``keep="best"`` run minimizes over its rounds' evaluations
+    ([`hsddp_gym.learning.reporting.eval_brief`][hsddp_gym.learning.reporting.eval_brief]): falls, then minus the
+    mean return."""
+    return (int(evaluation["falls"]), -float(evaluation["mean_return"]))
+
+
 @dataclasses.dataclass(frozen=True)
 class DAggerConfig:
     """DAgger settings.
@@ -65,6 +75,10 @@ class DAggerConfig:
             Bounding-v0's); its expert is the pronk plan tracker
             ([`pronking_expert`][hsddp_gym.planners.policies.experts.pronking_expert], ``PolicySpec("expert",
             env_id=...)``).
+        keep: which round's learner the result is: ``"last"`` (the last round's) or ``"best"`` (the round whose
+            evaluation fell least, ties to the higher mean return; the first such round: DAgger's guarantee is for the
+            best policy of the sequence, Ross et al. 2011). ``"best"`` needs the per-round evaluation
+            (``train_dagger(evaluate=...)``); its seeds are the training side's, not a test's.
     """
 
     rounds: int = 4
@@ -79,9 +93,13 @@ class DAggerConfig:
     conditions: tuple = ()
     estimator: bool = False
     env_id: str | None = None
+    keep: str = "last"
 
     def __post_init__(self) -> None:
         from hsddp_gym.datasets.recording import ENV_ID, check_env_id
+
+        if self.keep not in KEEP:
+            raise ValueError(f"keep must be one of {KEEP}, got {self.keep!r}")
 
         if self.env_id is not None:
             object.__setattr__(self, "env_id", check_env_id(self.env_id))
@@ -121,15 +139,17 @@ class DAggerConfig:
 
 @dataclasses.dataclass
 class DAggerResult:
-    """``policy`` (the last round's learner), ``data`` (aggregate labels), ``history`` (one dict per round:
-    ``round, beta, episodes, new_labels, expert_labels, transitions, rollout_mean_return, expert_actions_fraction,
-    final_loss, eval`` (if evaluated)), ``expert_labels`` (total) and ``wall_time_s``."""
+    """``policy`` (the learner of round ``selected_round``: the last, or the best with ``keep="best"``), ``data``
+    (aggregate labels), ``history`` (one dict per round: ``round, beta, episodes, new_labels, expert_labels,
+    transitions, rollout_mean_return, expert_actions_fraction, final_loss, eval`` (if evaluated)), ``expert_labels``
+    (total), ``wall_time_s`` and ``selected_round``."""
 
     policy: MLPPolicy
     data: Demonstrations
     history: list
     expert_labels: int
     wall_time_s: float
+    selected_round: int = -1
 
 
 class DAggerMixture:
@@ -285,8 +305,11 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
     history = []
     data = initial
     expert_labels = 0
+    if config.keep == "best" and evaluate is None:
+        raise ValueError("keep='best' needs evaluate (the per-round evaluation it chooses by)")
     bar = tqdm(total=config.rounds + 1, desc="DAgger rounds", unit="round", disable=not progress)
     learner = None
+    best = None  # (rank, round, learner) of keep="best"
     for r in range(config.rounds + 1):
         beta = config.beta(r)
         new, returns, expert_acts, n_eps = None, [], 0, 0
@@ -319,14 +342,19 @@ def train_dagger(expert_factory: Callable, config: DAggerConfig = DAggerConfig()
                "final_loss": hist["loss"][-1], "bc_wall_time_s": hist["wall_time_s"]}
         if evaluate is not None:
             rec["eval"] = evaluate(learner)
+            if config.keep == "best" and (best is None or round_rank(rec["eval"]) < best[0]):
+                best = (round_rank(rec["eval"]), r, learner)
         history.append(rec)
         bar.update(1)
         bar.set_postfix(labels=expert_labels)
     bar.close()
     env.close()
+    selected = config.rounds
+    if best is not None:
+        _, selected, learner = best
     learner.info.update(expert_labels=int(expert_labels), dagger_rounds=int(config.rounds),
-                        estimator=bool(config.estimator))
-    return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0)
+                        estimator=bool(config.estimator), selected_round=int(selected))
+    return DAggerResult(learner, data, history, int(expert_labels), time.perf_counter() - t0, int(selected))
 
 
 DATA_OPTIONAL = ("target_speed", "sent_actions", "action_delay")
@@ -398,6 +426,9 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
     if expert == "expert":
         plan = solve_expert_plan(out / "expert_plan.npz", env_id, float(env_kwargs.get("target_speed", 1.0)))
         files.append("expert_plan.npz")
+    if config.keep == "best" and eval_episodes <= 0:
+        raise ValueError(f"keep='best' chooses the round by its evaluation: eval_episodes must be >= 1, got "
+                         f"{eval_episodes}")
     spec = task_policy_spec(expert, env_id, mpc_options, plan_path=str(out / "expert_plan.npz"))
     initial = load_demonstrations(dataset, episodes=demos, fmt=fmt) if dataset is not None else None
 
@@ -436,10 +467,10 @@ def run_dagger(expert: str, out, seed: int = 0, config: DAggerConfig | None = No
         None if initial is None else initial.n_episodes, "expert_labels": res.expert_labels,
         "transitions": len(res.data), "history": res.history, "wall_time_s": res.wall_time_s,
         "env_id": env_id, "env_kwargs": env_kwargs, "max_episode_steps": config.max_episode_steps, "files": files,
-        "conditions": list(config.conditions), "workers": int(workers)}
+        "conditions": list(config.conditions), "workers": int(workers), "selected_round": res.selected_round}
     if plan is not None:
         summary["expert_plan"] = plan
-    if res.history and res.history[-1].get("eval"):
-        summary["eval"] = res.history[-1]["eval"]
+    if res.history and res.history[res.selected_round].get("eval"):
+        summary["eval"] = res.history[res.selected_round]["eval"]
     write_json(out / "summary.json", summary)
     return summary

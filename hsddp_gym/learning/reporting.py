@@ -8,8 +8,8 @@ import numpy as np
 # ================================================================================================ evaluation
 def imitation_run_fields(run, algo: str) -> dict:
     """What a task record keeps of a finished ``hsddp-gym train --algo bc|dagger --out run`` (its
-    ``summary.json``): the run, its training seed, its samples and wall time (and DAgger's configuration and
-    labeller: ``"expert"``, ``"mpc"`` or ``"heuristic"``)."""
+    ``summary.json``): the run, its training seed, its samples and wall time (and DAgger's configuration, its
+    labeller: ``"expert"``, ``"mpc"`` or ``"heuristic"``, and the round it kept)."""
     import json
     from pathlib import Path
 
@@ -26,7 +26,8 @@ def imitation_run_fields(run, algo: str) -> dict:
                       initial_demonstrations=train.get("initial_demonstrations"), rounds=int(cfg["rounds"]),
                       episodes_per_round=int(cfg["episodes_per_round"]), beta_decay=float(cfg["beta_decay"]),
                       initial_dataset=train.get("initial_dataset"), rollout_noise=float(cfg.get("rollout_noise", 0.0)),
-                      labeller=(train.get("expert") or {}).get("name", "expert"))
+                      labeller=(train.get("expert") or {}).get("name", "expert"), keep=cfg.get("keep", "last"),
+                      selected_round=train.get("selected_round", int(cfg["rounds"])))
     return fields
 
 

@@ -62,16 +62,15 @@ def _imitation_rows(d: dict, cells, seeds_row, dagger_unit: str) -> list:
                           f"{r['train_wall_time_s']:.0f} s"))
     if d["bc"]:
         rows.append(seeds_row("BC", d["bc"]))
-    for rounds, labeller in dict.fromkeys((r["rounds"], _labeller(r)) for r in d.get("dagger", [])):
-        group = [r for r in d["dagger"] if r["rounds"] == rounds and _labeller(r) == labeller]
+    for rounds, suffix in dict.fromkeys((r["rounds"], _dagger_suffix(r)) for r in d.get("dagger", [])):
+        group = [r for r in d["dagger"] if (r["rounds"], _dagger_suffix(r)) == (rounds, suffix)]
         for r in group:
             rollouts = r["rounds"] * r["episodes_per_round"]
             first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
                      f"{r['episodes_per_round']} expert episodes")
-            rows.append(cells(r, f"{r['expert_labels']:,} {labeller} labels ({first} + {rollouts} relabelled "
+            rows.append(cells(r, f"{r['expert_labels']:,} {_labeller(r)} labels ({first} + {rollouts} relabelled "
                                  f"rollout{'s' if rollouts != 1 else ''})", f"{r['train_wall_time_s']:.0f} s"))
-        by = ", MPC labels" if labeller == "MPC" else ""
-        rows.append(seeds_row(f"DAgger, {rounds} {dagger_unit}{'s' if rounds != 1 else ''}{by}", group))
+        rows.append(seeds_row(f"DAgger, {rounds} {dagger_unit}{'s' if rounds != 1 else ''}{suffix}", group))
     return rows
 
 
@@ -79,6 +78,18 @@ def _labeller(row: dict) -> str:
     """Who labelled a DAgger row's rollouts, as a table names it: ``"MPC"`` or ``"expert"`` (the records before
     the labeller was kept: the expert)."""
     return "MPC" if row.get("labeller") == "mpc" else "expert"
+
+
+def _dagger_suffix(row: dict) -> str:
+    """What a DAgger learner's name adds to its iterations: ``, MPC labels`` (labelled by the task's MPC) and
+    ``, best round`` (the run kept its best round, ``--keep best``)."""
+    return (", MPC labels" if _labeller(row) == "MPC" else "") + (", best round" if row.get("keep") == "best" else "")
+
+
+def _by(labeller: str) -> str:
+    """The DAgger label's suffix of a [`_labeller`][_labeller] value."""
+    return ", " + labeller.replace("MPC", "MPC labels").removeprefix("expert").lstrip(", ") if labeller != "expert" \
+        else ""
 
 
 def _rl_name(row: dict) -> str:
@@ -313,10 +324,9 @@ def learner_groups(d: dict) -> list[tuple[str, list]]:
     and labeller, RL per algorithm, residual and checkpoint ([`rl_groups`][rl_groups])."""
     groups = [("BC", d.get("bc", []))] if d.get("bc") else []
     dagger = d.get("dagger", [])
-    for rounds, who in sorted({(r["rounds"], _labeller(r)) for r in dagger}):
-        by = ", MPC labels" if who == "MPC" else ""
-        groups.append((f"DAgger, {rounds} iterations{by}",
-                       [r for r in dagger if (r["rounds"], _labeller(r)) == (rounds, who)]))
+    for rounds, suffix in sorted({(r["rounds"], _dagger_suffix(r)) for r in dagger}):
+        groups.append((f"DAgger, {rounds} iterations{suffix}",
+                       [r for r in dagger if (r["rounds"], _dagger_suffix(r)) == (rounds, suffix)]))
     return groups + rl_groups(d)
 
 
