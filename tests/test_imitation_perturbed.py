@@ -123,6 +123,35 @@ def test_dagger_under_conditions_labels_the_true_state_and_keeps_the_target_spee
         train_dagger(PolicySpec("heuristic"), cfg, env_kwargs={"target_speed": 1.0}, progress=False)
 
 
+def test_dagger_in_a_task_env_runs_the_condition_built_for_the_task():
+    """A task's DAgger rollouts run in the condition built for the task (its push window and sizes, the task's
+    expert labelling the true state under observation noise); a condition the task refuses is an error naming it."""
+    pytest.importorskip("torch")
+    from hsddp_gym.datasets.collection import make_env as make_collection_env
+    from hsddp_gym.envs.perturbations.wrappers import ObservationNoise, RandomPush
+    from hsddp_gym.learning.bc import BCConfig
+    from hsddp_gym.learning.dagger import DAggerConfig, train_dagger
+    from hsddp_gym.registry import TASKS
+
+    flip = TASKS["backflip"]
+    env = make_collection_env(condition="push", env_id=flip.env_id)
+    pushes = env
+    while not isinstance(pushes, RandomPush):
+        pushes = pushes.env
+    assert pushes.unwrapped.spec.id == flip.env_id and tuple(pushes.time_range) == tuple(flip.push_window)
+    env.close()
+    assert isinstance(make_collection_env(condition="obs_noise", env_id=flip.env_id), ObservationNoise)
+    with pytest.raises(ValueError, match="conditions: condition 'speed_2.0' does not apply to hsddp_gym/Backflip"):
+        DAggerConfig(env_id=flip.env_id, conditions=("speed_2.0",))
+    cfg = DAggerConfig(rounds=0, episodes_per_round=1, max_episode_steps=20, env_id=flip.env_id,
+                       conditions=("obs_noise",), bc=BCConfig(hidden=(16,), epochs=1))
+    res = train_dagger(PolicySpec("expert", env_id=flip.env_id), cfg, progress=False)
+    plain = collect_episodes(PolicySpec("expert", env_id=flip.env_id), 1, seed=cfg.seed, max_episode_steps=20,
+                             progress=False, env_id=flip.env_id)[0]
+    np.testing.assert_array_equal(res.data.actions, plain.actions)  # labels: the expert on the true state
+    assert np.abs(res.data.obs - plain.observations[:20]).max() > 0.01  # stored: what the learner saw
+
+
 def test_dagger_behind_the_estimator_stores_what_the_learner_sees(tmp_path):
     """``DAggerConfig.estimator``: under a 10 ms delay the stored inputs are the states the actions will act on (the
     estimate predicted two control steps ahead), not the observations; the queue option is refused with it."""

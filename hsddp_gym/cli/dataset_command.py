@@ -25,9 +25,14 @@ def cmd_dataset(args) -> int:
         check_dataset_id(args.dataset_id, "--dataset-id")
     require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
     parsing.check_conditions(args)
-    if args.condition is not None and args.env != DATASET_ENVS[0]:
-        raise UsageError("--condition", f"given with --env {args.env}",
-                         f"--condition with --env {DATASET_ENVS[0]} only (the conditions perturb Bounding-v0)")
+    if args.condition is not None:
+        from hsddp_gym.datasets.collection import check_task_conditions
+
+        try:
+            check_task_conditions(args.condition, args.env, "--condition")
+        except ValueError as exc:
+            raise UsageError("--condition", str(exc).removeprefix("--condition: "),
+                             "conditions that apply to the task (experiments/robustness.py --help)") from None
     env_choices.check_policy_exists(args.policy, args.env, trained=False)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if env_kwargs:
@@ -135,6 +140,7 @@ def add_parser(sub) -> None:
                         "(e.g. push obs_noise delay_10ms speed_2.0; repeats weight them); episode i runs in the "
                         "(i mod n)-th, its perturbation seeded by its seed, recorded in the metadata "
                         "(episode_conditions, episode_target_speeds). The expert acts on the true state; the "
-                        "stored observations are the perturbed ones (default: the plain env)")
+                        "stored observations are the perturbed ones; in a task's env the conditions that apply to the "
+                        "task, built for it (its push window and sizes) (default: the plain env)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_dataset)

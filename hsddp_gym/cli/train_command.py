@@ -114,8 +114,16 @@ def _check_train_env(args) -> None:
         args.env = env
     if args.env in (None, DEFAULT_ENV):
         return
-    sb3_condition = args.algo in ("ppo", "sac") and not args.vector_env  # a task's own pushes and windows
-    for flag, given in (("--condition", bool(args.condition) and not sb3_condition), ("--estimator", args.estimator),
+    task_condition = args.algo == "dagger" or (args.algo in ("ppo", "sac") and not args.vector_env)  # task-built
+    if args.condition and task_condition:
+        from hsddp_gym.datasets.collection import check_task_conditions
+
+        try:
+            check_task_conditions(args.condition, args.env, "--condition")
+        except ValueError as exc:
+            raise UsageError("--condition", str(exc).removeprefix("--condition: "),
+                             "conditions that apply to the task (experiments/robustness.py --help)") from None
+    for flag, given in (("--condition", bool(args.condition) and not task_condition), ("--estimator", args.estimator),
                         ("--action-queue", bool(args.action_queue))):
         if given:
             raise UsageError(flag, f"given with --env {args.env}", f"only with --env {DEFAULT_ENV}")
@@ -313,7 +321,8 @@ def add_parser(sub) -> None:
     add("--condition", type=parsing.condition, nargs="+", default=None, metavar="NAME",
         help="dagger: run the relabelling rollouts under perturbations, names of "
              "hsddp_gym.envs.perturbations.CONDITIONS (episode j of a round in the (j mod n)-th); the learner acts on "
-             "the perturbed observation, the MPC labels the true state and is told the action sent; ppo/sac: one "
+             "the perturbed observation, the expert labels the true state and is told the action sent; in a task's env "
+             "the conditions that apply to it, with its push window and sizes; ppo/sac: one "
              "name, under which every training robot runs (e.g. push_x3: three random pushes an episode; with "
              "--vector-env only env arguments and pushes), while the evaluations stay on the plain env (default: the "
              "plain env)")

@@ -39,7 +39,8 @@ def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = Non
     [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS]) that condition's
     env (its env arguments and wrappers,
     [`hsddp_gym.envs.perturbations.make_env`][hsddp_gym.envs.perturbations.conditions.make_env]) with ``env_kwargs``
-    added (a key both set raises ``ValueError``; conditions are Bounding-v0's)."""
+    added (a key both set raises ``ValueError``): in a task's env, the condition built for that task (its push window
+    and sizes; a condition that does not apply to the task raises ``ValueError``)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the env)
@@ -49,12 +50,9 @@ def make_env(env_kwargs: dict | None = None, max_episode_steps: int | None = Non
         kw["max_episode_steps"] = int(max_episode_steps)
     env_id = check_env_id(env_id)
     if condition is not None:
-        if env_id != ENV_ID:
-            raise ValueError(f"conditions are perturbations of {ENV_ID}; env_id {env_id!r} takes none, got "
-                             f"condition {condition!r}")
         from hsddp_gym.envs.perturbations import make_env as make_condition_env
 
-        return make_condition_env(condition, **kw)
+        return make_condition_env(condition, env_id=None if env_id == ENV_ID else env_id, **kw)
     return gym.make(env_id, **kw)
 
 
@@ -64,6 +62,24 @@ def episode_conditions(conditions, episodes: int) -> list:
     if not conditions:
         return [None] * int(episodes)
     return [conditions[i % len(conditions)] for i in range(int(episodes))]
+
+
+def check_task_conditions(conditions, env_id: str | None, argument: str = "conditions") -> tuple:
+    """``conditions`` (names of
+    [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS], repeats allowed)
+    as a tuple, each one that applies to the task of ``env_id`` (None: Bounding-v0); ``ValueError`` naming
+    ``argument`` for an unknown name or one the task refuses
+    ([`Condition.refusal`][hsddp_gym.envs.perturbations.conditions.Condition.refusal])."""
+    from hsddp_gym.envs.perturbations import check_conditions, get_condition
+    from hsddp_gym.registry import TASKS, task_of_env_id
+
+    names = check_conditions(list(conditions), argument)
+    task = TASKS["bounding"] if env_id in (None, ENV_ID) else task_of_env_id(env_id)
+    for name in dict.fromkeys(names):
+        reason = get_condition(name).refusal(task)
+        if reason is not None:
+            raise ValueError(f"{argument}: condition {name!r} does not apply to {task.env_id}: {reason}")
+    return names
 
 
 def check_condition_kwargs(conditions, env_kwargs: dict | None) -> None:

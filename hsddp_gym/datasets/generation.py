@@ -245,13 +245,10 @@ def generate_dataset(policy: str | PolicySpec | Callable, episodes: int, out, se
     check_target(out, overwrite)
     env_kwargs = dict(env_kwargs or {})
     env_id = check_env_id(env_id)
-    if conditions is not None and env_id != ENV_ID:
-        raise ValueError(f"conditions are perturbations of {ENV_ID}; env_id {env_id!r} takes none")
     if conditions is not None:
-        from hsddp_gym.datasets.collection import check_condition_kwargs
-        from hsddp_gym.envs.perturbations import check_conditions
+        from hsddp_gym.datasets.collection import check_condition_kwargs, check_task_conditions
 
-        conditions = list(check_conditions(conditions, "conditions"))
+        conditions = list(check_task_conditions(conditions, env_id, "conditions"))
         check_condition_kwargs(conditions, env_kwargs)
     partial = partial_dir(out)
     plan_file = partial / "expert_plan.npz"

@@ -49,8 +49,8 @@ class DAggerConfig:
             (``epochs`` per round, lr schedule restarted) instead of a fresh initialization.
         conditions: names of
             [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS] (empty: the
-            plain env):
-            episode ``j`` of every round runs in ``conditions[j % len(conditions)]`` (its perturbation seeded by
+            plain env; in a task's env, the conditions that apply to the task, built for it: its push window and
+            sizes): episode ``j`` of every round runs in ``conditions[j % len(conditions)]`` (its perturbation seeded by
             its episode seed), so the learner is relabelled in the perturbed states it reaches. The expert
             runs alongside on the *true* state
             ([`hsddp_gym.envs.perturbations.true_observation`][hsddp_gym.envs.perturbations.wrappers.true_observation]:
@@ -71,8 +71,8 @@ class DAggerConfig:
             the estimate is the observation. Excludes ``bc.action_queue`` (the prediction replaces the queue).
         env_id: the env of the rollouts, the learner's interface and the evaluations, one of
             [`hsddp_gym.datasets.recording.DATASET_ENVS`][hsddp_gym.datasets.recording.DATASET_ENVS] (None:
-            Bounding-v0). ``hsddp_gym/Pronking-v0`` takes no ``conditions`` and no ``estimator`` (both are
-            Bounding-v0's); its expert is the pronk plan tracker
+            Bounding-v0). A task's env takes no ``estimator`` (it is Bounding-v0's); the pronk's expert is its plan
+            tracker
             ([`pronking_expert`][hsddp_gym.planners.policies.experts.pronking_expert], ``PolicySpec("expert",
             env_id=...)``).
         keep: which round's learner the result is: ``"last"`` (the last round's) or ``"best"`` (the round whose
@@ -103,13 +103,13 @@ class DAggerConfig:
 
         if self.env_id is not None:
             object.__setattr__(self, "env_id", check_env_id(self.env_id))
-        if self.env_id not in (None, ENV_ID) and (self.conditions or self.estimator):
-            raise ValueError(f"env_id {self.env_id!r} takes no conditions and no estimator (they are {ENV_ID}'s), got "
-                             f"conditions={list(self.conditions)!r}, estimator={self.estimator!r}")
+        if self.env_id not in (None, ENV_ID) and self.estimator:
+            raise ValueError(f"env_id {self.env_id!r} takes no estimator (it is {ENV_ID}'s), got "
+                             f"estimator={self.estimator!r}")
         if self.conditions:
-            from hsddp_gym.envs.perturbations.conditions import check_conditions
+            from hsddp_gym.datasets.collection import check_task_conditions
 
-            object.__setattr__(self, "conditions", check_conditions(list(self.conditions), "conditions"))
+            object.__setattr__(self, "conditions", check_task_conditions(self.conditions, self.env_id, "conditions"))
         elif not isinstance(self.conditions, (tuple, list)):
             raise ValueError(f"conditions must be a list of condition names, got {self.conditions!r}")
         else:
