@@ -7,8 +7,8 @@ speed, the fraction of control steps with matching contact flags and the task's 
 (:func:`hsddp_gym.envs.pronking.pronking_success`); with ``--conditions``, each policy's successes on the same seeds
 under those conditions of the perturbation suite.
 
-    python experiments/pronking.py --mujoco --conditions push obs_noise --bc runs/pronk_bc_s0 runs/pronk_bc_s1 \
-        --dagger runs/pronk_dagger_s0 runs/pronk_dagger_s1 --sac runs/pronk_sac120_s0 --ppo runs/pronk_ppo120_s0 \
+    python experiments/pronking.py --mujoco --conditions push obs_noise --bc runs/pronk_bc_s0 runs/pronk_bc_s1 \\
+        --dagger runs/pronk_dagger_s0 runs/pronk_dagger_s1 --sac runs/pronk_sac120_s0 --ppo runs/pronk_ppo120_s0 \\
         --record results/tasks/pronking.json --made-with "hsddp-gym dataset ..." "hsddp-gym train ..."
 
 ``--bc`` / ``--dagger`` take ``hsddp-gym train --algo bc|dagger --out DIR`` runs, ``--sac`` / ``--ppo`` take
