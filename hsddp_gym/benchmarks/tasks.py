@@ -45,6 +45,13 @@ def task_summary(task: Task, episodes: list[dict]) -> dict:
             **task_measures(task).summarize(episodes)}
 
 
+def episode_columns(episodes: list[dict], keys=None) -> dict:
+    """What a record keeps of a row's episodes: ``{key: [value per episode]}`` for ``keys`` (None: every key of the
+    first episode), in the episodes' order (columns: a record stays small and each column reads on one line)."""
+    keys = list(episodes[0]) if keys is None and episodes else list(keys or ())
+    return {k: [e[k] for e in episodes] for k in keys}
+
+
 TWIN = "mujoco_twin"
 """The key of a row's ``conditions`` that counts its episodes in the task's MuJoCo twin."""
 
@@ -68,9 +75,8 @@ def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet
     t = time.perf_counter()
     eps = run_task_episodes(task, env, policy, seeds)
     env.close()
-    keep = measures.per_episode
     row = {"label": label, "env_id": env_id, **task_summary(task, eps), "wall_time_s": time.perf_counter() - t,
-           "per_episode": eps if keep is None else [{k: e[k] for k in keep} for e in eps]}
+           "per_episode": episode_columns(eps, measures.per_episode)}
     if conditions or twin:
         row["conditions"] = condition_counts(task, spec, seeds, conditions, twin)
     if not quiet:
