@@ -57,13 +57,15 @@ TWIN = "mujoco_twin"
 
 
 def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet: bool, conditions=(),
-                         twin: bool = False) -> dict:
+                         twin: bool = False, episodes: bool = True) -> dict:
     """The row of policy ``spec`` (a name or [`PolicySpec`][hsddp_gym.rollout.policies.PolicySpec],
     [`make_policy`][hsddp_gym.rollout.policies.make_policy]) in ``env_id`` (the task's env or a twin) on ``seeds``;
     with ``conditions`` (names of
     [`hsddp_gym.envs.perturbations.CONDITIONS`][hsddp_gym.envs.perturbations.conditions.CONDITIONS]) or ``twin``, the
     row's ``conditions`` holds the policy's successes on the same seeds in each condition and (key
-    [`TWIN`][TWIN]) in the task's MuJoCo twin ([`condition_counts`][condition_counts])."""
+    [`TWIN`][TWIN]) in the task's MuJoCo twin ([`condition_counts`][condition_counts]). ``episodes``: the row keeps
+    the task's per-episode measures ([`episode_columns`][episode_columns]); else (a learner's row) only the seeds of
+    the episodes that failed and that fell (``failed_seeds``, ``fell_seeds``)."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
@@ -75,8 +77,12 @@ def evaluate_task_policy(task: Task, label: str, env_id: str, spec, seeds, quiet
     t = time.perf_counter()
     eps = run_task_episodes(task, env, policy, seeds)
     env.close()
-    row = {"label": label, "env_id": env_id, **task_summary(task, eps), "wall_time_s": time.perf_counter() - t,
-           "per_episode": episode_columns(eps, measures.per_episode)}
+    row = {"label": label, "env_id": env_id, **task_summary(task, eps), "wall_time_s": time.perf_counter() - t}
+    if episodes:
+        row["per_episode"] = episode_columns(eps, measures.per_episode)
+    else:
+        row.update(failed_seeds=[e["seed"] for e in eps if not e["success"]],
+                   fell_seeds=[e["seed"] for e in eps if e["fell"]])
     if conditions or twin:
         row["conditions"] = condition_counts(task, spec, seeds, conditions, twin)
     if not quiet:
@@ -157,8 +163,8 @@ def imitation_rows(task: Task, runs, algo: str, seeds, quiet: bool, rounds_word:
             if fields.get("keep") == "best":
                 by += f", best round ({fields['selected_round']})"
             label = f"DAgger, {n} {rounds_word}{'s' if n != 1 else ''}{by} (training seed {fields['training_seed']})"
-        rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet, conditions, twin),
-                     **fields})
+        rows.append({**evaluate_task_policy(task, label, task.env_id, f"{algo}:{run}", seeds, quiet, conditions, twin,
+                                            episodes=False), **fields})
     return rows
 
 
@@ -190,14 +196,15 @@ def rl_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = Fa
             name = "final weights" if checkpoint == "final" else "best checkpoint"
             row = evaluate_task_policy(task, f"{rl_label(algo, train)} (training seed {train['seed']}, {name})",
                                        task.env_id, PolicySpec(f"{algo}:{run}", options={"checkpoint": checkpoint}),
-                                       seeds, quiet, conditions, twin)
+                                       seeds, quiet, conditions, twin, episodes=False)
             best = train.get("best_checkpoint") or {}
             row.update(run=str(run), algo=algo, residual=train.get("residual"), training_seed=int(train["seed"]),
                        checkpoint=checkpoint,
                        env_steps=int(train["steps"]) if checkpoint == "final" else int(best["env_step"]),
-                       total_env_steps=int(train["steps"]), train_wall_time_s=float(train["wall_time_s"]),
-                       time_limit_s=train.get("time_limit_s"), preset=train.get("preset"),
-                       hyperparameters=train["hyperparameters"])
+                       total_env_steps=int(train["steps"]), train_wall_time_s=float(train["wall_time_s"]))
+            if checkpoint == "final":  # the run's settings, once per run
+                row.update(time_limit_s=train.get("time_limit_s"), preset=train.get("preset"),
+                           hyperparameters=train["hyperparameters"])
             rows.append(row)
     return rows
 

@@ -139,9 +139,16 @@ def _is_leaf(value) -> bool:
     return all(not isinstance(v, (list, dict, str)) for v in value)
 
 
+SHORT_LINE = 100
+"""A list or object (no list of strings) whose JSON takes at most this many characters goes on one line."""
+
+
 def _layout(value, depth: int) -> str:
-    if isinstance(value, (list, dict)) and (not value or _is_leaf(value)):
-        return json.dumps(value, allow_nan=False, separators=(", ", ": "))
+    if isinstance(value, (list, dict)):
+        line = json.dumps(value, allow_nan=False, separators=(", ", ": "))
+        strings = isinstance(value, list) and any(isinstance(v, str) for v in value)
+        if not value or _is_leaf(value) or (len(line) <= SHORT_LINE and not strings):
+            return line
     pad, inner = " " * depth, " " * (depth + 1)
     if isinstance(value, list):
         body = ",\n".join(inner + _layout(v, depth + 1) for v in value)
@@ -153,9 +160,9 @@ def _layout(value, depth: int) -> str:
 
 
 def dumps(payload) -> str:
-    """JSON with one key per line, except that an object of scalars (one episode's fields) and a list of numbers go on
-    one line; floats to [`SIGNIFICANT_DIGITS`][SIGNIFICANT_DIGITS] (records stay small and
-    diffable)."""
+    """JSON with one key per line, except that an object of scalars (one episode's fields), a list of numbers and a
+    short list or object ([`SHORT_LINE`][SHORT_LINE] characters; no list of strings) go on one line; floats to
+    [`SIGNIFICANT_DIGITS`][SIGNIFICANT_DIGITS] (records stay small and diffable)."""
     plain = json.loads(json.dumps(payload, default=json_default, allow_nan=False))
     return _layout(_rounded(plain), 0)
 
