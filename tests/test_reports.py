@@ -232,14 +232,16 @@ def test_records_keep_eight_significant_digits(tmp_path):
 
 
 def test_a_record_puts_one_episode_and_one_row_of_numbers_per_line(tmp_path):
-    """An object of scalars and a list of numbers take one line each; a list of strings one line per string; nesting
-    keeps one key per line; the data read back is the data written."""
-    data = {"rows": [{"label": "mpc", "per_episode": [{"seed": 1, "fell": False, "x": None}, {"seed": 2, "fell": True,
-                                                                                          "x": 0.5}]}],
-            "seeds": [1, 2], "conditions": ["push", "obs_noise"], "empty": {}, "nested": [[1, 2], [3]]}
+    """An object of scalars and a list of numbers take one line each, and so does any short list or object; a list of
+    strings takes one line per string; longer nesting keeps one key per line; the data read back are the data
+    written."""
+    episodes = [{"seed": s, "fell": s % 2 == 0, "x": None, "return": 100.0 + s} for s in range(4)]
+    data = {"rows": [{"label": "mpc", "per_episode": episodes}], "seeds": [1, 2], "conditions": ["push", "obs_noise"],
+            "empty": {}, "nested": [[1, 2], [3]], "long": [[float(i) for i in range(30)], [1.0]]}
     path = write_record(tmp_path / "x" / "y.json", data, "d", command=["a", "b"], machine={})
     lines = path.read_text().splitlines()
-    assert '     {"seed": 1, "fell": false, "x": null},' in lines
-    assert '  "seeds": [1, 2],' in lines and '  "empty": {},' in lines and '   [1, 2],' in lines
+    assert '     {"seed": 1, "fell": false, "x": null, "return": 101.0},' in lines  # one episode, one line
+    assert '  "seeds": [1, 2],' in lines and '  "empty": {},' in lines and '  "nested": [[1, 2], [3]],' in lines
+    assert '   [1.0]' in lines  # a long list of lists: one row per line
     assert '   "push",' in lines and ' "command": [' in lines and '  "a",' in lines
     assert read_record(path).data == data
