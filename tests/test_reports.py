@@ -237,7 +237,7 @@ def test_a_record_puts_one_episode_and_one_row_of_numbers_per_line(tmp_path):
     written."""
     episodes = [{"seed": s, "fell": s % 2 == 0, "x": None, "return": 100.0 + s} for s in range(4)]
     data = {"rows": [{"label": "mpc", "per_episode": episodes}], "seeds": [1, 2], "conditions": ["push", "obs_noise"],
-            "empty": {}, "nested": [[1, 2], [3]], "long": [[float(i) for i in range(30)], [1.0]]}
+            "empty": {}, "nested": [[1, 2], [3]], "long": [[float(i) for i in range(60)], [1.0]]}
     path = write_record(tmp_path / "x" / "y.json", data, "d", command=["a", "b"], machine={})
     lines = path.read_text().splitlines()
     assert '     {"seed": 1, "fell": false, "x": null, "return": 101.0},' in lines  # one episode, one line

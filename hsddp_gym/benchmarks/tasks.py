@@ -97,20 +97,18 @@ def condition_counts(task: Task, spec, seeds, conditions=(), twin: bool = False)
     """``{name: {"successes", "falls", "episodes"}}`` of policy ``spec`` playing one episode per seed in each
     condition of ``conditions`` (built for the task's env,
     [`make_env`][hsddp_gym.envs.perturbations.conditions.make_env]; a fresh policy per condition, told the
-    condition's env) and, with
-    ``twin``, in the task's MuJoCo twin (key [`TWIN`][TWIN]); ``ValueError`` for a condition that does not apply to
-    the task or a task without a MuJoCo twin."""
+    condition's env) and, with ``twin``, in the task's MuJoCo twin (key [`TWIN`][TWIN]); ``ValueError`` for a
+    condition that does not apply to the task
+    ([`check_task_conditions`][hsddp_gym.datasets.collection.check_task_conditions]) or a task without a MuJoCo
+    twin."""
     import gymnasium as gym
 
     import hsddp_gym  # noqa: F401  (registers the envs)
-    from hsddp_gym.envs.perturbations import check_conditions, get_condition, make_env
+    from hsddp_gym.datasets.collection import check_task_conditions
+    from hsddp_gym.envs.perturbations import make_env
     from hsddp_gym.rollout.policies import make_policy
 
-    names = check_conditions(list(conditions)) if len(conditions) else ()
-    for name in names:
-        reason = get_condition(name).refusal(task)
-        if reason is not None:
-            raise ValueError(f"condition {name!r} does not apply to the task {task.name!r}: {reason}")
+    names = check_task_conditions(conditions, task.env_id) if len(conditions) else ()
     if twin and task.twin_id is None:
         raise ValueError(f"twin: the task {task.name!r} has no MuJoCo twin")
     builders = [(n, lambda n=n: make_env(n, env_id=task.env_id)) for n in dict.fromkeys(names)]

@@ -139,7 +139,7 @@ def _is_leaf(value) -> bool:
     return all(not isinstance(v, (list, dict, str)) for v in value)
 
 
-SHORT_LINE = 100
+SHORT_LINE = 180
 """A list or object (no list of strings) whose JSON takes at most this many characters goes on one line."""
 
 

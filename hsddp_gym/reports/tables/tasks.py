@@ -93,11 +93,12 @@ def _by(labeller: str) -> str:
 
 
 def _rl_name(row: dict) -> str:
-    """How the tables name an RL row's learner: ``SAC`` / ``PPO``, with its residual scale when it learned a residual
-    on the expert (the records before the algorithm was kept: SAC)."""
-    residual = row.get("residual")
-    return row.get("algo", "sac").upper() + (
-        f", residual on the expert (scale {residual['scale']:g})" if residual else "")
+    """How the tables name an RL row's learner
+    ([`hsddp_gym.benchmarks.tasks.rl_label`][hsddp_gym.benchmarks.tasks.rl_label]; the records before the algorithm
+    was kept: SAC)."""
+    from hsddp_gym.benchmarks.tasks import rl_label
+
+    return rl_label(row.get("algo", "sac"), row)
 
 
 def rl_groups(d: dict) -> list[tuple[str, list]]:
