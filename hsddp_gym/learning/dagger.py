@@ -24,8 +24,8 @@ KEEP = ("last", "best")
 
 def round_rank(evaluation: dict) -> tuple:
     """The key a ``keep="best"`` run minimizes over its rounds' evaluations
-    ([`hsddp_gym.learning.reporting.eval_brief`][hsddp_gym.learning.reporting.eval_brief]): falls, then minus the
-    mean return."""
+    (``eval_brief`` of [`hsddp_gym.learning.reporting`][hsddp_gym.learning.reporting]): falls, then minus the mean
+    return."""
     return (int(evaluation["falls"]), -float(evaluation["mean_return"]))
 
 
