@@ -574,3 +574,34 @@ def test_rl_trains_in_bounding_and_every_task_with_an_expert():
         assert check_env_id(env_id) == env_id
     with pytest.raises(ValueError, match="Terrain-v0"):
         check_env_id("hsddp_gym/Terrain-v0")
+
+
+def test_bc_input_noise_teaches_the_clean_label_from_a_noisy_measurement(tmp_path):
+    """With ``input_noise`` the network is trained on noisy positions and velocities against the clean labels: a label
+    that jumps with one velocity is learned as a smooth ramp over the noise's width (the expert's expected action
+    given a noisy reading), without it as the step; the setting is validated and kept in ``policy.npz``."""
+    from hsddp_gym.learning.bc import MLPPolicy
+    from hsddp_gym.learning.demonstrations import Demonstrations
+
+    rng = np.random.default_rng(0)
+    obs = rng.uniform(-1.0, 1.0, (4000, 17))  # every entry varies; the label reads one observed velocity
+    actions = np.zeros((len(obs), 4))
+    actions[:, 0] = np.where(obs[:, 7] > 0.0, 0.8, -0.8)  # a step in that velocity
+    demos = Demonstrations(obs, actions, np.zeros(len(obs), dtype=np.int64))
+    probe = np.zeros((3, 17))
+    probe[:, 7] = [-0.05, 0.0, 0.05]  # the others at their mean
+
+    def slope(config):
+        policy, _ = train_bc(demos, config)
+        a = np.stack([policy(o) for o in probe])[:, 0]
+        return (a[2] - a[0]) / 0.1, policy
+
+    base = dict(hidden=(32, 32), epochs=30, seed=0)
+    sharp, _ = slope(BCConfig(**base))
+    smooth, policy = slope(BCConfig(**base, input_noise=(0.0, 0.3)))
+    assert sharp > 6.0 and 0.5 < smooth < 3.5  # a ramp of width ~0.3: slope ~ 1.6 / (0.3 sqrt(2 pi)) ~ 2.1
+    policy.save(tmp_path / "p.npz")
+    assert MLPPolicy.load(tmp_path / "p.npz").config.input_noise == (0.0, 0.3)
+    for bad in ((0.1,), (-0.1, 0.1), (0.1, float("nan")), "0.1 0.1"):
+        with pytest.raises(ValueError, match="input_noise"):
+            BCConfig(input_noise=bad)

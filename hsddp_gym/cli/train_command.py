@@ -28,7 +28,8 @@ GROUPS = {
     "bc": ("behaviour cloning (bc, and the BC updates of dagger)",
            {"--dataset": _MLP, "--format": _MLP, "--demos": _MLP, "--epochs": _MLP, "--batch-size": _MLP,
             "--features": _MLP, "--weight-decay": _MLP, "--lr-decay": _MLP, "--speed-input": _MLP,
-            "--action-queue": _MLP, "--gain-copies": ("bc",), "--gain-noise": ("bc",), "--curve": ("bc",)}),
+            "--action-queue": _MLP, "--input-noise": _MLP, "--gain-copies": ("bc",), "--gain-noise": ("bc",),
+            "--curve": ("bc",)}),
     "dagger": ("DAgger (dagger)",
                {"--expert": ("dagger",), "--rounds": ("dagger",), "--episodes-per-round": ("dagger",),
                 "--beta-decay": ("dagger",), "--rollout-noise": ("dagger",), "--rollout-steps": ("dagger",),
@@ -87,6 +88,8 @@ def _bc_extra(args) -> dict:
     extra = {"features": args.features, "weight_decay": args.weight_decay, "lr_decay": bool(args.lr_decay),
              "gain_copies": args.gain_copies, "speed_input": bool(args.speed_input),
              "action_queue": args.action_queue}
+    if args.input_noise is not None:
+        extra["input_noise"] = tuple(args.input_noise)
     if args.gain_noise is not None:
         extra["gain_position_std"], extra["gain_velocity_std"] = args.gain_noise
     if args.hidden:
@@ -365,6 +368,10 @@ def add_parser(sub) -> None:
     add("--gain-copies", type=parsing.nonnegative_int, default=0,
         help="perturbed copies of every demonstration labelled with the expert's feedback law u + K dx (needs a "
              "dataset made with --gains; hsddp_gym.learning.gain_labels); 0: off (default: %(default)s)")
+    add("--input-noise", type=parsing.nonnegative_float, nargs=2, metavar=("POS_STD", "VEL_STD"), default=None,
+        help="Gaussian noise on the observed positions [m, rad] and velocities [m/s, rad/s] of every training "
+             "minibatch, labels unchanged: the learner acts as the expert would on the true state under observation "
+             "noise (e.g. 0.01 0.1, the obs_noise condition's) (default: none)")
     add("--gain-noise", type=parsing.nonnegative_float, nargs=2, metavar=("POS_STD", "VEL_STD"), default=None,
         help="standard deviations of the state offsets of --gain-copies, positions [m, rad] and velocities "
              "[m/s, rad/s] (default: 0.01 0.1)")

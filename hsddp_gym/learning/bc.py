@@ -33,7 +33,13 @@ ACTIVATIONS = ("relu", "tanh")
 # ================================================================================================ config
 @dataclasses.dataclass(frozen=True)
 class BCConfig:
-    """Behaviour-cloning settings (defaults documented in the module docstring)."""
+    """Behaviour-cloning settings (defaults documented in the module docstring).
+
+    ``input_noise``: ``(position_std, velocity_std)`` [m or rad, m/s or rad/s] of Gaussian noise added to the observed
+    positions and velocities of every minibatch's inputs (fresh noise per minibatch; contact flags, clock and extra
+    features untouched), the labels unchanged: the learner is taught the expert's action for the true state from a
+    noisy measurement of it, as under observation noise (``ObservationNoise``); ``(0, 0)``: none.
+    """
 
     hidden: tuple = (256, 256)
     activation: str = "relu"
@@ -52,6 +58,7 @@ class BCConfig:
     gain_velocity_std: float = 0.1
     speed_input: bool = False
     action_queue: int = 0
+    input_noise: tuple = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         if self.features not in FEATURES:
@@ -73,10 +80,15 @@ class BCConfig:
         for name in ("gain_position_std", "gain_velocity_std"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        noise = tuple(self.input_noise) if isinstance(self.input_noise, (tuple, list)) else ()
+        if len(noise) != 2 or not all(isinstance(v, (int, float)) and v >= 0 and np.isfinite(v) for v in noise):
+            raise ValueError(f"input_noise must be (position_std, velocity_std), both >= 0, got {self.input_noise!r}")
+        object.__setattr__(self, "input_noise", tuple(float(v) for v in noise))
 
     def to_dict(self) -> dict:
         d = dataclasses.asdict(self)
         d["hidden"] = [int(h) for h in self.hidden]
+        d["input_noise"] = list(self.input_noise)
         return d
 
 
@@ -281,13 +293,24 @@ def train_bc(demos: Demonstrations, config: BCConfig = BCConfig(), interface: En
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, int(config.epochs)) if config.lr_decay else None
     gen = torch.Generator().manual_seed(int(config.seed))
     n, bs = len(X), min(int(config.batch_size), len(X))
+    noise = None  # per input column, the std of the input noise in standardized units
+    if any(config.input_noise):
+        scale = np.zeros(X.shape[1])
+        layout = interface.layout
+        scale[layout.qpos] = config.input_noise[0] / std[layout.qpos]
+        scale[layout.qvel] = config.input_noise[1] / std[layout.qvel]
+        noise = torch.as_tensor(scale, dtype=torch.float32)
     losses = []
     for epoch in range(int(config.epochs)):
         perm = torch.randperm(n, generator=gen)
         total = 0.0
         for start in range(0, n, bs):
             idx = perm[start:start + bs]
-            loss = ((net(X[idx]) - Y[idx]) ** 2).mean()
+            xb = X[idx]
+            if noise is not None:  # standardized and clipped as the policy's inputs are
+                xb = torch.clamp(xb + noise * torch.randn(len(idx), X.shape[1], generator=gen), -config.obs_clip,
+                                 config.obs_clip)
+            loss = ((net(xb) - Y[idx]) ** 2).mean()
             opt.zero_grad()
             loss.backward()
             opt.step()
