@@ -238,7 +238,8 @@ def test_train_refuses_every_option_an_algorithm_does_not_use(tmp_path, no_long_
 
     parser = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices["train"]
     actions = {a.option_strings[0]: a for a in parser._actions}
-    values = {"--condition": ["push"], "--hidden": ["8"], "--curve": ["1"], "--gain-noise": ["0.01", "0.1"]}
+    values = {"--condition": ["push"], "--hidden": ["8"], "--curve": ["1"], "--gain-noise": ["0.01", "0.1"],
+              "--input-noise": ["0.01", "0.1"]}
     checked = 0
     for option, algos in OPTION_ALGOS.items():
         action = actions[option]
