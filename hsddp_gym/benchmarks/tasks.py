@@ -170,17 +170,11 @@ RL_ALGOS = ("sac", "ppo")
 """The reinforcement-learning algorithms a task evaluation takes runs of (``--sac``, ``--ppo``)."""
 
 
-def rl_label(algo: str, train: dict) -> str:
-    """How a table names an ``hsddp-gym train --algo sac|ppo`` run: ``SAC`` / ``PPO``, ``residual on the expert`` for a
-    run with ``--residual``."""
-    residual = train.get("residual")
-    return algo.upper() + (f", residual on the expert (scale {residual['scale']:g})" if residual else "")
-
-
 def rl_rows(task: Task, runs, seeds, quiet: bool, conditions=(), twin: bool = False, algo: str = "sac") -> list[dict]:
     """The rows of the ``hsddp-gym train --algo sac|ppo`` runs ``runs`` (``algo``): each with its final weights and its
     best checkpoint (when it has one), both with the mean action (and their successes in ``conditions`` and the
     ``twin``)."""
+    from hsddp_gym.learning.reporting import rl_label
     from hsddp_gym.rollout.policies import PolicySpec
 
     if algo not in RL_ALGOS:

@@ -31,6 +31,14 @@ def imitation_run_fields(run, algo: str) -> dict:
     return fields
 
 
+def rl_label(algo: str, train: dict) -> str:
+    """How the task tables name an ``hsddp-gym train --algo sac|ppo`` run (``train``: its ``summary.json`` or a record's
+    row of it, ``residual`` read from either): ``SAC`` / ``PPO``, with ``residual on the expert (scale s)`` for a run
+    with ``--residual``."""
+    residual = train.get("residual")
+    return algo.upper() + (f", residual on the expert (scale {residual['scale']:g})" if residual else "")
+
+
 def evaluate_policy_episodes(policy, episodes: int = 10, seed: int = 0, env_kwargs: dict | None = None,
                              max_episode_steps: int | None = None, reset_options: dict | None = None,
                              env_id: str | None = None) -> dict:

@@ -94,9 +94,9 @@ def _by(labeller: str) -> str:
 
 def _rl_name(row: dict) -> str:
     """How the tables name an RL row's learner
-    ([`hsddp_gym.benchmarks.tasks.rl_label`][hsddp_gym.benchmarks.tasks.rl_label]; the records before the algorithm
+    ([`hsddp_gym.learning.reporting.rl_label`][hsddp_gym.learning.reporting.rl_label]; the records before the algorithm
     was kept: SAC)."""
-    from hsddp_gym.benchmarks.tasks import rl_label
+    from hsddp_gym.learning.reporting import rl_label
 
     return rl_label(row.get("algo", "sac"), row)
 
