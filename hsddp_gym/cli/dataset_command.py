@@ -26,13 +26,7 @@ def cmd_dataset(args) -> int:
     require(["minari", "h5py"], "hsddp-gym dataset (it writes a Minari dataset)")
     parsing.check_conditions(args)
     if args.condition is not None:
-        from hsddp_gym.datasets.collection import check_task_conditions
-
-        try:
-            check_task_conditions(args.condition, args.env, "--condition")
-        except ValueError as exc:
-            raise UsageError("--condition", str(exc).removeprefix("--condition: "),
-                             "conditions that apply to the task (experiments/robustness.py --help)") from None
+        parsing.check_task_condition_names(args.condition, args.env)
     env_choices.check_policy_exists(args.policy, args.env, trained=False)
     env_kwargs = {} if args.target_speed is None else {"target_speed": args.target_speed}
     if env_kwargs:

@@ -131,6 +131,18 @@ def check_conditions(args, flag: str = "--condition") -> None:
                          "either --target-speed or speed conditions")
 
 
+def check_task_condition_names(names, env_id, flag: str = "--condition") -> None:
+    """UsageError naming ``flag`` when a condition of ``names`` does not apply to the task of ``env_id``
+    ([`hsddp_gym.datasets.collection.check_task_conditions`][hsddp_gym.datasets.collection.check_task_conditions])."""
+    from hsddp_gym.datasets.collection import check_task_conditions
+
+    try:
+        check_task_conditions(names, env_id, flag)
+    except ValueError as exc:
+        raise UsageError(flag, str(exc).removeprefix(f"{flag}: "),
+                         "conditions that apply to the task (experiments/robustness.py --help)") from None
+
+
 def print_values(summary: dict, keys, width: int, digits: int = 4) -> None:
     """Print ``  key value`` lines of ``summary``'s ``keys`` present (floats with ``digits`` significant digits)."""
     for k in keys:

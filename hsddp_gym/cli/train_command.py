@@ -119,13 +119,7 @@ def _check_train_env(args) -> None:
         return
     task_condition = args.algo == "dagger" or (args.algo in ("ppo", "sac") and not args.vector_env)  # task-built
     if args.condition and task_condition:
-        from hsddp_gym.datasets.collection import check_task_conditions
-
-        try:
-            check_task_conditions(args.condition, args.env, "--condition")
-        except ValueError as exc:
-            raise UsageError("--condition", str(exc).removeprefix("--condition: "),
-                             "conditions that apply to the task (experiments/robustness.py --help)") from None
+        parsing.check_task_condition_names(args.condition, args.env)
     for flag, given in (("--condition", bool(args.condition) and not task_condition), ("--estimator", args.estimator),
                         ("--action-queue", bool(args.action_queue))):
         if given:
