@@ -210,7 +210,7 @@ def test_cli_condition_errors(capsys):
             (["train", "--algo", "bc", "--dataset", "x", "--condition", "push", "--out", "y"],
              "--condition: given with --algo bc"),
             (["dataset", "--env", "hsddp_gym/Backflip-v0", "--condition", "speed_0.5", "--out", "x"],
-             "--condition: condition 'speed_0.5' does not apply to hsddp_gym/Backflip-v0: the task fixes its own speed"),
+             "--condition: condition 'speed_0.5' does not apply to hsddp_gym/Backflip-v0: the task fixes"),
             (["train", "--algo", "dagger", "--env", "hsddp_gym/GapJump-v0", "--condition", "push", "speed_2.0",
               "--out", "y"], "--condition: condition 'speed_2.0' does not apply to hsddp_gym/GapJump-v0"),
             (["train", "--algo", "bc", "--dataset", "x", "--workers", "2", "--out", "y"],
