@@ -74,3 +74,31 @@ def test_the_success_interval_is_the_t_interval_of_the_seed_rates():
     assert success_cell(rows) == "57/60 (83-100 %)"
     assert success_cell(rows[:1]) == "20/20"
     assert success_cell([{"successes": 20, "episodes": 20}] * 3) == "60/60 (100 % every seed)"
+
+
+def test_a_tiny_bc_and_ppo_of_a_task_go_through_the_evaluation_into_the_table(tmp_path):
+    """The task table's path end to end at toy size: a dataset of the task's expert, BC on it and PPO from scratch in
+    the task's env (``hsddp-gym``), evaluated on 2 seeds, under a push and in the twin, recorded and tabulated."""
+    pytest.importorskip("stable_baselines3")
+    from hsddp_gym import cli
+    from hsddp_gym.reports.store import read_record
+
+    env = TASKS["stand_to_bound"].env_id
+    data, bc, ppo = tmp_path / "ds", tmp_path / "bc", tmp_path / "ppo"
+    assert cli.main(["dataset", "--env", env, "--policy", "expert", "--episodes", "2", "--max-episode-steps", "40",
+                     "--seed", "5", "--out", str(data), "--quiet"]) == 0
+    assert cli.main(["train", "--algo", "bc", "--dataset", str(data), "--epochs", "2", "--eval-episodes", "1",
+                     "--max-episode-steps", "20", "--out", str(bc), "--quiet"]) == 0
+    assert cli.main(["train", "--algo", "ppo", "--env", env, "--steps", "200", "--eval-freq", "0", "--eval-episodes",
+                     "1", "--max-episode-steps", "20", "--out", str(ppo), "--quiet"]) == 0
+    record = tmp_path / "results" / "tasks" / "stand_to_bound.json"
+    assert task_evaluation_main(["--task", "stand_to_bound", "--episodes", "2", "--bc", str(bc), "--ppo", str(ppo),
+                                 "--conditions", "push", "--mujoco", "--record", str(record), "--quiet"], "d") == 0
+    rec = read_record(record).data
+    assert [r["label"] for r in rec["ppo"]] == ["PPO (training seed 0, final weights)"]  # no best checkpoint: none
+    for row in rec["bc"] + rec["ppo"]:
+        assert set(row["conditions"]) == {"push", TWIN} and row["episodes"] == 2 and "per_episode" not in row
+        assert set(row["failed_seeds"]) <= {9700, 9701} and set(row["fell_seeds"]) <= set(row["failed_seeds"])
+    assert rec["ppo"][0]["hyperparameters"]["n_steps"] == 512
+    text = tasks_summary(Store(tmp_path))
+    assert "| PPO (final weights) |" in text and "| BC |" in text
