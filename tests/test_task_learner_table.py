@@ -25,6 +25,8 @@ def test_a_condition_that_cannot_apply_or_is_unknown_is_refused_naming_it(capsys
         condition_counts(TASKS["backflip"], "expert", [9600], ("speed_0.5",))
     with pytest.raises(ValueError, match="unknown condition"):
         condition_counts(TASKS["backflip"], "expert", [9600], ("sideways",))
+    with pytest.raises(ValueError, match="a non-empty list of condition names, got 'push'"):
+        condition_counts(TASKS["backflip"], "expert", [9600], "push")  # a name, not a list of names
     for bad, said in (("speed_0.5", "does not apply"), ("sideways", "unknown condition")):
         with pytest.raises(SystemExit):
             task_evaluation_main(["--task", "backflip", "--conditions", bad], "d")

@@ -73,7 +73,7 @@ def check_task_conditions(conditions, env_id: str | None, argument: str = "condi
     from hsddp_gym.envs.perturbations import check_conditions, get_condition
     from hsddp_gym.registry import TASKS, task_of_env_id
 
-    names = check_conditions(list(conditions), argument)
+    names = check_conditions(list(conditions) if isinstance(conditions, (list, tuple)) else conditions, argument)
     task = TASKS["bounding"] if env_id in (None, ENV_ID) else task_of_env_id(env_id)
     for name in dict.fromkeys(names):
         reason = get_condition(name).refusal(task)

@@ -62,8 +62,7 @@ def _imitation_rows(d: dict, cells, seeds_row, dagger_unit: str) -> list:
                           f"{r['train_wall_time_s']:.0f} s"))
     if d["bc"]:
         rows.append(seeds_row("BC", d["bc"]))
-    for rounds, suffix in dict.fromkeys((r["rounds"], _dagger_suffix(r)) for r in d.get("dagger", [])):
-        group = [r for r in d["dagger"] if (r["rounds"], _dagger_suffix(r)) == (rounds, suffix)]
+    for (rounds, suffix), group in _dagger_groups(d):
         for r in group:
             rollouts = r["rounds"] * r["episodes_per_round"]
             first = (f"{r['initial_demonstrations']} demos" if r.get("initial_demonstrations") is not None else
@@ -78,6 +77,15 @@ def _labeller(row: dict) -> str:
     """Who labelled a DAgger row's rollouts, as a table names it: ``"MPC"`` or ``"expert"`` (the records before
     the labeller was kept: the expert)."""
     return "MPC" if row.get("labeller") == "mpc" else "expert"
+
+
+def _dagger_groups(d: dict) -> list[tuple[tuple[int, str], list]]:
+    """A task record's DAgger rows grouped by ``(rounds, suffix)`` ([`_dagger_suffix`][_dagger_suffix]), one row per
+    training seed, the groups in the record's order."""
+    groups: dict = {}
+    for r in d.get("dagger", []):
+        groups.setdefault((r["rounds"], _dagger_suffix(r)), []).append(r)
+    return list(groups.items())
 
 
 def _dagger_suffix(row: dict) -> str:
@@ -324,10 +332,8 @@ def learner_groups(d: dict) -> list[tuple[str, list]]:
     """A task record's learners as ``(name, rows)``, one row per training seed: BC, DAgger per number of iterations
     and labeller, RL per algorithm, residual and checkpoint ([`rl_groups`][rl_groups])."""
     groups = [("BC", d.get("bc", []))] if d.get("bc") else []
-    dagger = d.get("dagger", [])
-    for rounds, suffix in sorted({(r["rounds"], _dagger_suffix(r)) for r in dagger}):
-        groups.append((f"DAgger, {rounds} iterations{suffix}",
-                       [r for r in dagger if (r["rounds"], _dagger_suffix(r)) == (rounds, suffix)]))
+    for (rounds, suffix), group in sorted(_dagger_groups(d), key=lambda g: g[0]):
+        groups.append((f"DAgger, {rounds} iterations{suffix}", group))
     return groups + rl_groups(d)
 
 
